@@ -1,0 +1,116 @@
+// bloomref run [IN] -o OUT.exr|OUT.png ... : the main job.
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include "bloomref/error.h"
+#include "bloomref/executor.h"
+#include "bloomref/io.h"
+#include "bloomref/scenes.h"
+#include "commands.h"
+#include "json_out.h"
+#include "options.h"
+
+namespace bloomref::cli {
+namespace {
+
+struct RunArgs {
+  std::string input;
+  std::vector<std::string> outputs;
+  std::string backend = "cpu";
+  std::string dump_dir;
+  std::string json_path;
+  bool quiet = false;
+  PipelineOptions pipeline;
+};
+
+int run(const RunArgs& a) {
+  if (a.backend != "cpu" && a.backend != "gl")
+    throw ParamError("--backend '" + a.backend + "' is not one of: cpu, gl");
+  if (a.backend == "gl") {
+    std::cerr << "bloomref: the GL backend is not available in this build (only --backend cpu)\n";
+    return 3;
+  }
+  if (a.outputs.empty() && a.dump_dir.empty() && a.json_path.empty())
+    throw ParamError("nothing to write: give -o OUT.exr and/or -o OUT.png (or --dump-stages, --json)");
+
+  // Check every destination before the (possibly long) work starts.
+  for (const std::string& o : a.outputs) {
+    const std::string e = std::filesystem::path(o).extension().string();
+    if (e != ".exr" && e != ".png" && e != ".EXR" && e != ".PNG")
+      throw InputError(o, "cannot write '" + e + "' files: the output must end in .exr or .png");
+    if (!a.input.empty()) refuse_overwrite(o, a.input);
+  }
+  if (!a.json_path.empty() && !a.input.empty()) refuse_overwrite(a.json_path, a.input);
+
+  LoadedImage in;
+  std::string source;
+  if (!a.input.empty()) {
+    in = load_image(a.input);
+    source = a.input;
+  } else {
+    int w = 0, h = 0;
+    a.pipeline.scene_size(w, h);
+    in.image = make_scene(a.pipeline.scene, w, h);
+    in.info.path = "scene:" + a.pipeline.scene;
+    source = in.info.path;
+  }
+  const Plan plan = make_plan(a.pipeline.params, in.image.cview(), source);
+  ExecuteOptions eo;
+  eo.keep_all = !a.dump_dir.empty();
+  const StageTrace trace = execute(plan, in.image.cview(), eo);
+
+  const ImageInfo* windows = a.input.empty() ? nullptr : &in.info;
+  for (const std::string& o : a.outputs) save_image(o, trace.final_image().cview(), windows);
+  if (!a.dump_dir.empty()) {
+    std::filesystem::create_directories(a.dump_dir);
+    for (const StageResult& s : trace.stages) {
+      const std::string path = (std::filesystem::path(a.dump_dir) / (s.name + ".exr")).string();
+      if (!a.input.empty()) refuse_overwrite(path, a.input);
+      save_exr(path, s.image.cview(), windows);
+    }
+  }
+  if (!a.json_path.empty()) {
+    nlohmann::json j = run_json(plan, trace);
+    j["input"] = {{"path", in.info.path},     {"format", in.info.format},
+                  {"layout", in.info.layout}, {"channels", in.info.channels},
+                  {"has_alpha", in.info.has_alpha}};
+    j["outputs"] = a.outputs;
+    save_text(a.json_path, j.dump(2) + "\n");
+  }
+  if (!a.quiet) {
+    const NonFiniteCounts& c = plan.facts.nonfinite;
+    std::cout << source << ": " << plan.facts.width << "x" << plan.facts.height << ", "
+              << plan.facts.bright_pixels << " bright pixels, " << c.total()
+              << " non-finite values (" << to_string(plan.params.nonfinite) << "), "
+              << trace.total_ms << " ms";
+    const auto skipped = plan.skipped_names();
+    if (!skipped.empty()) std::cout << ", skipped " << skipped.size() << " stage(s)";
+    for (const std::string& o : a.outputs) std::cout << "\n  wrote " << o;
+    if (!a.dump_dir.empty())
+      std::cout << "\n  wrote " << trace.stages.size() << " stages to " << a.dump_dir << "/";
+    std::cout << "\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+std::function<int()> add_run(CLI::App& app) {
+  auto args = std::make_shared<RunArgs>();
+  CLI::App* sub = app.add_subcommand("run", "apply bloom to an image (or a built-in scene)");
+  sub->add_option("IN", args->input, "input image (EXR, HDR, PNG, TIFF...); none = --scene");
+  sub->add_option("-o,--output", args->outputs, "output .exr (float, display-referred) or .png; repeatable");
+  sub->add_option("--backend", args->backend, "cpu | gl")->capture_default_str();
+  sub->add_option("--dump-stages", args->dump_dir, "write DIR/<stage>.exr for every stage");
+  sub->add_option("--json", args->json_path, "write parameters, timings and counts as JSON");
+  sub->add_flag("-q,--quiet", args->quiet, "print nothing on success");
+  args->pipeline.add_to(*sub);
+  return [args, sub]() -> int {
+    if (!sub->parsed()) return -1;
+    args->pipeline.finish();
+    return run(*args);
+  };
+}
+
+}  // namespace bloomref::cli

@@ -1,0 +1,11 @@
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace bloomref::cli {
+
+// Each adds its subcommand; the returned callable runs it and returns the exit code.
+std::function<int()> add_run(CLI::App& app);
+std::function<int()> add_scenes(CLI::App& app);
+
+}  // namespace bloomref::cli

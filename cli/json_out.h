@@ -1,0 +1,17 @@
+// Machine-readable results (DESIGN.md, "Command line contract": --json).
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "bloomref/executor.h"
+#include "bloomref/io.h"
+#include "bloomref/params.h"
+
+namespace bloomref::cli {
+
+nlohmann::json params_json(const BloomParams& p);
+nlohmann::json counts_json(const NonFiniteCounts& c);
+/// params, renderer, timings_ms (stage -> ms, plus "total"), skipped, nonfinite, plan facts.
+nlohmann::json run_json(const Plan& plan, const StageTrace& trace);
+
+}  // namespace bloomref::cli

@@ -1,0 +1,63 @@
+#include "options.h"
+
+#include "bloomref/error.h"
+
+namespace bloomref::cli {
+
+void PipelineOptions::add_to(CLI::App& app) {
+  BloomParams& p = params;
+  app.add_option("--method", method, "gaussian | mip")->capture_default_str();
+  app.add_option("--threshold", p.threshold, "bright when luminance > threshold")
+      ->capture_default_str();
+  app.add_option("--exposure", p.exposure, "tone map 1 - exp(-hdr * exposure)")
+      ->capture_default_str();
+  app.add_option("--gamma", p.gamma, "output pow(x, 1 / gamma)")->capture_default_str();
+  app.add_option("--passes", p.passes, "single-direction blur passes")->capture_default_str();
+  app.add_option("--kernel", kernel, "discrete9 | linear5")->capture_default_str();
+  app.add_option("--strength", p.strength, "composite scene + strength * bloom")
+      ->capture_default_str();
+  app.add_option("--storage", storage, "f32 | f16 (how every stage is stored)")
+      ->capture_default_str();
+  app.add_option("--precision", precision, "f32 (the shaders' order) | f64 (the truth)")
+      ->capture_default_str();
+  app.add_option("--nonfinite", nonfinite, "zero | clamp | propagate | error")
+      ->capture_default_str();
+  app.add_option("--subtexel-bits", p.subtexel_bits,
+                 "bilinear weight precision: 0 = float weights, 8 = 8-bit fixed point")
+      ->capture_default_str();
+  app.add_option("--threads", p.threads, "0 = all hardware threads")->capture_default_str();
+  app.add_option("--plan", plan, "adaptive | full (same bits)")->capture_default_str();
+  app.add_option("--scene", scene, "built-in scene used when no IN is given")
+      ->capture_default_str();
+  app.add_option("--size", size, "WxH of the built-in scene (default: the scene's own)");
+}
+
+void PipelineOptions::finish() {
+  params.method = parse_method(method);
+  params.kernel = parse_kernel(kernel);
+  params.storage = parse_storage(storage);
+  params.precision = parse_precision(precision);
+  params.nonfinite = parse_nonfinite(nonfinite);
+  params.plan = parse_plan_mode(plan);
+  validate(params);
+}
+
+void PipelineOptions::scene_size(int& w, int& h) const {
+  w = h = 0;
+  if (!size.empty()) parse_size(size, w, h);
+}
+
+void parse_size(const std::string& s, int& w, int& h) {
+  const auto x = s.find('x');
+  try {
+    if (x == std::string::npos) throw std::invalid_argument("no x");
+    std::size_t a = 0, b = 0;
+    w = std::stoi(s.substr(0, x), &a);
+    h = std::stoi(s.substr(x + 1), &b);
+    if (a != x || b != s.size() - x - 1 || w < 1 || h < 1) throw std::invalid_argument("bad");
+  } catch (const std::exception&) {
+    throw ParamError("--size '" + s + "' is not WIDTHxHEIGHT with positive integers, e.g. 1920x1080");
+  }
+}
+
+}  // namespace bloomref::cli

@@ -1,0 +1,27 @@
+// The pipeline options shared by `run` and (later) `compare`, bound to one BloomParams.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "bloomref/params.h"
+
+namespace bloomref::cli {
+
+struct PipelineOptions {
+  BloomParams params;
+  std::string method = "gaussian", kernel = "discrete9", storage = "f32", precision = "f32",
+              nonfinite = "zero", plan = "adaptive";
+  std::string scene = "demo";
+  std::string size;  ///< "WxH" for built-in scenes
+
+  void add_to(CLI::App& app);
+  /// Parses the enum names into `params` and validates; throws ParamError.
+  void finish();
+  void scene_size(int& w, int& h) const;
+};
+
+/// Parses "WxH"; throws ParamError.
+void parse_size(const std::string& s, int& w, int& h);
+
+}  // namespace bloomref::cli

@@ -1,0 +1,37 @@
+// bloomref — the CPU executor: runs a Plan on a scene and returns its StageTrace.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bloomref/image.h"
+#include "bloomref/plan.h"
+
+namespace bloomref {
+
+struct StageResult {
+  std::string name;
+  Image image;      ///< as stored (f16 values when storage is f16); f64 runs are shown in float
+  double ms = 0;    ///< wall time of the stage, including its storage rounding
+  bool skipped = false;
+};
+
+struct StageTrace {
+  std::vector<StageResult> stages;  ///< every stage when keep_all, else only `output`
+  NonFiniteCounts nonfinite;        ///< what the input stage found
+  double total_ms = 0;
+  std::optional<ImageF64> output_f64;  ///< the output stage in double (f64 precision only)
+  std::vector<std::pair<std::string, double>> timings;  ///< every stage that ran, in order
+
+  const Image& final_image() const { return stages.back().image; }
+  const StageResult* find(const std::string& name) const;
+};
+
+struct ExecuteOptions {
+  bool keep_all = false;  ///< keep every intermediate (compare, debug, --dump-stages)
+};
+
+StageTrace execute(const Plan& plan, ConstImageView scene, const ExecuteOptions& opt = {});
+
+}  // namespace bloomref

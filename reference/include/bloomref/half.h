@@ -1,0 +1,23 @@
+// bloomref — rounding to IEEE binary16 (what an RGBA16F render target stores).
+//
+// GL does not pin how a render-target write rounds float to half: round-to-nearest-even (Inf
+// above 65519.99...) or toward zero (saturating at 65504). Both are modelled. The rounding is
+// computed arithmetically (scale by a power of two, round to an integer, scale back), so it is
+// exact for float and double inputs alike (no double rounding through float) and independent of
+// Imath's bit-level conversion, against which the tests check it.
+#pragma once
+
+namespace bloomref {
+
+enum class HalfRounding { nearest_even, toward_zero };
+
+constexpr double kHalfMax = 65504.0;
+constexpr double kHalfMinNormal = 6.103515625e-05;    // 2^-14
+constexpr double kHalfMinDenormal = 5.9604644775390625e-08;  // 2^-24
+
+/// The value of the binary16 number `x` rounds to, returned in x's own type. NaN stays NaN,
+/// +-Inf stays +-Inf, the sign of zero is kept.
+float round_to_half(float x, HalfRounding mode = HalfRounding::nearest_even);
+double round_to_half(double x, HalfRounding mode = HalfRounding::nearest_even);
+
+}  // namespace bloomref

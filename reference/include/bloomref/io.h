@@ -1,0 +1,70 @@
+// bloomref — reading and writing images.
+//
+// Reading: EXR through OpenEXR (scanline, tiled, mip-mapped -> level 0, multipart -> the first
+// part with R, G, B or Y, luminance/chroma (Y, RY, BY) reconstructed to RGB by RgbaInputFile,
+// data window != display window -> the data window's pixels, both windows kept in ImageInfo);
+// everything else (Radiance .hdr, PNG, TIFF, ...) through OpenImageIO, converted to float.
+// Channel layouts: R, G, B present -> RGB (a missing one is 0); a single channel (Y, G, ...)
+// -> grey R = G = B; A optional (1 when absent). Anything else is an InputError.
+//
+// Sizes are checked against SizeLimits from the header, before any pixel memory is allocated.
+//
+// Writing: EXR holds 32-bit float RGBA; PNG holds 8-bit RGBA, round(clamp(x, 0, 1) * 255).
+// Every write goes to a temporary file in the destination folder and is renamed into place, so
+// a failure leaves no partial file and never touches what was there.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include "bloomref/image.h"
+
+namespace bloomref {
+
+struct SizeLimits {
+  int max_side = 65536;                     ///< per axis
+  std::size_t max_pixels = std::size_t(1) << 27;  ///< 134M pixels = 2 GiB per float RGBA image
+};
+
+struct Window {
+  int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  ///< inclusive corners, as OpenEXR's Box2i
+  int width() const { return x1 - x0 + 1; }
+  int height() const { return y1 - y0 + 1; }
+};
+
+struct ImageInfo {
+  std::string path;
+  std::string format;       ///< "exr", or OIIO's format name ("hdr", "png", "tiff", ...)
+  std::string layout;       ///< how the pixels were obtained, e.g. "part 0 of 10, RGBA"
+  std::string channels;     ///< the source channels used, comma-separated
+  bool has_alpha = false;
+  Window data_window;       ///< the pixels we have
+  Window display_window;
+};
+
+struct LoadedImage {
+  Image image;
+  ImageInfo info;
+};
+
+LoadedImage load_image(const std::string& path, const SizeLimits& limits = {});
+
+/// Throws InputError naming `path` if width x height breaks a limit (says which).
+void check_size(const std::string& path, long long width, long long height,
+                const SizeLimits& limits);
+
+/// Writes by extension (.exr or .png, case-insensitive); InputError for anything else.
+/// `windows` (optional) gives the EXR data/display windows to keep the input's placement.
+void save_image(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
+void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
+void save_png(const std::string& path, ConstImageView img);
+
+/// Throws InputError if writing `output` would replace `input` (same file, via any path).
+void refuse_overwrite(const std::string& output, const std::string& input);
+
+}  // namespace bloomref
+
+namespace bloomref {
+/// Writes text (JSON, Markdown) atomically, like the image writers.
+void save_text(const std::string& path, const std::string& text);
+}  // namespace bloomref

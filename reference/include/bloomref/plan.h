@@ -1,0 +1,53 @@
+// bloomref — a Plan: the ordered, named stages to run for these parameters and this scene.
+//
+// Stage names are stable (code, files, JSON, CLI): input, bright, blur.1 .. blur.N, composite,
+// tonemap, output. The adaptive plan leaves out work the scene does not need and gives the same
+// bits as the full plan:
+//  * no NaN/Inf in the input -> no sanitising (the input stage only copies and stores);
+//  * nothing above the threshold -> no blur passes: the blur of an all-zero bright image is
+//    exactly zero (every tap multiplies 0), so the bloom is the bright image itself.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "bloomref/image.h"
+#include "bloomref/params.h"
+#include "bloomref/stages.h"
+
+namespace bloomref {
+
+enum class StageKind { input, bright, blur, composite, tonemap, output };
+
+struct StageSpec {
+  std::string name;
+  StageKind kind = StageKind::input;
+  int pass = 0;                     ///< blur pass number, 1-based
+  Axis axis = Axis::horizontal;     ///< blur passes only
+  bool skipped = false;             ///< left out by the adaptive plan (result known exactly)
+};
+
+/// What the plan learned from one scan of the scene.
+struct SceneFacts {
+  int width = 0, height = 0;
+  NonFiniteCounts nonfinite;
+  std::uint64_t bright_pixels = 0;  ///< luminance > threshold after the policy and storage
+};
+
+struct Plan {
+  BloomParams params;
+  SceneFacts facts;
+  std::vector<StageSpec> stages;
+  bool sanitize = true;  ///< input stage applies the non-finite policy
+  std::vector<std::string> skipped_names() const;
+};
+
+/// Validates the parameters, scans the scene and builds the plan. Throws ParamError for bad
+/// parameters and InputError (naming `source`) when the policy is `error` and the scene holds
+/// NaN or Inf, or the scene is empty.
+Plan make_plan(const BloomParams& params, ConstImageView scene, const std::string& source = "");
+
+/// The stage names of the full plan for these parameters.
+std::vector<std::string> stage_names(const BloomParams& params);
+
+}  // namespace bloomref

@@ -1,0 +1,102 @@
+// bloomref — the pipeline stages (DESIGN.md, "The pipeline"), one function each.
+//
+// Every stage reads const views and writes one image of the same size; `T` is the precision
+// (float mirrors the shaders' operation order, double is the truth). The f32 operation order is
+// written out in each comment and compiled with -ffp-contract=off, so it is what runs. Stages
+// do not round to the storage format: the executor calls `store` after each one, exactly where
+// the GL path writes a render target.
+//
+// Alpha: `bright` and `blur.k` write alpha 1 (as the seeds' shaders do); `composite`, `tonemap`
+// and `output` carry the scene's alpha through unchanged.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "bloomref/half.h"
+#include "bloomref/image.h"
+#include "bloomref/kernel.h"
+#include "bloomref/params.h"
+
+namespace bloomref {
+
+struct NonFiniteCounts {
+  std::uint64_t nan = 0, pos_inf = 0, neg_inf = 0;
+  std::uint64_t total() const { return nan + pos_inf + neg_inf; }
+  NonFiniteCounts& operator+=(const NonFiniteCounts& o) {
+    nan += o.nan; pos_inf += o.pos_inf; neg_inf += o.neg_inf;
+    return *this;
+  }
+};
+
+/// Rec. 709 luminance, dot(rgb, (0.2126, 0.7152, 0.0722)) summed left to right (seed 000).
+template <class T>
+inline T luminance(T r, T g, T b) {
+  return r * T(0.2126) + g * T(0.7152) + b * T(0.0722);
+}
+
+/// Largest finite value of a storage format (what `clamp` maps +Inf to).
+double storage_max(Storage s);
+
+/// One value under a non-finite policy. `error` leaves the value alone (the plan refuses the
+/// image before any stage runs).
+template <class T>
+inline T sanitize_value(T v, NonFinite policy, Storage storage) {
+  if (std::isfinite(v) || policy == NonFinite::propagate || policy == NonFinite::error) return v;
+  if (policy == NonFinite::zero || std::isnan(v)) return T(0);
+  const T m = static_cast<T>(storage_max(storage));
+  return v > 0 ? m : -m;
+}
+
+/// Counts NaN, +Inf and -Inf over all four channels.
+template <class T>
+NonFiniteCounts count_nonfinite(BasicView<const T> src, int threads);
+
+/// Stage `input`: applies the non-finite policy to every channel; returns what it found.
+template <class T>
+NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite policy,
+                         Storage storage, int threads);
+
+/// Stage `bright`: (rgb, 1) where luminance(rgb) > threshold (strictly; a tie is not bright),
+/// else (0, 0, 0, 1). NaN luminance is not bright.
+template <class T>
+void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads);
+
+enum class Axis { horizontal, vertical };
+
+struct BlurPassOptions {
+  Axis axis = Axis::horizontal;
+  const Kernel* kernel = nullptr;
+  int subtexel_bits = 0;  ///< f32 only; see sampler.h
+};
+
+/// Stage `blur.k`: one single-direction pass of a separable kernel, through GL_LINEAR /
+/// GL_CLAMP_TO_EDGE lookups. f32: uv = (x + 0.5f) / n, d = 1.0f / n, tap coordinate
+/// uv + d * o_i (resp. uv - d * o_i); r = T(uv) * w0, then r = r + T(+) * w_i, r = r + T(-) * w_i.
+/// f64: taps at x + o_i texels exactly, exact rational weights. Alpha out is 1.
+template <class T>
+void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& opt, int threads);
+
+/// Stage `composite`: scene + strength * bloom (f32: t = strength * bloom; scene + t).
+template <class T>
+void composite(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> dst, T strength,
+               int threads);
+
+/// Stage `tonemap`: 1 - exp(-hdr * exposure). f64 computes -expm1(-hdr * exposure), which
+/// keeps full relative precision where hdr * exposure is tiny (1 - exp cancels there).
+template <class T>
+void tonemap(BasicView<const T> hdr, BasicView<T> dst, T exposure, int threads);
+
+/// Stage `output`: pow(max(x, 0), 1 / gamma), with 1 / gamma computed in T. Display-referred.
+template <class T>
+void encode_output(BasicView<const T> mapped, BasicView<T> dst, T gamma, int threads);
+
+/// Rounds every channel to the storage format in place. f32 storage is a no-op in either
+/// precision (the f64 truth is not narrowed to float); f16 storage rounds to binary16.
+template <class T>
+void store(BasicView<T> img, Storage storage, HalfRounding rounding, int threads);
+
+/// PNG code of a display value: round(clamp(x, 0, 1) * 255); NaN -> 0.
+std::uint8_t quantize_8bit(float x);
+
+}  // namespace bloomref

@@ -1,0 +1,110 @@
+// Stage blur.k (stages.h). The coordinates of every tap depend on one axis only, so they are
+// computed once per pass into tables, with exactly the arithmetic a per-pixel shader would do.
+#include <vector>
+
+#include "bloomref/parallel.h"
+#include "bloomref/sampler.h"
+#include "bloomref/stages.h"
+
+namespace bloomref {
+namespace {
+
+// Taps of one output position along the blurred axis, in the shader's order:
+// centre, +o1, -o1, +o2, -o2, ...
+template <class T>
+struct TapTable {
+  int per_position = 0;
+  std::vector<AxisTap<T>> taps;
+  const AxisTap<T>* at(int x) const { return taps.data() + std::size_t(x) * per_position; }
+};
+
+TapTable<float> make_taps(int n, const Kernel& k, int bits, float) {
+  const float d = 1.0f / static_cast<float>(n);  // tex_offset = 1.0 / textureSize
+  TapTable<float> t{k.taps(), {}};
+  t.taps.reserve(std::size_t(n) * t.per_position);
+  for (int x = 0; x < n; ++x) {
+    const float uv = texel_centre(x, n);
+    t.taps.push_back(gl_axis_tap(uv, n, bits));
+    for (std::size_t i = 1; i < k.offsets_f32.size(); ++i) {
+      const float step = d * k.offsets_f32[i];
+      t.taps.push_back(gl_axis_tap(uv + step, n, bits));
+      t.taps.push_back(gl_axis_tap(uv - step, n, bits));
+    }
+  }
+  return t;
+}
+
+TapTable<double> make_taps(int n, const Kernel& k, int, double) {
+  TapTable<double> t{k.taps(), {}};
+  t.taps.reserve(std::size_t(n) * t.per_position);
+  for (int x = 0; x < n; ++x) {
+    t.taps.push_back(exact_axis_tap(x, n));
+    for (std::size_t i = 1; i < k.offsets_f64.size(); ++i) {
+      t.taps.push_back(exact_axis_tap(x + k.offsets_f64[i], n));
+      t.taps.push_back(exact_axis_tap(x - k.offsets_f64[i], n));
+    }
+  }
+  return t;
+}
+
+AxisTap<float> centre_tap(int x, int n, int bits, float) {
+  return gl_axis_tap(texel_centre(x, n), n, bits);
+}
+AxisTap<double> centre_tap(int x, int n, int, double) { return exact_axis_tap(x, n); }
+
+const std::vector<float>& weights(const Kernel& k, float) { return k.weights_f32; }
+const std::vector<double>& weights(const Kernel& k, double) { return k.weights_f64; }
+
+// r = T(c) * w0; r = r + T(+i) * wi; r = r + T(-i) * wi  (the seeds' blur shader).
+template <class T, class Sample>
+inline void convolve(const std::vector<T>& w, Sample sample, T out[3]) {
+  T s[3] = {};  // every entry is written by sample(); the init only quiets -Wuninitialized
+  sample(0, s);
+  for (int c = 0; c < 3; ++c) out[c] = s[c] * w[0];
+  for (std::size_t i = 1; i < w.size(); ++i) {
+    for (int side = 0; side < 2; ++side) {
+      sample(int(2 * i - 1 + side), s);
+      for (int c = 0; c < 3; ++c) out[c] = out[c] + s[c] * w[i];
+    }
+  }
+}
+
+}  // namespace
+
+template <class T>
+void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& opt,
+               int threads) {
+  const bool horizontal = opt.axis == Axis::horizontal;
+  const int n_along = horizontal ? src.width : src.height;
+  const int n_across = horizontal ? src.height : src.width;
+  const TapTable<T> along = make_taps(n_along, *opt.kernel, opt.subtexel_bits, T());
+  std::vector<AxisTap<T>> across(n_across);
+  for (int i = 0; i < n_across; ++i) across[i] = centre_tap(i, n_across, opt.subtexel_bits, T());
+  const std::vector<T>& w = weights(*opt.kernel, T());
+
+  parallel_rows(src.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      for (int x = 0; x < src.width; ++x) {
+        const AxisTap<T>* taps = along.at(horizontal ? x : y);
+        const AxisTap<T>& other = across[horizontal ? y : x];
+        T r[3];
+        convolve(w, [&](int k, T s[3]) {
+          if (horizontal) sample_rgb(src, taps[k], other, s);
+          else sample_rgb(src, other, taps[k], s);
+        }, r);
+        T* d = dst.pixel(x, y);
+        d[0] = r[0];
+        d[1] = r[1];
+        d[2] = r[2];
+        d[3] = T(1);
+      }
+    }
+  });
+}
+
+template void blur_pass<float>(BasicView<const float>, BasicView<float>, const BlurPassOptions&,
+                               int);
+template void blur_pass<double>(BasicView<const double>, BasicView<double>,
+                                const BlurPassOptions&, int);
+
+}  // namespace bloomref

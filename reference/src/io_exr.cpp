@@ -1,0 +1,182 @@
+// EXR reading and writing through OpenEXR (OIIO 2.4 refuses subsampled luminance/chroma files
+// such as StarField.exr; OpenEXR's RgbaInputFile reconstructs them).
+#include <ImfArray.h>
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputPart.h>
+#include <ImfMultiPartInputFile.h>
+#include <ImfOutputFile.h>
+#include <ImfPartType.h>
+#include <ImfRgbaFile.h>
+#include <ImfVersion.h>
+
+#include <fstream>
+#include <set>
+
+#include "bloomref/error.h"
+#include "io_internal.h"
+
+namespace bloomref::detail {
+namespace {
+
+Window to_window(const Imath::Box2i& b) { return {b.min.x, b.min.y, b.max.x, b.max.y}; }
+
+std::string join(const std::set<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+  return s;
+}
+
+// The channels of a part that bloomref can use, or "" when it has none.
+struct PartChannels {
+  std::set<std::string> all;
+  bool rgb = false, luma = false, chroma = false, alpha = false;
+  std::string single;  // the one colour channel of a grey file
+};
+
+PartChannels classify(const Imf::Header& h) {
+  PartChannels pc;
+  int colour = 0;
+  for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
+    const std::string n = it.name();
+    pc.all.insert(n);
+    if (n == "R" || n == "G" || n == "B") { pc.rgb = true; ++colour; pc.single = n; }
+    if (n == "Y") pc.luma = true;
+    if (n == "RY" || n == "BY") pc.chroma = true;
+    if (n == "A") pc.alpha = true;
+  }
+  if (colour != 1) pc.single.clear();
+  if (!pc.rgb && pc.luma && !pc.chroma) pc.single = "Y";
+  return pc;
+}
+
+bool usable(const PartChannels& pc) { return pc.rgb || pc.luma; }
+
+}  // namespace
+
+bool has_exr_magic(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  char magic[4] = {};
+  if (!f.read(magic, 4)) return false;
+  return Imf::isImfMagic(magic);
+}
+
+LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
+  LoadedImage out;
+  ImageInfo& info = out.info;
+  info.path = path;
+  info.format = "exr";
+  try {
+    Imf::MultiPartInputFile file(path.c_str());
+    const int parts = file.parts();
+    int chosen = -1;
+    PartChannels pc;
+    std::string seen;
+    for (int i = 0; i < parts && chosen < 0; ++i) {
+      const Imf::Header& h = file.header(i);
+      if (h.hasType() && Imf::isDeepData(h.type())) continue;
+      pc = classify(h);
+      if (usable(pc)) chosen = i;
+      else seen += (seen.empty() ? "" : "; ") + ("part " + std::to_string(i) + ": " + join(pc.all));
+    }
+    if (chosen < 0)
+      throw InputError(path, "unsupported channel layout: no part has R, G, B or Y channels (" +
+                                 (seen.empty() ? std::string("no flat image parts") : seen) +
+                                 ")");
+    const Imf::Header& h = file.header(chosen);
+    const Imath::Box2i dw = h.dataWindow();
+    const long long w = (long long)dw.max.x - dw.min.x + 1, ht = (long long)dw.max.y - dw.min.y + 1;
+    check_size(path, w, ht, limits);
+    info.data_window = to_window(dw);
+    info.display_window = to_window(h.displayWindow());
+    info.has_alpha = pc.alpha;
+    info.channels = join(pc.all);
+    info.layout = (parts > 1 ? "part " + std::to_string(chosen) + " of " + std::to_string(parts)
+                             : std::string("single part")) +
+                  (h.hasTileDescription()
+                       ? (h.tileDescription().mode == Imf::ONE_LEVEL ? ", tiled"
+                                                                     : ", tiled multi-level (level 0)")
+                       : ", scanline");
+
+    out.image = Image(static_cast<int>(w), static_cast<int>(ht));
+    float* base = out.image.data();
+    const std::size_t xs = sizeof(float) * kChannels, ys = xs * static_cast<std::size_t>(w);
+
+    if (pc.chroma) {
+      // Luminance/chroma (Y, RY, BY, possibly subsampled): RgbaInputFile reconstructs RGB.
+      if (chosen != 0)
+        throw InputError(path, "luminance/chroma channels are supported in part 0 only");
+      info.layout += ", luminance/chroma reconstructed to RGB";
+      Imf::RgbaInputFile rgba(path.c_str());
+      Imf::Array2D<Imf::Rgba> px(ht, w);
+      rgba.setFrameBuffer(&px[0][0] - dw.min.x - (long)dw.min.y * w, 1, w);
+      rgba.readPixels(dw.min.y, dw.max.y);
+      for (long long y = 0; y < ht; ++y)
+        for (long long x = 0; x < w; ++x) {
+          float* d = base + (y * w + x) * kChannels;
+          const Imf::Rgba& s = px[y][x];
+          d[0] = s.r; d[1] = s.g; d[2] = s.b; d[3] = pc.alpha ? float(s.a) : 1.0f;
+        }
+      return out;
+    }
+
+    for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
+      const std::string n = it.name();
+      const bool wanted = n == "R" || n == "G" || n == "B" || n == "A" || n == pc.single;
+      if (wanted && (it.channel().xSampling != 1 || it.channel().ySampling != 1))
+        throw InputError(path, "channel " + n + " is subsampled, which is supported only for "
+                                            "luminance/chroma (Y, RY, BY) files");
+    }
+    Imf::FrameBuffer fb;
+    const Imf::PixelType F = Imf::FLOAT;
+    if (!pc.single.empty()) {
+      fb.insert(pc.single, Imf::Slice::Make(F, base, dw, xs, ys, 1, 1, 0.0));
+    } else {
+      fb.insert("R", Imf::Slice::Make(F, base, dw, xs, ys, 1, 1, 0.0));
+      fb.insert("G", Imf::Slice::Make(F, base + 1, dw, xs, ys, 1, 1, 0.0));
+      fb.insert("B", Imf::Slice::Make(F, base + 2, dw, xs, ys, 1, 1, 0.0));
+    }
+    fb.insert("A", Imf::Slice::Make(F, base + 3, dw, xs, ys, 1, 1, 1.0));
+    Imf::InputPart part(file, chosen);
+    part.setFrameBuffer(fb);
+    part.readPixels(dw.min.y, dw.max.y);
+    if (!pc.single.empty()) {
+      info.layout += ", one channel (" + pc.single + ") read as grey";
+      for (std::size_t i = 0; i < out.image.pixel_count(); ++i)
+        base[i * kChannels + 1] = base[i * kChannels + 2] = base[i * kChannels];
+    }
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError(path, std::string("cannot read this OpenEXR file: ") + e.what());
+  }
+  return out;
+}
+
+void write_exr_file(const std::string& path, ConstImageView img, const ImageInfo* windows) {
+  Imf::Header header(img.width, img.height);
+  if (windows && windows->data_window.width() == img.width &&
+      windows->data_window.height() == img.height) {
+    const Window& d = windows->data_window;
+    const Window& v = windows->display_window;
+    header.dataWindow() = Imath::Box2i({d.x0, d.y0}, {d.x1, d.y1});
+    if (v.width() > 0 && v.height() > 0)
+      header.displayWindow() = Imath::Box2i({v.x0, v.y0}, {v.x1, v.y1});
+  }
+  header.compression() = Imf::ZIP_COMPRESSION;
+  for (const char* c : {"R", "G", "B", "A"}) header.channels().insert(c, Imf::Channel(Imf::FLOAT));
+  const Imath::Box2i dw = header.dataWindow();
+  // OpenEXR takes non-const pointers for writing too; it only reads through them.
+  char* base = reinterpret_cast<char*>(const_cast<float*>(img.data));
+  const std::size_t xs = sizeof(float) * kChannels, ys = xs * static_cast<std::size_t>(img.stride);
+  Imf::FrameBuffer fb;
+  const char* names[] = {"R", "G", "B", "A"};
+  for (int c = 0; c < 4; ++c)
+    fb.insert(names[c], Imf::Slice::Make(Imf::FLOAT, base + c * sizeof(float), dw, xs, ys));
+  Imf::OutputFile file(path.c_str(), header);
+  file.setFrameBuffer(fb);
+  file.writePixels(img.height);
+}
+
+}  // namespace bloomref::detail

@@ -1,0 +1,88 @@
+#include "bloomref/params.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "bloomref/error.h"
+
+namespace bloomref {
+namespace {
+
+template <class E, std::size_t N>
+E parse_enum(const char* what, const std::string& s, const std::pair<const char*, E> (&table)[N]) {
+  std::string known;
+  for (const auto& [name, value] : table) {
+    if (s == name) return value;
+    known += (known.empty() ? "" : ", ") + std::string(name);
+  }
+  throw ParamError(std::string(what) + " '" + s + "' is not one of: " + known);
+}
+
+template <class E, std::size_t N>
+std::string name_of(E v, const std::pair<const char*, E> (&table)[N]) {
+  for (const auto& [name, value] : table)
+    if (v == value) return name;
+  return "?";
+}
+
+constexpr std::pair<const char*, Method> kMethods[] = {{"gaussian", Method::gaussian},
+                                                       {"mip", Method::mip}};
+constexpr std::pair<const char*, KernelName> kKernels[] = {{"discrete9", KernelName::discrete9},
+                                                           {"linear5", KernelName::linear5}};
+constexpr std::pair<const char*, Storage> kStorages[] = {{"f32", Storage::f32},
+                                                         {"f16", Storage::f16}};
+constexpr std::pair<const char*, Precision> kPrecisions[] = {{"f32", Precision::f32},
+                                                             {"f64", Precision::f64}};
+constexpr std::pair<const char*, NonFinite> kPolicies[] = {{"zero", NonFinite::zero},
+                                                           {"clamp", NonFinite::clamp},
+                                                           {"propagate", NonFinite::propagate},
+                                                           {"error", NonFinite::error}};
+constexpr std::pair<const char*, PlanMode> kPlans[] = {{"adaptive", PlanMode::adaptive},
+                                                       {"full", PlanMode::full}};
+
+std::string str(float v) {
+  std::ostringstream o;
+  o.precision(9);
+  o << v;
+  return o.str();
+}
+
+void require(bool ok, const std::string& message) {
+  if (!ok) throw ParamError(message);
+}
+
+}  // namespace
+
+void validate(const BloomParams& p) {
+  require(p.method == Method::gaussian,
+          "--method " + to_string(p.method) + " is not implemented yet (only gaussian)");
+  require(std::isfinite(p.threshold), "--threshold must be finite, got " + str(p.threshold));
+  require(std::isfinite(p.exposure) && p.exposure > 0,
+          "--exposure must be finite and > 0, got " + str(p.exposure));
+  require(std::isfinite(p.gamma) && p.gamma > 0,
+          "--gamma must be finite and > 0, got " + str(p.gamma));
+  require(std::isfinite(p.strength) && p.strength >= 0,
+          "--strength must be finite and >= 0, got " + str(p.strength));
+  require(p.passes >= 0 && p.passes <= 1000,
+          "--passes must be in [0, 1000], got " + std::to_string(p.passes));
+  require(p.subtexel_bits >= 0 && p.subtexel_bits <= 23,
+          "subtexel bits must be in [0, 23] (0 = exact float weights), got " +
+              std::to_string(p.subtexel_bits));
+  require(p.threads >= 0 && p.threads <= 1024,
+          "--threads must be in [0, 1024] (0 = all), got " + std::to_string(p.threads));
+}
+
+std::string to_string(Method v) { return name_of(v, kMethods); }
+std::string to_string(KernelName v) { return name_of(v, kKernels); }
+std::string to_string(Storage v) { return name_of(v, kStorages); }
+std::string to_string(Precision v) { return name_of(v, kPrecisions); }
+std::string to_string(NonFinite v) { return name_of(v, kPolicies); }
+std::string to_string(PlanMode v) { return name_of(v, kPlans); }
+Method parse_method(const std::string& s) { return parse_enum("method", s, kMethods); }
+KernelName parse_kernel(const std::string& s) { return parse_enum("kernel", s, kKernels); }
+Storage parse_storage(const std::string& s) { return parse_enum("storage", s, kStorages); }
+Precision parse_precision(const std::string& s) { return parse_enum("precision", s, kPrecisions); }
+NonFinite parse_nonfinite(const std::string& s) { return parse_enum("nonfinite", s, kPolicies); }
+PlanMode parse_plan_mode(const std::string& s) { return parse_enum("plan", s, kPlans); }
+
+}  // namespace bloomref

@@ -1,0 +1,92 @@
+#include "bloomref/plan.h"
+
+#include <mutex>
+
+#include "bloomref/error.h"
+#include "bloomref/parallel.h"
+
+namespace bloomref {
+namespace {
+
+// Pixels whose stored, sanitised luminance is above the threshold: the same per-value functions
+// the input and bright stages apply, in the plan's precision.
+template <class T>
+std::uint64_t count_bright(ConstImageView scene, const BloomParams& p) {
+  std::uint64_t total = 0;
+  std::mutex m;
+  const T threshold = static_cast<T>(p.threshold);
+  parallel_rows(scene.height, p.threads, [&](int y0, int y1) {
+    std::uint64_t n = 0;
+    for (int y = y0; y < y1; ++y) {
+      for (int x = 0; x < scene.width; ++x) {
+        const float* s = scene.pixel(x, y);
+        T v[3];
+        for (int c = 0; c < 3; ++c) {
+          v[c] = sanitize_value(static_cast<T>(s[c]), p.nonfinite, p.storage);
+          if (p.storage == Storage::f16) v[c] = round_to_half(v[c]);
+        }
+        n += luminance(v[0], v[1], v[2]) > threshold;
+      }
+    }
+    std::lock_guard<std::mutex> lock(m);
+    total += n;
+  });
+  return total;
+}
+
+std::string describe(const NonFiniteCounts& c) {
+  return std::to_string(c.nan) + " NaN, " + std::to_string(c.pos_inf) + " +Inf and " +
+         std::to_string(c.neg_inf) + " -Inf values";
+}
+
+}  // namespace
+
+std::vector<std::string> Plan::skipped_names() const {
+  std::vector<std::string> out;
+  if (!sanitize) out.push_back("input.sanitize");
+  for (const StageSpec& s : stages)
+    if (s.skipped) out.push_back(s.name);
+  return out;
+}
+
+std::vector<std::string> stage_names(const BloomParams& p) {
+  std::vector<std::string> names = {"input", "bright"};
+  for (int k = 1; k <= p.passes; ++k) names.push_back("blur." + std::to_string(k));
+  names.insert(names.end(), {"composite", "tonemap", "output"});
+  return names;
+}
+
+Plan make_plan(const BloomParams& params, ConstImageView scene, const std::string& source) {
+  validate(params);
+  if (scene.empty()) throw InputError(source, "the image has no pixels");
+  Plan plan;
+  plan.params = params;
+  plan.facts.width = scene.width;
+  plan.facts.height = scene.height;
+  plan.facts.nonfinite = count_nonfinite(scene, params.threads);
+  if (params.nonfinite == NonFinite::error && plan.facts.nonfinite.total() > 0)
+    throw InputError(source, "holds " + describe(plan.facts.nonfinite) +
+                                 " and --nonfinite error refuses them (use zero, clamp or "
+                                 "propagate)");
+  plan.facts.bright_pixels = params.precision == Precision::f64
+                                 ? count_bright<double>(scene, params)
+                                 : count_bright<float>(scene, params);
+
+  const bool adaptive = params.plan == PlanMode::adaptive;
+  plan.sanitize = !adaptive || plan.facts.nonfinite.total() > 0;
+  const bool skip_blur = adaptive && plan.facts.bright_pixels == 0;
+
+  plan.stages.push_back({"input", StageKind::input});
+  plan.stages.push_back({"bright", StageKind::bright});
+  for (int k = 1; k <= params.passes; ++k) {
+    StageSpec s{"blur." + std::to_string(k), StageKind::blur, k,
+                k % 2 == 1 ? Axis::horizontal : Axis::vertical, skip_blur};
+    plan.stages.push_back(s);
+  }
+  plan.stages.push_back({"composite", StageKind::composite});
+  plan.stages.push_back({"tonemap", StageKind::tonemap});
+  plan.stages.push_back({"output", StageKind::output});
+  return plan;
+}
+
+}  // namespace bloomref

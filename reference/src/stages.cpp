@@ -1,0 +1,192 @@
+#include "bloomref/stages.h"
+
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <vector>
+
+#include "bloomref/parallel.h"
+#include "bloomref/sampler.h"
+
+namespace bloomref {
+
+// ---- the sampler (sampler.h) -------------------------------------------------------------
+
+AxisTap<float> gl_axis_tap(float s, int n, int subtexel_bits) {
+  const float u = s * static_cast<float>(n) - 0.5f;
+  float fi = std::floor(u);
+  float a = u - fi;  // exact: u and floor(u) share a binade or a is u itself
+  if (subtexel_bits > 0) {
+    const float scale = std::ldexp(1.0f, subtexel_bits);
+    a = std::nearbyint(a * scale) / scale;
+    if (a == 1.0f) {
+      fi += 1.0f;
+      a = 0.0f;
+    }
+  }
+  // Clamp in float before converting: a coordinate far outside [0, 1] must not overflow int.
+  const float last = static_cast<float>(n - 1);
+  AxisTap<float> t;
+  t.i0 = static_cast<int>(std::min(std::max(fi, 0.0f), last));
+  t.i1 = static_cast<int>(std::min(std::max(fi + 1.0f, 0.0f), last));
+  t.w0 = 1.0f - a;
+  t.w1 = a;
+  return t;
+}
+
+AxisTap<double> exact_axis_tap(double u, int n) {
+  const double fi = std::floor(u);
+  const double a = u - fi;
+  const double last = n - 1;
+  AxisTap<double> t;
+  t.i0 = static_cast<int>(std::min(std::max(fi, 0.0), last));
+  t.i1 = static_cast<int>(std::min(std::max(fi + 1.0, 0.0), last));
+  t.w0 = 1.0 - a;
+  t.w1 = a;
+  return t;
+}
+
+void gl_texture_rgb(ConstImageView img, float s, float t, int subtexel_bits, float out[3]) {
+  sample_rgb(img, gl_axis_tap(s, img.width, subtexel_bits),
+             gl_axis_tap(t, img.height, subtexel_bits), out);
+}
+
+// ---- per-pixel stages --------------------------------------------------------------------
+
+double storage_max(Storage s) {
+  return s == Storage::f16 ? kHalfMax : std::numeric_limits<float>::max();
+}
+
+template <class T>
+NonFiniteCounts count_nonfinite(BasicView<const T> src, int threads) {
+  NonFiniteCounts total;
+  std::mutex m;
+  parallel_rows(src.height, threads, [&](int y0, int y1) {
+    NonFiniteCounts c;
+    for (int y = y0; y < y1; ++y) {
+      const T* p = src.row(y);
+      for (int i = 0; i < src.width * kChannels; ++i) {
+        if (std::isnan(p[i])) ++c.nan;
+        else if (std::isinf(p[i])) ++(p[i] > 0 ? c.pos_inf : c.neg_inf);
+      }
+    }
+    std::lock_guard<std::mutex> lock(m);
+    total += c;
+  });
+  return total;
+}
+
+template <class T>
+NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite policy,
+                         Storage storage, int threads) {
+  const NonFiniteCounts found = count_nonfinite(src, threads);
+  parallel_rows(src.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const T* s = src.row(y);
+      T* d = dst.row(y);
+      for (int i = 0; i < src.width * kChannels; ++i) d[i] = sanitize_value(s[i], policy, storage);
+    }
+  });
+  return found;
+}
+
+template <class T>
+void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads) {
+  parallel_rows(src.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      for (int x = 0; x < src.width; ++x) {
+        const T* s = src.pixel(x, y);
+        T* d = dst.pixel(x, y);
+        const bool bright = luminance(s[0], s[1], s[2]) > threshold;
+        for (int c = 0; c < 3; ++c) d[c] = bright ? s[c] : T(0);
+        d[3] = T(1);
+      }
+    }
+  });
+}
+
+template <class T>
+void composite(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> dst, T strength,
+               int threads) {
+  parallel_rows(scene.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      for (int x = 0; x < scene.width; ++x) {
+        const T* s = scene.pixel(x, y);
+        const T* b = bloom.pixel(x, y);
+        T* d = dst.pixel(x, y);
+        for (int c = 0; c < 3; ++c) {
+          const T t = strength * b[c];
+          d[c] = s[c] + t;
+        }
+        d[3] = s[3];
+      }
+    }
+  });
+}
+
+namespace {
+inline float tonemap_value(float h, float exposure) { return 1.0f - std::exp(-h * exposure); }
+inline double tonemap_value(double h, double exposure) { return -std::expm1(-h * exposure); }
+}  // namespace
+
+template <class T>
+void tonemap(BasicView<const T> hdr, BasicView<T> dst, T exposure, int threads) {
+  parallel_rows(hdr.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      for (int x = 0; x < hdr.width; ++x) {
+        const T* s = hdr.pixel(x, y);
+        T* d = dst.pixel(x, y);
+        for (int c = 0; c < 3; ++c) d[c] = tonemap_value(s[c], exposure);
+        d[3] = s[3];
+      }
+    }
+  });
+}
+
+template <class T>
+void encode_output(BasicView<const T> mapped, BasicView<T> dst, T gamma, int threads) {
+  const T inv_gamma = T(1) / gamma;
+  parallel_rows(mapped.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      for (int x = 0; x < mapped.width; ++x) {
+        const T* s = mapped.pixel(x, y);
+        T* d = dst.pixel(x, y);
+        // std::max(NaN, 0) is NaN: a propagated NaN stays visible in the output.
+        for (int c = 0; c < 3; ++c) d[c] = std::pow(std::max(s[c], T(0)), inv_gamma);
+        d[3] = s[3];
+      }
+    }
+  });
+}
+
+template <class T>
+void store(BasicView<T> img, Storage storage, HalfRounding rounding, int threads) {
+  if (storage == Storage::f32) return;
+  parallel_rows(img.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      T* p = img.row(y);
+      for (int i = 0; i < img.width * kChannels; ++i) p[i] = round_to_half(p[i], rounding);
+    }
+  });
+}
+
+std::uint8_t quantize_8bit(float x) {
+  if (!(x > 0.0f)) return 0;  // also NaN
+  if (x >= 1.0f) return 255;
+  return static_cast<std::uint8_t>(std::lround(x * 255.0f));
+}
+
+#define BLOOMREF_INSTANTIATE(T)                                                                  \
+  template NonFiniteCounts count_nonfinite<T>(BasicView<const T>, int);                          \
+  template NonFiniteCounts sanitize<T>(BasicView<const T>, BasicView<T>, NonFinite, Storage,     \
+                                       int);                                                      \
+  template void extract_bright<T>(BasicView<const T>, BasicView<T>, T, int);                     \
+  template void composite<T>(BasicView<const T>, BasicView<const T>, BasicView<T>, T, int);      \
+  template void tonemap<T>(BasicView<const T>, BasicView<T>, T, int);                            \
+  template void encode_output<T>(BasicView<const T>, BasicView<T>, T, int);                      \
+  template void store<T>(BasicView<T>, Storage, HalfRounding, int);
+BLOOMREF_INSTANTIATE(float)
+BLOOMREF_INSTANTIATE(double)
+#undef BLOOMREF_INSTANTIATE
+
+}  // namespace bloomref
