@@ -1,0 +1,26 @@
+// Test helpers: the corpus folder (BLOOMREF_CORPUS) and small image utilities.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "bloomref/image.h"
+
+namespace bloomref::test {
+
+/// Paths of every image in $BLOOMREF_CORPUS (sorted); empty when the variable is unset.
+std::vector<std::string> corpus_files();
+
+/// A w x h image with every pixel set to (v, v, v, 1).
+Image constant_image(int w, int h, float v);
+
+/// Max |a - b| over RGB, skipping pixels where either is non-finite.
+double max_abs_diff(ConstImageView a, ConstImageView b);
+
+/// True when both images have identical bits in every channel.
+bool bit_identical(ConstImageView a, ConstImageView b);
+
+/// Count of NaN values over all channels.
+std::size_t count_nan(ConstImageView img);
+
+}  // namespace bloomref::test

@@ -1,0 +1,165 @@
+// The per-pixel stages against closed forms written out by hand.
+#include <catch2/catch.hpp>
+#include <cfloat>
+#include <cmath>
+
+#include "bloomref/plan.h"
+#include "bloomref/scenes.h"
+#include "bloomref/stages.h"
+#include "corpus.h"
+
+using namespace bloomref;
+
+namespace {
+template <class T>
+BasicImage<T> one_pixel(T r, T g, T b, T a = 1) {
+  BasicImage<T> img(1, 1);
+  T* p = img.pixel(0, 0);
+  p[0] = r; p[1] = g; p[2] = b; p[3] = a;
+  return img;
+}
+}  // namespace
+
+TEMPLATE_TEST_CASE("threshold is strict: luminance exactly at it is not bright", "[stages]",
+                   float, double) {
+  using T = TestType;
+  // L(1, 1, 1) = 0.2126 + 0.7152 + 0.0722 = 1 exactly in float and double (left to right).
+  CHECK(luminance(T(1), T(1), T(1)) == T(1));
+  const T up = std::nextafter(T(1), T(2));
+  for (auto [v, bright] : {std::pair<T, bool>{T(1), false}, {up, true}, {std::nextafter(T(1), T(0)), false}}) {
+    BasicImage<T> src = one_pixel<T>(v, v, v), dst(1, 1);
+    extract_bright(src.cview(), dst.view(), T(1), 1);
+    INFO("value " << v);
+    CHECK(dst.pixel(0, 0)[0] == (bright ? v : T(0)));
+    CHECK(dst.pixel(0, 0)[3] == T(1));
+  }
+  // NaN luminance is not bright.
+  BasicImage<T> nan = one_pixel<T>(T(NAN), 0, 0), dst(1, 1);
+  extract_bright(nan.cview(), dst.view(), T(1), 1);
+  CHECK(dst.pixel(0, 0)[0] == T(0));
+}
+
+TEST_CASE("the threshold-tie scene: exactly one band of three is bright", "[stages]") {
+  const Image tie = make_scene("threshold-tie");  // 96x32; band 1 is x in [32, 64)
+  BloomParams p;
+  for (Precision prec : {Precision::f32, Precision::f64}) {
+    p.precision = prec;
+    CHECK(make_plan(p, tie.cview()).facts.bright_pixels == 32u * 32u);
+  }
+}
+
+TEST_CASE("tone map against 1 - exp(-x) closed forms", "[stages]") {
+  ImageF64 h = one_pixel<double>(1.0, 2.0, 1e-10), m(1, 1);
+  tonemap(h.cview(), m.view(), 1.0, 1);
+  CHECK(m.pixel(0, 0)[0] == Approx(0.6321205588285577).epsilon(1e-15));
+  CHECK(m.pixel(0, 0)[1] == Approx(0.8646647167633873).epsilon(1e-15));
+  // f64 uses -expm1: full relative precision for tiny x (1 - exp(-x) would cancel to 0).
+  CHECK(m.pixel(0, 0)[2] == Approx(9.999999999500001e-11).epsilon(1e-14));
+
+  Image hf = one_pixel<float>(1.0f, 2.0f, 1e-10f), mf(1, 1);
+  tonemap(hf.cview(), mf.view(), 1.0f, 1);
+  CHECK(mf.pixel(0, 0)[0] == Approx(0.6321205588285577).epsilon(2e-7));
+  CHECK(mf.pixel(0, 0)[1] == Approx(0.8646647167633873).epsilon(2e-7));
+  // The f32 shader order cancels: exp(-1e-10f) rounds to 1, so the result is 0, not 1e-10.
+  // This is what the GL path computes too; the f64 truth above shows the loss.
+  CHECK(mf.pixel(0, 0)[2] == 0.0f);
+  // Exposure scales the argument: x = 0.5 * 2 = 1.
+  ImageF64 e = one_pixel<double>(0.5, 0.5, 0.5);
+  tonemap(e.cview(), m.view(), 2.0, 1);
+  CHECK(m.pixel(0, 0)[0] == Approx(0.6321205588285577).epsilon(1e-15));
+}
+
+TEST_CASE("gamma against pow closed forms; negatives clamp to 0; gamma 1 is the identity",
+          "[stages]") {
+  ImageF64 x = one_pixel<double>(0.5, 0.25, -0.5, 0.75), y(1, 1);
+  encode_output(x.cview(), y.view(), 2.2, 1);
+  CHECK(y.pixel(0, 0)[0] == Approx(0.7297400528407231).epsilon(1e-15));  // 0.5^(1/2.2)
+  CHECK(y.pixel(0, 0)[1] == Approx(0.5325205447199813).epsilon(1e-15));  // 0.25^(1/2.2)
+  CHECK(y.pixel(0, 0)[2] == 0.0);
+  CHECK(y.pixel(0, 0)[3] == 0.75);  // alpha carried through
+  encode_output(x.cview(), y.view(), 1.0, 1);
+  CHECK(y.pixel(0, 0)[0] == 0.5);
+  CHECK(y.pixel(0, 0)[1] == 0.25);
+
+  Image xf = one_pixel<float>(0.5f, 0.25f, 0.0f), yf(1, 1);
+  encode_output(xf.cview(), yf.view(), 2.2f, 1);
+  CHECK(yf.pixel(0, 0)[0] == Approx(0.7297400528407231).epsilon(3e-7));
+  CHECK(yf.pixel(0, 0)[2] == 0.0f);
+}
+
+TEST_CASE("composite adds strength * bloom and keeps the scene's alpha", "[stages]") {
+  Image s = one_pixel<float>(1.0f, 0.0f, -1.0f, 0.5f), b = one_pixel<float>(3.0f, 4.0f, 2.0f),
+        d(1, 1);
+  composite(s.cview(), b.cview(), d.view(), 0.5f, 1);
+  CHECK(d.pixel(0, 0)[0] == 2.5f);
+  CHECK(d.pixel(0, 0)[1] == 2.0f);
+  CHECK(d.pixel(0, 0)[2] == 0.0f);
+  CHECK(d.pixel(0, 0)[3] == 0.5f);
+}
+
+TEST_CASE("non-finite policies: zero, clamp (per storage), propagate; counts", "[stages]") {
+  Image src(2, 1);
+  const float in[8] = {NAN, INFINITY, -INFINITY, 1.0f, -2.0f, 0.5f, 3.0f, NAN};
+  std::copy(in, in + 8, src.data());
+  Image dst(2, 1);
+  NonFiniteCounts c = sanitize(src.cview(), dst.view(), NonFinite::zero, Storage::f32, 1);
+  CHECK((c.nan == 2 && c.pos_inf == 1 && c.neg_inf == 1));
+  const float zero[8] = {0, 0, 0, 1, -2, 0.5f, 3, 0};
+  for (int i = 0; i < 8; ++i) CHECK(dst.data()[i] == zero[i]);
+
+  sanitize(src.cview(), dst.view(), NonFinite::clamp, Storage::f32, 1);
+  CHECK(dst.data()[0] == 0.0f);
+  CHECK(dst.data()[1] == FLT_MAX);
+  CHECK(dst.data()[2] == -FLT_MAX);
+  sanitize(src.cview(), dst.view(), NonFinite::clamp, Storage::f16, 1);
+  CHECK(dst.data()[1] == 65504.0f);
+  CHECK(dst.data()[2] == -65504.0f);
+
+  sanitize(src.cview(), dst.view(), NonFinite::propagate, Storage::f32, 1);
+  CHECK(std::isnan(dst.data()[0]));
+  CHECK(dst.data()[1] == INFINITY);
+  CHECK(dst.data()[4] == -2.0f);
+}
+
+TEST_CASE("f16 storage rounds every stored value", "[stages]") {
+  Image img = one_pixel<float>(1.0f + 1.0f / 4096, 65519.0f, 70000.0f, 0.1f);
+  store(img.view(), Storage::f16, HalfRounding::nearest_even, 1);
+  CHECK(img.pixel(0, 0)[0] == 1.0f);       // 1 + 2^-12 is below the tie 1 + 2^-11
+  CHECK(img.pixel(0, 0)[1] == 65504.0f);
+  CHECK(img.pixel(0, 0)[2] == INFINITY);   // above 65520: overflows when stored as half
+  CHECK(img.pixel(0, 0)[3] == 0.0999755859375f);  // half(0.1) = 1638 * 2^-14
+  Image keep = one_pixel<float>(0.1f, 0.2f, 0.3f);
+  store(keep.view(), Storage::f32, HalfRounding::nearest_even, 1);
+  CHECK(keep.pixel(0, 0)[0] == 0.1f);
+}
+
+TEST_CASE("PNG codes: round(clamp(x, 0, 1) * 255)", "[stages]") {
+  CHECK(quantize_8bit(-1.0f) == 0);
+  CHECK(quantize_8bit(0.5f / 255) == 1);  // 0.5 rounds away from zero
+  CHECK(quantize_8bit(0.49f / 255) == 0);
+  CHECK(quantize_8bit(0.5f) == 128);      // 127.5 -> 128
+  CHECK(quantize_8bit(1.0f) == 255);
+  CHECK(quantize_8bit(7.0f) == 255);
+  CHECK(quantize_8bit(NAN) == 0);
+}
+
+TEST_CASE("parameters are validated, not clamped", "[params]") {
+  BloomParams p;
+  REQUIRE_NOTHROW(validate(p));
+  auto bad = [](auto mutate) {
+    BloomParams q;
+    mutate(q);
+    return q;
+  };
+  CHECK_THROWS_WITH(validate(bad([](BloomParams& q) { q.gamma = 0; })), Catch::Contains("--gamma"));
+  CHECK_THROWS_WITH(validate(bad([](BloomParams& q) { q.exposure = -1; })),
+                    Catch::Contains("--exposure"));
+  CHECK_THROWS_WITH(validate(bad([](BloomParams& q) { q.threshold = NAN; })),
+                    Catch::Contains("--threshold"));
+  CHECK_THROWS_WITH(validate(bad([](BloomParams& q) { q.passes = -1; })),
+                    Catch::Contains("--passes"));
+  CHECK_THROWS_WITH(validate(bad([](BloomParams& q) { q.strength = INFINITY; })),
+                    Catch::Contains("--strength"));
+  CHECK_THROWS_WITH(parse_kernel("gauss"), Catch::Contains("discrete9, linear5"));
+  CHECK_THROWS_WITH(parse_nonfinite("ignore"), Catch::Contains("zero, clamp, propagate, error"));
+}
