@@ -208,3 +208,42 @@ TEST_CASE("linear5 equals discrete9 with exact sampling", "[blur]") {
     CHECK(worst < 1e-6);
   }
 }
+
+TEST_CASE("blur_pass equals the seeds' shader loop written per pixel with texture()", "[blur]") {
+  // The shader, literally: uv = (x + 0.5) / size; d = 1 / size; r = texture(uv) * w0;
+  // r += texture(uv + d * i) * wi; r += texture(uv - d * i) * wi. Odd sizes make some lookups
+  // fall between rows (the row coordinate rounds off the texel centre), exercising both paths.
+  for (auto [w, h] : {std::pair{37, 23}, {1000, 3}, {3, 999}, {1, 5}}) {
+    Image img(w, h);
+    std::uint32_t s = 99;
+    for (float& v : img.values()) {
+      s = s * 1664525u + 1013904223u;
+      v = static_cast<float>(s >> 8) / 16777216.0f * 4.0f;
+    }
+    for (const Kernel* k : {&kernel_discrete9(), &kernel_linear5()})
+      for (int bits : {0, 8})
+        for (Axis axis : {Axis::horizontal, Axis::vertical}) {
+          Image out(w, h);
+          blur_pass(img.cview(), out.view(), BlurPassOptions{axis, k, bits}, 2);
+          int mismatches = 0;
+          const bool hz = axis == Axis::horizontal;
+          const float d = 1.0f / static_cast<float>(hz ? w : h);
+          for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+              const float u = texel_centre(x, w), v = texel_centre(y, h);
+              float r[3], t[3];
+              gl_texture_rgb(img.cview(), u, v, bits, t);
+              for (int c = 0; c < 3; ++c) r[c] = t[c] * k->weights_f32[0];
+              for (std::size_t i = 1; i < k->weights_f32.size(); ++i)
+                for (float sign : {1.0f, -1.0f}) {
+                  const float o = sign * (d * k->offsets_f32[i]);
+                  gl_texture_rgb(img.cview(), hz ? u + o : u, hz ? v : v + o, bits, t);
+                  for (int c = 0; c < 3; ++c) r[c] = r[c] + t[c] * k->weights_f32[i];
+                }
+              for (int c = 0; c < 3; ++c) mismatches += r[c] != out.pixel(x, y)[c];
+            }
+          INFO(w << "x" << h << " " << k->name << " bits " << bits << (hz ? " H" : " V"));
+          CHECK(mismatches == 0);
+        }
+  }
+}

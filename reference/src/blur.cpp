@@ -55,6 +55,18 @@ AxisTap<double> centre_tap(int x, int n, int, double) { return exact_axis_tap(x,
 const std::vector<float>& weights(const Kernel& k, float) { return k.weights_f32; }
 const std::vector<double>& weights(const Kernel& k, double) { return k.weights_f64; }
 
+// Two texels along one axis, in sample_rgb's order, zero weights left out.
+template <class T>
+inline void sample_pair(const T* p0, const T* p1, T w0, T w1, T s[3]) {
+  if (w0 != T(0)) {
+    for (int c = 0; c < 3; ++c) s[c] = w0 * p0[c];
+    if (w1 != T(0))
+      for (int c = 0; c < 3; ++c) s[c] = s[c] + w1 * p1[c];
+  } else {
+    for (int c = 0; c < 3; ++c) s[c] = w1 * p1[c];
+  }
+}
+
 // r = T(c) * w0; r = r + T(+i) * wi; r = r + T(-i) * wi  (the seeds' blur shader).
 template <class T, class Sample>
 inline void convolve(const std::vector<T>& w, Sample sample, T out[3]) {
@@ -88,10 +100,22 @@ void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& 
         const AxisTap<T>* taps = along.at(horizontal ? x : y);
         const AxisTap<T>& other = across[horizontal ? y : x];
         T r[3];
-        convolve(w, [&](int k, T s[3]) {
-          if (horizontal) sample_rgb(src, taps[k], other, s);
-          else sample_rgb(src, other, taps[k], s);
-        }, r);
+        if (other.w1 == T(0)) {
+          // The lookup sits on one row (column) across the blur: its weight there is exactly 1,
+          // so the bilinear weights are the along-axis ones and sample_rgb reduces to this.
+          const int fixed = other.i0;
+          convolve(w, [&](int k, T s[3]) {
+            const AxisTap<T>& t = taps[k];
+            const T* p0 = horizontal ? src.pixel(t.i0, fixed) : src.pixel(fixed, t.i0);
+            const T* p1 = horizontal ? src.pixel(t.i1, fixed) : src.pixel(fixed, t.i1);
+            sample_pair(p0, p1, t.w0, t.w1, s);
+          }, r);
+        } else {
+          convolve(w, [&](int k, T s[3]) {
+            if (horizontal) sample_rgb(src, taps[k], other, s);
+            else sample_rgb(src, other, taps[k], s);
+          }, r);
+        }
         T* d = dst.pixel(x, y);
         d[0] = r[0];
         d[1] = r[1];
