@@ -71,7 +71,7 @@ int run(const RunArgs& a) {
     }
   }
   if (!a.json_path.empty()) {
-    nlohmann::json j = run_json(plan, trace);
+    nlohmann::ordered_json j = run_json(plan, trace);
     j["input"] = {{"path", in.info.path},     {"format", in.info.format},
                   {"layout", in.info.layout}, {"channels", in.info.channels},
                   {"has_alpha", in.info.has_alpha}};

@@ -1,25 +1,37 @@
 #include "json_out.h"
 
+#include <charconv>
+#include <string>
+
 #include "bloomref/parallel.h"
 
 namespace bloomref::cli {
+namespace {
+// A float parameter as the shortest decimal that reads back to it (2.2f -> 2.2, not
+// 2.200000047683716).
+double shortest(float v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::stod(std::string(buf, r.ptr));
+}
+}  // namespace
 
-nlohmann::json params_json(const BloomParams& p) {
-  return {{"method", to_string(p.method)},       {"threshold", p.threshold},
-          {"exposure", p.exposure},              {"gamma", p.gamma},
-          {"strength", p.strength},              {"passes", p.passes},
+nlohmann::ordered_json params_json(const BloomParams& p) {
+  return {{"method", to_string(p.method)},       {"threshold", shortest(p.threshold)},
+          {"exposure", shortest(p.exposure)},              {"gamma", shortest(p.gamma)},
+          {"strength", shortest(p.strength)},              {"passes", p.passes},
           {"kernel", to_string(p.kernel)},       {"storage", to_string(p.storage)},
           {"precision", to_string(p.precision)}, {"nonfinite", to_string(p.nonfinite)},
           {"subtexel_bits", p.subtexel_bits},    {"threads", resolve_threads(p.threads)},
           {"plan", to_string(p.plan)}};
 }
 
-nlohmann::json counts_json(const NonFiniteCounts& c) {
+nlohmann::ordered_json counts_json(const NonFiniteCounts& c) {
   return {{"nan", c.nan}, {"pos_inf", c.pos_inf}, {"neg_inf", c.neg_inf}};
 }
 
-nlohmann::json run_json(const Plan& plan, const StageTrace& trace) {
-  nlohmann::json timings = nlohmann::json::object();
+nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace) {
+  nlohmann::ordered_json timings = nlohmann::ordered_json::object();
   for (const auto& [name, ms] : trace.timings) timings[name] = ms;
   timings["total"] = trace.total_ms;
   return {{"params", params_json(plan.params)},

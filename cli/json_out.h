@@ -9,9 +9,9 @@
 
 namespace bloomref::cli {
 
-nlohmann::json params_json(const BloomParams& p);
-nlohmann::json counts_json(const NonFiniteCounts& c);
+nlohmann::ordered_json params_json(const BloomParams& p);
+nlohmann::ordered_json counts_json(const NonFiniteCounts& c);
 /// params, renderer, timings_ms (stage -> ms, plus "total"), skipped, nonfinite, plan facts.
-nlohmann::json run_json(const Plan& plan, const StageTrace& trace);
+nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace);
 
 }  // namespace bloomref::cli
