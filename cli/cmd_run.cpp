@@ -2,6 +2,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <set>
 
 #include "bloomref/error.h"
 #include "bloomref/executor.h"
@@ -34,14 +35,30 @@ int run(const RunArgs& a) {
   if (a.outputs.empty() && a.dump_dir.empty() && a.json_path.empty())
     throw ParamError("nothing to write: give -o OUT.exr and/or -o OUT.png (or --dump-stages, --json)");
 
-  // Check every destination before the (possibly long) work starts.
+  // Check every destination before the (possibly long) work starts, so a refusal leaves
+  // nothing half-written: the input is never a destination, and no file is written twice.
+  namespace fs = std::filesystem;
+  std::vector<std::string> destinations = a.outputs;
   for (const std::string& o : a.outputs) {
-    const std::string e = std::filesystem::path(o).extension().string();
+    const std::string e = fs::path(o).extension().string();
     if (e != ".exr" && e != ".png" && e != ".EXR" && e != ".PNG")
       throw InputError(o, "cannot write '" + e + "' files: the output must end in .exr or .png");
-    if (!a.input.empty()) refuse_overwrite(o, a.input);
   }
-  if (!a.json_path.empty() && !a.input.empty()) refuse_overwrite(a.json_path, a.input);
+  if (!a.json_path.empty()) destinations.push_back(a.json_path);
+  if (!a.dump_dir.empty()) {
+    std::error_code ec;
+    if (fs::exists(a.dump_dir, ec) && !fs::is_directory(a.dump_dir, ec))
+      throw InputError(a.dump_dir, "exists and is not a folder (--dump-stages needs a folder)");
+    for (const std::string& name : stage_names(a.pipeline.params))
+      destinations.push_back((fs::path(a.dump_dir) / (name + ".exr")).string());
+  }
+  std::set<fs::path> seen;
+  for (const std::string& d : destinations) {
+    if (!a.input.empty()) refuse_overwrite(d, a.input);
+    std::error_code ec;
+    if (!seen.insert(fs::weakly_canonical(d, ec)).second)
+      throw InputError(d, "is named twice as an output");
+  }
 
   LoadedImage in;
   std::string source;
@@ -63,12 +80,11 @@ int run(const RunArgs& a) {
   const ImageInfo* windows = a.input.empty() ? nullptr : &in.info;
   for (const std::string& o : a.outputs) save_image(o, trace.final_image().cview(), windows);
   if (!a.dump_dir.empty()) {
-    std::filesystem::create_directories(a.dump_dir);
-    for (const StageResult& s : trace.stages) {
-      const std::string path = (std::filesystem::path(a.dump_dir) / (s.name + ".exr")).string();
-      if (!a.input.empty()) refuse_overwrite(path, a.input);
-      save_exr(path, s.image.cview(), windows);
-    }
+    std::error_code ec;
+    fs::create_directories(a.dump_dir, ec);
+    if (ec) throw InputError(a.dump_dir, "cannot create the folder: " + ec.message());
+    for (const StageResult& s : trace.stages)
+      save_exr((fs::path(a.dump_dir) / (s.name + ".exr")).string(), s.image.cview(), windows);
   }
   if (!a.json_path.empty()) {
     nlohmann::ordered_json j = run_json(plan, trace);

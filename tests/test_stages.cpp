@@ -69,7 +69,7 @@ TEST_CASE("tone map against 1 - exp(-x) closed forms", "[stages]") {
   CHECK(m.pixel(0, 0)[0] == Approx(0.6321205588285577).epsilon(1e-15));
 }
 
-TEST_CASE("gamma against pow closed forms; negatives clamp to 0; gamma 1 is the identity",
+TEST_CASE("gamma against pow closed forms, negatives clamp to 0, gamma 1 is the identity",
           "[stages]") {
   ImageF64 x = one_pixel<double>(0.5, 0.25, -0.5, 0.75), y(1, 1);
   encode_output(x.cview(), y.view(), 2.2, 1);
@@ -97,7 +97,7 @@ TEST_CASE("composite adds strength * bloom and keeps the scene's alpha", "[stage
   CHECK(d.pixel(0, 0)[3] == 0.5f);
 }
 
-TEST_CASE("non-finite policies: zero, clamp (per storage), propagate; counts", "[stages]") {
+TEST_CASE("non-finite policies zero, clamp (per storage), propagate, and their counts", "[stages]") {
   Image src(2, 1);
   const float in[8] = {NAN, INFINITY, -INFINITY, 1.0f, -2.0f, 0.5f, 3.0f, NAN};
   std::copy(in, in + 8, src.data());

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <filesystem>
 #include <system_error>
 
@@ -30,13 +31,15 @@ void write_atomically(const std::string& path, Write write) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw InputError(path, "the output folder does not exist");
   if (fs::is_directory(target, ec)) throw InputError(path, "is a folder, not a file");
+  // Unique per process and per call, so concurrent writes of one path never share a temporary.
+  static std::atomic<unsigned> serial{0};
   const fs::path tmp = dir / ("." + target.stem().string() + ".tmp-" + std::to_string(::getpid()) +
-                              target.extension().string());
+                              "-" + std::to_string(serial++) + target.extension().string());
   try {
     write(tmp.string());
-  } catch (const Error& e) {
+  } catch (const InputError& e) {
     fs::remove(tmp, ec);
-    throw InputError(path, e.what());
+    throw InputError(path, e.problem());  // named after the destination, not the temporary
   } catch (const std::exception& e) {
     fs::remove(tmp, ec);
     throw InputError(path, std::string("cannot write: ") + e.what());
@@ -46,6 +49,14 @@ void write_atomically(const std::string& path, Write write) {
     fs::remove(tmp, ec);
     throw InputError(path, "cannot move the finished file into place: " + ec.message());
   }
+}
+
+// An image with no pixels cannot be written (EXR and PNG need at least 1x1); refusing it
+// up front gives one clear message instead of each library's own.
+void require_pixels(const std::string& path, ConstImageView img) {
+  if (img.empty() || img.data == nullptr)
+    throw InputError(path, "nothing to write: the image is empty (" + std::to_string(img.width) +
+                               "x" + std::to_string(img.height) + ")");
 }
 
 }  // namespace
@@ -79,10 +90,12 @@ LoadedImage load_image(const std::string& path, const SizeLimits& limits) {
 }
 
 void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows) {
+  require_pixels(path, img);
   write_atomically(path, [&](const std::string& tmp) { detail::write_exr_file(tmp, img, windows); });
 }
 
 void save_png(const std::string& path, ConstImageView img) {
+  require_pixels(path, img);
   write_atomically(path, [&](const std::string& tmp) { detail::write_png_file(tmp, img); });
 }
 
@@ -94,9 +107,13 @@ void save_image(const std::string& path, ConstImageView img, const ImageInfo* wi
 }
 
 void refuse_overwrite(const std::string& output, const std::string& input) {
-  std::error_code ec;
+  std::error_code ec, ec_out, ec_in;
+  // equivalent(): the same file through links; weakly_canonical(): the same path through
+  // "..", "." and symlinked folders even when the output does not exist yet. A path that cannot
+  // be resolved yields an empty result, which must not count as a match.
   const bool same = fs::exists(output, ec) && fs::exists(input, ec) && fs::equivalent(output, input, ec);
-  if (same || fs::weakly_canonical(output, ec) == fs::weakly_canonical(input, ec))
+  const fs::path out = fs::weakly_canonical(output, ec_out), in = fs::weakly_canonical(input, ec_in);
+  if (same || (!ec_out && !ec_in && out == in))
     throw InputError(output, "is the input file; bloomref never writes over its input");
 }
 

@@ -10,6 +10,7 @@
 #include <ImfPartType.h>
 #include <ImfRgbaFile.h>
 #include <ImfVersion.h>
+#include <openexr.h>
 
 #include <fstream>
 #include <set>
@@ -53,6 +54,52 @@ PartChannels classify(const Imf::Header& h) {
 
 bool usable(const PartChannels& pc) { return pc.rgb || pc.luma; }
 
+// Checks every part's data window against the limits before the C++ API opens the file: its
+// constructors read each part's chunk offset table, whose length follows the data window, so a
+// forged header (100000x100000) makes them read or allocate far past the file. OpenEXRCore
+// parses the headers alone. When Core cannot parse them, the C++ reader reports the problem.
+// Every valid file holds one 8-byte offset per chunk, so a file shorter than its offset tables
+// is refused here too, before a header within the limits gets its pixels allocated.
+void check_part_sizes(const std::string& path, const SizeLimits& limits,
+                      unsigned long long file_bytes) {
+  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+  init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};
+  init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
+  exr_context_t ctxt = nullptr;
+  if (exr_start_read(&ctxt, path.c_str(), &init) != EXR_ERR_SUCCESS) {
+    exr_finish(&ctxt);
+    return;
+  }
+  int parts = 0;
+  exr_get_count(ctxt, &parts);
+  unsigned long long chunks = 0;
+  try {
+    for (int p = 0; p < parts; ++p) {
+      int32_t n = 0;
+      if (exr_get_chunk_count(ctxt, p, &n) == EXR_ERR_SUCCESS && n > 0) chunks += n;
+      exr_attr_box2i_t b{};
+      if (exr_get_data_window(ctxt, p, &b) != EXR_ERR_SUCCESS) continue;
+      const long long w = (long long)b.max.x - b.min.x + 1, h = (long long)b.max.y - b.min.y + 1;
+      try {
+        check_size(path, w, h, limits);
+      } catch (const InputError& e) {
+        if (parts == 1) throw;
+        throw InputError(path, "part " + std::to_string(p) + " of " + std::to_string(parts) +
+                                   ": " + e.problem());
+      }
+    }
+    if (chunks * 8 > file_bytes)
+      throw InputError(path, "truncated or corrupt: the header describes " +
+                                 std::to_string(chunks) + " pixel chunks, whose offset table "
+                                 "alone needs " + std::to_string(chunks * 8) +
+                                 " bytes, but the file has " + std::to_string(file_bytes));
+  } catch (...) {
+    exr_finish(&ctxt);
+    throw;
+  }
+  exr_finish(&ctxt);
+}
+
 }  // namespace
 
 bool has_exr_magic(const std::string& path) {
@@ -67,6 +114,10 @@ LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
   ImageInfo& info = out.info;
   info.path = path;
   info.format = "exr";
+  {
+    std::ifstream f(path, std::ios::binary | std::ios::ate);
+    check_part_sizes(path, limits, f ? static_cast<unsigned long long>(f.tellg()) : ~0ull);
+  }
   try {
     Imf::MultiPartInputFile file(path.c_str());
     const int parts = file.parts();

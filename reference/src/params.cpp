@@ -78,11 +78,11 @@ std::string to_string(Storage v) { return name_of(v, kStorages); }
 std::string to_string(Precision v) { return name_of(v, kPrecisions); }
 std::string to_string(NonFinite v) { return name_of(v, kPolicies); }
 std::string to_string(PlanMode v) { return name_of(v, kPlans); }
-Method parse_method(const std::string& s) { return parse_enum("method", s, kMethods); }
-KernelName parse_kernel(const std::string& s) { return parse_enum("kernel", s, kKernels); }
-Storage parse_storage(const std::string& s) { return parse_enum("storage", s, kStorages); }
-Precision parse_precision(const std::string& s) { return parse_enum("precision", s, kPrecisions); }
-NonFinite parse_nonfinite(const std::string& s) { return parse_enum("nonfinite", s, kPolicies); }
-PlanMode parse_plan_mode(const std::string& s) { return parse_enum("plan", s, kPlans); }
+Method parse_method(const std::string& s) { return parse_enum("--method", s, kMethods); }
+KernelName parse_kernel(const std::string& s) { return parse_enum("--kernel", s, kKernels); }
+Storage parse_storage(const std::string& s) { return parse_enum("--storage", s, kStorages); }
+Precision parse_precision(const std::string& s) { return parse_enum("--precision", s, kPrecisions); }
+NonFinite parse_nonfinite(const std::string& s) { return parse_enum("--nonfinite", s, kPolicies); }
+PlanMode parse_plan_mode(const std::string& s) { return parse_enum("--plan", s, kPlans); }
 
 }  // namespace bloomref

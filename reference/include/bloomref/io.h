@@ -9,7 +9,8 @@
 //
 // Sizes are checked against SizeLimits from the header, before any pixel memory is allocated.
 //
-// Writing: EXR holds 32-bit float RGBA; PNG holds 8-bit RGBA, round(clamp(x, 0, 1) * 255).
+// Writing: EXR holds 32-bit float RGBA; PNG holds opaque 8-bit RGB, round(clamp(x, 0, 1) * 255)
+// (alpha after a bloom is not a coverage a viewer can use; it stays in the EXR).
 // Every write goes to a temporary file in the destination folder and is renamed into place, so
 // a failure leaves no partial file and never touches what was there.
 #pragma once

@@ -1,0 +1,236 @@
+// The bloomref command on bad input: exit code 2, a message on stderr naming the file and the
+// problem, no crash, the input's bytes untouched, no output written. And on good input (every
+// corpus image): exit 0, outputs written, no NaN in the output under the default policy.
+//
+// The command runs as a separate process (BLOOMREF_EXE) in a temporary folder.
+#include <ImfInputFile.h>
+#include <sys/wait.h>
+
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "io_test_util.h"
+
+using bloomref::test::TempDir;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct CliResult {
+  int code = -1;  ///< exit status; 128 + signal when the process was killed by one
+  std::string out, err;
+};
+
+/// Runs `bloomref ARGS` with `cwd` as its working folder.
+CliResult run_cli(const TempDir& cwd, const std::string& args) {
+  TempDir logs;
+  const std::string cmd = "cd '" + cwd.path().string() + "' && '" BLOOMREF_EXE "' " + args +
+                          " >'" + (logs / "out") + "' 2>'" + (logs / "err") + "'";
+  const int status = std::system(cmd.c_str());
+  CliResult r;
+  if (status == -1) FAIL("std::system could not start a shell");
+  if (WIFEXITED(status)) r.code = WEXITSTATUS(status);
+  else if (WIFSIGNALED(status)) r.code = 128 + WTERMSIG(status);
+  r.out = bloomref::test::read_bytes(logs / "out");
+  r.err = bloomref::test::read_bytes(logs / "err");
+  return r;
+}
+
+/// Runs a command that must be refused as bad input: exit 2, stderr names every item of
+/// `mentions`, `inputs` keep their bytes, no output file appears.
+void expect_bad_input(const TempDir& dir, const std::string& args,
+                      const std::vector<std::string>& mentions,
+                      const std::vector<std::string>& inputs = {}) {
+  std::vector<std::string> before;
+  for (const auto& in : inputs) before.push_back(bloomref::test::read_bytes(dir / in));
+  const auto listing = dir.listing();
+  const CliResult r = run_cli(dir, args);
+  INFO("bloomref " << args << "\nstderr: " << r.err);
+  CHECK(r.code < 128);  // no crash
+  CHECK(r.code == 2);
+  for (const auto& m : mentions) CHECK(r.err.find(m) != std::string::npos);
+  CHECK(r.err.find("internal error") == std::string::npos);
+  for (std::size_t i = 0; i < inputs.size(); ++i)
+    CHECK(bloomref::test::read_bytes(dir / inputs[i]) == before[i]);
+  CHECK(dir.listing() == listing);  // no output, no temporary file
+}
+
+std::string shell_quoted(const std::string& s) { return "'" + s + "'"; }
+
+/// Reads an EXR's RGBA as float with OpenEXR (independent of the code under test).
+std::vector<float> read_exr_rgba(const std::string& path, Imath::Box2i& dw) {
+  Imf::InputFile file(path.c_str());
+  dw = file.header().dataWindow();
+  const long w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+  std::vector<float> px(std::size_t(w) * h * 4);
+  Imf::FrameBuffer fb;
+  const char* names[] = {"R", "G", "B", "A"};
+  for (int c = 0; c < 4; ++c)
+    fb.insert(names[c], Imf::Slice::Make(Imf::FLOAT, px.data() + c, dw, 16, 16 * w));
+  file.setFrameBuffer(fb);
+  file.readPixels(dw.min.y, dw.max.y);
+  return px;
+}
+
+}  // namespace
+
+TEST_CASE("bloomref run refuses bad input with exit code 2", "[cli]") {
+  TempDir dir;
+  const std::string run = "run ";
+  bloomref::test::write_test_exr(dir / "in.exr", 16, 16, {"R", "G", "B"},
+                                 std::vector<float>(256, 2.0f), Imf::ZIP_COMPRESSION);
+
+  SECTION("missing file") {
+    expect_bad_input(dir, run + "missing.exr -o out.exr", {"missing.exr", "no such file"});
+  }
+  SECTION("empty file") {
+    bloomref::test::write_bytes(dir / "empty.exr", "");
+    expect_bad_input(dir, run + "empty.exr -o out.exr", {"empty.exr", "empty"}, {"empty.exr"});
+  }
+  SECTION("truncated EXR") {
+    const std::string bytes = bloomref::test::read_bytes(dir / "in.exr");
+    bloomref::test::write_bytes(dir / "cut.exr", bytes.substr(0, bytes.size() / 2));
+    expect_bad_input(dir, run + "cut.exr -o out.exr", {"cut.exr"}, {"cut.exr"});
+  }
+  SECTION("a text file named .exr") {
+    bloomref::test::write_bytes(dir / "notes.exr", "not an image, just text\n");
+    expect_bad_input(dir, run + "notes.exr -o out.exr", {"notes.exr", "not an OpenEXR file"},
+                     {"notes.exr"});
+  }
+  SECTION("a text file named .hdr") {
+    bloomref::test::write_bytes(dir / "notes.hdr", "not an image, just text\n");
+    expect_bad_input(dir, run + "notes.hdr -o out.exr", {"notes.hdr"}, {"notes.hdr"});
+  }
+  SECTION("a header claiming 100000x100000") {
+    bloomref::test::write_forged_window_exr(dir / "huge.exr", 99999, 99999);
+    expect_bad_input(dir, run + "huge.exr -o out.exr", {"huge.exr", "100000x100000", "limit"},
+                     {"huge.exr"});
+  }
+  SECTION("a header within the limits that the file cannot hold (60000x2000 in 400 bytes)") {
+    bloomref::test::write_forged_window_exr(dir / "forged.exr", 59999, 1999);
+    expect_bad_input(dir, run + "forged.exr -o out.exr", {"forged.exr", "truncated"},
+                     {"forged.exr"});
+  }
+  SECTION("an unsupported channel layout (only Z)") {
+    bloomref::test::write_test_exr(dir / "depth.exr", 4, 4, {"Z"}, std::vector<float>(16, 3.0f));
+    expect_bad_input(dir, run + "depth.exr -o out.exr", {"depth.exr", "channel", "Z"},
+                     {"depth.exr"});
+  }
+  SECTION("output path equal to the input path") {
+    fs::create_directory(dir / "sub");
+    expect_bad_input(dir, run + "in.exr -o in.exr", {"in.exr", "input"}, {"in.exr"});
+    expect_bad_input(dir, run + "in.exr -o ./sub/../in.exr", {"in.exr", "input"}, {"in.exr"});
+    expect_bad_input(dir, run + "./sub/../in.exr -o in.exr", {"in.exr", "input"}, {"in.exr"});
+    expect_bad_input(dir, run + "in.exr -o " + shell_quoted(dir / "in.exr"), {"in.exr", "input"},
+                     {"in.exr"});
+    expect_bad_input(dir, run + "in.exr -o out.exr --json in.exr", {"in.exr", "input"},
+                     {"in.exr"});
+  }
+  SECTION("unknown option values") {
+    expect_bad_input(dir, run + "in.exr -o out.exr --kernel foo", {"kernel", "foo"}, {"in.exr"});
+    expect_bad_input(dir, run + "in.exr -o out.exr --nonfinite maybe", {"maybe"}, {"in.exr"});
+    expect_bad_input(dir, run + "in.exr -o out.tif", {"out.tif"}, {"in.exr"});
+  }
+  SECTION("--nonfinite error on a file holding NaN") {
+    std::vector<float> v(16, 0.5f);
+    v[5] = std::numeric_limits<float>::quiet_NaN();
+    bloomref::test::write_test_exr(dir / "nan.exr", 4, 4, {"R", "G", "B"}, v);
+    expect_bad_input(dir, run + "nan.exr -o out.exr --nonfinite error", {"nan.exr", "NaN"},
+                     {"nan.exr"});
+  }
+  SECTION("an output folder that does not exist") {
+    const auto before = bloomref::test::read_bytes(dir / "in.exr");
+    const CliResult r = run_cli(dir, run + "in.exr -o nowhere/out.exr");
+    INFO(r.err);
+    CHECK(r.code == 2);
+    CHECK(r.err.find("nowhere/out.exr") != std::string::npos);
+    CHECK(bloomref::test::read_bytes(dir / "in.exr") == before);
+    CHECK(dir.listing() == std::vector<std::string>{"in.exr"});
+  }
+}
+
+TEST_CASE("bloomref run refuses truncated corpus files with exit code 2", "[cli][corpus]") {
+  const std::string corpus = bloomref::test::corpus_dir();
+  if (corpus.empty()) {
+    WARN("BLOOMREF_CORPUS is not set: skipping truncated corpus files");
+    return;
+  }
+  TempDir dir;
+  // Tiled, mip-mapped, luminance/chroma, multipart, DWAB, Radiance RLE: each reader's path.
+  for (const char* name : {"GoldenGate.exr", "StageEnvLatLong.exr", "StarField.exr",
+                           "multipart.0001.exr", "comp_dwab_v2.exr", "hdr-rgb-riverwalk.hdr"}) {
+    const std::string bytes = bloomref::test::read_bytes((fs::path(corpus) / name).string());
+    const std::string cut = std::string("cut-") + name;
+    bloomref::test::write_bytes(dir / cut, bytes.substr(0, bytes.size() / 2));
+    expect_bad_input(dir, "run " + cut + " -o out.exr", {cut}, {cut});
+    fs::remove(dir / cut);
+  }
+}
+
+TEST_CASE("bloomref run writes EXR, PNG and JSON", "[cli]") {
+  TempDir dir;
+  const std::string corpus = bloomref::test::corpus_dir();
+  std::string in;
+  if (!corpus.empty()) {
+    in = (fs::path(corpus) / "reference-crop.exr").string();
+  } else {
+    WARN("BLOOMREF_CORPUS is not set: using a written EXR instead of a corpus file");
+    in = dir / "in.exr";
+    bloomref::test::write_test_exr(in, 16, 16, {"R", "G", "B"}, std::vector<float>(256, 2.0f));
+  }
+  const std::string before = bloomref::test::read_bytes(in);
+  const CliResult r = run_cli(dir, "run " + shell_quoted(in) + " -o out.exr -o out.png --json out.json");
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK(bloomref::test::read_bytes(in) == before);
+  Imath::Box2i dw;
+  const auto px = read_exr_rgba(dir / "out.exr", dw);
+  CHECK(dw.max.x - dw.min.x + 1 == (corpus.empty() ? 16 : 160));
+  CHECK(dw.max.y - dw.min.y + 1 == (corpus.empty() ? 16 : 160));
+  CHECK(bloomref::test::read_bytes(dir / "out.png").substr(0, 8) == "\x89PNG\r\n\x1a\n");
+  const auto j = nlohmann::json::parse(bloomref::test::read_bytes(dir / "out.json"));
+  CHECK(j.contains("params"));
+  CHECK(j.contains("renderer"));
+  CHECK(j["timings_ms"].contains("total"));
+  CHECK(j.contains("skipped"));
+}
+
+TEST_CASE("bloomref run succeeds on every corpus image, with no NaN out", "[cli][corpus]") {
+  const std::string corpus = bloomref::test::corpus_dir();
+  if (corpus.empty()) {
+    WARN("BLOOMREF_CORPUS is not set: skipping the corpus run");
+    return;
+  }
+  TempDir dir;
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(corpus)) {
+    const std::string name = e.path().filename().string();
+    if (name == "README.md") continue;
+    ++files;
+    const std::string before = bloomref::test::read_bytes(e.path().string());
+    const CliResult r = run_cli(dir, "run " + shell_quoted(e.path().string()) + " -o out.exr -q");
+    INFO(name << "\nstderr: " << r.err);
+    REQUIRE(r.code == 0);
+    CHECK(bloomref::test::read_bytes(e.path().string()) == before);
+    Imath::Box2i dw;
+    const auto px = read_exr_rgba(dir / "out.exr", dw);
+    std::size_t nan = 0, inf = 0;
+    for (float v : px) {
+      nan += std::isnan(v);
+      inf += std::isinf(v);
+    }
+    CHECK(nan == 0);  // default policy: zero
+    CHECK(inf == 0);
+    if (name == "multipart.0001.exr") {  // README: part 0's data window, origin (654, 245)
+      CHECK(dw.min.x == 654);
+      CHECK(dw.min.y == 245);
+      CHECK(dw.max.x - dw.min.x + 1 == 877);
+      CHECK(dw.max.y - dw.min.y + 1 == 876);
+    }
+    CHECK(dir.listing() == std::vector<std::string>{"out.exr"});
+    fs::remove(dir / "out.exr");
+  }
+  CHECK(files == 15);
+}
