@@ -6,6 +6,7 @@
 
 #include "bloomref/error.h"
 #include "bloomref/executor.h"
+#include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
 #include "bloomref/scenes.h"
 #include "commands.h"
@@ -19,6 +20,7 @@ struct RunArgs {
   std::string input;
   std::vector<std::string> outputs;
   std::string backend = "cpu";
+  std::string gl_shaders = "fragment";
   std::string dump_dir;
   std::string json_path;
   bool quiet = false;
@@ -28,10 +30,6 @@ struct RunArgs {
 int run(const RunArgs& a) {
   if (a.backend != "cpu" && a.backend != "gl")
     throw ParamError("--backend '" + a.backend + "' is not one of: cpu, gl");
-  if (a.backend == "gl") {
-    std::cerr << "bloomref: the GL backend is not available in this build (only --backend cpu)\n";
-    return 3;
-  }
   if (a.outputs.empty() && a.dump_dir.empty() && a.json_path.empty())
     throw ParamError("nothing to write: give -o OUT.exr and/or -o OUT.png (or --dump-stages, --json)");
 
@@ -73,9 +71,21 @@ int run(const RunArgs& a) {
     source = in.info.path;
   }
   const Plan plan = make_plan(a.pipeline.params, in.image.cview(), source);
-  ExecuteOptions eo;
-  eo.keep_all = !a.dump_dir.empty();
-  const StageTrace trace = execute(plan, in.image.cview(), eo);
+  StageTrace trace;
+  std::string renderer = "cpu";
+  if (a.backend == "gl") {
+    auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3
+    gpu::GlOptions go;
+    go.shaders = gpu::parse_shader_kind(a.gl_shaders);
+    go.keep_all = !a.dump_dir.empty();
+    trace = gpu::execute_gl(*ctx, plan, in.image.cview(), go);
+    renderer = "gl (" + gpu::to_string(go.shaders) + " shaders): " + ctx->info().renderer +
+               ", " + ctx->info().version;
+  } else {
+    ExecuteOptions eo;
+    eo.keep_all = !a.dump_dir.empty();
+    trace = execute(plan, in.image.cview(), eo);
+  }
 
   const ImageInfo* windows = a.input.empty() ? nullptr : &in.info;
   for (const std::string& o : a.outputs) save_image(o, trace.final_image().cview(), windows);
@@ -88,6 +98,7 @@ int run(const RunArgs& a) {
   }
   if (!a.json_path.empty()) {
     nlohmann::ordered_json j = run_json(plan, trace);
+    if (a.backend == "gl") j["renderer"] = renderer;
     j["input"] = {{"path", in.info.path},     {"format", in.info.format},
                   {"layout", in.info.layout}, {"channels", in.info.channels},
                   {"has_alpha", in.info.has_alpha}};
@@ -118,6 +129,8 @@ std::function<int()> add_run(CLI::App& app) {
   sub->add_option("IN", args->input, "input image (EXR, HDR, PNG, TIFF...); none = --scene");
   sub->add_option("-o,--output", args->outputs, "output .exr (float, display-referred) or .png; repeatable");
   sub->add_option("--backend", args->backend, "cpu | gl")->capture_default_str();
+  sub->add_option("--gl-shaders", args->gl_shaders, "fragment | compute (GL backend)")
+      ->capture_default_str();
   sub->add_option("--dump-stages", args->dump_dir, "write DIR/<stage>.exr for every stage");
   sub->add_option("--json", args->json_path, "write parameters, timings and counts as JSON");
   sub->add_flag("-q,--quiet", args->quiet, "print nothing on success");

@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "bloomref/error.h"
+#include "bloomref/gpu/context.h"
 #include "commands.h"
 
 int main(int argc, char** argv) {
@@ -27,6 +28,9 @@ int main(int argc, char** argv) {
       if (rc >= 0) return rc;
     }
     return 2;
+  } catch (const bloomref::gpu::GlUnavailable& e) {
+    std::cerr << "bloomref: GL path unavailable: " << e.what() << "\n";
+    return 3;
   } catch (const bloomref::Error& e) {
     std::cerr << "bloomref: " << e.what() << "\n";
     return 2;

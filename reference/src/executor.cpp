@@ -57,15 +57,19 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         } else {
           scene = std::move(raw);
         }
+        // The seeds' MRT pass writes the scene and the bright colour in one draw: bright is
+        // decided on the sanitised value before either is stored (rounded to f16).
+        extract_bright(scene.cview(), bright.view(), static_cast<T>(p.threshold), threads);
         store(scene.view(), p.storage, rounding, threads);
         record(stage.name, scene, ms_since(t0), false);
         break;
       }
-      case StageKind::bright:
-        extract_bright(scene.cview(), bright.view(), static_cast<T>(p.threshold), threads);
+      case StageKind::bright: {
+        const auto t1 = Clock::now();
         store(bright.view(), p.storage, rounding, threads);
-        record(stage.name, bright, ms_since(t0), false);
+        record(stage.name, bright, ms_since(t1), false);
         break;
+      }
       case StageKind::blur: {
         const BasicImage<T>& src = stage.pass == 1 ? bright : ping;
         if (stage.skipped) {

@@ -8,8 +8,8 @@
 namespace bloomref {
 namespace {
 
-// Pixels whose stored, sanitised luminance is above the threshold: the same per-value functions
-// the input and bright stages apply, in the plan's precision.
+// Pixels whose sanitised luminance is above the threshold (decided before storage, as the MRT
+// pass does): the same per-value functions the input stage applies, in the plan's precision.
 template <class T>
 std::uint64_t count_bright(ConstImageView scene, const BloomParams& p) {
   std::uint64_t total = 0;
@@ -21,10 +21,8 @@ std::uint64_t count_bright(ConstImageView scene, const BloomParams& p) {
       for (int x = 0; x < scene.width; ++x) {
         const float* s = scene.pixel(x, y);
         T v[3];
-        for (int c = 0; c < 3; ++c) {
+        for (int c = 0; c < 3; ++c)
           v[c] = sanitize_value(static_cast<T>(s[c]), p.nonfinite, p.storage);
-          if (p.storage == Storage::f16) v[c] = round_to_half(v[c]);
-        }
         n += luminance(v[0], v[1], v[2]) > threshold;
       }
     }

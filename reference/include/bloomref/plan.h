@@ -31,7 +31,7 @@ struct StageSpec {
 struct SceneFacts {
   int width = 0, height = 0;
   NonFiniteCounts nonfinite;
-  std::uint64_t bright_pixels = 0;  ///< luminance > threshold after the policy and storage
+  std::uint64_t bright_pixels = 0;  ///< luminance > threshold after the policy
 };
 
 struct Plan {

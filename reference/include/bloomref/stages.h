@@ -6,6 +6,9 @@
 // do not round to the storage format: the executor calls `store` after each one, exactly where
 // the GL path writes a render target.
 //
+// `bright` is computed from the sanitised scene before it is stored (the seeds write both in one
+// MRT draw), so with f16 storage the threshold sees the unrounded value.
+//
 // Alpha: `bright` and `blur.k` write alpha 1 (as the seeds' shaders do); `composite`, `tonemap`
 // and `output` carry the scene's alpha through unchanged.
 #pragma once

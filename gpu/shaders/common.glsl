@@ -1,0 +1,14 @@
+// Shared by every stage shader (prepended after #version and the build's #defines).
+// Mirrors reference/include/bloomref/stages.h: same formulas, same operation order.
+
+// Non-finite policy (stages.h sanitize_value): 0 zero, 1 clamp, 2 propagate, 3 error.
+float sanitize_value(float v, int policy, float storage_max) {
+  if (!(isnan(v) || isinf(v)) || policy >= 2) return v;
+  if (policy == 0 || isnan(v)) return 0.0;
+  return v > 0.0 ? storage_max : -storage_max;
+}
+
+// Rec. 709 luminance, summed left to right (seed 000).
+float luminance(vec3 c) {
+  return c.r * 0.2126 + c.g * 0.7152 + c.b * 0.0722;
+}

@@ -1,0 +1,196 @@
+#include "bloomref/gpu/gl_executor.h"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "gl_objects.h"
+
+namespace bloomref::gpu {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+int policy_code(NonFinite n) {
+  switch (n) {
+    case NonFinite::zero: return 0;
+    case NonFinite::clamp: return 1;
+    case NonFinite::propagate: return 2;
+    case NonFinite::error: return 3;
+  }
+  return 0;
+}
+
+std::vector<std::string> defines_for(const BloomParams& p, Fault fault, GLenum format) {
+  std::vector<std::string> d;
+  d.push_back(std::string("STORAGE_FORMAT ") + (format == GL_RGBA16F ? "rgba16f" : "rgba32f"));
+  if (p.kernel == KernelName::linear5) d.push_back("KERNEL_LINEAR5 1");
+  switch (fault) {
+    case Fault::vertical_offsets_x: d.push_back("FAULT_VERTICAL_ALONG_X 1"); break;
+    case Fault::half_texel_shift: d.push_back("FAULT_HALF_TEXEL 1"); break;
+    case Fault::threshold_ge: d.push_back("FAULT_THRESHOLD_GE 1"); break;
+    case Fault::weight_1pct: d.push_back("FAULT_WEIGHT_SCALE 1.01"); break;
+    case Fault::weight_0_1pct: d.push_back("FAULT_WEIGHT_SCALE 1.001"); break;
+    case Fault::weight_0_01pct: d.push_back("FAULT_WEIGHT_SCALE 1.0001"); break;
+    case Fault::gamma_twice: d.push_back("FAULT_GAMMA_TWICE 1"); break;
+    case Fault::swap_rb: d.push_back("FAULT_SWAP_RB 1"); break;
+    case Fault::exposure_ignored: d.push_back("FAULT_NO_EXPOSURE 1"); break;
+    default: break;
+  }
+  return d;
+}
+
+Image to_image(const Texture& t) {
+  Image img(t.width, t.height);
+  img.values() = t.read();
+  return img;
+}
+
+// Runs one stage program over the whole texture, as a draw or a dispatch.
+class StageRunner {
+ public:
+  StageRunner(bool compute, int w, int h, GLenum format) : compute_(compute), w_(w), h_(h),
+      format_(format) {
+    glGenVertexArrays(1, &vao_);
+    glBindVertexArray(vao_);
+    glViewport(0, 0, w, h);
+  }
+  ~StageRunner() { glDeleteVertexArrays(1, &vao_); }
+
+  /// Binds `inputs` to texture units 0.. and writes `out0` (and `out1`).
+  void run(const Program& prog, const std::vector<const Texture*>& inputs, const Texture& out0,
+           const Texture* out1 = nullptr) {
+    glUseProgram(prog.id);
+    for (std::size_t i = 0; i < inputs.size(); ++i) {
+      glActiveTexture(GL_TEXTURE0 + static_cast<GLenum>(i));
+      glBindTexture(GL_TEXTURE_2D, inputs[i]->id);
+    }
+    if (compute_) {
+      glBindImageTexture(0, out0.id, 0, GL_FALSE, 0, GL_WRITE_ONLY, format_);
+      glBindImageTexture(1, (out1 ? out1 : &out0)->id, 0, GL_FALSE, 0, GL_WRITE_ONLY, format_);
+      glDispatchCompute((w_ + 7) / 8, (h_ + 7) / 8, 1);
+      glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                      GL_TEXTURE_UPDATE_BARRIER_BIT);
+    } else {
+      Framebuffer fb(out0, out1);
+      glDrawArrays(GL_TRIANGLES, 0, 3);
+      glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    }
+  }
+
+ private:
+  bool compute_;
+  int w_, h_;
+  GLenum format_;
+  GLuint vao_ = 0;
+};
+
+}  // namespace
+
+StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
+                      const GlOptions& opt) {
+  const BloomParams& p = plan.params;
+  if (p.precision != Precision::f32)
+    throw ParamError("--precision f64 is the CPU truth; the GL path computes in f32");
+  const int w = scene.width, h = scene.height;
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+  if (w > max_size || h > max_size)
+    throw GlError("the image is " + std::to_string(w) + "x" + std::to_string(h) +
+                  ", beyond this GL device's largest texture (" + std::to_string(max_size) + ")");
+  const bool compute = opt.shaders == ShaderKind::compute;
+  const bool f16 = p.storage == Storage::f16 || opt.fault == Fault::f16_storage;
+  const GLenum fmt = f16 ? GL_RGBA16F : GL_RGBA32F;
+  const std::vector<std::string> defs = defines_for(p, opt.fault, fmt);
+
+  const Program extract = build_program(compute, "extract_bright.glsl", defs);
+  const Program blur = build_program(compute, "blur_pass.glsl", defs);
+  const Program comp = build_program(compute, "composite.glsl", defs);
+  const Program tone = build_program(compute, "tonemap.glsl", defs);
+  const Program encode = build_program(compute, "encode_output.glsl", defs);
+  ctx.check("building the stage programs");
+
+  extract.set("raw", 0);
+  extract.set("threshold", p.threshold);
+  extract.set("policy", policy_code(p.nonfinite));
+  extract.set("storage_max", f16 ? 65504.0f : std::numeric_limits<float>::max());
+  blur.set("image", 0);
+  comp.set("scene", 0);
+  comp.set("bloom", 1);
+  comp.set("strength", p.strength);
+  tone.set("hdr", 0);
+  tone.set("exposure", p.exposure);
+  encode.set("mapped", 0);
+  encode.set("gamma", p.gamma);
+
+  // The scene goes up as the user's floats (RGBA32F), tightly packed.
+  std::vector<float> packed(static_cast<std::size_t>(w) * h * kChannels);
+  for (int y = 0; y < h; ++y)
+    std::copy(scene.row(y), scene.row(y) + std::size_t(w) * kChannels,
+              packed.begin() + std::size_t(y) * w * kChannels);
+  Texture raw(w, h, GL_RGBA32F, packed.data());
+  raw.set_sampling(GL_NEAREST, GL_CLAMP_TO_EDGE);
+  Texture scene_t(w, h, fmt), bright_t(w, h, fmt), hdr_t(w, h, fmt), mapped_t(w, h, fmt),
+      out_t(w, h, fmt);
+  Texture ping[2] = {Texture(w, h, fmt), Texture(w, h, fmt)};
+  ctx.check("allocating the stage textures");
+
+  StageRunner runner(compute, w, h, fmt);
+  StageTrace trace;
+  trace.nonfinite = plan.facts.nonfinite;
+  const Texture* bloom = &bright_t;
+  auto finish = [&](const std::string& name, const Texture& t, Clock::time_point t0,
+                    bool skipped = false) {
+    glFinish();
+    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    ctx.check(name.c_str());
+    if (!skipped) trace.timings.emplace_back(name, ms);
+    if (opt.keep_all || name == "output") trace.stages.push_back({name, to_image(t), ms, skipped});
+  };
+
+  for (const StageSpec& s : plan.stages) {
+    const auto t0 = Clock::now();
+    switch (s.kind) {
+      case StageKind::input:
+        runner.run(extract, {&raw}, scene_t, &bright_t);
+        finish(s.name, scene_t, t0);
+        break;
+      case StageKind::bright:  // written by the input stage's draw
+        finish(s.name, bright_t, t0);
+        break;
+      case StageKind::blur: {
+        if (s.skipped) {
+          if (opt.keep_all) finish(s.name, *bloom, t0, true);
+          break;
+        }
+        Texture& target = ping[s.pass % 2];
+        const Texture* src = bloom;
+        if (!(opt.fault == Fault::skip_pass && s.pass == 3)) {
+          src->set_sampling(GL_LINEAR,
+                            opt.fault == Fault::repeat_wrap ? GL_REPEAT : GL_CLAMP_TO_EDGE);
+          blur.set("horizontal", s.axis == Axis::horizontal ? 1 : 0);
+          runner.run(blur, {src}, target);
+        }
+        bloom = &target;
+        finish(s.name, target, t0);
+        break;
+      }
+      case StageKind::composite:
+        runner.run(comp, {&scene_t, bloom}, hdr_t);
+        finish(s.name, hdr_t, t0);
+        break;
+      case StageKind::tonemap:
+        runner.run(tone, {&hdr_t}, mapped_t);
+        finish(s.name, mapped_t, t0);
+        break;
+      case StageKind::output:
+        runner.run(encode, {&mapped_t}, out_t);
+        finish(s.name, out_t, t0);
+        break;
+    }
+  }
+  for (const auto& [name, ms] : trace.timings) trace.total_ms += ms;  // readbacks excluded
+  return trace;
+}
+
+}  // namespace bloomref::gpu
