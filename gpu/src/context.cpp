@@ -37,7 +37,8 @@ void GLAPIENTRY on_debug(GLenum, GLenum type, GLuint, GLenum severity, GLsizei, 
                          const void* user) {
   auto* impl = static_cast<GlContext::Impl*>(const_cast<void*>(user));
   std::lock_guard<std::mutex> lock(impl->m);
-  if (type == GL_DEBUG_TYPE_ERROR || severity == GL_DEBUG_SEVERITY_HIGH)
+  (void)severity;  // compiler warnings can be "high"; only errors are errors
+  if (type == GL_DEBUG_TYPE_ERROR || type == GL_DEBUG_TYPE_UNDEFINED_BEHAVIOR)
     impl->errors.emplace_back(msg);
   else
     impl->messages.emplace_back(msg);
