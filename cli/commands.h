@@ -7,5 +7,6 @@ namespace bloomref::cli {
 // Each adds its subcommand; the returned callable runs it and returns the exit code.
 std::function<int()> add_run(CLI::App& app);
 std::function<int()> add_scenes(CLI::App& app);
+std::function<int()> add_gl_info(CLI::App& app);
 
 }  // namespace bloomref::cli

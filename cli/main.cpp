@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   auto run = bloomref::cli::add_run(app);
   auto scenes = bloomref::cli::add_scenes(app);
+  auto gl_info = bloomref::cli::add_gl_info(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -23,7 +24,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    for (auto* cmd : {&run, &scenes}) {
+    for (auto* cmd : {&run, &scenes, &gl_info}) {
       const int rc = (*cmd)();
       if (rc >= 0) return rc;
     }
