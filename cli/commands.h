@@ -8,5 +8,6 @@ namespace bloomref::cli {
 std::function<int()> add_run(CLI::App& app);
 std::function<int()> add_scenes(CLI::App& app);
 std::function<int()> add_gl_info(CLI::App& app);
+std::function<int()> add_compare(CLI::App& app);
 
 }  // namespace bloomref::cli

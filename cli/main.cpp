@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   auto run = bloomref::cli::add_run(app);
   auto scenes = bloomref::cli::add_scenes(app);
   auto gl_info = bloomref::cli::add_gl_info(app);
+  auto compare = bloomref::cli::add_compare(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -24,7 +25,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    for (auto* cmd : {&run, &scenes, &gl_info}) {
+    for (auto* cmd : {&run, &scenes, &gl_info, &compare}) {
       const int rc = (*cmd)();
       if (rc >= 0) return rc;
     }

@@ -1,0 +1,155 @@
+// bloomref compare [IN] ... : the GL path judged stage by stage against the CPU oracle.
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include "bloomref/error.h"
+#include "bloomref/executor.h"
+#include "bloomref/gpu/gl_executor.h"
+#include "bloomref/io.h"
+#include "bloomref/parity/compare.h"
+#include "bloomref/scenes.h"
+#include "commands.h"
+#include "json_out.h"
+#include "options.h"
+#include "report.h"
+
+namespace bloomref::cli {
+namespace {
+
+struct CompareArgs {
+  std::string input, report_dir, json_path, fault = "none", shaders = "fragment",
+      profile = "auto";
+  bool quiet = false;
+  PipelineOptions pipeline;
+};
+
+nlohmann::ordered_json stage_json(const parity::StageComparison& s) {
+  nlohmann::ordered_json worst = nlohmann::ordered_json::array();
+  for (const parity::WorstValue& w : s.worst) {
+    nlohmann::ordered_json terms = nlohmann::ordered_json::object();
+    for (const parity::Term& t : w.terms) terms[t.name] = t.value;
+    worst.push_back({{"x", w.x}, {"y", w.y}, {"channel", std::string(1, "RGB"[w.channel])},
+                     {"oracle", w.oracle}, {"gl", w.gl},
+                     {"error", std::isfinite(w.error) ? nlohmann::ordered_json(w.error)
+                                                      : nlohmann::ordered_json("non-finite")},
+                     {"bound", w.bound}, {"terms", terms}});
+  }
+  return {{"verdict", parity::to_string(s.verdict)}, {"reason", s.reason},
+          {"values", s.values}, {"over_bound", s.over_bound},
+          {"nonfinite_mismatch", s.nonfinite_mismatch}, {"max_abs", s.max_abs},
+          {"max_rel", s.max_rel}, {"max_f16_ulps", s.max_ulp16},
+          {"max_error_over_bound", s.max_ratio}, {"ulp_histogram_minus8_to_plus8", s.ulp_histogram},
+          {"worst", worst}};
+}
+
+int compare_cmd(CompareArgs& a) {
+  if (a.pipeline.params.precision != Precision::f32)
+    throw ParamError("compare judges the GL path against the f32 oracle; drop --precision f64");
+  const gpu::Fault fault = a.fault == "none" ? gpu::Fault::none : gpu::parse_fault(a.fault);
+  const gpu::ShaderKind shaders = gpu::parse_shader_kind(a.shaders);
+  if (!a.json_path.empty() && !a.input.empty()) refuse_overwrite(a.json_path, a.input);
+
+  LoadedImage in;
+  std::string source;
+  if (!a.input.empty()) {
+    in = load_image(a.input);
+    source = a.input;
+  } else {
+    int w = 0, h = 0;
+    a.pipeline.scene_size(w, h);
+    in.image = make_scene(a.pipeline.scene, w, h);
+    source = "scene:" + a.pipeline.scene;
+  }
+  auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3
+  const parity::DeviceProfile profile =
+      a.profile == "auto" ? (ctx->info().software ? parity::profile_llvmpipe()
+                                                  : parity::profile_nvidia_like())
+                          : parity::profile_named(a.profile);
+  BloomParams p = a.pipeline.params;
+  p.subtexel_bits = profile.subtexel_bits;  // the oracle samples as the device does
+  const Plan plan = make_plan(p, in.image.cview(), source);
+
+  gpu::GlOptions go;
+  go.shaders = shaders;
+  go.keep_all = true;
+  go.fault = fault;
+  const StageTrace gl = gpu::execute_gl(*ctx, plan, in.image.cview(), go);
+  const StageTrace cpu = execute(plan, in.image.cview(), {true});
+  parity::CompareOptions co;
+  co.keep_images = !a.report_dir.empty();
+  const parity::ParityResult r = parity::compare(plan, in.image.cview(), gl, cpu, profile, co);
+
+  const std::string renderer = "gl (" + gpu::to_string(shaders) + " shaders): " +
+                               ctx->info().renderer + ", " + ctx->info().version;
+  if (!a.quiet) {
+    std::printf("%s: %dx%d, %s, profile %s%s\n", source.c_str(), plan.facts.width,
+                plan.facts.height, renderer.c_str(), profile.name.c_str(),
+                fault == gpu::Fault::none ? "" : (", injected fault " + a.fault).c_str());
+    std::printf("  %-10s %-8s %-12s %-12s %-8s %-12s\n", "stage", "isolated", "max |err|",
+                "err/bound", "end2end", "err/bound");
+    for (std::size_t i = 0; i < r.isolated.size(); ++i) {
+      const auto& s = r.isolated[i];
+      const auto& e = r.end_to_end[i];
+      std::printf("  %-10s %-8s %-12.3g %-12.3g %-8s %-12.3g\n", s.stage.c_str(),
+                  parity::to_string(s.verdict).c_str(), s.max_abs, s.max_ratio,
+                  parity::to_string(e.verdict).c_str(), e.max_ratio);
+    }
+    std::printf("verdict %s; first divergent stage: %s\n", parity::to_string(r.verdict).c_str(),
+                r.first_divergent_stage ? r.first_divergent_stage->c_str() : "none");
+  }
+  if (!a.json_path.empty()) {
+    nlohmann::ordered_json j = run_json(plan, gl);
+    j["renderer"] = renderer;
+    j["cpu_timings_ms"] = run_json(plan, cpu)["timings_ms"];
+    j["profile"] = {{"name", profile.name}, {"source", profile.source},
+                    {"subtexel_bits", profile.subtexel_bits},
+                    {"half_nearest_even", profile.half_nearest_even},
+                    {"half_toward_zero", profile.half_toward_zero},
+                    {"half_overflow_inf", profile.half_overflow_inf},
+                    {"half_overflow_saturate", profile.half_overflow_saturate},
+                    {"flush_denormals", profile.flush_denormals}, {"fma", profile.fma},
+                    {"division_ulps", profile.division_ulps}};
+    j["fault"] = a.fault;
+    j["verdict"] = parity::to_string(r.verdict);
+    j["first_divergent_stage"] = r.first_divergent_stage ? nlohmann::ordered_json(*r.first_divergent_stage)
+                                                         : nlohmann::ordered_json(nullptr);
+    nlohmann::ordered_json stages = nlohmann::ordered_json::array();
+    for (std::size_t i = 0; i < r.isolated.size(); ++i)
+      stages.push_back({{"stage", r.isolated[i].stage},
+                        {"isolated", stage_json(r.isolated[i])},
+                        {"end_to_end", stage_json(r.end_to_end[i])}});
+    j["stages"] = stages;
+    save_text(a.json_path, j.dump(2) + "\n");
+  }
+  if (!a.report_dir.empty()) {
+    write_report(a.report_dir, source, renderer, plan, gl, r, a.fault);
+    if (!a.quiet) std::printf("report: %s/index.html\n", a.report_dir.c_str());
+  }
+  return r.verdict == parity::Verdict::fail ? 1 : 0;
+}
+
+}  // namespace
+
+std::function<int()> add_compare(CLI::App& app) {
+  auto args = std::make_shared<CompareArgs>();
+  CLI::App* sub = app.add_subcommand("compare", "judge the GL path stage by stage against the CPU");
+  sub->add_option("IN", args->input, "input image; none = --scene");
+  sub->add_option("--report", args->report_dir, "write images, tables and index.html to DIR");
+  sub->add_option("--json", args->json_path, "write metrics, bounds and verdicts as JSON");
+  sub->add_option("--inject-fault", args->fault, "a deliberate GL bug (see --help-faults)")
+      ->capture_default_str();
+  sub->add_option("--gl-shaders", args->shaders, "fragment | compute")->capture_default_str();
+  sub->add_option("--profile", args->profile, "auto | llvmpipe | nvidia (precision profile)")
+      ->capture_default_str();
+  sub->add_flag("-q,--quiet", args->quiet, "print nothing");
+  args->pipeline.add_to(*sub);
+  return [args, sub]() -> int {
+    if (!sub->parsed()) return -1;
+    args->pipeline.finish();
+    return compare_cmd(*args);
+  };
+}
+
+}  // namespace bloomref::cli

@@ -1,0 +1,18 @@
+// bloomref compare --report DIR: per-stage images (oracle, GL, signed difference, error/bound
+// heat map, pass/fail mask; PNG for the eye, EXR for the numbers), worst values with their bound
+// terms, f16-ULP histograms, and one self-contained index.html opening on the first divergent
+// stage.
+#pragma once
+
+#include <string>
+
+#include "bloomref/executor.h"
+#include "bloomref/parity/compare.h"
+
+namespace bloomref::cli {
+
+void write_report(const std::string& dir, const std::string& source, const std::string& renderer,
+                  const Plan& plan, const StageTrace& gl, const parity::ParityResult& r,
+                  const std::string& fault);
+
+}  // namespace bloomref::cli

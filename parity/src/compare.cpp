@@ -1,0 +1,261 @@
+#include "bloomref/parity/compare.h"
+
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+
+#include "bloomref/error.h"
+#include "tolerance.h"
+
+namespace bloomref::parity {
+
+using namespace detail;
+
+std::string to_string(Verdict v) {
+  return v == Verdict::pass ? "PASS" : v == Verdict::warn ? "WARN" : "FAIL";
+}
+
+namespace {
+
+constexpr double kWarnTier = 4.0;  // over the derived bound but within 4x: WARN
+
+double ulp16_of(double v) {
+  const double a = std::fabs(v);
+  return std::ldexp(1.0, (a > 0 ? std::max(std::ilogb(a), -14) : -14) - 10);
+}
+
+// Whether a non-finite or overflowing pair is acceptable, decided without a bound.
+// Returns 1 acceptable, 0 mismatch, -1 not such a case (compare with the bound).
+int special_case(double o, double g, Storage storage, const DeviceProfile& p, double bound) {
+  if (std::isnan(o) || std::isnan(g)) return std::isnan(o) && std::isnan(g) ? 1 : 0;
+  const double limit = storage == Storage::f16 ? 65504.0 : FLT_MAX;
+  if (storage == Storage::f16 && std::fabs(o) > limit) {
+    // Beyond half's range: Inf (nearest-even overflow) or 65504 (saturation), same sign.
+    const bool same_sign = std::signbit(o) == std::signbit(g);
+    const bool ok = (p.half_overflow_inf && std::isinf(g)) ||
+                    (p.half_overflow_saturate && std::fabs(g) == limit);
+    return same_sign && (ok || std::fabs(g) == std::fabs(o)) ? 1 : 0;
+  }
+  if (std::isinf(o) || std::isinf(g)) {
+    if (o == g) return 1;
+    // f32 overflow on one side only, where the finite side is within its bound of FLT_MAX.
+    const double finite = std::isinf(o) ? g : o;
+    const bool near_max = std::fabs(finite) + bound >= FLT_MAX;
+    return near_max && std::signbit(o) == std::signbit(g) ? 1 : 0;
+  }
+  return -1;
+}
+
+StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
+                      const Image& bound, const StageBounds& terms, Storage storage,
+                      const DeviceProfile& p, const CompareOptions& opt) {
+  StageComparison s;
+  s.stage = stage;
+  s.ulp_histogram.assign(17, 0);
+  std::vector<WorstValue> worst;
+  std::uint64_t warn_tier = 0;
+  for (int y = 0; y < gl.height; ++y)
+    for (int x = 0; x < gl.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double o = oracle.pixel(x, y)[c], g = gl.pixel(x, y)[c];
+        const double b = bound.pixel(x, y)[c];
+        ++s.values;
+        const int special = special_case(o, g, storage, p, b);
+        if (special == 0) {
+          ++s.nonfinite_mismatch;
+          worst.push_back({x, y, c, o, g, INFINITY, b, {}});
+          continue;
+        }
+        if (special == 1) continue;
+        const double err = std::fabs(g - o);
+        s.max_abs = std::max(s.max_abs, err);
+        if (o != 0) s.max_rel = std::max(s.max_rel, err / std::fabs(o));
+        const double ulps = (g - o) / ulp16_of(o);
+        s.max_ulp16 = std::max(s.max_ulp16, std::fabs(ulps));
+        s.ulp_histogram[static_cast<int>(std::clamp(std::round(ulps), -8.0, 8.0)) + 8]++;
+        const double ratio = err == 0 ? 0.0 : (b > 0 ? err / b : INFINITY);
+        s.max_ratio = std::max(s.max_ratio, ratio);
+        if (ratio > 1) {
+          ++s.over_bound;
+          if (ratio > kWarnTier) ++warn_tier;
+        }
+        if (err > 0) worst.push_back({x, y, c, o, g, err, b, {}});
+        if (worst.size() > 4096) {  // keep the largest ratios only
+          std::partial_sort(worst.begin(), worst.begin() + opt.worst_count, worst.end(),
+                            [](const WorstValue& a, const WorstValue& b) {
+                              return a.error / std::max(a.bound, 1e-300) >
+                                     b.error / std::max(b.bound, 1e-300);
+                            });
+          worst.resize(opt.worst_count);
+        }
+      }
+  const std::size_t keep = std::min<std::size_t>(opt.worst_count, worst.size());
+  std::partial_sort(worst.begin(), worst.begin() + keep, worst.end(),
+                    [](const WorstValue& a, const WorstValue& b) {
+                      return a.error / std::max(a.bound, 1e-300) >
+                             b.error / std::max(b.bound, 1e-300);
+                    });
+  worst.resize(keep);
+  for (WorstValue& w : worst) w.terms = terms.terms(w.x, w.y, w.channel);
+  s.worst = std::move(worst);
+
+  if (s.nonfinite_mismatch > 0 || warn_tier > 0) {
+    s.verdict = Verdict::fail;
+    s.reason = s.nonfinite_mismatch > 0
+                   ? std::to_string(s.nonfinite_mismatch) + " values are NaN/Inf on one side only"
+                   : std::to_string(warn_tier) + " values exceed " +
+                         std::to_string(static_cast<int>(kWarnTier)) +
+                         "x their derived bound (worst " + std::to_string(s.max_ratio) + "x)";
+  } else if (s.over_bound > 0) {
+    s.verdict = Verdict::warn;
+    s.reason = std::to_string(s.over_bound) + " values exceed their derived bound, by at most " +
+               std::to_string(s.max_ratio) + "x (within the 4x quality tier)";
+  } else {
+    s.reason = "every value within its bound (largest error / bound " +
+               std::to_string(s.max_ratio) + ")";
+  }
+  if (opt.keep_images) {
+    s.oracle = Image(gl.width, gl.height);
+    for (int y = 0; y < gl.height; ++y)
+      std::copy(oracle.row(y), oracle.row(y) + std::size_t(gl.width) * kChannels,
+                s.oracle.view().row(y));
+    s.bound = bound;
+  }
+  return s;
+}
+
+const Image& stage_image(const StageTrace& t, const std::string& name, const char* which) {
+  const StageResult* r = t.find(name);
+  if (!r) throw ParamError(std::string("the ") + which + " trace has no stage '" + name + "'");
+  return r->image;
+}
+
+}  // namespace
+
+ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& gl,
+                     const StageTrace& cpu, const DeviceProfile& profile,
+                     const CompareOptions& opt) {
+  const BloomParams& p = plan.params;
+  const int threads = p.threads, w = scene.width, h = scene.height;
+  const BoundContext ctx{&profile, p.storage, threads};
+  const Kernel& kernel = kernel_for(p.kernel);
+  ParityResult result;
+  result.profile = profile;
+
+  // The sanitised scene (unrounded): what the MRT pass computes before storing.
+  Image sanitized(w, h);
+  sanitize(scene, sanitized.view(), p.nonfinite, p.storage, threads);
+
+  Image e2e_error;  // end-to-end bound of the current bloom (propagated through the passes)
+  Image e2e_scene, e2e_hdr, e2e_mapped;
+  const Image* prev_bloom_gl = nullptr;
+
+  for (const StageSpec& spec : plan.stages) {
+    const std::string& name = spec.name;
+    const Image& g = stage_image(gl, name, "GL");
+    const Image& c = stage_image(cpu, name, "CPU");
+    Image oracle(w, h), bound(w, h, 0.0f);
+    std::unique_ptr<StageBounds> b;
+    switch (spec.kind) {
+      case StageKind::input:
+        oracle = sanitized;
+        b = input_bounds(oracle.cview(), ctx);
+        break;
+      case StageKind::bright:
+        extract_bright(sanitized.cview(), oracle.view(), p.threshold, threads);
+        b = bright_bounds(sanitized.cview(), p.threshold, ctx);
+        break;
+      case StageKind::blur: {
+        const Image& src = spec.pass == 1 ? stage_image(gl, "bright", "GL")
+                                          : stage_image(gl, "blur." + std::to_string(spec.pass - 1), "GL");
+        blur_pass(src.cview(), oracle.view(), {spec.axis, &kernel, profile.subtexel_bits}, threads);
+        b = blur_bounds(src.cview(), oracle.cview(), spec.axis, kernel, ctx);
+        prev_bloom_gl = &g;
+        break;
+      }
+      case StageKind::composite: {
+        const Image& sc = stage_image(gl, "input", "GL");
+        const Image& bl = p.passes > 0 ? stage_image(gl, "blur." + std::to_string(p.passes), "GL")
+                                       : stage_image(gl, "bright", "GL");
+        composite(sc.cview(), bl.cview(), oracle.view(), p.strength, threads);
+        b = composite_bounds(sc.cview(), bl.cview(), oracle.cview(), p.strength, ctx);
+        break;
+      }
+      case StageKind::tonemap: {
+        const Image& hd = stage_image(gl, "composite", "GL");
+        tonemap(hd.cview(), oracle.view(), p.exposure, threads);
+        b = tonemap_bounds(hd.cview(), oracle.cview(), p.exposure, ctx);
+        break;
+      }
+      case StageKind::output: {
+        const Image& m = stage_image(gl, "tonemap", "GL");
+        encode_output(m.cview(), oracle.view(), p.gamma, threads);
+        b = output_bounds(m.cview(), oracle.cview(), p.gamma, ctx);
+        break;
+      }
+    }
+    b->fill(bound);
+    result.isolated.push_back(
+        judge(name, g.cview(), oracle.cview(), bound, *b, p.storage, profile, opt));
+
+    // End to end: GL against the CPU's own full run, the bound carried through the stages.
+    Image e(w, h, 0.0f);
+    auto add = [&](const Image& a, double scale) {
+      for (std::size_t i = 0; i < e.values().size(); ++i)
+        e.values()[i] += static_cast<float>(scale * a.values()[i]);
+    };
+    switch (spec.kind) {
+      case StageKind::input:
+        e = bound;
+        e2e_scene = e;
+        break;
+      case StageKind::bright:
+        e = bound;
+        e2e_error = e;
+        break;
+      case StageKind::blur:
+        e = propagate_blur(e2e_error.cview(), spec.axis, kernel, threads);
+        add(bound, 1.0);
+        e2e_error = e;
+        break;
+      case StageKind::composite:
+        e = e2e_scene;
+        add(e2e_error, p.strength);
+        add(bound, 1.0);
+        e2e_hdr = e;
+        break;
+      case StageKind::tonemap:
+        for (std::size_t i = 0; i < e.values().size(); ++i) {
+          const double hd = c.values()[i], eh = e2e_hdr.values()[i];
+          // The slope of 1 - exp(-h k) is k exp(-h k): largest at the low end of h +- eh.
+          e.values()[i] = static_cast<float>(p.exposure * std::exp(-(hd - eh) * p.exposure) * eh);
+        }
+        add(bound, 1.0);
+        e2e_mapped = e;
+        break;
+      case StageKind::output:
+        for (std::size_t i = 0; i < e.values().size(); ++i) {
+          const double m = stage_image(cpu, "tonemap", "CPU").values()[i];
+          const double em = e2e_mapped.values()[i], gexp = 1.0 / p.gamma;
+          // Gamma's slope is unbounded near black: bound by the interval's image instead.
+          e.values()[i] = static_cast<float>(std::pow(std::max(m + em, 0.0), gexp) -
+                                             std::pow(std::max(m - em, 0.0), gexp));
+        }
+        add(bound, 1.0);
+        break;
+    }
+    result.end_to_end.push_back(
+        judge(name, g.cview(), c.cview(), e, *b, p.storage, profile, opt));
+  }
+  (void)prev_bloom_gl;
+
+  for (const StageComparison& s : result.isolated) {
+    if (s.verdict != Verdict::pass && !result.first_divergent_stage)
+      result.first_divergent_stage = s.stage;
+    result.verdict = std::max(result.verdict, s.verdict);
+  }
+  for (const StageComparison& s : result.end_to_end) result.verdict = std::max(result.verdict, s.verdict);
+  return result;
+}
+
+}  // namespace bloomref::parity
