@@ -8,7 +8,10 @@ float sanitize_value(float v, int policy, float storage_max) {
   return v > 0.0 ? storage_max : -storage_max;
 }
 
-// Rec. 709 luminance, summed left to right (seed 000).
+// Rec. 709 luminance, summed left to right (seed 000). `precise` (GLSL 4.00+) forbids
+// reordering and fusing, so the threshold decision is bit-exact with the CPU's and a pixel
+// exactly at the threshold is a real tie (parity can then catch `>=` for `>`).
 float luminance(vec3 c) {
-  return c.r * 0.2126 + c.g * 0.7152 + c.b * 0.0722;
+  precise float l = c.r * 0.2126 + c.g * 0.7152 + c.b * 0.0722;
+  return l;
 }

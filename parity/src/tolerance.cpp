@@ -148,7 +148,8 @@ std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float thres
         const double mags = std::fabs(0.2126 * s[0]) + std::fabs(0.7152 * s[1]) +
                             std::fabs(0.0722 * s[2]);
         const double l = luminance(s[0], s[1], s[2]);
-        const bool tie = std::fabs(l - threshold) <= 4 * kU * mags + denormal_floor(*ctx.profile);
+        const bool tie = !ctx.profile->precise_luminance &&
+                         std::fabs(l - threshold) <= 4 * kU * mags + denormal_floor(*ctx.profile);
         const double v = s[c];
         return std::vector<Term>{
             {"threshold within luminance rounding (either side is right)",

@@ -29,8 +29,9 @@ void set(float* p, float r, float g, float b) {
 
 // The seeds' demo (seed 000): a dark, textured room with four coloured light cubes whose
 // colours are LearnOpenGL's lightColors (5,5,5), (10,0,0), (0,0,15), (0,5,0) -- luminance 5,
-// 2.126, 1.083 and 3.576, all above the default threshold of 1 -- and lit wooden crates whose
-// faces stay below it (sub-threshold detail the bloom must not pick up).
+// 2.126, 1.083 and 3.576, all above the default threshold of 1; the blue one is cut by the right
+// edge (clamp-to-edge matters there) -- and lit wooden crates whose faces stay below the
+// threshold (sub-threshold detail the bloom must not pick up), one with a label exactly at it.
 Image demo(int w, int h) {
   Image img(w, h);
   const float s = std::min(w, h) / 720.0f;
@@ -61,9 +62,12 @@ Image demo(int w, int h) {
       if (rim) set(p, 0.25f * shade, 0.25f * shade, 0.27f * shade);
       else set(p, 0.62f * shade, 0.41f * shade, 0.20f * shade);
     });
+  // A white label on the middle crate at exactly (1, 1, 1): luminance 1, a tie with the default
+  // threshold (not bright; `>=` would make it so).
+  box(0.55f, 0.70f, 0.012f, [&](float, float, float* p) { set(p, 1.0f, 1.0f, 1.0f); });
   const float lights[][6] = {{0.12f, 0.25f, 0.018f, 5.0f, 5.0f, 5.0f},
                              {0.42f, 0.30f, 0.014f, 10.0f, 0.0f, 0.0f},
-                             {0.86f, 0.18f, 0.016f, 0.0f, 0.0f, 15.0f},
+                             {0.985f, 0.18f, 0.016f, 0.0f, 0.0f, 15.0f},  // cut by the edge
                              {0.66f, 0.55f, 0.012f, 0.0f, 5.0f, 0.0f}};
   for (const auto& l : lights)
     box(l[0], l[1], l[2], [&](float u, float v, float* p) {

@@ -20,6 +20,9 @@ struct DeviceProfile {
   bool flush_denormals = true;  ///< shader arithmetic may flush results below 2^-126 to 0
   bool fma = true;              ///< a * b + c may be fused
   double division_ulps = 2.5;   ///< GLSL: 1 / x and x / y to 2.5 ULP
+  /// The luminance is computed `precise` (source order, no fusion, correctly rounded + and *,
+  /// GLSL 4.00+), so it equals the CPU's bit for bit and the threshold has no rounding band.
+  bool precise_luminance = true;
 };
 
 /// Mesa llvmpipe, from the facts `bloomref gl-info` measured (README, "GL facts"): float
