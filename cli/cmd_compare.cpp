@@ -1,4 +1,5 @@
 // bloomref compare [IN] ... : the GL path judged stage by stage against the CPU oracle.
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -75,11 +76,21 @@ int compare_cmd(CompareArgs& a) {
   go.shaders = shaders;
   go.keep_all = true;
   go.fault = fault;
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  };
+  auto t0 = Clock::now();
   const StageTrace gl = gpu::execute_gl(*ctx, plan, in.image.cview(), go);
+  const double gl_ms = ms(t0);
+  t0 = Clock::now();
   const StageTrace cpu = execute(plan, in.image.cview(), {true});
+  const double cpu_ms = ms(t0);
   parity::CompareOptions co;
   co.keep_images = !a.report_dir.empty();
+  t0 = Clock::now();
   const parity::ParityResult r = parity::compare(plan, in.image.cview(), gl, cpu, profile, co);
+  const double parity_ms = ms(t0);
 
   const std::string renderer = "gl (" + gpu::to_string(shaders) + " shaders): " +
                                ctx->info().renderer + ", " + ctx->info().version;
@@ -112,6 +123,7 @@ int compare_cmd(CompareArgs& a) {
                     {"flush_denormals", profile.flush_denormals}, {"fma", profile.fma},
                     {"division_ulps", profile.division_ulps}};
     j["fault"] = a.fault;
+    j["compare_ms"] = {{"gl_with_readbacks", gl_ms}, {"cpu", cpu_ms}, {"parity", parity_ms}};
     j["verdict"] = parity::to_string(r.verdict);
     j["first_divergent_stage"] = r.first_divergent_stage ? nlohmann::ordered_json(*r.first_divergent_stage)
                                                          : nlohmann::ordered_json(nullptr);

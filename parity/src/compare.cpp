@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <cfloat>
 #include <cmath>
+#include <mutex>
+#include <tuple>
 
 #include "bloomref/error.h"
+#include "bloomref/parallel.h"
 #include "tolerance.h"
 
 namespace bloomref::parity {
@@ -46,56 +49,93 @@ int special_case(double o, double g, Storage storage, const DeviceProfile& p, do
   return -1;
 }
 
+// Orders by error / bound, largest first; position breaks ties so the list is deterministic.
+bool worse(const WorstValue& a, const WorstValue& b) {
+  const double ra = a.error / std::max(a.bound, 1e-300), rb = b.error / std::max(b.bound, 1e-300);
+  if (ra != rb) return ra > rb;
+  return std::tie(a.y, a.x, a.channel) < std::tie(b.y, b.x, b.channel);
+}
+
+void keep_worst(std::vector<WorstValue>& w, std::size_t n) {
+  const std::size_t keep = std::min(n, w.size());
+  std::partial_sort(w.begin(), w.begin() + keep, w.end(), worse);
+  w.resize(keep);
+}
+
+// Counts over a row range; merged by sums and maxima, so the result is thread-count independent.
+struct Tally {
+  std::uint64_t values = 0, over = 0, mismatch = 0, beyond_tier = 0;
+  double max_abs = 0, max_rel = 0, max_ulp16 = 0, max_ratio = 0;
+  std::vector<std::uint64_t> hist = std::vector<std::uint64_t>(17, 0);
+  std::vector<WorstValue> worst;
+};
+
 StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
                       const Image& bound, const StageBounds& terms, Storage storage,
-                      const DeviceProfile& p, const CompareOptions& opt) {
+                      const DeviceProfile& p, const CompareOptions& opt, int threads) {
+  const std::size_t n_worst = static_cast<std::size_t>(opt.worst_count);
+  Tally total;
+  std::mutex m;
+  parallel_rows(gl.height, threads, [&](int y0, int y1) {
+    Tally t;
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < gl.width; ++x)
+        for (int c = 0; c < 3; ++c) {
+          const double o = oracle.pixel(x, y)[c], g = gl.pixel(x, y)[c];
+          const double b = bound.pixel(x, y)[c];
+          ++t.values;
+          const int special = special_case(o, g, storage, p, b);
+          if (special == 0) {
+            ++t.mismatch;
+            t.worst.push_back({x, y, c, o, g, INFINITY, b, {}});
+            continue;
+          }
+          if (special == 1) continue;
+          const double err = std::fabs(g - o);
+          if (err == 0) {
+            t.hist[8]++;
+            continue;
+          }
+          t.max_abs = std::max(t.max_abs, err);
+          if (o != 0) t.max_rel = std::max(t.max_rel, err / std::fabs(o));
+          const double ulps = (g - o) / ulp16_of(o);
+          t.max_ulp16 = std::max(t.max_ulp16, std::fabs(ulps));
+          t.hist[static_cast<int>(std::clamp(std::round(ulps), -8.0, 8.0)) + 8]++;
+          const double ratio = b > 0 ? err / b : INFINITY;
+          t.max_ratio = std::max(t.max_ratio, ratio);
+          if (ratio > 1) {
+            ++t.over;
+            if (ratio > kWarnTier) ++t.beyond_tier;
+          }
+          t.worst.push_back({x, y, c, o, g, err, b, {}});
+          if (t.worst.size() > 4096) keep_worst(t.worst, n_worst);
+        }
+    keep_worst(t.worst, n_worst);
+    std::lock_guard<std::mutex> lock(m);
+    total.values += t.values;
+    total.over += t.over;
+    total.mismatch += t.mismatch;
+    total.beyond_tier += t.beyond_tier;
+    total.max_abs = std::max(total.max_abs, t.max_abs);
+    total.max_rel = std::max(total.max_rel, t.max_rel);
+    total.max_ulp16 = std::max(total.max_ulp16, t.max_ulp16);
+    total.max_ratio = std::max(total.max_ratio, t.max_ratio);
+    for (int i = 0; i < 17; ++i) total.hist[i] += t.hist[i];
+    total.worst.insert(total.worst.end(), t.worst.begin(), t.worst.end());
+  });
   StageComparison s;
   s.stage = stage;
-  s.ulp_histogram.assign(17, 0);
-  std::vector<WorstValue> worst;
-  std::uint64_t warn_tier = 0;
-  for (int y = 0; y < gl.height; ++y)
-    for (int x = 0; x < gl.width; ++x)
-      for (int c = 0; c < 3; ++c) {
-        const double o = oracle.pixel(x, y)[c], g = gl.pixel(x, y)[c];
-        const double b = bound.pixel(x, y)[c];
-        ++s.values;
-        const int special = special_case(o, g, storage, p, b);
-        if (special == 0) {
-          ++s.nonfinite_mismatch;
-          worst.push_back({x, y, c, o, g, INFINITY, b, {}});
-          continue;
-        }
-        if (special == 1) continue;
-        const double err = std::fabs(g - o);
-        s.max_abs = std::max(s.max_abs, err);
-        if (o != 0) s.max_rel = std::max(s.max_rel, err / std::fabs(o));
-        const double ulps = (g - o) / ulp16_of(o);
-        s.max_ulp16 = std::max(s.max_ulp16, std::fabs(ulps));
-        s.ulp_histogram[static_cast<int>(std::clamp(std::round(ulps), -8.0, 8.0)) + 8]++;
-        const double ratio = err == 0 ? 0.0 : (b > 0 ? err / b : INFINITY);
-        s.max_ratio = std::max(s.max_ratio, ratio);
-        if (ratio > 1) {
-          ++s.over_bound;
-          if (ratio > kWarnTier) ++warn_tier;
-        }
-        if (err > 0) worst.push_back({x, y, c, o, g, err, b, {}});
-        if (worst.size() > 4096) {  // keep the largest ratios only
-          std::partial_sort(worst.begin(), worst.begin() + opt.worst_count, worst.end(),
-                            [](const WorstValue& a, const WorstValue& b) {
-                              return a.error / std::max(a.bound, 1e-300) >
-                                     b.error / std::max(b.bound, 1e-300);
-                            });
-          worst.resize(opt.worst_count);
-        }
-      }
-  const std::size_t keep = std::min<std::size_t>(opt.worst_count, worst.size());
-  std::partial_sort(worst.begin(), worst.begin() + keep, worst.end(),
-                    [](const WorstValue& a, const WorstValue& b) {
-                      return a.error / std::max(a.bound, 1e-300) >
-                             b.error / std::max(b.bound, 1e-300);
-                    });
-  worst.resize(keep);
+  s.values = total.values;
+  s.over_bound = total.over;
+  s.nonfinite_mismatch = total.mismatch;
+  s.max_abs = total.max_abs;
+  s.max_rel = total.max_rel;
+  s.max_ulp16 = total.max_ulp16;
+  s.max_ratio = total.max_ratio;
+  s.ulp_histogram = total.hist;
+  const std::uint64_t warn_tier = total.beyond_tier;
+  std::vector<WorstValue> worst = std::move(total.worst);
+  keep_worst(worst, n_worst);
   for (WorstValue& w : worst) w.terms = terms.terms(w.x, w.y, w.channel);
   s.worst = std::move(worst);
 
@@ -196,7 +236,7 @@ ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& g
     }
     b->fill(bound);
     result.isolated.push_back(
-        judge(name, g.cview(), oracle.cview(), bound, *b, p.storage, profile, opt));
+        judge(name, g.cview(), oracle.cview(), bound, *b, p.storage, profile, opt, threads));
 
     // End to end: GL against the CPU's own full run, the bound carried through the stages.
     Image e(w, h, 0.0f);
@@ -245,7 +285,7 @@ ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& g
         break;
     }
     result.end_to_end.push_back(
-        judge(name, g.cview(), c.cview(), e, *b, p.storage, profile, opt));
+        judge(name, g.cview(), c.cview(), e, *b, p.storage, profile, opt, threads));
   }
   (void)prev_bloom_gl;
 

@@ -2,6 +2,7 @@
 #include "tolerance.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 
@@ -73,6 +74,48 @@ int tap_base(int pos, double offset, int n) {
   return std::clamp(static_cast<int>(std::floor(pos + offset)), 0, n - 1);
 }
 
+// For each position along the axis, the base texel of every tap (centre, +o1, -o1, ...) and its
+// weight: computed once per pass instead of per value.
+struct TapBases {
+  int taps = 0;
+  std::vector<int> base;
+  std::vector<double> weight;
+};
+
+TapBases tap_bases(int n, const Kernel& k) {
+  TapBases t;
+  t.taps = k.taps();
+  for (int pos = 0; pos < n; ++pos)
+    for (std::size_t i = 0; i < k.offsets_f64.size(); ++i)
+      for (double sign : {1.0, -1.0}) {
+        if (i == 0 && sign < 0) continue;
+        t.base.push_back(tap_base(pos, sign * k.offsets_f64[i], n));
+        t.weight.push_back(k.weights_f64[i]);
+      }
+  return t;
+}
+
+// out(x, y) = sum over taps of weight * img(tap base), per channel (img: a window statistic).
+Image weighted_tap_sum(ConstImageView img, Axis axis, const TapBases& t, int threads) {
+  const bool hz = axis == Axis::horizontal;
+  Image out(img.width, img.height, 0.0f);
+  parallel_rows(img.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < img.width; ++x) {
+        const int pos = hz ? x : y;
+        double acc[3] = {0, 0, 0};
+        for (int k = 0; k < t.taps; ++k) {
+          const int b = t.base[std::size_t(pos) * t.taps + k];
+          const float* v = hz ? img.pixel(b, y) : img.pixel(x, b);
+          for (int c = 0; c < 3; ++c) acc[c] += t.weight[std::size_t(pos) * t.taps + k] * v[c];
+        }
+        float* o = out.pixel(x, y);
+        for (int c = 0; c < 3; ++c) o[c] = static_cast<float>(acc[c]);
+      }
+  });
+  return out;
+}
+
 // Sub-texel coordinate error of a lookup on an axis of n texels, in texels: the shader's
 // s = (x + 0.5) / n and d = 1 / n (division_ulps each), d * o and s +- d o (one rounding each),
 // then the sampler's u = s * n - 0.5 (two roundings of values below n); plus one weight quantum
@@ -92,27 +135,34 @@ void fill_values(Image& out, int threads, F f) {
   });
 }
 
-double sum(const std::vector<Term>& t) {
-  double s = 0;
-  for (const Term& x : t) s += x.value;
-  return s;
-}
+// Up to five named terms per value; the names are fixed per stage, the values computed per value.
+using Values = std::array<double, 5>;
 
-// A stage whose bound is a sum of terms computed per value.
 template <class F>
 struct TermBounds : StageBounds {
+  std::vector<const char*> names;
   F f;
   int threads;
-  TermBounds(F fn, int t) : f(std::move(fn)), threads(t) {}
+  TermBounds(std::vector<const char*> n, F fn, int t) : names(std::move(n)), f(std::move(fn)), threads(t) {}
   void fill(Image& bound) const override {
-    fill_values(bound, threads, [&](int x, int y, int c) { return sum(f(x, y, c)); });
+    fill_values(bound, threads, [&](int x, int y, int c) {
+      const Values v = f(x, y, c);
+      double s = 0;
+      for (double t : v) s += t;
+      return s;
+    });
   }
-  std::vector<Term> terms(int x, int y, int c) const override { return f(x, y, c); }
+  std::vector<Term> terms(int x, int y, int c) const override {
+    const Values v = f(x, y, c);
+    std::vector<Term> out;
+    for (std::size_t i = 0; i < names.size(); ++i) out.push_back({names[i], v[i]});
+    return out;
+  }
 };
 
 template <class F>
-std::unique_ptr<StageBounds> make(F f, int threads) {
-  return std::make_unique<TermBounds<F>>(std::move(f), threads);
+std::unique_ptr<StageBounds> make(std::vector<const char*> names, F f, int threads) {
+  return std::make_unique<TermBounds<F>>(std::move(names), std::move(f), threads);
 }
 
 }  // namespace
@@ -129,12 +179,11 @@ double denormal_floor(const DeviceProfile& p) {
 
 std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ctx) {
   return make(
+      {"storage", "denormal flush"},
       [=](int x, int y, int c) {
         const double v = oracle.pixel(x, y)[c];
-        return std::vector<Term>{{"storage", storage_term(v, ctx.storage, *ctx.profile)},
-                                 {"denormal flush",
-                                  ctx.profile->flush_denormals && std::fabs(v) < 0x1p-126
-                                      ? std::fabs(v) : 0.0}};
+        return Values{storage_term(v, ctx.storage, *ctx.profile),
+                      ctx.profile->flush_denormals && std::fabs(v) < 0x1p-126 ? std::fabs(v) : 0.0};
       },
       ctx.threads);
 }
@@ -142,6 +191,7 @@ std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ct
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,
                                            BoundContext ctx) {
   return make(
+      {"threshold within luminance rounding (either side is right)", "storage"},
       [=](int x, int y, int c) {
         const float* s = sanitized.pixel(x, y);
         // luminance: 3 products and 2 sums, fused or not: |dL| <= 4u sum |w_i c_i|.
@@ -151,41 +201,34 @@ std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float thres
         const bool tie = !ctx.profile->precise_luminance &&
                          std::fabs(l - threshold) <= 4 * kU * mags + denormal_floor(*ctx.profile);
         const double v = s[c];
-        return std::vector<Term>{
-            {"threshold within luminance rounding (either side is right)",
-             tie ? std::max({std::fabs(s[0]), std::fabs(s[1]), std::fabs(s[2])}) : 0.0},
-            {"storage", storage_term(v, ctx.storage, *ctx.profile)}};
+        return Values{tie ? std::max({std::fabs(s[0]), std::fabs(s[1]), std::fabs(s[2])}) : 0.0,
+                      storage_term(v, ctx.storage, *ctx.profile)};
       },
       ctx.threads);
 }
 
 std::unique_ptr<StageBounds> blur_bounds(ConstImageView src, ConstImageView oracle, Axis axis,
                                          const Kernel& k, BoundContext ctx) {
-  auto win = std::make_shared<Window>(window_stats(src, axis, ctx.threads));
   const bool hz = axis == Axis::horizontal;
   const int n_along = hz ? src.width : src.height, n_across = hz ? src.height : src.width;
+  const Window win = window_stats(src, axis, ctx.threads);
+  const TapBases bases = tap_bases(n_along, k);
+  // sum_k w_k * (local range at tap k) and sum_k w_k * (local magnitude at tap k).
+  auto range = std::make_shared<Image>(weighted_tap_sum(win.range.cview(), axis, bases, ctx.threads));
+  auto magnitude =
+      std::make_shared<Image>(weighted_tap_sum(win.magnitude.cview(), axis, bases, ctx.threads));
   const double delta = coordinate_error(n_along, *ctx.profile) +
                        coordinate_error(n_across, *ctx.profile);
   const int taps = k.taps();
   return make(
+      {"coordinate rounding (x local range)", "filter and accumulation rounding", "storage",
+       "denormal flush"},
       [=](int x, int y, int c) {
-        double coord = 0, arith = 0;
-        const int pos = hz ? x : y;
-        for (std::size_t i = 0; i < k.offsets_f64.size(); ++i)
-          for (double sign : {1.0, -1.0}) {
-            if (i == 0 && sign < 0) continue;
-            const int b = tap_base(pos, sign * k.offsets_f64[i], n_along);
-            const int bx = hz ? b : x, by = hz ? y : b;
-            const double w = k.weights_f64[i];
-            coord += w * delta * win->range.pixel(bx, by)[c];
-            // The filter's lerp (3 roundings) and the tap sums (2 per tap): (3 + 2 T) u |t|.
-            arith += w * (3 + 2 * taps) * kU * win->magnitude.pixel(bx, by)[c];
-          }
-        return std::vector<Term>{
-            {"coordinate rounding (x local range)", coord},
-            {"filter and accumulation rounding", arith},
-            {"storage", storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile)},
-            {"denormal flush", denormal_floor(*ctx.profile)}};
+        // The filter's lerp (3 roundings) and the tap sums (2 per tap): (3 + 2 T) u |t|.
+        return Values{delta * range->pixel(x, y)[c],
+                      (3 + 2 * taps) * kU * magnitude->pixel(x, y)[c],
+                      storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
+                      denormal_floor(*ctx.profile)};
       },
       ctx.threads);
 }
@@ -194,12 +237,12 @@ std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageVi
                                               ConstImageView oracle, float strength,
                                               BoundContext ctx) {
   return make(
+      {"product and sum rounding", "storage", "denormal flush"},
       [=](int x, int y, int c) {
         const double s = scene.pixel(x, y)[c], b = bloom.pixel(x, y)[c];
-        return std::vector<Term>{
-            {"product and sum rounding", 2 * kU * (std::fabs(s) + std::fabs(strength * b))},
-            {"storage", storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile)},
-            {"denormal flush", denormal_floor(*ctx.profile)}};
+        return Values{2 * kU * (std::fabs(s) + std::fabs(strength * b)),
+                      storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
+                      denormal_floor(*ctx.profile)};
       },
       ctx.threads);
 }
@@ -207,16 +250,15 @@ std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageVi
 std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView oracle,
                                             float exposure, BoundContext ctx) {
   return make(
+      {"exp: (3 + 2|x|) ULP (GLSL 4.50)", "argument rounding (x = -hdr * exposure)",
+       "1 - e rounding", "storage", "denormal flush"},
       [=](int x, int y, int c) {
         const double h = hdr.pixel(x, y)[c];
         const double a = -h * exposure;  // the argument of exp
         const double e = std::exp(a);
-        return std::vector<Term>{
-            {"exp: (3 + 2|x|) ULP (GLSL 4.50)", e * (3 + 2 * std::fabs(a)) * 2 * kU},
-            {"argument rounding (x = -hdr * exposure)", e * std::fabs(a) * kU},
-            {"1 - e rounding", (1 + e) * kU},
-            {"storage", storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile)},
-            {"denormal flush", denormal_floor(*ctx.profile)}};
+        return Values{e * (3 + 2 * std::fabs(a)) * 2 * kU, e * std::fabs(a) * kU, (1 + e) * kU,
+                      storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
+                      denormal_floor(*ctx.profile)};
       },
       ctx.threads);
 }
@@ -224,42 +266,29 @@ std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView o
 std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView oracle,
                                            float gamma, BoundContext ctx) {
   return make(
+      {"pow at 0", "log2: 3 ULP, 2^-21 absolute in [0.5, 2] (GLSL 4.50)",
+       "1/gamma and g * log2 rounding", "exp2: (3 + 2|x|) ULP", "storage"},
       [=](int x, int y, int c) {
         const double m = mapped.pixel(x, y)[c];
         const double storage = storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile);
         if (!(m > 0))
           // pow(0, g) = exp2(g * log2(0)): exact 0 unless log2(0) is a large finite negative
           // (-149 at worst): 2^(-149 g) is below 1e-20 for gamma 2.2.
-          return std::vector<Term>{{"pow at 0", std::exp2(-149.0 / gamma)}, {"storage", storage}};
+          return Values{std::exp2(-149.0 / gamma), 0, 0, 0, storage};
         const double g = 1.0 / gamma;
         const double l = std::log2(m), t = g * l, o = std::exp2(t);
         const double dl = (m >= 0.5 && m <= 2.0) ? std::ldexp(1.0, -21) : 3 * 2 * kU * std::fabs(l);
-        return std::vector<Term>{
-            {"log2: 3 ULP, 2^-21 absolute in [0.5, 2] (GLSL 4.50)", o * std::log(2.0) * g * dl},
-            {"1/gamma and g * log2 rounding",
-             o * std::log(2.0) * std::fabs(t) * (1 + ctx.profile->division_ulps) * kU},
-            {"exp2: (3 + 2|x|) ULP", o * (3 + 2 * std::fabs(t)) * 2 * kU},
-            {"storage", storage}};
+        return Values{0, o * std::log(2.0) * g * dl,
+                      o * std::log(2.0) * std::fabs(t) * (1 + ctx.profile->division_ulps) * kU,
+                      o * (3 + 2 * std::fabs(t)) * 2 * kU, storage};
       },
       ctx.threads);
 }
 
 Image propagate_blur(ConstImageView error, Axis axis, const Kernel& k, int threads) {
   const Window win = window_stats(error, axis, threads);
-  const bool hz = axis == Axis::horizontal;
-  const int n = hz ? error.width : error.height;
-  Image out(error.width, error.height, 0.0f);
-  fill_values(out, threads, [&](int x, int y, int c) {
-    double s = 0;
-    for (std::size_t i = 0; i < k.offsets_f64.size(); ++i)
-      for (double sign : {1.0, -1.0}) {
-        if (i == 0 && sign < 0) continue;
-        const int b = tap_base(hz ? x : y, sign * k.offsets_f64[i], n);
-        s += k.weights_f64[i] * win.magnitude.pixel(hz ? b : x, hz ? y : b)[c];
-      }
-    return s;
-  });
-  return out;
+  const int n = axis == Axis::horizontal ? error.width : error.height;
+  return weighted_tap_sum(win.magnitude.cview(), axis, tap_bases(n, k), threads);
 }
 
 }  // namespace bloomref::parity::detail
