@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cfloat>
+#include <chrono>
 #include <cmath>
 #include <mutex>
 #include <tuple>
@@ -296,6 +297,29 @@ ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& g
   }
   for (const StageComparison& s : result.end_to_end) result.verdict = std::max(result.verdict, s.verdict);
   return result;
+}
+
+Plan plan_for_device(BloomParams params, ConstImageView scene, const DeviceProfile& profile,
+                     const std::string& source) {
+  if (params.precision != Precision::f32)
+    throw ParamError("parity judges the GL path against the f32 oracle; --precision f64 is the "
+                     "CPU truth only");
+  params.subtexel_bits = profile.subtexel_bits;
+  return make_plan(params, scene, source);
+}
+
+ParityResult compare_with_oracle(const Plan& plan, ConstImageView scene, const StageTrace& gl,
+                                 const DeviceProfile& profile, const CompareOptions& opt,
+                                 double* cpu_ms) {
+  ExecuteOptions eo;
+  eo.keep_all = true;
+  eo.half_rounding =
+      profile.half_nearest_even ? HalfRounding::nearest_even : HalfRounding::toward_zero;
+  const auto t0 = std::chrono::steady_clock::now();
+  const StageTrace cpu = execute(plan, scene, eo);
+  if (cpu_ms)
+    *cpu_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return compare(plan, scene, gl, cpu, profile, opt);
 }
 
 }  // namespace bloomref::parity

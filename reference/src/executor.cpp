@@ -24,7 +24,7 @@ template <class T>
 StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& opt) {
   const BloomParams& p = plan.params;
   const int threads = p.threads;
-  const HalfRounding rounding = HalfRounding::nearest_even;
+  const HalfRounding rounding = opt.half_rounding;
   const int w = scene_in.width, h = scene_in.height;
   StageTrace trace;
 

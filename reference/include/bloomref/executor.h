@@ -30,6 +30,9 @@ struct StageTrace {
 
 struct ExecuteOptions {
   bool keep_all = false;  ///< keep every intermediate (compare, debug, --dump-stages)
+  /// How f16 storage rounds (IEEE nearest-even by default; `compare` uses the device's measured
+  /// mode so that end-to-end comparisons do not diverge on overflow: Inf versus 65504).
+  HalfRounding half_rounding = HalfRounding::nearest_even;
 };
 
 StageTrace execute(const Plan& plan, ConstImageView scene, const ExecuteOptions& opt = {});

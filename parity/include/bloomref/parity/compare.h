@@ -71,4 +71,15 @@ ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& g
                      const StageTrace& cpu, const DeviceProfile& profile,
                      const CompareOptions& opt = {});
 
+/// The plan both backends run: `params` with the profile's sub-texel bits (the oracle samples as
+/// the device does) and f32 precision.
+Plan plan_for_device(BloomParams params, ConstImageView scene, const DeviceProfile& profile,
+                     const std::string& source = "");
+
+/// Runs the CPU oracle for `plan` (every stage kept, f16 rounding as the profile measured) and
+/// compares `gl` with it. `cpu_ms` (optional) receives the oracle's wall time.
+ParityResult compare_with_oracle(const Plan& plan, ConstImageView scene, const StageTrace& gl,
+                                 const DeviceProfile& profile, const CompareOptions& opt = {},
+                                 double* cpu_ms = nullptr);
+
 }  // namespace bloomref::parity
