@@ -1,0 +1,128 @@
+// Parity is not vacuous: every injected GL fault FAILs and is charged to the stage it was
+// injected in (the first divergent stage), on the demo scene and on three corpus images.
+#include <Imath/half.h>
+
+#include <catch2/catch.hpp>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "bloomref/gpu/device_facts.h"
+#include "bloomref/gpu/gl_executor.h"
+#include "bloomref/io.h"
+#include "bloomref/parity/compare.h"
+#include "bloomref/scenes.h"
+#include "corpus.h"
+#include "gl_fixture.h"
+
+using namespace bloomref;
+
+namespace {
+
+// True when every value is exactly a binary16 value (then f16 storage of the input changes
+// nothing and the first stage the f16-storage fault changes is the first blur pass).
+bool half_exact(const Image& img) {
+  for (float v : img.values())
+    if (std::isfinite(v) && static_cast<float>(Imath::half(v)) != v) return false;
+  return true;
+}
+
+// The largest luminance in the image, as the shaders compute it: a threshold there makes a tie.
+float max_luminance(const Image& img) {
+  float m = -INFINITY;
+  for (std::size_t i = 0; i < img.pixel_count(); ++i) {
+    const float* p = img.data() + i * 4;
+    const float l = luminance(p[0], p[1], p[2]);
+    if (std::isfinite(l)) m = std::max(m, l);
+  }
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("every injected fault is caught and charged to its stage", "[gl][faults]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  const parity::DeviceProfile profile =
+      ctx->info().software ? parity::profile_llvmpipe() : parity::profile_nvidia_like();
+  std::vector<std::pair<std::string, Image>> inputs = {{"demo", make_scene("demo")}};
+  for (const std::string& f : test::corpus_files()) {
+    const std::string n = std::filesystem::path(f).filename().string();
+    if (n == "hdr-rgb-riverwalk.hdr" || n == "reference-crop.exr" || n == "StageEnvLatLong.exr")
+      inputs.emplace_back(n, load_image(f).image);
+  }
+  if (inputs.size() < 4) WARN("BLOOMREF_CORPUS is not set: faults checked on the demo only");
+  for (const auto& [name, image] : inputs) {
+    for (const gpu::FaultInfo& fault : gpu::fault_list()) {
+      BloomParams p;
+      p.exposure = 0.5f;  // exposure-ignored must make a difference
+      // threshold-ge needs a tie: the demo has a label at luminance exactly 1; elsewhere put the
+      // threshold at the brightest pixel's luminance.
+      if (fault.fault == gpu::Fault::threshold_ge && name != "demo") p.threshold = max_luminance(image);
+      const Plan plan = parity::plan_for_device(p, image.cview(), profile, name);
+      gpu::GlOptions go;
+      go.keep_all = true;
+      go.fault = fault.fault;
+      const StageTrace gl = gpu::execute_gl(*ctx, plan, image.cview(), go);
+      const parity::ParityResult r = parity::compare_with_oracle(plan, image.cview(), gl, profile);
+      std::string expected = fault.stage;
+      if (fault.fault == gpu::Fault::f16_storage && half_exact(image)) expected = "blur.1";
+      const std::string charged = r.first_divergent_stage.value_or("none");
+      std::printf("fault %-19s on %-22s -> %s at %s\n", fault.name.c_str(), name.c_str(),
+                  parity::to_string(r.verdict).c_str(), charged.c_str());
+      INFO(fault.name << " on " << name);
+      if (fault.fault == gpu::Fault::weight_0_01pct) {
+        // Reported, not required: 0.01% is near the blur's derived bound (see the closing note).
+        CHECK((charged == "none" || charged == expected));
+        continue;
+      }
+      CHECK(r.verdict == parity::Verdict::fail);
+      CHECK(charged == expected);
+    }
+  }
+}
+
+TEST_CASE("the measured llvmpipe facts are the llvmpipe profile's", "[gl][facts]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  if (ctx->info().renderer.find("llvmpipe") == std::string::npos) {
+    WARN("not llvmpipe (" << ctx->info().renderer << "): facts printed, profile not checked");
+    return;
+  }
+  const gpu::DeviceFacts f = gpu::measure_device_facts(*ctx);
+  const parity::DeviceProfile p = parity::profile_llvmpipe();
+  CHECK(f.subtexel_bits == p.subtexel_bits);
+  CHECK(f.bilinear_distinct == 1024);
+  CHECK(f.half_rounding == (p.half_nearest_even ? "nearest-even" : "toward-zero"));
+  CHECK((f.half_of_65520 == 65504.0f) == p.half_overflow_saturate);
+  CHECK(f.shader_denormals_kept == !p.flush_denormals);
+}
+
+namespace {
+struct Run {
+  int code;
+  std::string err;
+};
+Run run_cli(const std::string& args, const std::string& env = "") {
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string err = (dir / "bloomref_gl_cli_err.txt").string();
+  const int status = std::system((env + " " + BLOOMREF_EXE + " " + args + " 2>" + err).c_str());
+  std::ifstream f(err);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128, ss.str()};
+}
+}  // namespace
+
+TEST_CASE("bloomref compare exit codes: 0 pass, 1 fail, 2 bad usage, 3 no GL", "[gl][cli]") {
+  const Run none = run_cli("compare -q --scene impulse", "BLOOMREF_EGL_DEVICE=no-such-device");
+  CHECK(none.code == 3);
+  CHECK_THAT(none.err, Catch::Contains("GL path unavailable"));
+  CHECK(run_cli("compare -q --scene impulse --inject-fault bogus").code == 2);
+  if (!test::gl_context()) return;
+  CHECK(run_cli("compare -q --scene hot-edge").code == 0);
+  CHECK(run_cli("compare -q --scene hot-edge --inject-fault gamma-twice").code == 1);
+  CHECK(run_cli("compare -q --scene hot-edge --precision f64").code == 2);
+}
