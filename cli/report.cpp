@@ -1,6 +1,306 @@
 #include "report.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "bloomref/error.h"
+#include "bloomref/io.h"
+
+namespace fs = std::filesystem;
+
 namespace bloomref::cli {
-void write_report(const std::string&, const std::string&, const std::string&, const Plan&,
-                  const StageTrace&, const parity::ParityResult&, const std::string&) {}
+namespace {
+
+constexpr int kPreview = 384;  // longest side of the previews embedded in index.html
+
+std::string base64(const std::string& in) {
+  static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  int val = 0, bits = -6;
+  for (unsigned char c : in) {
+    val = (val << 8) + c;
+    bits += 8;
+    while (bits >= 0) {
+      out.push_back(t[(val >> bits) & 0x3F]);
+      bits -= 6;
+    }
+  }
+  if (bits > -6) out.push_back(t[((val << 8) >> (bits + 8)) & 0x3F]);
+  while (out.size() % 4) out.push_back('=');
+  return out;
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+std::string esc(const std::string& s) {
+  std::string o;
+  for (char c : s) o += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
+  return o;
+}
+
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.4g", v);
+  return b;
+}
+
+// Scene-referred values shown as x / (1 + x), gamma 2.2 (the display-referred stages pass
+// through unchanged); NaN magenta, Inf white.
+Image display(const Image& img, bool scene_referred) {
+  Image out(img.width(), img.height());
+  for (std::size_t i = 0; i < img.pixel_count(); ++i) {
+    const float* s = img.data() + i * 4;
+    float* d = out.data() + i * 4;
+    bool nan = false, inf = false;
+    for (int c = 0; c < 3; ++c) {
+      nan |= std::isnan(s[c]);
+      inf |= std::isinf(s[c]);
+      const float v = std::max(s[c], 0.0f);
+      d[c] = scene_referred ? std::pow(v / (1 + v), 1 / 2.2f) : v;
+    }
+    if (nan) d[0] = 1, d[1] = 0, d[2] = 1;
+    else if (inf) d[0] = d[1] = d[2] = 1;
+    d[3] = 1;
+  }
+  return out;
+}
+
+// Signed difference gl - oracle: red where GL is larger, blue where smaller, scaled to the
+// stage's largest |difference| (stated in the page).
+Image signed_diff(const Image& gl, const Image& oracle, double& scale) {
+  scale = 0;
+  for (std::size_t i = 0; i < gl.values().size(); ++i)
+    if (i % 4 != 3 && std::isfinite(gl.values()[i]) && std::isfinite(oracle.values()[i]))
+      scale = std::max(scale, double(std::fabs(gl.values()[i] - oracle.values()[i])));
+  Image out(gl.width(), gl.height());
+  for (std::size_t i = 0; i < gl.pixel_count(); ++i) {
+    double d = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double v = double(gl.data()[i * 4 + c]) - oracle.data()[i * 4 + c];
+      if (std::isfinite(v) && std::fabs(v) > std::fabs(d)) d = v;
+    }
+    const float m = scale > 0 ? static_cast<float>(std::fabs(d) / scale) : 0.0f;
+    float* o = out.data() + i * 4;
+    o[0] = d > 0 ? m : 0;
+    o[1] = 0;
+    o[2] = d < 0 ? m : 0;
+    o[3] = 1;
+  }
+  return out;
+}
+
+// error / bound per pixel (largest channel), raw, and as a heat map: black 0, yellow at 1,
+// red and then white beyond (values above 1 stand out); the pass/fail mask beside it.
+void ratio_images(const Image& gl, const Image& oracle, const Image& bound, Image& raw,
+                  Image& heat, Image& mask) {
+  raw = Image(gl.width(), gl.height());
+  heat = Image(gl.width(), gl.height());
+  mask = Image(gl.width(), gl.height());
+  for (std::size_t i = 0; i < gl.pixel_count(); ++i) {
+    double r = 0;
+    bool mismatch = false;
+    for (int c = 0; c < 3; ++c) {
+      const double g = gl.data()[i * 4 + c], o = oracle.data()[i * 4 + c],
+                   b = bound.data()[i * 4 + c];
+      if (std::isnan(g) != std::isnan(o) || (std::isinf(g) != std::isinf(o) && std::fabs(g - o) > b)) {
+        mismatch = true;
+        continue;
+      }
+      if (!std::isfinite(g) || !std::isfinite(o)) continue;
+      const double e = std::fabs(g - o);
+      r = std::max(r, e == 0 ? 0.0 : (b > 0 ? e / b : 1e30));
+    }
+    float* p = raw.data() + i * 4;
+    p[0] = p[1] = p[2] = static_cast<float>(mismatch ? INFINITY : r);
+    p[3] = 1;
+    float* h = heat.data() + i * 4;
+    const float t = static_cast<float>(std::min(r, 1.0));
+    if (mismatch) h[0] = 1, h[1] = 0, h[2] = 1;
+    else if (r <= 1) h[0] = t, h[1] = t, h[2] = 0;
+    else h[0] = 1, h[1] = static_cast<float>(std::min(1.0, std::log10(r) / 2)), h[2] = h[1];
+    h[3] = 1;
+    float* k = mask.data() + i * 4;
+    const bool bad = mismatch || r > 1;
+    k[0] = bad ? 1.0f : 0.0f;
+    k[1] = bad ? 0.0f : 0.35f;
+    k[2] = mismatch ? 1.0f : 0.0f;
+    k[3] = 1;
+  }
+}
+
+// A preview no larger than kPreview: each preview pixel takes the brightest source pixel of its
+// block (so one failing pixel still shows), or the block's mean for pictures.
+Image preview(const Image& img, bool keep_peaks) {
+  const int f = std::max(1, (std::max(img.width(), img.height()) + kPreview - 1) / kPreview);
+  if (f == 1) return img;
+  const int w = (img.width() + f - 1) / f, h = (img.height() + f - 1) / f;
+  Image out(w, h, 0.0f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      float acc[4] = {0, 0, 0, 0}, best = -1;
+      int n = 0;
+      for (int yy = y * f; yy < std::min(img.height(), (y + 1) * f); ++yy)
+        for (int xx = x * f; xx < std::min(img.width(), (x + 1) * f); ++xx) {
+          const float* p = img.pixel(xx, yy);
+          if (keep_peaks) {
+            const float s = p[0] + p[1] + p[2];
+            if (s > best) {
+              best = s;
+              std::copy(p, p + 4, acc);
+            }
+          } else {
+            for (int c = 0; c < 4; ++c) acc[c] += p[c];
+            ++n;
+          }
+        }
+      float* o = out.pixel(x, y);
+      for (int c = 0; c < 4; ++c) o[c] = keep_peaks ? acc[c] : acc[c] / n;
+    }
+  return out;
+}
+
+std::string png_data_uri(const Image& img, const fs::path& tmp) {
+  save_png(tmp.string(), img.cview());
+  const std::string bytes = read_file(tmp.string());
+  fs::remove(tmp);
+  return "data:image/png;base64," + base64(bytes);
+}
+
+std::string histogram_svg(const std::vector<std::uint64_t>& h) {
+  std::uint64_t m = 1;
+  for (auto v : h) m = std::max(m, v);
+  std::string s = "<svg width='360' height='90' xmlns='http://www.w3.org/2000/svg'>";
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    // log scale so that a handful of outliers stays visible next to millions of zeros
+    const double bar = h[i] ? 70.0 * std::log10(1.0 + h[i]) / std::log10(1.0 + m) : 0.0;
+    s += "<rect x='" + std::to_string(4 + i * 21) + "' y='" + num(72 - bar) + "' width='18' height='" +
+         num(bar) + "' fill='" + (i == 8 ? "#6a6" : "#c84") + "'><title>" +
+         std::to_string(int(i) - 8) + " ULP: " + std::to_string(h[i]) + "</title></rect>";
+    s += "<text x='" + std::to_string(8 + i * 21) + "' y='86' font-size='9'>" +
+         (i == 0 ? "&lt;-7" : i == 16 ? "&gt;7" : std::to_string(int(i) - 8)) + "</text>";
+  }
+  return s + "</svg>";
+}
+
+}  // namespace
+
+void write_report(const std::string& dir, const std::string& source, const std::string& renderer,
+                  const Plan& plan, const StageTrace& gl, const parity::ParityResult& r,
+                  const std::string& fault) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir)) throw InputError(dir, "cannot create the report folder");
+  const fs::path root(dir);
+  const std::string first = r.first_divergent_stage.value_or("");
+  std::ostringstream html;
+  html << "<!doctype html><html><head><meta charset='utf-8'><title>bloomref compare: "
+       << esc(source) << "</title><style>body{font:14px sans-serif;margin:20px;background:#fafafa}"
+          "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 6px;"
+          "text-align:right}th{background:#eee}.PASS{color:#070}.WARN{color:#a60}.FAIL{color:#c00;"
+          "font-weight:bold}img{image-rendering:pixelated;border:1px solid #999;max-width:384px}"
+          "figure{display:inline-block;margin:4px;vertical-align:top}figcaption{font-size:12px}"
+          "section{background:#fff;border:1px solid #ddd;padding:10px;margin:12px 0}"
+          ".first{border:3px solid #c00}</style></head><body>";
+  html << "<h1>bloomref compare: " << esc(source) << "</h1><p>" << esc(renderer) << "<br>profile "
+       << esc(r.profile.name) << " (" << esc(r.profile.source) << ")<br>"
+       << plan.facts.width << "x" << plan.facts.height << ", " << plan.params.passes << " passes, "
+       << to_string(plan.params.kernel) << ", storage " << to_string(plan.params.storage)
+       << (fault == "none" ? std::string() : ", injected fault <b>" + esc(fault) + "</b>")
+       << "</p><h2 class='" << parity::to_string(r.verdict) << "'>verdict "
+       << parity::to_string(r.verdict) << "; first divergent stage: "
+       << (first.empty() ? "none" : "<a href='#stage-" + first + "'>" + first + "</a>")
+       << "</h2>";
+  html << "<table><tr><th>stage</th><th>isolated</th><th>max |err|</th><th>max f16 ULP</th>"
+          "<th>largest err/bound</th><th>values over bound</th><th>end to end</th>"
+          "<th>largest err/bound</th></tr>";
+  for (std::size_t i = 0; i < r.isolated.size(); ++i) {
+    const auto& s = r.isolated[i];
+    const auto& e = r.end_to_end[i];
+    html << "<tr><td><a href='#stage-" << s.stage << "'>" << s.stage << "</a></td><td class='"
+         << parity::to_string(s.verdict) << "'>" << parity::to_string(s.verdict) << "</td><td>"
+         << num(s.max_abs) << "</td><td>" << num(s.max_ulp16) << "</td><td>" << num(s.max_ratio)
+         << "</td><td>" << s.over_bound + s.nonfinite_mismatch << "</td><td class='"
+         << parity::to_string(e.verdict) << "'>" << parity::to_string(e.verdict) << "</td><td>"
+         << num(e.max_ratio) << "</td></tr>";
+  }
+  html << "</table><p>Isolated: each GL stage against the CPU stage recomputed from GL's own "
+          "previous stage. Heat maps: error/bound, black 0, yellow 1, red to white above 1, "
+          "magenta NaN/Inf on one side only. Previews keep each block's peak; full-size PNG and "
+          "raw EXR files are beside this page.</p>";
+
+  // Sections: the first divergent stage first, then the pipeline order.
+  std::vector<std::size_t> order;
+  for (std::size_t i = 0; i < r.isolated.size(); ++i)
+    if (r.isolated[i].stage == first) order.push_back(i);
+  for (std::size_t i = 0; i < r.isolated.size(); ++i)
+    if (r.isolated[i].stage != first) order.push_back(i);
+  const fs::path tmp = root / ".preview.png";
+  for (std::size_t i : order) {
+    const auto& s = r.isolated[i];
+    const StageResult* g = gl.find(s.stage);
+    if (!g || s.oracle.empty()) continue;
+    const bool scene_referred = s.stage != "tonemap" && s.stage != "output";
+    double scale = 0;
+    Image raw, heat, mask;
+    ratio_images(g->image, s.oracle, s.bound, raw, heat, mask);
+    const Image diff = signed_diff(g->image, s.oracle, scale);
+    Image signed_raw(g->image.width(), g->image.height());
+    for (std::size_t k = 0; k < signed_raw.values().size(); ++k)
+      signed_raw.values()[k] = k % 4 == 3 ? 1.0f : g->image.values()[k] - s.oracle.values()[k];
+    const std::string base = (root / s.stage).string();
+    save_exr(base + ".oracle.exr", s.oracle.cview());
+    save_exr(base + ".gl.exr", g->image.cview());
+    save_exr(base + ".diff.exr", signed_raw.cview());
+    save_exr(base + ".ratio.exr", raw.cview());
+    const Image d_or = display(s.oracle, scene_referred), d_gl = display(g->image, scene_referred);
+    save_png(base + ".oracle.png", d_or.cview());
+    save_png(base + ".gl.png", d_gl.cview());
+    save_png(base + ".diff.png", diff.cview());
+    save_png(base + ".ratio.png", heat.cview());
+    save_png(base + ".mask.png", mask.cview());
+
+    html << "<section id='stage-" << s.stage << "'" << (s.stage == first ? " class='first'" : "")
+         << "><h2>" << s.stage << ": <span class='" << parity::to_string(s.verdict) << "'>"
+         << parity::to_string(s.verdict) << "</span>" << (s.stage == first ? " (first divergent)" : "")
+         << "</h2><p>" << esc(s.reason) << "; end to end " << parity::to_string(r.end_to_end[i].verdict)
+         << ": " << esc(r.end_to_end[i].reason) << "</p>";
+    const std::pair<const Image*, std::string> figs[] = {
+        {&d_or, "oracle (CPU from GL's previous stage)"},
+        {&d_gl, "GL"},
+        {&diff, "GL - oracle, full scale " + num(scale)},
+        {&heat, "error / bound"},
+        {&mask, "pass (green) / fail (red)"}};
+    for (const auto& [img, caption] : figs)
+      html << "<figure><img src='" << png_data_uri(preview(*img, img != &d_or && img != &d_gl), tmp)
+           << "'><figcaption>" << esc(caption) << "</figcaption></figure>";
+    html << "<h3>worst values (largest error / bound)</h3><table><tr><th>x</th><th>y</th><th>ch</th>"
+            "<th>oracle</th><th>GL</th><th>|err|</th><th>bound</th><th>err/bound</th>"
+            "<th style='text-align:left'>bound terms</th></tr>";
+    for (const auto& w : s.worst) {
+      std::string terms;
+      for (const auto& t : w.terms)
+        if (t.value != 0) terms += esc(t.name) + " = " + num(t.value) + "<br>";
+      html << "<tr><td>" << w.x << "</td><td>" << w.y << "</td><td>" << "RGB"[w.channel]
+           << "</td><td>" << num(w.oracle) << "</td><td>" << num(w.gl) << "</td><td>"
+           << (std::isfinite(w.error) ? num(w.error) : "non-finite") << "</td><td>" << num(w.bound)
+           << "</td><td>" << (std::isfinite(w.error) && w.bound > 0 ? num(w.error / w.bound) : "-")
+           << "</td><td style='text-align:left'>" << terms << "</td></tr>";
+    }
+    html << "</table><h3>signed f16-ULP differences (GL - oracle), log scale</h3>"
+         << histogram_svg(s.ulp_histogram) << "</section>";
+  }
+  html << "<script>if(!location.hash&&'" << first << "')location.hash='stage-" << first
+       << "';</script></body></html>\n";
+  save_text((root / "index.html").string(), html.str());
+}
+
 }  // namespace bloomref::cli
