@@ -47,17 +47,7 @@ int run(const RunArgs& a) {
     std::error_code ec;
     if (fs::exists(a.dump_dir, ec) && !fs::is_directory(a.dump_dir, ec))
       throw InputError(a.dump_dir, "exists and is not a folder (--dump-stages needs a folder)");
-    for (const std::string& name : stage_names(a.pipeline.params))
-      destinations.push_back((fs::path(a.dump_dir) / (name + ".exr")).string());
   }
-  std::set<fs::path> seen;
-  for (const std::string& d : destinations) {
-    if (!a.input.empty()) refuse_overwrite(d, a.input);
-    std::error_code ec;
-    if (!seen.insert(fs::weakly_canonical(d, ec)).second)
-      throw InputError(d, "is named twice as an output");
-  }
-
   LoadedImage in;
   std::string source;
   if (!a.input.empty()) {
@@ -70,6 +60,18 @@ int run(const RunArgs& a) {
     in.info.path = "scene:" + a.pipeline.scene;
     source = in.info.path;
   }
+  if (!a.dump_dir.empty())
+    for (const std::string& name :
+         stage_names(a.pipeline.params, in.image.width(), in.image.height()))
+      destinations.push_back((fs::path(a.dump_dir) / (name + ".exr")).string());
+  std::set<fs::path> seen;
+  for (const std::string& d : destinations) {
+    if (!a.input.empty()) refuse_overwrite(d, a.input);
+    std::error_code ec;
+    if (!seen.insert(fs::weakly_canonical(d, ec)).second)
+      throw InputError(d, "is named twice as an output");
+  }
+
   const Plan plan = make_plan(a.pipeline.params, in.image.cview(), source);
   StageTrace trace;
   std::string renderer = "cpu";

@@ -23,7 +23,9 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
           {"kernel", to_string(p.kernel)},       {"storage", to_string(p.storage)},
           {"precision", to_string(p.precision)}, {"nonfinite", to_string(p.nonfinite)},
           {"subtexel_bits", p.subtexel_bits},    {"threads", resolve_threads(p.threads)},
-          {"plan", to_string(p.plan)}};
+          {"plan", to_string(p.plan)},
+          {"levels", p.levels},             {"karis", p.karis},
+          {"composite", to_string(p.composite)}};
 }
 
 nlohmann::ordered_json counts_json(const NonFiniteCounts& c) {
@@ -41,6 +43,7 @@ nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace) {
           {"skipped", plan.skipped_names()},
           {"nonfinite", counts_json(plan.facts.nonfinite)},
           {"bright_pixels", plan.facts.bright_pixels},
+          {"mip_levels_used", plan.levels.size()},
           {"width", plan.facts.width},
           {"height", plan.facts.height}};
 }

@@ -6,7 +6,7 @@ namespace bloomref::cli {
 
 void PipelineOptions::add_to(CLI::App& app) {
   BloomParams& p = params;
-  app.add_option("--method", method, "gaussian | mip")->capture_default_str();
+  app.add_option("--method", method, "gaussian | mip (seed 003's mip chain)")->capture_default_str();
   app.add_option("--threshold", p.threshold, "bright when luminance > threshold")
       ->capture_default_str();
   app.add_option("--exposure", p.exposure, "tone map 1 - exp(-hdr * exposure)")
@@ -27,6 +27,11 @@ void PipelineOptions::add_to(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--threads", p.threads, "0 = all hardware threads")->capture_default_str();
   app.add_option("--plan", plan, "adaptive | full (same bits)")->capture_default_str();
+  app.add_option("--levels", p.levels, "mip: downsample levels (fewer when the image ends)")
+      ->capture_default_str();
+  app.add_flag("--karis", p.karis, "mip: Karis average on the first downsample");
+  app.add_option("--composite", composite, "before-tonemap | after-tonemap (seed 003)")
+      ->capture_default_str();
   app.add_option("--scene", scene, "built-in scene used when no IN is given")
       ->capture_default_str();
   app.add_option("--size", size, "WxH of the built-in scene (default: the scene's own)");
@@ -39,6 +44,7 @@ void PipelineOptions::finish() {
   params.precision = parse_precision(precision);
   params.nonfinite = parse_nonfinite(nonfinite);
   params.plan = parse_plan_mode(plan);
+  params.composite = parse_composite_order(composite);
   validate(params);
 }
 

@@ -11,7 +11,7 @@ namespace bloomref::cli {
 struct PipelineOptions {
   BloomParams params;
   std::string method = "gaussian", kernel = "discrete9", storage = "f32", precision = "f32",
-              nonfinite = "zero", plan = "adaptive";
+              nonfinite = "zero", plan = "adaptive", composite = "before-tonemap";
   std::string scene = "demo";
   std::string size;  ///< "WxH" for built-in scenes
 

@@ -5,6 +5,7 @@
 #include <type_traits>
 
 #include "bloomref/error.h"
+#include "bloomref/mip.h"
 
 namespace bloomref {
 namespace {
@@ -35,8 +36,13 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
 
   const auto t_total = Clock::now();
   BasicImage<T> scene;
-  BasicImage<T> bright(w, h);
-  BasicImage<T> ping(w, h), pong;
+  BasicImage<T> bright(p.method == Method::gaussian ? w : 0, p.method == Method::gaussian ? h : 0);
+  BasicImage<T> ping(p.method == Method::gaussian ? w : 0, p.method == Method::gaussian ? h : 0),
+      pong;
+  // Method mip: level k of the down and up chains (index 0 unused), and the full-size bloom.
+  std::vector<BasicImage<T>> down(plan.levels.size() + 1), up(plan.levels.size() + 1);
+  BasicImage<T> mip_bloom, mapped;
+  const int top = static_cast<int>(plan.levels.size());
 
   for (const StageSpec& stage : plan.stages) {
     const auto t0 = Clock::now();
@@ -59,7 +65,8 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         // The seeds' MRT pass writes the scene and the bright colour in one draw: bright is
         // decided on the sanitised value before either is stored (rounded to f16).
-        extract_bright(scene.cview(), bright.view(), static_cast<T>(p.threshold), threads);
+        if (p.method == Method::gaussian)
+          extract_bright(scene.cview(), bright.view(), static_cast<T>(p.threshold), threads);
         store(scene.view(), p.storage, rounding, threads);
         record(stage.name, scene, ms_since(t0), false);
         break;
@@ -85,7 +92,46 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         record(stage.name, ping, ms_since(t0), false);
         break;
       }
+      case StageKind::down: {
+        const int k = stage.pass;
+        const BasicImage<T>& src = k == 1 ? scene : down[k - 1];
+        down[k] = BasicImage<T>(plan.levels[k - 1].width, plan.levels[k - 1].height);
+        DownsampleOptions o{k == 1, p.threshold, p.karis && k == 1, p.subtexel_bits};
+        downsample(src.cview(), down[k].view(), o, threads);
+        store(down[k].view(), p.storage, rounding, threads);
+        record(stage.name, down[k], ms_since(t0), false);
+        break;
+      }
+      case StageKind::up: {
+        const int k = stage.pass;
+        const BasicImage<T>& small = k + 1 == top ? down[top] : up[k + 1];
+        up[k] = BasicImage<T>(down[k].width(), down[k].height());
+        upsample_tent(small.cview(), down[k].cview(), up[k].view(), p.subtexel_bits, threads);
+        store(up[k].view(), p.storage, rounding, threads);
+        record(stage.name, up[k], ms_since(t0), false);
+        break;
+      }
+      case StageKind::bloom: {
+        const BasicImage<T>& small = top == 1 ? down[1] : up[1];
+        mip_bloom = BasicImage<T>(w, h);
+        upsample_tent(small.cview(), BasicView<const T>{}, mip_bloom.view(), p.subtexel_bits,
+                      threads);
+        store(mip_bloom.view(), p.storage, rounding, threads);
+        record(stage.name, mip_bloom, ms_since(t0), false);
+        break;
+      }
       case StageKind::composite: {
+        if (p.method == Method::mip) {
+          // before-tonemap: scene + strength * bloom; after-tonemap: mapped + strength * bloom.
+          BasicImage<T>& base = p.composite == CompositeOrder::after_tonemap ? mapped : scene;
+          BasicImage<T> out(w, h);
+          composite(base.cview(), mip_bloom.cview(), out.view(), static_cast<T>(p.strength),
+                    threads);
+          store(out.view(), p.storage, rounding, threads);
+          scene = std::move(out);
+          record(stage.name, scene, ms_since(t0), false);
+          break;
+        }
         const bool blurred = p.passes > 0 && !plan.stages[1 + p.passes].skipped;
         const BasicImage<T>& bloom = blurred ? ping : bright;
         BasicImage<T>& out = blurred ? pong : ping;  // a free full-size buffer
@@ -99,6 +145,13 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         break;
       }
       case StageKind::tonemap:
+        if (p.method == Method::mip && p.composite == CompositeOrder::after_tonemap) {
+          mapped = BasicImage<T>(w, h);  // the scene tone-mapped; the bloom is added after
+          tonemap(scene.cview(), mapped.view(), static_cast<T>(p.exposure), threads);
+          store(mapped.view(), p.storage, rounding, threads);
+          record(stage.name, mapped, ms_since(t0), false);
+          break;
+        }
         tonemap(scene.cview(), scene.view(), static_cast<T>(p.exposure), threads);
         store(scene.view(), p.storage, rounding, threads);
         record(stage.name, scene, ms_since(t0), false);

@@ -37,6 +37,9 @@ constexpr std::pair<const char*, NonFinite> kPolicies[] = {{"zero", NonFinite::z
                                                            {"clamp", NonFinite::clamp},
                                                            {"propagate", NonFinite::propagate},
                                                            {"error", NonFinite::error}};
+constexpr std::pair<const char*, CompositeOrder> kOrders[] = {
+    {"before-tonemap", CompositeOrder::before_tonemap},
+    {"after-tonemap", CompositeOrder::after_tonemap}};
 constexpr std::pair<const char*, PlanMode> kPlans[] = {{"adaptive", PlanMode::adaptive},
                                                        {"full", PlanMode::full}};
 
@@ -54,8 +57,9 @@ void require(bool ok, const std::string& message) {
 }  // namespace
 
 void validate(const BloomParams& p) {
-  require(p.method == Method::gaussian,
-          "--method " + to_string(p.method) + " is not implemented yet (only gaussian)");
+  require(p.levels >= 1 && p.levels <= 16,
+          "--levels must be in [1, 16], got " + std::to_string(p.levels));
+  require(!p.karis || p.method == Method::mip, "--karis applies to --method mip only");
   require(std::isfinite(p.threshold), "--threshold must be finite, got " + str(p.threshold));
   require(std::isfinite(p.exposure) && p.exposure > 0,
           "--exposure must be finite and > 0, got " + str(p.exposure));
@@ -78,6 +82,10 @@ std::string to_string(Storage v) { return name_of(v, kStorages); }
 std::string to_string(Precision v) { return name_of(v, kPrecisions); }
 std::string to_string(NonFinite v) { return name_of(v, kPolicies); }
 std::string to_string(PlanMode v) { return name_of(v, kPlans); }
+std::string to_string(CompositeOrder v) { return name_of(v, kOrders); }
+CompositeOrder parse_composite_order(const std::string& s) {
+  return parse_enum("--composite", s, kOrders);
+}
 Method parse_method(const std::string& s) { return parse_enum("--method", s, kMethods); }
 KernelName parse_kernel(const std::string& s) { return parse_enum("--kernel", s, kKernels); }
 Storage parse_storage(const std::string& s) { return parse_enum("--storage", s, kStorages); }

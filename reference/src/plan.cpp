@@ -47,8 +47,31 @@ std::vector<std::string> Plan::skipped_names() const {
   return out;
 }
 
-std::vector<std::string> stage_names(const BloomParams& p) {
-  std::vector<std::string> names = {"input", "bright"};
+namespace {
+
+std::vector<StageSpec> mip_stages(const BloomParams& p, std::size_t k) {
+  std::vector<StageSpec> s = {{"input", StageKind::input}};
+  for (std::size_t i = 1; i <= k; ++i) s.push_back({"down." + std::to_string(i), StageKind::down, int(i)});
+  for (std::size_t i = k; i-- > 1;) s.push_back({"up." + std::to_string(i), StageKind::up, int(i)});
+  s.push_back({"bloom", StageKind::bloom});
+  if (p.composite == CompositeOrder::after_tonemap)
+    s.insert(s.end(), {{"tonemap", StageKind::tonemap}, {"composite", StageKind::composite}});
+  else
+    s.insert(s.end(), {{"composite", StageKind::composite}, {"tonemap", StageKind::tonemap}});
+  s.push_back({"output", StageKind::output});
+  return s;
+}
+
+}  // namespace
+
+std::vector<std::string> stage_names(const BloomParams& p, int width, int height) {
+  std::vector<std::string> names;
+  if (p.method == Method::mip) {
+    for (const StageSpec& s : mip_stages(p, mip_levels(width, height, p.levels).size()))
+      names.push_back(s.name);
+    return names;
+  }
+  names = {"input", "bright"};
   for (int k = 1; k <= p.passes; ++k) names.push_back("blur." + std::to_string(k));
   names.insert(names.end(), {"composite", "tonemap", "output"});
   return names;
@@ -71,6 +94,12 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
                                  : count_bright<float>(scene, params);
 
   const bool adaptive = params.plan == PlanMode::adaptive;
+  if (params.method == Method::mip) {
+    plan.sanitize = !adaptive || plan.facts.nonfinite.total() > 0;
+    plan.levels = mip_levels(scene.width, scene.height, params.levels);
+    plan.stages = mip_stages(params, plan.levels.size());
+    return plan;
+  }
   plan.sanitize = !adaptive || plan.facts.nonfinite.total() > 0;
   const bool skip_blur = adaptive && plan.facts.bright_pixels == 0;
 

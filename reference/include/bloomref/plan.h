@@ -1,7 +1,8 @@
 // bloomref — a Plan: the ordered, named stages to run for these parameters and this scene.
 //
-// Stage names are stable (code, files, JSON, CLI): input, bright, blur.1 .. blur.N, composite,
-// tonemap, output. The adaptive plan leaves out work the scene does not need and gives the same
+// Stage names are stable (code, files, JSON, CLI): gaussian: input, bright, blur.1 .. blur.N,
+// composite, tonemap, output; mip: input, down.1 .. down.K, up.K-1 .. up.1, bloom, then
+// composite, tonemap, output (before-tonemap) or tonemap, composite, output (after-tonemap). The adaptive plan leaves out work the scene does not need and gives the same
 // bits as the full plan:
 //  * no NaN/Inf in the input -> no sanitising (the input stage only copies and stores);
 //  * nothing above the threshold -> no blur passes: the blur of an all-zero bright image is
@@ -12,17 +13,18 @@
 #include <vector>
 
 #include "bloomref/image.h"
+#include "bloomref/mip.h"
 #include "bloomref/params.h"
 #include "bloomref/stages.h"
 
 namespace bloomref {
 
-enum class StageKind { input, bright, blur, composite, tonemap, output };
+enum class StageKind { input, bright, blur, down, up, bloom, composite, tonemap, output };
 
 struct StageSpec {
   std::string name;
   StageKind kind = StageKind::input;
-  int pass = 0;                     ///< blur pass number, 1-based
+  int pass = 0;                     ///< blur pass number, 1-based; mip level of down.k / up.k
   Axis axis = Axis::horizontal;     ///< blur passes only
   bool skipped = false;             ///< left out by the adaptive plan (result known exactly)
 };
@@ -39,6 +41,7 @@ struct Plan {
   SceneFacts facts;
   std::vector<StageSpec> stages;
   bool sanitize = true;  ///< input stage applies the non-finite policy
+  std::vector<LevelSize> levels;  ///< method mip: sizes of levels 1..K actually used
   std::vector<std::string> skipped_names() const;
 };
 
@@ -47,7 +50,7 @@ struct Plan {
 /// NaN or Inf, or the scene is empty.
 Plan make_plan(const BloomParams& params, ConstImageView scene, const std::string& source = "");
 
-/// The stage names of the full plan for these parameters.
-std::vector<std::string> stage_names(const BloomParams& params);
+/// The stage names of the full plan for these parameters and image size.
+std::vector<std::string> stage_names(const BloomParams& params, int width, int height);
 
 }  // namespace bloomref

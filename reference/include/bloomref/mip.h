@@ -1,0 +1,47 @@
+// bloomref — the mip-chain bloom (method `mip`, seed 003: Jimenez 2014, "Next generation post
+// processing in Call of Duty: Advanced Warfare").
+//
+// Level sizes: level 0 is the image; level k is max(1, floor(n / 2)) of level k-1 per axis.
+// `down.k` (level k) samples level k-1 with 13 GL_LINEAR lookups at offsets of 0, +-1, +-2
+// source texels around the target texel's centre; `up.k` = down.k + tent(up.k+1) with the 3x3
+// tent (1-2-1 / 16) at one texel of the smaller level; the bloom is the tent of up.1 at full
+// resolution. Lookups follow sampler.h exactly, so odd sizes are sampled as GL samples them.
+#pragma once
+
+#include <vector>
+
+#include "bloomref/image.h"
+
+namespace bloomref {
+
+struct LevelSize {
+  int width = 0, height = 0;
+};
+
+/// Sizes of levels 1..K (level 0, the image, not included): at most `levels`, fewer when the
+/// chain reaches 1x1 (no level repeats 1x1; a 1x1 image has one 1x1 level).
+std::vector<LevelSize> mip_levels(int width, int height, int levels);
+
+struct DownsampleOptions {
+  bool first = false;         ///< the first downsample thresholds each tap (L < threshold -> 0)
+  float threshold = 1.0f;
+  bool karis = false;         ///< first downsample only: Karis average 1/(1+L) per group of 4
+  int subtexel_bits = 0;
+};
+
+/// Stage `down.k`: dst (level k) from src (level k-1). f32 order (seed 003): q_i = lookup at
+/// uv + o_i * texel (texel = 1 / source size), thresholded on the first level; without Karis
+/// r = sum_i q_i * w_i in tap order; with Karis r = sum over groups of
+/// sum_j ((g * w_j) / s) * q_j, w_j = 1 / (1 + L(q_j)), s = w_a + w_b + w_c + w_d. Alpha 1.
+template <class T>
+void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
+                int threads);
+
+/// Stage `up.k` (current = down.k) and `bloom` (current empty: full resolution, no add):
+/// r = current (or 0); r = r + lookup(small, uv + o_i * texel) * t_i over the 3x3 tent in seed
+/// 003's order. Alpha 1.
+template <class T>
+void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
+                   int subtexel_bits, int threads);
+
+}  // namespace bloomref
