@@ -4,6 +4,7 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(STORAGE_FORMAT, binding = 0) uniform writeonly image2D dst0;
 layout(STORAGE_FORMAT, binding = 1) uniform writeonly image2D dst1;
+ivec2 target_size() { return imageSize(dst0); }
 void emit0(vec4 v) { imageStore(dst0, ivec2(gl_GlobalInvocationID.xy), v); }
 void emit1(vec4 v) { imageStore(dst1, ivec2(gl_GlobalInvocationID.xy), v); }
 void run_stage(vec2 frag_coord);

@@ -28,6 +28,11 @@ const std::vector<FaultInfo>& fault_list() {
       {Fault::gamma_twice, "gamma-twice", "output", "gamma applied twice"},
       {Fault::swap_rb, "swap-rb", "composite", "R and B swapped in the composite"},
       {Fault::exposure_ignored, "exposure-ignored", "tonemap", "tone map ignores the exposure"},
+      {Fault::tap_offset, "tap-offset", "down.1", "mip: downsample tap 5 at 1.5x its offset"},
+      {Fault::karis_unnormalised, "karis-unnormalised", "down.1",
+       "mip: Karis weights not normalised within their group (with --karis)"},
+      {Fault::level_size, "level-size", "down.2",
+       "mip: level 2 one texel wider than max(1, floor(n / 2))"},
   };
   return list;
 }
@@ -39,6 +44,16 @@ Fault parse_fault(const std::string& name) {
     known += (known.empty() ? "" : ", ") + f.name;
   }
   throw ParamError("--inject-fault '" + name + "' is not one of: " + known);
+}
+
+bool fault_applies(Fault f, Method m) {
+  const bool mip_fault = f == Fault::tap_offset || f == Fault::karis_unnormalised ||
+                         f == Fault::level_size;
+  const bool gaussian_fault = f == Fault::vertical_offsets_x || f == Fault::half_texel_shift ||
+                              f == Fault::repeat_wrap || f == Fault::threshold_ge ||
+                              f == Fault::weight_1pct || f == Fault::weight_0_1pct ||
+                              f == Fault::weight_0_01pct || f == Fault::skip_pass;
+  return m == Method::mip ? !gaussian_fault : !mip_fault;
 }
 
 const FaultInfo& fault_info(Fault f) {

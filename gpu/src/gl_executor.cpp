@@ -35,6 +35,8 @@ std::vector<std::string> defines_for(const BloomParams& p, Fault fault, GLenum f
     case Fault::gamma_twice: d.push_back("FAULT_GAMMA_TWICE 1"); break;
     case Fault::swap_rb: d.push_back("FAULT_SWAP_RB 1"); break;
     case Fault::exposure_ignored: d.push_back("FAULT_NO_EXPOSURE 1"); break;
+    case Fault::tap_offset: d.push_back("FAULT_TAP_OFFSET 1"); break;
+    case Fault::karis_unnormalised: d.push_back("FAULT_KARIS_UNNORMALISED 1"); break;
     default: break;
   }
   return d;
@@ -49,11 +51,9 @@ Image to_image(const Texture& t) {
 // Runs one stage program over the whole texture, as a draw or a dispatch.
 class StageRunner {
  public:
-  StageRunner(bool compute, int w, int h, GLenum format) : compute_(compute), w_(w), h_(h),
-      format_(format) {
+  StageRunner(bool compute, GLenum format) : compute_(compute), format_(format) {
     glGenVertexArrays(1, &vao_);
     glBindVertexArray(vao_);
-    glViewport(0, 0, w, h);
   }
   ~StageRunner() { glDeleteVertexArrays(1, &vao_); }
 
@@ -61,6 +61,7 @@ class StageRunner {
   void run(const Program& prog, const std::vector<const Texture*>& inputs, const Texture& out0,
            const Texture* out1 = nullptr) {
     glUseProgram(prog.id);
+    if (!compute_) prog.set("u_target_size", out0.width, out0.height);
     for (std::size_t i = 0; i < inputs.size(); ++i) {
       glActiveTexture(GL_TEXTURE0 + static_cast<GLenum>(i));
       glBindTexture(GL_TEXTURE_2D, inputs[i]->id);
@@ -68,11 +69,12 @@ class StageRunner {
     if (compute_) {
       glBindImageTexture(0, out0.id, 0, GL_FALSE, 0, GL_WRITE_ONLY, format_);
       glBindImageTexture(1, (out1 ? out1 : &out0)->id, 0, GL_FALSE, 0, GL_WRITE_ONLY, format_);
-      glDispatchCompute((w_ + 7) / 8, (h_ + 7) / 8, 1);
+      glDispatchCompute((out0.width + 7) / 8, (out0.height + 7) / 8, 1);
       glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GL_TEXTURE_UPDATE_BARRIER_BIT);
     } else {
       Framebuffer fb(out0, out1);
+      glViewport(0, 0, out0.width, out0.height);
       glDrawArrays(GL_TRIANGLES, 0, 3);
       glBindFramebuffer(GL_FRAMEBUFFER, 0);
     }
@@ -80,7 +82,6 @@ class StageRunner {
 
  private:
   bool compute_;
-  int w_, h_;
   GLenum format_;
   GLuint vao_ = 0;
 };
@@ -108,6 +109,17 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
   const Program comp = build_program(compute, "composite.glsl", defs);
   const Program tone = build_program(compute, "tonemap.glsl", defs);
   const Program encode = build_program(compute, "encode_output.glsl", defs);
+  const bool mip = p.method == Method::mip;
+  Program down_p, up_p;
+  if (mip) {
+    down_p = build_program(compute, "downsample.glsl", defs);
+    up_p = build_program(compute, "upsample_tent.glsl", defs);
+    down_p.set("src", 0);
+    down_p.set("karis", p.karis ? 1 : 0);
+    down_p.set("threshold", p.threshold);
+    up_p.set("small", 0);
+    up_p.set("current", 1);
+  }
   ctx.check("building the stage programs");
 
   extract.set("raw", 0);
@@ -133,9 +145,19 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
   Texture scene_t(w, h, fmt), bright_t(w, h, fmt), hdr_t(w, h, fmt), mapped_t(w, h, fmt),
       out_t(w, h, fmt);
   Texture ping[2] = {Texture(w, h, fmt), Texture(w, h, fmt)};
+  std::vector<Texture> down_t, up_t;  // index k - 1 holds level k
+  Texture bloom_t;
+  if (mip) {
+    for (std::size_t k = 0; k < plan.levels.size(); ++k) {
+      const int extra = opt.fault == Fault::level_size && k == 1 ? 1 : 0;
+      down_t.emplace_back(plan.levels[k].width + extra, plan.levels[k].height, fmt);
+      up_t.emplace_back(plan.levels[k].width + extra, plan.levels[k].height, fmt);
+    }
+    bloom_t = Texture(w, h, fmt);
+  }
   ctx.check("allocating the stage textures");
 
-  StageRunner runner(compute, w, h, fmt);
+  StageRunner runner(compute, fmt);
   StageTrace trace;
   trace.nonfinite = plan.facts.nonfinite;
   const Texture* bloom = &bright_t;
@@ -175,16 +197,46 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
         finish(s.name, target, t0);
         break;
       }
-      case StageKind::composite:
-        runner.run(comp, {&scene_t, bloom}, hdr_t);
+      case StageKind::down: {
+        const int k = s.pass;
+        down_p.set("first_level", k == 1 ? 1 : 0);
+        runner.run(down_p, {k == 1 ? &scene_t : &down_t[k - 2]}, down_t[k - 1]);
+        finish(s.name, down_t[k - 1], t0);
+        break;
+      }
+      case StageKind::up: {
+        const int k = s.pass, top = static_cast<int>(plan.levels.size());
+        const Texture& small = k + 1 == top ? down_t[top - 1] : up_t[k];
+        up_p.set("has_current", 1);
+        runner.run(up_p, {&small, &down_t[k - 1]}, up_t[k - 1]);
+        finish(s.name, up_t[k - 1], t0);
+        break;
+      }
+      case StageKind::bloom: {
+        const Texture& small = plan.levels.size() == 1 ? down_t[0] : up_t[0];
+        up_p.set("has_current", 0);
+        runner.run(up_p, {&small, &small}, bloom_t);
+        bloom = &bloom_t;
+        finish(s.name, bloom_t, t0);
+        break;
+      }
+      case StageKind::composite: {
+        const bool after = mip && p.composite == CompositeOrder::after_tonemap;
+        runner.run(comp, {after ? &mapped_t : &scene_t, bloom}, hdr_t);
         finish(s.name, hdr_t, t0);
         break;
+      }
       case StageKind::tonemap:
-        runner.run(tone, {&hdr_t}, mapped_t);
+        if (mip && p.composite == CompositeOrder::after_tonemap) {
+          runner.run(tone, {&scene_t}, mapped_t);
+        } else {
+          runner.run(tone, {&hdr_t}, mapped_t);
+        }
         finish(s.name, mapped_t, t0);
         break;
       case StageKind::output:
-        runner.run(encode, {&mapped_t}, out_t);
+        runner.run(encode, {mip && p.composite == CompositeOrder::after_tonemap ? &hdr_t : &mapped_t},
+                   out_t);
         finish(s.name, out_t, t0);
         break;
     }

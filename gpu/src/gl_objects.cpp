@@ -76,6 +76,9 @@ void Program::set(const char* name, float v) const {
 void Program::set(const char* name, int v) const {
   glProgramUniform1i(id, glGetUniformLocation(id, name), v);
 }
+void Program::set(const char* name, int x, int y) const {
+  glProgramUniform2i(id, glGetUniformLocation(id, name), x, y);
+}
 
 namespace {
 

@@ -41,6 +41,7 @@ struct Program {
   Program& operator=(Program&& o) noexcept;
   void set(const char* name, float v) const;
   void set(const char* name, int v) const;
+  void set(const char* name, int x, int y) const;
 };
 
 /// Compiles a stage: the entry file (fragment_main.glsl or compute_main.glsl), common.glsl and

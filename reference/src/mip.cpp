@@ -47,6 +47,43 @@ void lookup(BasicView<const double> src, int x, int y, int tw, int th, int ox, i
 
 }  // namespace
 
+const std::vector<MipTap>& downsample_taps() {
+  static const std::vector<MipTap> t = [] {
+    std::vector<MipTap> v;
+    for (int i = 0; i < kDownTaps; ++i) v.push_back({kDownOffset[i][0], kDownOffset[i][1], kDownWeight[i]});
+    return v;
+  }();
+  return t;
+}
+
+const std::vector<std::vector<int>>& karis_groups() {
+  static const std::vector<std::vector<int>> g = [] {
+    std::vector<std::vector<int>> v;
+    for (const auto& grp : kGroups) v.push_back({grp[0], grp[1], grp[2], grp[3]});
+    return v;
+  }();
+  return g;
+}
+
+const std::vector<float>& karis_group_weights() {
+  static const std::vector<float> w(kGroupWeight, kGroupWeight + 5);
+  return w;
+}
+
+const std::vector<MipTap>& tent_taps() {
+  static const std::vector<MipTap> t = [] {
+    std::vector<MipTap> v;
+    for (int i = 0; i < kTentTaps; ++i) v.push_back({kTentOffset[i][0], kTentOffset[i][1], kTentWeight[i]});
+    return v;
+  }();
+  return t;
+}
+
+void mip_lookup(ConstImageView src, int x, int y, int tw, int th, int ox, int oy,
+                int subtexel_bits, float out[3]) {
+  lookup(src, x, y, tw, th, ox, oy, subtexel_bits, out);
+}
+
 std::vector<LevelSize> mip_levels(int width, int height, int levels) {
   std::vector<LevelSize> out;
   int w = width, h = height;

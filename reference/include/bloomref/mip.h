@@ -22,6 +22,24 @@ struct LevelSize {
 /// chain reaches 1x1 (no level repeats 1x1; a 1x1 image has one 1x1 level).
 std::vector<LevelSize> mip_levels(int width, int height, int levels);
 
+/// One lookup of a chain stage: offset (ox, oy) in source texels, weight.
+struct MipTap {
+  int ox, oy;
+  float weight;
+};
+/// Seed 003's 13 downsample taps (centre, inner four, outer eight) and their groups of four
+/// for the Karis average (tap indices, group weights 0.5, 0.125 x 4).
+const std::vector<MipTap>& downsample_taps();
+const std::vector<std::vector<int>>& karis_groups();
+const std::vector<float>& karis_group_weights();
+/// The 3x3 tent (1-2-1 / 16) in seed 003's order.
+const std::vector<MipTap>& tent_taps();
+
+/// The GL lookup of `src` for texel (x, y) of a tw x th target at offset (ox, oy) source texels,
+/// computed in float as the shader does: uv = (x + 0.5) / size, uv + o / textureSize(src).
+void mip_lookup(ConstImageView src, int x, int y, int tw, int th, int ox, int oy,
+                int subtexel_bits, float out[3]);
+
 struct DownsampleOptions {
   bool first = false;         ///< the first downsample thresholds each tap (L < threshold -> 0)
   float threshold = 1.0f;

@@ -35,6 +35,10 @@ enum class Fault {
   gamma_twice,         ///< gamma applied twice
   swap_rb,             ///< R and B swapped in the composite
   exposure_ignored,    ///< tone map without the exposure
+  // method mip (seed 003)
+  tap_offset,          ///< downsample tap 5 at 1.5x its offset
+  karis_unnormalised,  ///< Karis weights not divided by their group's sum (needs --karis)
+  level_size,          ///< level 2 allocated one texel wider than max(1, floor(n / 2))
 };
 
 struct FaultInfo {
@@ -48,6 +52,9 @@ const std::vector<FaultInfo>& fault_list();
 /// Throws ParamError listing the known names.
 Fault parse_fault(const std::string& name);
 const FaultInfo& fault_info(Fault f);
+/// Whether a fault exists in a method's shaders (blur faults in gaussian, level faults in mip;
+/// storage, composite, tone map and gamma faults in both).
+bool fault_applies(Fault f, Method m);
 
 struct GlOptions {
   ShaderKind shaders = ShaderKind::fragment;
