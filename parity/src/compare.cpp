@@ -4,10 +4,12 @@
 #include <cfloat>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <mutex>
 #include <tuple>
 
 #include "bloomref/error.h"
+#include "bloomref/mip.h"
 #include "bloomref/parallel.h"
 #include "tolerance.h"
 
@@ -75,6 +77,17 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
                       const Image& bound, const StageBounds& terms, Storage storage,
                       const DeviceProfile& p, const CompareOptions& opt, int threads) {
   const std::size_t n_worst = static_cast<std::size_t>(opt.worst_count);
+  if (gl.width != oracle.width || gl.height != oracle.height) {
+    StageComparison s;
+    s.stage = stage;
+    s.verdict = Verdict::fail;
+    s.ulp_histogram.assign(17, 0);
+    s.max_ratio = INFINITY;
+    s.reason = "the GL image is " + std::to_string(gl.width) + "x" + std::to_string(gl.height) +
+               ", the oracle's is " + std::to_string(oracle.width) + "x" +
+               std::to_string(oracle.height);
+    return s;
+  }
   Tally total;
   std::mutex m;
   parallel_rows(gl.height, threads, [&](int y0, int y1) {
@@ -180,122 +193,155 @@ ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& g
   const int threads = p.threads, w = scene.width, h = scene.height;
   const BoundContext ctx{&profile, p.storage, threads};
   const Kernel& kernel = kernel_for(p.kernel);
+  const bool mip = p.method == Method::mip;
+  const bool after = mip && p.composite == CompositeOrder::after_tonemap;
+  const int top = static_cast<int>(plan.levels.size());
   ParityResult result;
   result.profile = profile;
 
-  // The sanitised scene (unrounded): what the MRT pass computes before storing.
+  // The sanitised scene (unrounded): what the input pass computes before storing.
   Image sanitized(w, h);
   sanitize(scene, sanitized.view(), p.nonfinite, p.storage, threads);
 
-  Image e2e_error;  // end-to-end bound of the current bloom (propagated through the passes)
-  Image e2e_scene, e2e_hdr, e2e_mapped;
-  const Image* prev_bloom_gl = nullptr;
+  auto G = [&](const std::string& n) -> const Image& { return stage_image(gl, n, "GL"); };
+  auto C = [&](const std::string& n) -> const Image& { return stage_image(cpu, n, "CPU"); };
+  auto level = [](const char* kind, int k) { return std::string(kind) + "." + std::to_string(k); };
+  // The stage each one reads (its isolation input), by method and composite order.
+  const std::string bloom_stage =
+      mip ? "bloom" : (p.passes > 0 ? "blur." + std::to_string(p.passes) : "bright");
+  const std::string composite_base = after ? "tonemap" : "input";
+  const std::string tonemap_src = after ? "input" : "composite";
+  const std::string output_src = after ? "composite" : "tonemap";
+  std::map<std::string, Image> e2e;  // end-to-end bound of each stage, on the CPU's images
 
   for (const StageSpec& spec : plan.stages) {
     const std::string& name = spec.name;
-    const Image& g = stage_image(gl, name, "GL");
-    const Image& c = stage_image(cpu, name, "CPU");
-    Image oracle(w, h), bound(w, h, 0.0f);
+    const Image& g = G(name);
+    const Image& c = C(name);
+    Image oracle(c.width(), c.height()), bound(c.width(), c.height(), 0.0f);
+    Image e(c.width(), c.height(), 0.0f);  // end-to-end bound
     std::unique_ptr<StageBounds> b;
-    switch (spec.kind) {
-      case StageKind::input:
-        oracle = sanitized;
-        b = input_bounds(oracle.cview(), ctx);
-        break;
-      case StageKind::bright:
-        extract_bright(sanitized.cview(), oracle.view(), p.threshold, threads);
-        b = bright_bounds(sanitized.cview(), p.threshold, ctx);
-        break;
-      case StageKind::blur: {
-        const Image& src = spec.pass == 1 ? stage_image(gl, "bright", "GL")
-                                          : stage_image(gl, "blur." + std::to_string(spec.pass - 1), "GL");
-        blur_pass(src.cview(), oracle.view(), {spec.axis, &kernel, profile.subtexel_bits}, threads);
-        b = blur_bounds(src.cview(), oracle.cview(), spec.axis, kernel, ctx);
-        prev_bloom_gl = &g;
-        break;
-      }
-      case StageKind::composite: {
-        const Image& sc = stage_image(gl, "input", "GL");
-        const Image& bl = p.passes > 0 ? stage_image(gl, "blur." + std::to_string(p.passes), "GL")
-                                       : stage_image(gl, "bright", "GL");
-        composite(sc.cview(), bl.cview(), oracle.view(), p.strength, threads);
-        b = composite_bounds(sc.cview(), bl.cview(), oracle.cview(), p.strength, ctx);
-        break;
-      }
-      case StageKind::tonemap: {
-        const Image& hd = stage_image(gl, "composite", "GL");
-        tonemap(hd.cview(), oracle.view(), p.exposure, threads);
-        b = tonemap_bounds(hd.cview(), oracle.cview(), p.exposure, ctx);
-        break;
-      }
-      case StageKind::output: {
-        const Image& m = stage_image(gl, "tonemap", "GL");
-        encode_output(m.cview(), oracle.view(), p.gamma, threads);
-        b = output_bounds(m.cview(), oracle.cview(), p.gamma, ctx);
-        break;
-      }
-    }
-    b->fill(bound);
-    result.isolated.push_back(
-        judge(name, g.cview(), oracle.cview(), bound, *b, p.storage, profile, opt, threads));
-
-    // End to end: GL against the CPU's own full run, the bound carried through the stages.
-    Image e(w, h, 0.0f);
     auto add = [&](const Image& a, double scale) {
       for (std::size_t i = 0; i < e.values().size(); ++i)
         e.values()[i] += static_cast<float>(scale * a.values()[i]);
     };
     switch (spec.kind) {
       case StageKind::input:
+        oracle = sanitized;
+        b = input_bounds(oracle.cview(), ctx);
+        b->fill(bound);
         e = bound;
-        e2e_scene = e;
         break;
       case StageKind::bright:
+        extract_bright(sanitized.cview(), oracle.view(), p.threshold, threads);
+        b = bright_bounds(sanitized.cview(), p.threshold, ctx);
+        b->fill(bound);
         e = bound;
-        e2e_error = e;
         break;
-      case StageKind::blur:
-        e = propagate_blur(e2e_error.cview(), spec.axis, kernel, threads);
+      case StageKind::blur: {
+        const std::string prev = spec.pass == 1 ? "bright" : level("blur", spec.pass - 1);
+        const Image& src = G(prev);
+        blur_pass(src.cview(), oracle.view(), {spec.axis, &kernel, profile.subtexel_bits}, threads);
+        b = blur_bounds(src.cview(), oracle.cview(), spec.axis, kernel, ctx);
+        b->fill(bound);
+        e = propagate_blur(e2e.at(prev).cview(), spec.axis, kernel, threads);
         add(bound, 1.0);
-        e2e_error = e;
         break;
-      case StageKind::composite:
-        e = e2e_scene;
-        add(e2e_error, p.strength);
+      }
+      case StageKind::down: {
+        const int k = spec.pass;
+        const std::string prev = k == 1 ? "input" : level("down", k - 1);
+        const Image& src = G(prev);
+        oracle = Image(plan.levels[k - 1].width, plan.levels[k - 1].height);
+        bound = Image(oracle.width(), oracle.height(), 0.0f);
+        const DownsampleOptions o{k == 1, p.threshold, p.karis && k == 1, profile.subtexel_bits};
+        downsample(src.cview(), oracle.view(), o, threads);
+        b = down_bounds(src.cview(), oracle.cview(), nullptr, k == 1, p.threshold, p.karis, ctx);
+        b->fill(bound);
+        down_bounds(C(prev).cview(), c.cview(), &e2e.at(prev), k == 1, p.threshold, p.karis, ctx)
+            ->fill(e);
+        break;
+      }
+      case StageKind::up:
+      case StageKind::bloom: {
+        const int k = spec.kind == StageKind::bloom ? 0 : spec.pass;
+        const std::string small = k + 1 == top ? level("down", top) : level("up", k + 1);
+        const std::string cur = k == 0 ? "" : level("down", k);
+        const BasicView<const float> none{};
+        const Image& gs = G(small);
+        if (k == 0) {
+          oracle = Image(w, h);
+        } else {
+          oracle = Image(G(cur).width(), G(cur).height());
+        }
+        bound = Image(oracle.width(), oracle.height(), 0.0f);
+        upsample_tent(gs.cview(), k ? G(cur).cview() : none, oracle.view(), profile.subtexel_bits,
+                      threads);
+        b = up_bounds(gs.cview(), k ? G(cur).cview() : none, oracle.cview(), nullptr, nullptr, ctx);
+        b->fill(bound);
+        up_bounds(C(small).cview(), k ? C(cur).cview() : none, c.cview(), &e2e.at(small),
+                  k ? &e2e.at(cur) : nullptr, ctx)
+            ->fill(e);
+        break;
+      }
+      case StageKind::composite: {
+        const Image& sc = G(composite_base);
+        const Image& bl = G(bloom_stage);
+        composite(sc.cview(), bl.cview(), oracle.view(), p.strength, threads);
+        b = composite_bounds(sc.cview(), bl.cview(), oracle.cview(), p.strength, ctx);
+        b->fill(bound);
+        e = e2e.at(composite_base);
+        add(e2e.at(bloom_stage), p.strength);
         add(bound, 1.0);
-        e2e_hdr = e;
         break;
-      case StageKind::tonemap:
+      }
+      case StageKind::tonemap: {
+        const Image& hd = G(tonemap_src);
+        tonemap(hd.cview(), oracle.view(), p.exposure, threads);
+        b = tonemap_bounds(hd.cview(), oracle.cview(), p.exposure, ctx);
+        b->fill(bound);
+        const Image& ch = C(tonemap_src);
+        const Image& eh = e2e.at(tonemap_src);
         for (std::size_t i = 0; i < e.values().size(); ++i) {
-          const double hd = c.values()[i], eh = e2e_hdr.values()[i];
-          // The slope of 1 - exp(-h k) is k exp(-h k): largest at the low end of h +- eh.
-          e.values()[i] = static_cast<float>(p.exposure * std::exp(-(hd - eh) * p.exposure) * eh);
+          const double hv = ch.values()[i], ev = eh.values()[i];
+          // The slope of 1 - exp(-h k) is k exp(-h k): largest at the low end of h +- e.
+          e.values()[i] = static_cast<float>(p.exposure * std::exp(-(hv - ev) * p.exposure) * ev);
         }
         add(bound, 1.0);
-        e2e_mapped = e;
         break;
-      case StageKind::output:
+      }
+      case StageKind::output: {
+        const Image& m = G(output_src);
+        encode_output(m.cview(), oracle.view(), p.gamma, threads);
+        b = output_bounds(m.cview(), oracle.cview(), p.gamma, ctx);
+        b->fill(bound);
+        const Image& cm = C(output_src);
+        const Image& em = e2e.at(output_src);
+        const double gexp = 1.0 / p.gamma;
         for (std::size_t i = 0; i < e.values().size(); ++i) {
-          const double m = stage_image(cpu, "tonemap", "CPU").values()[i];
-          const double em = e2e_mapped.values()[i], gexp = 1.0 / p.gamma;
+          const double mv = cm.values()[i], ev = em.values()[i];
           // Gamma's slope is unbounded near black: bound by the interval's image instead.
-          e.values()[i] = static_cast<float>(std::pow(std::max(m + em, 0.0), gexp) -
-                                             std::pow(std::max(m - em, 0.0), gexp));
+          e.values()[i] = static_cast<float>(std::pow(std::max(mv + ev, 0.0), gexp) -
+                                             std::pow(std::max(mv - ev, 0.0), gexp));
         }
         add(bound, 1.0);
         break;
+      }
     }
+    result.isolated.push_back(
+        judge(name, g.cview(), oracle.cview(), bound, *b, p.storage, profile, opt, threads));
     result.end_to_end.push_back(
         judge(name, g.cview(), c.cview(), e, *b, p.storage, profile, opt, threads));
+    e2e[name] = std::move(e);
   }
-  (void)prev_bloom_gl;
 
   for (const StageComparison& s : result.isolated) {
     if (s.verdict != Verdict::pass && !result.first_divergent_stage)
       result.first_divergent_stage = s.stage;
     result.verdict = std::max(result.verdict, s.verdict);
   }
-  for (const StageComparison& s : result.end_to_end) result.verdict = std::max(result.verdict, s.verdict);
+  for (const StageComparison& s : result.end_to_end)
+    result.verdict = std::max(result.verdict, s.verdict);
   return result;
 }
 

@@ -47,6 +47,14 @@ std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView o
 std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView oracle,
                                            float gamma, BoundContext ctx);
 
+/// Mip chain (mip_bounds.cpp). `error` images (end to end) may be null (isolated).
+std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView oracle,
+                                         const Image* error, bool first, float threshold,
+                                         bool karis, BoundContext ctx);
+std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView current,
+                                       ConstImageView oracle, const Image* small_error,
+                                       const Image* current_error, BoundContext ctx);
+
 /// The blur of an error image with the kernel's weights over each tap's window (end-to-end
 /// propagation through one pass).
 Image propagate_blur(ConstImageView error, Axis axis, const Kernel& k, int threads);

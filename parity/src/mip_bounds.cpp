@@ -1,0 +1,193 @@
+// Bounds of the mip chain's stages (down.k, up.k, bloom): every lookup is a 2-D GL_LINEAR fetch
+// whose coordinates may be off by the coordinate error on both axes, so each tap contributes
+// its weight times (delta_x + delta_y) x the range of the 4x4 texels it may touch, plus the
+// rounding of the lerps and sums. The first level thresholds each tap: a tap whose luminance is
+// within its own error of the threshold may be kept or dropped (its whole value). The Karis
+// average divides by 1 + L: its weights move by dL / (1 + L), which is unbounded as L -> -1
+// (the bound then says so: infinite). `error` images, when given, are the end-to-end bounds of
+// the inputs and are added to each tap's perturbation.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+
+#include "bloomref/mip.h"
+#include "bloomref/parallel.h"
+#include "tolerance.h"
+
+namespace bloomref::parity::detail {
+namespace {
+
+// Range, magnitude and (for error images) maximum over the 4x4 texels [b-1, b+2]^2.
+struct Window2D {
+  Image range, magnitude;
+};
+
+Window2D window4x4(ConstImageView src, int threads) {
+  const int w = src.width, h = src.height;
+  Window2D out{Image(w, h, 0.0f), Image(w, h, 0.0f)};
+  parallel_rows(h, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int c = 0; c < 3; ++c) {
+          float mn = INFINITY, mx = -INFINITY, ma = 0;
+          for (int dy = -1; dy <= 2; ++dy)
+            for (int dx = -1; dx <= 2; ++dx) {
+              const float t = src.pixel(std::clamp(x + dx, 0, w - 1), std::clamp(y + dy, 0, h - 1))[c];
+              if (!std::isfinite(t)) continue;
+              mn = std::min(mn, t);
+              mx = std::max(mx, t);
+              ma = std::max(ma, std::fabs(t));
+            }
+          out.range.pixel(x, y)[c] = mx >= mn ? mx - mn : 0.0f;
+          out.magnitude.pixel(x, y)[c] = ma;
+        }
+  });
+  return out;
+}
+
+// The base texel of a lookup for target texel x of a tw-wide target on a sw-wide source at
+// offset o: floor of its exact texel-space position, clamped.
+int base_texel(int x, int tw, int sw, int o) {
+  const double u = (x + 0.5) * sw / tw - 0.5 + o;
+  return std::clamp(static_cast<int>(std::floor(u)), 0, sw - 1);
+}
+
+using Values = std::array<double, 5>;
+
+template <class F>
+struct MipBounds : StageBounds {
+  std::vector<const char*> names;
+  F f;
+  int threads;
+  MipBounds(std::vector<const char*> n, F fn, int t) : names(std::move(n)), f(std::move(fn)), threads(t) {}
+  void fill(Image& bound) const override {
+    parallel_rows(bound.height(), threads, [&](int y0, int y1) {
+      for (int y = y0; y < y1; ++y)
+        for (int x = 0; x < bound.width(); ++x)
+          for (int c = 0; c < 3; ++c) {
+            const Values v = f(x, y, c);
+            double s = 0;
+            for (double t : v) s += t;
+            bound.pixel(x, y)[c] = static_cast<float>(s);
+          }
+    });
+  }
+  std::vector<Term> terms(int x, int y, int c) const override {
+    const Values v = f(x, y, c);
+    std::vector<Term> out;
+    for (std::size_t i = 0; i < names.size(); ++i) out.push_back({names[i], v[i]});
+    return out;
+  }
+};
+
+template <class F>
+std::unique_ptr<StageBounds> make(std::vector<const char*> names, F f, int threads) {
+  return std::make_unique<MipBounds<F>>(std::move(names), std::move(f), threads);
+}
+
+double coordinate_error(int n, const DeviceProfile& p) {
+  return n * kU * (2 * p.division_ulps + 4) +
+         (p.subtexel_bits > 0 ? std::ldexp(1.0, -p.subtexel_bits) : 0.0);
+}
+
+}  // namespace
+
+std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView oracle,
+                                         const Image* error, bool first, float threshold,
+                                         bool karis, BoundContext ctx) {
+  auto win = std::make_shared<Window2D>(window4x4(src, ctx.threads));
+  auto ewin = error ? std::make_shared<Window2D>(window4x4(error->cview(), ctx.threads)) : nullptr;
+  const double delta = coordinate_error(src.width, *ctx.profile) +
+                       coordinate_error(src.height, *ctx.profile);
+  const int tw = oracle.width, th = oracle.height;
+  const bool use_karis = first && karis;
+  return make(
+      {"coordinate rounding (x local range)", "filter and sum rounding",
+       "threshold within the tap's error (kept or dropped)",
+       "Karis weights (dL / (1 + L) x group range)", "storage and denormals"},
+      [=](int x, int y, int c) {
+        const auto& taps = downsample_taps();
+        double coord = 0, arith = 0, thresh = 0;
+        double dq[13], lum_err[13], qmax[13], lum[13];
+        for (std::size_t i = 0; i < taps.size(); ++i) {
+          const int bx = base_texel(x, tw, src.width, taps[i].ox);
+          const int by = base_texel(y, th, src.height, taps[i].oy);
+          const double r = win->range.pixel(bx, by)[c], m = win->magnitude.pixel(bx, by)[c];
+          const double e = ewin ? ewin->magnitude.pixel(bx, by)[c] : 0.0;
+          coord += taps[i].weight * (delta * r + e);
+          arith += taps[i].weight * (3 + 2 * 13 + (use_karis ? 10 : 0)) * kU * m;
+          // This tap's value and its error on every channel (for luminance and Karis).
+          float q[3];
+          mip_lookup(src, x, y, tw, th, taps[i].ox, taps[i].oy, ctx.profile->subtexel_bits, q);
+          double dmax = 0;
+          qmax[i] = 0;
+          for (int k = 0; k < 3; ++k) {
+            const double rk = win->range.pixel(bx, by)[k];
+            const double ek = ewin ? ewin->magnitude.pixel(bx, by)[k] : 0.0;
+            dmax = std::max(dmax, delta * rk + ek + 3 * kU * win->magnitude.pixel(bx, by)[k]);
+            qmax[i] = std::max(qmax[i], std::fabs(double(q[k])));
+          }
+          dq[i] = dmax;
+          lum[i] = luminance(q[0], q[1], q[2]);
+          lum_err[i] = dmax + 4 * kU * std::fabs(lum[i]);  // the weights sum to 1
+          if (first && std::fabs(lum[i] - threshold) <= lum_err[i])
+            thresh += taps[i].weight * qmax[i];
+        }
+        double kterm = 0;
+        if (use_karis) {
+          const auto& groups = karis_groups();
+          const auto& gw = karis_group_weights();
+          for (std::size_t g = 0; g < groups.size(); ++g) {
+            double lo = INFINITY, hi = -INFINITY, rel = 0, dmax = 0;
+            for (int i : groups[g]) {
+              const double denom = 1 + lum[i] - lum_err[i];
+              rel = std::max(rel, denom > 0 ? lum_err[i] / denom + 6 * kU : INFINITY);
+              lo = std::min(lo, -qmax[i]);
+              hi = std::max(hi, qmax[i]);
+              dmax = std::max(dmax, dq[i]);
+            }
+            // Normalised weights move by at most 2 rel in total; the taps by dmax.
+            kterm += gw[g] * (dmax + 2 * rel * (hi - lo));
+          }
+          coord = 0;  // the Karis term carries the taps' own errors (dmax)
+        }
+        const double v = oracle.pixel(x, y)[c];
+        return Values{coord, arith, thresh, kterm,
+                      storage_term(v, ctx.storage, *ctx.profile) + denormal_floor(*ctx.profile)};
+      },
+      ctx.threads);
+}
+
+std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView current,
+                                       ConstImageView oracle, const Image* small_error,
+                                       const Image* current_error, BoundContext ctx) {
+  auto win = std::make_shared<Window2D>(window4x4(small, ctx.threads));
+  auto ewin = small_error ? std::make_shared<Window2D>(window4x4(small_error->cview(), ctx.threads))
+                          : nullptr;
+  const double delta = coordinate_error(small.width, *ctx.profile) +
+                       coordinate_error(small.height, *ctx.profile);
+  const int tw = oracle.width, th = oracle.height;
+  return make(
+      {"coordinate rounding (x local range)", "filter and sum rounding",
+       "current level's own error", "storage and denormals"},
+      [=](int x, int y, int c) {
+        double coord = 0, arith = 0;
+        for (const MipTap& t : tent_taps()) {
+          const int bx = base_texel(x, tw, small.width, t.ox);
+          const int by = base_texel(y, th, small.height, t.oy);
+          coord += t.weight * (delta * win->range.pixel(bx, by)[c] +
+                               (ewin ? ewin->magnitude.pixel(bx, by)[c] : 0.0));
+          arith += t.weight * (3 + 2 * 9) * kU * win->magnitude.pixel(bx, by)[c];
+        }
+        const double cur = current.empty() ? 0.0 : std::fabs(current.pixel(x, y)[c]);
+        arith += 9 * kU * cur;
+        const double ecur = current_error ? current_error->pixel(x, y)[c] : 0.0;
+        const double v = oracle.pixel(x, y)[c];
+        return Values{coord, arith, ecur,
+                      storage_term(v, ctx.storage, *ctx.profile) + denormal_floor(*ctx.profile), 0};
+      },
+      ctx.threads);
+}
+
+}  // namespace bloomref::parity::detail
