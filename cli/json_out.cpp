@@ -29,7 +29,8 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
 }
 
 nlohmann::ordered_json counts_json(const NonFiniteCounts& c) {
-  return {{"nan", c.nan}, {"pos_inf", c.pos_inf}, {"neg_inf", c.neg_inf}};
+  return {{"nan", c.nan}, {"pos_inf", c.pos_inf}, {"neg_inf", c.neg_inf},
+          {"beyond_2^120_clamped", c.out_of_range}};
 }
 
 nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace) {

@@ -109,8 +109,8 @@ TEST_CASE("non-finite policies zero, clamp (per storage), propagate, and their c
 
   sanitize(src.cview(), dst.view(), NonFinite::clamp, Storage::f32, 1);
   CHECK(dst.data()[0] == 0.0f);
-  CHECK(dst.data()[1] == FLT_MAX);
-  CHECK(dst.data()[2] == -FLT_MAX);
+  CHECK(dst.data()[1] == 0x1p120f);  // the range guard, 2^120
+  CHECK(dst.data()[2] == -0x1p120f);
   sanitize(src.cview(), dst.view(), NonFinite::clamp, Storage::f16, 1);
   CHECK(dst.data()[1] == 65504.0f);
   CHECK(dst.data()[2] == -65504.0f);
@@ -119,6 +119,22 @@ TEST_CASE("non-finite policies zero, clamp (per storage), propagate, and their c
   CHECK(std::isnan(dst.data()[0]));
   CHECK(dst.data()[1] == INFINITY);
   CHECK(dst.data()[4] == -2.0f);
+}
+
+TEST_CASE("finite values beyond 2^120 are clamped to it and counted, under every policy",
+          "[stages]") {
+  Image src(1, 1), dst(1, 1);
+  const float in[4] = {1.7e38f, -3.0e37f, 0x1p120f, 1.0f};
+  std::copy(in, in + 4, src.data());
+  for (NonFinite policy : {NonFinite::zero, NonFinite::clamp, NonFinite::propagate}) {
+    const NonFiniteCounts c = sanitize(src.cview(), dst.view(), policy, Storage::f32, 1);
+    CHECK(c.out_of_range == 2u);  // 2^120 itself is in range
+    CHECK(c.total() == 0u);
+    CHECK(dst.data()[0] == 0x1p120f);
+    CHECK(dst.data()[1] == -0x1p120f);
+    CHECK(dst.data()[2] == 0x1p120f);
+    CHECK(dst.data()[3] == 1.0f);
+  }
 }
 
 TEST_CASE("f16 storage rounds every stored value", "[stages]") {

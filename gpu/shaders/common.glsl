@@ -1,9 +1,12 @@
 // Shared by every stage shader (prepended after #version and the build's #defines).
 // Mirrors reference/include/bloomref/stages.h: same formulas, same operation order.
 
-// Non-finite policy (stages.h sanitize_value): 0 zero, 1 clamp, 2 propagate, 3 error.
+// Non-finite policy (stages.h sanitize_value): 0 zero, 1 clamp, 2 propagate, 3 error; finite
+// values beyond range_guard (2^120, set by the executor) are clamped to it under every policy.
+uniform float range_guard;
 float sanitize_value(float v, int policy, float storage_max) {
-  if (!(isnan(v) || isinf(v)) || policy >= 2) return v;
+  if (!(isnan(v) || isinf(v))) return abs(v) > range_guard ? sign(v) * range_guard : v;
+  if (policy >= 2) return v;
   if (policy == 0 || isnan(v)) return 0.0;
   return v > 0.0 ? storage_max : -storage_max;
 }

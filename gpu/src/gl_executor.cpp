@@ -125,7 +125,8 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
   extract.set("raw", 0);
   extract.set("threshold", p.threshold);
   extract.set("policy", policy_code(p.nonfinite));
-  extract.set("storage_max", f16 ? 65504.0f : std::numeric_limits<float>::max());
+  extract.set("storage_max", static_cast<float>(storage_max(f16 ? Storage::f16 : Storage::f32)));
+  extract.set("range_guard", static_cast<float>(kRangeGuard));
   blur.set("image", 0);
   comp.set("scene", 0);
   comp.set("bloom", 1);

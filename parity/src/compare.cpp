@@ -98,6 +98,9 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
           const double o = oracle.pixel(x, y)[c], g = gl.pixel(x, y)[c];
           const double b = bound.pixel(x, y)[c];
           ++t.values;
+          // An infinite (or NaN, from non-finite data) bound: unpinned by GL (NaN/Inf in the
+          // footprint, max(NaN, 0)); where NaN/Inf appear is still compared through the stages.
+          if (!(b < INFINITY)) continue;
           const int special = special_case(o, g, storage, p, b);
           if (special == 0) {
             ++t.mismatch;
@@ -305,7 +308,9 @@ ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& g
         for (std::size_t i = 0; i < e.values().size(); ++i) {
           const double hv = ch.values()[i], ev = eh.values()[i];
           // The slope of 1 - exp(-h k) is k exp(-h k): largest at the low end of h +- e.
-          e.values()[i] = static_cast<float>(p.exposure * std::exp(-(hv - ev) * p.exposure) * ev);
+          e.values()[i] = std::isfinite(hv) && std::isfinite(ev)
+                              ? static_cast<float>(p.exposure * std::exp(-(hv - ev) * p.exposure) * ev)
+                              : INFINITY;
         }
         add(bound, 1.0);
         break;
@@ -321,8 +326,10 @@ ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& g
         for (std::size_t i = 0; i < e.values().size(); ++i) {
           const double mv = cm.values()[i], ev = em.values()[i];
           // Gamma's slope is unbounded near black: bound by the interval's image instead.
-          e.values()[i] = static_cast<float>(std::pow(std::max(mv + ev, 0.0), gexp) -
-                                             std::pow(std::max(mv - ev, 0.0), gexp));
+          e.values()[i] = std::isfinite(mv) && std::isfinite(ev)
+                              ? static_cast<float>(std::pow(std::max(mv + ev, 0.0), gexp) -
+                                                   std::pow(std::max(mv - ev, 0.0), gexp))
+                              : INFINITY;
         }
         add(bound, 1.0);
         break;

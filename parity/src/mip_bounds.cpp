@@ -34,7 +34,10 @@ Window2D window4x4(ConstImageView src, int threads) {
           for (int dy = -1; dy <= 2; ++dy)
             for (int dx = -1; dx <= 2; ++dx) {
               const float t = src.pixel(std::clamp(x + dx, 0, w - 1), std::clamp(y + dy, 0, h - 1))[c];
-              if (!std::isfinite(t)) continue;
+              if (!std::isfinite(t)) {
+                ma = INFINITY;  // NaN/Inf in the footprint (tolerance.cpp, window_stats)
+                continue;
+              }
               mn = std::min(mn, t);
               mx = std::max(mx, t);
               ma = std::max(ma, std::fabs(t));

@@ -17,6 +17,12 @@ double ulp16(double v) {
   return std::ldexp(1.0, e - 10);
 }
 
+// A NaN or Inf texel where a lookup may touch it makes the lookup's result unpinned: the GL
+// formula (1 - a) t0 + a t1 turns 0 * Inf into NaN, llvmpipe computes t0 + a (t1 - t0) (Inf -
+// Inf = NaN, measured on BrightRingsNanInf.exr), the oracle leaves zero weights out. Such values
+// get an infinite bound ("the footprint holds NaN/Inf"): where NaN/Inf appear is compared, not
+// which of them. The window magnitude carries it as +Inf.
+//
 // Local range (max - min) and magnitude (max |t|) of each channel over the texels a tap based
 // at texel p may touch once its coordinate is a little off: [p-1, p+2] along the blurred axis
 // (linear5 taps sit between p and p+1), [q-1, q+1] across it.
@@ -38,7 +44,10 @@ Window window_stats(ConstImageView src, Axis axis, int threads) {
             const int xx = hz ? std::clamp(x + d, 0, w - 1) : x;
             const int yy = hz ? y : std::clamp(y + d, 0, h - 1);
             const float t = src.pixel(xx, yy)[c];
-            if (!std::isfinite(t)) continue;
+            if (!std::isfinite(t)) {
+              ma = INFINITY;  // a NaN/Inf texel in the footprint: see nonfinite_footprint
+              continue;
+            }
             mn = std::min(mn, t);
             mx = std::max(mx, t);
             ma = std::max(ma, std::fabs(t));
@@ -221,7 +230,8 @@ std::unique_ptr<StageBounds> blur_bounds(ConstImageView src, ConstImageView orac
                        coordinate_error(n_across, *ctx.profile);
   const int taps = k.taps();
   return make(
-      {"coordinate rounding (x local range)", "filter and accumulation rounding", "storage",
+      {"coordinate rounding (x local range)",
+       "filter and accumulation rounding (Inf: NaN/Inf in the footprint)", "storage",
        "denormal flush"},
       [=](int x, int y, int c) {
         // The filter's lerp (3 roundings) and the tap sums (2 per tap): (3 + 2 T) u |t|.
@@ -266,11 +276,13 @@ std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView o
 std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView oracle,
                                            float gamma, BoundContext ctx) {
   return make(
-      {"pow at 0", "log2: 3 ULP, 2^-21 absolute in [0.5, 2] (GLSL 4.50)",
+      {"pow at 0 (Inf: max(NaN, 0) is not pinned)", "log2: 3 ULP, 2^-21 absolute in [0.5, 2] (GLSL 4.50)",
        "1/gamma and g * log2 rounding", "exp2: (3 + 2|x|) ULP", "storage"},
       [=](int x, int y, int c) {
         const double m = mapped.pixel(x, y)[c];
         const double storage = storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile);
+        // GLSL's max(NaN, 0) may be 0 (llvmpipe) or NaN (the oracle): either is right.
+        if (std::isnan(m)) return Values{INFINITY, 0, 0, 0, 0};
         if (!(m > 0))
           // pow(0, g) = exp2(g * log2(0)): exact 0 unless log2(0) is a large finite negative
           // (-149 at worst): 2^(-149 g) is below 1e-20 for gamma 2.2.

@@ -95,12 +95,12 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
 
   const bool adaptive = params.plan == PlanMode::adaptive;
   if (params.method == Method::mip) {
-    plan.sanitize = !adaptive || plan.facts.nonfinite.total() > 0;
+    plan.sanitize = !adaptive || plan.facts.nonfinite.any();
     plan.levels = mip_levels(scene.width, scene.height, params.levels);
     plan.stages = mip_stages(params, plan.levels.size());
     return plan;
   }
-  plan.sanitize = !adaptive || plan.facts.nonfinite.total() > 0;
+  plan.sanitize = !adaptive || plan.facts.nonfinite.any();
   const bool skip_blur = adaptive && plan.facts.bright_pixels == 0;
 
   plan.stages.push_back({"input", StageKind::input});

@@ -54,7 +54,7 @@ void gl_texture_rgb(ConstImageView img, float s, float t, int subtexel_bits, flo
 // ---- per-pixel stages --------------------------------------------------------------------
 
 double storage_max(Storage s) {
-  return s == Storage::f16 ? kHalfMax : std::numeric_limits<float>::max();
+  return s == Storage::f16 ? kHalfMax : kRangeGuard;
 }
 
 template <class T>
@@ -68,6 +68,7 @@ NonFiniteCounts count_nonfinite(BasicView<const T> src, int threads) {
       for (int i = 0; i < src.width * kChannels; ++i) {
         if (std::isnan(p[i])) ++c.nan;
         else if (std::isinf(p[i])) ++(p[i] > 0 ? c.pos_inf : c.neg_inf);
+        else if (std::fabs(p[i]) > T(kRangeGuard)) ++c.out_of_range;
       }
     }
     std::lock_guard<std::mutex> lock(m);

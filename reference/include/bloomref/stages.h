@@ -25,12 +25,23 @@ namespace bloomref {
 
 struct NonFiniteCounts {
   std::uint64_t nan = 0, pos_inf = 0, neg_inf = 0;
+  std::uint64_t out_of_range = 0;  ///< finite values beyond kRangeGuard (clamped to it)
   std::uint64_t total() const { return nan + pos_inf + neg_inf; }
+  /// Whether the input stage has anything to change.
+  bool any() const { return total() + out_of_range > 0; }
   NonFiniteCounts& operator+=(const NonFiniteCounts& o) {
-    nan += o.nan; pos_inf += o.pos_inf; neg_inf += o.neg_inf;
+    nan += o.nan; pos_inf += o.pos_inf; neg_inf += o.neg_inf; out_of_range += o.out_of_range;
     return *this;
   }
 };
+
+/// The largest magnitude the pipeline carries: 2^120. Finite input beyond it is clamped to it
+/// (and counted), under every policy. Measured reason (README, "Stiff and extreme inputs"):
+/// values near FLT_MAX (scale.hdr, WideFloatRange.exr: 1.7e38) overflow to Inf inside GL's
+/// bilinear filter and in the mip chain's sums, and llvmpipe's filter turns Inf texels into
+/// NaN. 2^8 of headroom covers every sum the stages form (four bilinear texels, up to 17
+/// pyramid levels, the composite); any tone map has long saturated at 2^120.
+constexpr double kRangeGuard = 1329227995784915872903807060280344576.0;  // 2^120
 
 /// Rec. 709 luminance, dot(rgb, (0.2126, 0.7152, 0.0722)) summed left to right (seed 000).
 template <class T>
@@ -38,20 +49,22 @@ inline T luminance(T r, T g, T b) {
   return r * T(0.2126) + g * T(0.7152) + b * T(0.0722);
 }
 
-/// Largest finite value of a storage format (what `clamp` maps +Inf to).
+/// The largest value a stage stores: 65504 for f16, kRangeGuard (2^120) for f32; what
+/// `clamp` maps +Inf to.
 double storage_max(Storage s);
 
 /// One value under a non-finite policy. `error` leaves the value alone (the plan refuses the
 /// image before any stage runs).
 template <class T>
 inline T sanitize_value(T v, NonFinite policy, Storage storage) {
-  if (std::isfinite(v) || policy == NonFinite::propagate || policy == NonFinite::error) return v;
+  if (std::isfinite(v)) return std::fabs(v) > T(kRangeGuard) ? std::copysign(T(kRangeGuard), v) : v;
+  if (policy == NonFinite::propagate || policy == NonFinite::error) return v;
   if (policy == NonFinite::zero || std::isnan(v)) return T(0);
   const T m = static_cast<T>(storage_max(storage));
   return v > 0 ? m : -m;
 }
 
-/// Counts NaN, +Inf and -Inf over all four channels.
+/// Counts NaN, +Inf, -Inf and finite values beyond kRangeGuard over all four channels.
 template <class T>
 NonFiniteCounts count_nonfinite(BasicView<const T> src, int threads);
 
