@@ -60,13 +60,29 @@ TEST_CASE("tone map against 1 - exp(-x) closed forms", "[stages]") {
   tonemap(hf.cview(), mf.view(), 1.0f, 1);
   CHECK(mf.pixel(0, 0)[0] == Approx(0.6321205588285577).epsilon(2e-7));
   CHECK(mf.pixel(0, 0)[1] == Approx(0.8646647167633873).epsilon(2e-7));
-  // The f32 shader order cancels: exp(-1e-10f) rounds to 1, so the result is 0, not 1e-10.
-  // This is what the GL path computes too; the f64 truth above shows the loss.
-  CHECK(mf.pixel(0, 0)[2] == 0.0f);
+  // 1 - expf(-1e-10f) would cancel to 0; the f32 path's series keeps it (stages.cpp).
+  CHECK(mf.pixel(0, 0)[2] == Approx(9.999999999500001e-11).epsilon(2e-7));
   // Exposure scales the argument: x = 0.5 * 2 = 1.
   ImageF64 e = one_pixel<double>(0.5, 0.5, 0.5);
   tonemap(e.cview(), m.view(), 2.0, 1);
   CHECK(m.pixel(0, 0)[0] == Approx(0.6321205588285577).epsilon(1e-15));
+}
+
+TEST_CASE("f32 tone map keeps relative precision over 40 decades of x", "[stages]") {
+  // Against -expm1 in double (an independent evaluation): relative error below 4 ULP for
+  // x = hdr * exposure from 1e-30 to 20, both signs below 0.5 (negative HDR input).
+  double worst = 0;
+  for (double x = 1e-30; x < 20; x *= 1.07) {
+    for (double sx : {x, -x}) {
+      if (sx < -0.5) continue;
+      const float h = static_cast<float>(sx);
+      Image in = test::constant_image(1, 1, h), out(1, 1);
+      tonemap(in.cview(), out.view(), 1.0f, 1);
+      const double truth = -std::expm1(-double(h));
+      worst = std::max(worst, std::fabs(out.pixel(0, 0)[0] - truth) / std::fabs(truth));
+    }
+  }
+  CHECK(worst < 4 * 5.96e-8);
 }
 
 TEST_CASE("gamma against pow closed forms, negatives clamp to 0, gamma 1 is the identity",

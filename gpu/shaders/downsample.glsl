@@ -31,7 +31,7 @@ void run_stage(vec2 frag_coord) {
   vec3 r = vec3(0.0);
   if (first_level && karis) {
     float w[13];
-    for (int i = 0; i < 13; ++i) w[i] = 1.0 / (1.0 + luminance(q[i]));
+    for (int i = 0; i < 13; ++i) w[i] = 1.0 / (1.0 + max(luminance(q[i]), 0.0));  // L < 0: 1
     for (int g = 0; g < 5; ++g) {
       precise float s = 0.0;
       for (int j = 0; j < 4; ++j) s = s + w[group_tap[g * 4 + j]];

@@ -3,8 +3,7 @@
 // its weight times (delta_x + delta_y) x the range of the 4x4 texels it may touch, plus the
 // rounding of the lerps and sums. The first level thresholds each tap: a tap whose luminance is
 // within its own error of the threshold may be kept or dropped (its whole value). The Karis
-// average divides by 1 + L: its weights move by dL / (1 + L), which is unbounded as L -> -1
-// (the bound then says so: infinite). `error` images, when given, are the end-to-end bounds of
+// average divides by 1 + max(L, 0): its weights move by at most dL / (1 + max(L, 0)). `error` images, when given, are the end-to-end bounds of
 // the inputs and are added to each tap's perturbation.
 #include <algorithm>
 #include <array>
@@ -144,7 +143,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
           for (std::size_t g = 0; g < groups.size(); ++g) {
             double lo = INFINITY, hi = -INFINITY, rel = 0, dmax = 0;
             for (int i : groups[g]) {
-              const double denom = 1 + lum[i] - lum_err[i];
+              const double denom = 1 + std::max(lum[i] - lum_err[i], 0.0);  // w uses max(L, 0)
               rel = std::max(rel, denom > 0 ? lum_err[i] / denom + 6 * kU : INFINITY);
               lo = std::min(lo, -qmax[i]);
               hi = std::max(hi, qmax[i]);

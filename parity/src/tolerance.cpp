@@ -261,10 +261,18 @@ std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView o
                                             float exposure, BoundContext ctx) {
   return make(
       {"exp: (3 + 2|x|) ULP (GLSL 4.50)", "argument rounding (x = -hdr * exposure)",
-       "1 - e rounding", "storage", "denormal flush"},
+       "1 - e rounding (series below |x| = 0.5)", "storage", "denormal flush"},
       [=](int x, int y, int c) {
         const double h = hdr.pixel(x, y)[c];
         const double a = -h * exposure;  // the argument of exp
+        if (std::fabs(a) < 0.5) {
+          // The series path (stages.cpp): 7 Horner steps of 3 roundings each, and the rounding
+          // of the argument (slope ~1 there). Both sides run it `precise`, so usually 0.
+          const double m = -std::expm1(a);
+          return Values{0, std::fabs(a) * kU * 1.7, (3 * 7 + 1) * kU * std::fabs(m),
+                        storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
+                        denormal_floor(*ctx.profile)};
+        }
         const double e = std::exp(a);
         return Values{e * (3 + 2 * std::fabs(a)) * 2 * kU, e * std::fabs(a) * kU, (1 + e) * kU,
                       storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),

@@ -2,6 +2,7 @@
 // (FragShader_BloomFilter), written as in gpu/shaders/downsample.glsl and upsample_tent.glsl.
 #include "bloomref/mip.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "bloomref/parallel.h"
@@ -113,7 +114,10 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
         T r[3] = {0, 0, 0};
         if (opt.first && opt.karis) {
           T w[kDownTaps];
-          for (int i = 0; i < kDownTaps; ++i) w[i] = T(1) / (T(1) + luminance(q[i][0], q[i][1], q[i][2]));
+          // Karis weight 1 / (1 + L): negative L (out-of-gamut input) would make it grow
+          // without bound and divide by zero at L = -1; the weight uses max(L, 0) (at most 1).
+          for (int i = 0; i < kDownTaps; ++i)
+            w[i] = T(1) / (T(1) + std::max(luminance(q[i][0], q[i][1], q[i][2]), T(0)));
           for (int g = 0; g < 5; ++g) {
             T s = T(0);
             for (int j = 0; j < 4; ++j) s = s + w[kGroups[g][j]];

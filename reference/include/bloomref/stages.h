@@ -98,7 +98,8 @@ template <class T>
 void composite(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> dst, T strength,
                int threads);
 
-/// Stage `tonemap`: 1 - exp(-hdr * exposure). f64 computes -expm1(-hdr * exposure), which
+/// Stage `tonemap`: 1 - exp(-hdr * exposure). f64 computes -expm1(-hdr * exposure); f32 (and
+/// the shader) evaluate 1 - exp(x) for |x| >= 0.5 and a Horner-form Taylor series below, which
 /// keeps full relative precision where hdr * exposure is tiny (1 - exp cancels there).
 template <class T>
 void tonemap(BasicView<const T> hdr, BasicView<T> dst, T exposure, int threads);
