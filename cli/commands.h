@@ -9,5 +9,6 @@ std::function<int()> add_run(CLI::App& app);
 std::function<int()> add_scenes(CLI::App& app);
 std::function<int()> add_gl_info(CLI::App& app);
 std::function<int()> add_compare(CLI::App& app);
+std::function<int()> add_stability(CLI::App& app);
 
 }  // namespace bloomref::cli

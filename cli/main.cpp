@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   auto scenes = bloomref::cli::add_scenes(app);
   auto gl_info = bloomref::cli::add_gl_info(app);
   auto compare = bloomref::cli::add_compare(app);
+  auto stability = bloomref::cli::add_stability(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -25,7 +26,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    for (auto* cmd : {&run, &scenes, &gl_info, &compare}) {
+    for (auto* cmd : {&run, &scenes, &gl_info, &compare, &stability}) {
       const int rc = (*cmd)();
       if (rc >= 0) return rc;
     }

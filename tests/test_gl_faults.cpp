@@ -192,3 +192,11 @@ TEST_CASE("bloomref compare exit codes: 0 pass, 1 fail, 2 bad usage, 3 no GL", "
   CHECK(run_cli("compare -q --scene hot-edge --inject-fault gamma-twice").code == 1);
   CHECK(run_cli("compare -q --scene hot-edge --precision f64").code == 2);
 }
+
+TEST_CASE("bloomref stability: every hostile case's expectation holds on CPU and GL",
+          "[gl][stability]") {
+  if (!test::gl_context()) return;
+  const Run r = run_cli("stability --json " +
+                        (std::filesystem::temp_directory_path() / "bloomref_stability.json").string());
+  CHECK(r.code == 0);
+}

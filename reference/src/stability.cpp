@@ -208,7 +208,8 @@ std::vector<StabilityCase> stability_cases(Method method) {
        mip ? "no NaN; f32: the bloom is finite and largest at the firefly; f16 cannot hold 1e6: "
              "the firefly is stored as Inf (nearest-even) or 65504 (saturating)"
            : "bloom at the firefly = 1e6 x the 10-pass kernel's peak (closed form): 1.2e-7 relative "
-             "in f64, 1e-4 in f32; f16 cannot hold 1e6: Inf, or 65504 x the peak (saturating)",
+             "in f64, 1e-4 in f32; f16 cannot hold 1e6: Inf, or 65504 x the peak (saturating; 11 "
+             "half ULPs)",
        [] {
          Image img(64, 64);
          for (int y = 0; y < 64; ++y)
@@ -232,7 +233,9 @@ std::vector<StabilityCase> stability_cases(Method method) {
            if (is_f16(r)) {
              const std::vector<double> q = response(5);
              const double sat = 65504.0 * q[q.size() / 2] * q[q.size() / 2];
-             f.ok = f.ok && (std::isinf(at) || (mip ? at > 0 : std::fabs(at - sat) / sat <= 2e-3));
+             // Saturated at 65504, then each of 10 passes and the input store may lose one half
+             // ULP (2^-10 relative, toward-zero storage).
+             f.ok = f.ok && (std::isinf(at) || (mip ? at > 0 : std::fabs(at - sat) / sat <= 11 * 0x1p-10));
              f.detail = "bloom at the firefly " + fmt(at) + "; " + f.detail;
            } else if (mip) {
              double peak = 0;
