@@ -86,3 +86,12 @@ TEST_CASE("toward zero truncates and saturates at 65504", "[half]") {
   CHECK(round_to_half(1.0f + 1.9f * std::ldexp(1.0f, -10), rtz) == 1.0f + std::ldexp(1.0f, -10));
   CHECK(round_to_half(INFINITY, rtz) == INFINITY);
 }
+
+TEST_CASE("nearest-even with saturation: finite values never become Inf", "[half]") {
+  const HalfRounding sat = HalfRounding::nearest_even_saturate;
+  CHECK(round_to_half(65520.0f, sat) == 65504.0f);
+  CHECK(round_to_half(-1.7e38f, sat) == -65504.0f);
+  CHECK(round_to_half(INFINITY, sat) == INFINITY);  // Inf input stays Inf
+  CHECK(round_to_half(1.0f + 1.5f * std::ldexp(1.0f, -10), sat) ==
+        round_to_half(1.0f + 1.5f * std::ldexp(1.0f, -10)));  // below 65504: plain nearest-even
+}

@@ -366,8 +366,9 @@ ParityResult compare_with_oracle(const Plan& plan, ConstImageView scene, const S
                                  double* cpu_ms) {
   ExecuteOptions eo;
   eo.keep_all = true;
-  eo.half_rounding =
-      profile.half_nearest_even ? HalfRounding::nearest_even : HalfRounding::toward_zero;
+  eo.half_rounding = !profile.half_nearest_even       ? HalfRounding::toward_zero
+                     : profile.half_overflow_saturate ? HalfRounding::nearest_even_saturate
+                                                      : HalfRounding::nearest_even;
   const auto t0 = std::chrono::steady_clock::now();
   const StageTrace cpu = execute(plan, scene, eo);
   if (cpu_ms)

@@ -14,11 +14,12 @@ T round_half_impl(T x, HalfRounding mode) {
   if (!std::isfinite(x) || x == T(0)) return x;
   const T a = std::fabs(x);
   if (mode == HalfRounding::nearest_even && a >= T(65520)) return std::copysign(T(INFINITY), x);
+  if (mode == HalfRounding::nearest_even_saturate && a >= T(65504)) return std::copysign(T(65504), x);
   if (mode == HalfRounding::toward_zero && a >= T(65504)) return std::copysign(T(65504), x);
   const int e = std::max(std::ilogb(a), -14);
   const T quantum = std::ldexp(T(1), e - 10);
   const T q = a / quantum;
-  const T r = (mode == HalfRounding::nearest_even ? std::nearbyint(q) : std::trunc(q)) * quantum;
+  const T r = (mode == HalfRounding::toward_zero ? std::trunc(q) : std::nearbyint(q)) * quantum;
   return std::copysign(r, x);
 }
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "bloomref/io.h"
 #include "bloomref/kernel.h"
 #include "bloomref/mip.h"
 
@@ -127,6 +128,34 @@ StabilityRun run_stability_cpu(const StabilityCase& c, Method method, const Imag
   r.plan = make_plan(p, input.cview(), c.name);
   r.trace = execute(r.plan, input.cview(), {true});
   return r;
+}
+
+StabilityCase corpus_case(const std::string& path) {
+  const std::string name = path.substr(path.find_last_of('/') + 1);
+  return {name, "corpus image " + name + " (default parameters, --nonfinite zero)",
+          "no NaN in any stage (the zero policy removes NaN/Inf input); output in [0, 1]. The "
+          "error against f64 is reported, not bounded: a pixel whose luminance is within rounding "
+          "of the threshold is bright in one precision and not the other (WideColorGamut.exr), and "
+          "f16 cannot hold 1.7e38",
+          [path] { return load_image(path).image; },
+          [](BloomParams&) {},
+          [](const Image&, const std::vector<StabilityRun>& runs) {
+            std::vector<Finding> out;
+            for (const StabilityRun& r : runs) {
+              const NonFiniteSummary n = nonfinite_summary(r.trace);
+              bool in_range = true;
+              const Image& o = r.trace.final_image();
+              for (std::size_t i = 0; i < o.pixel_count(); ++i)
+                for (int k = 0; k < 3; ++k) in_range &= o.data()[i * 4 + k] >= 0 && o.data()[i * 4 + k] <= 1;
+              const double err = error_against(r, runs[0]).output_max_abs;
+              const bool ok = n.nan == 0 && in_range;
+              out.push_back({r.backend, ok,
+                             "output error vs f64 " + fmt(err) + "; NaN " + std::to_string(n.nan) +
+                                 ", Inf " + std::to_string(n.inf) +
+                                 (n.first_stage.empty() ? "" : " (first in " + n.first_stage + ")")});
+            }
+            return out;
+          }};
 }
 
 NonFiniteSummary nonfinite_summary(const StageTrace& t) {

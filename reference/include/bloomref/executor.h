@@ -30,9 +30,11 @@ struct StageTrace {
 
 struct ExecuteOptions {
   bool keep_all = false;  ///< keep every intermediate (compare, debug, --dump-stages)
-  /// How f16 storage rounds (IEEE nearest-even by default; `compare` uses the device's measured
-  /// mode so that end-to-end comparisons do not diverge on overflow: Inf versus 65504).
-  HalfRounding half_rounding = HalfRounding::nearest_even;
+  /// How f16 storage rounds: nearest-even, finite values saturating at 65504 (a finite input
+  /// never turns into Inf through storage, so no +Inf and -Inf meet in a later sum: measured on
+  /// WideFloatRange.exr, IEEE overflow gave 478134 NaN in the mip chain). `compare` uses the
+  /// device's measured mode.
+  HalfRounding half_rounding = HalfRounding::nearest_even_saturate;
 };
 
 StageTrace execute(const Plan& plan, ConstImageView scene, const ExecuteOptions& opt = {});

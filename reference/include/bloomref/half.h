@@ -9,7 +9,10 @@
 
 namespace bloomref {
 
-enum class HalfRounding { nearest_even, toward_zero };
+/// nearest_even: IEEE (Inf from 65520 up); nearest_even_saturate: the same, but a finite value
+/// never becomes Inf (beyond 65504 it stores 65504; what bloomref's CPU f16 storage does, so that
+/// no +Inf and -Inf meet in a later sum); toward_zero: truncates and saturates (llvmpipe).
+enum class HalfRounding { nearest_even, nearest_even_saturate, toward_zero };
 
 constexpr double kHalfMax = 65504.0;
 constexpr double kHalfMinNormal = 6.103515625e-05;    // 2^-14

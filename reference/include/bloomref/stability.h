@@ -48,6 +48,11 @@ StabilityRun run_stability_cpu(const StabilityCase& c, Method method, const Imag
 /// The built-in hostile cases for a method (gaussian or mip).
 std::vector<StabilityCase> stability_cases(Method method);
 
+/// A corpus image as a case (WideColorGamut's negatives, WideFloatRange's and scale.hdr's 1.7e38,
+/// AllHalfValues' every half pattern): no NaN from finite input (after the default policy),
+/// output in [0, 1], f32 within 1e-4 of f64.
+StabilityCase corpus_case(const std::string& path);
+
 /// Per run and stage: NaN and Inf counts over RGB, and the first stage holding any.
 struct NonFiniteSummary {
   std::uint64_t nan = 0, inf = 0;
