@@ -42,6 +42,11 @@ nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace) {
                            std::to_string(resolve_threads(plan.params.threads)) + " threads)"},
           {"timings_ms", timings},
           {"skipped", plan.skipped_names()},
+          {"skipped_texel_fraction", [&] {
+             nlohmann::ordered_json f = nlohmann::ordered_json::object();
+             for (const auto& [name, frac] : trace.skipped_fraction) f[name] = frac;
+             return f;
+           }()},
           {"nonfinite", counts_json(plan.facts.nonfinite)},
           {"bright_pixels", plan.facts.bright_pixels},
           {"mip_levels_used", plan.levels.size()},

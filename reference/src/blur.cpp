@@ -1,5 +1,8 @@
 // Stage blur.k (stages.h). The coordinates of every tap depend on one axis only, so they are
 // computed once per pass into tables, with exactly the arithmetic a per-pixel shader would do.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include "bloomref/parallel.h"
@@ -96,7 +99,22 @@ void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& 
 
   parallel_rows(src.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
+      const std::uint8_t* active = opt.active ? opt.active + std::size_t(y) * src.width : nullptr;
+      if (active && std::find(active, active + src.width, std::uint8_t(1)) == active + src.width) {
+        T* d = dst.row(y);
+        for (int x = 0; x < src.width; ++x, d += kChannels) {
+          d[0] = d[1] = d[2] = T(0);
+          d[3] = T(1);
+        }
+        continue;
+      }
       for (int x = 0; x < src.width; ++x) {
+        if (active && !active[x]) {
+          T* d = dst.pixel(x, y);
+          d[0] = d[1] = d[2] = T(0);
+          d[3] = T(1);
+          continue;
+        }
         const AxisTap<T>* taps = along.at(horizontal ? x : y);
         const AxisTap<T>& other = across[horizontal ? y : x];
         T r[3];
@@ -125,6 +143,97 @@ void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& 
     }
   });
 }
+
+template <class T>
+std::size_t nonzero_support(BasicView<const T> img, std::uint8_t* mask, int threads) {
+  std::vector<std::size_t> counts(img.height, 0);
+  parallel_rows(img.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      std::size_t n = 0;
+      for (int x = 0; x < img.width; ++x) {
+        const T* p = img.pixel(x, y);
+        bool nz = false;
+        for (int c = 0; c < 3; ++c) nz |= !(p[c] == T(0) && !std::signbit(p[c]));
+        mask[std::size_t(y) * img.width + x] = nz;
+        n += nz;
+      }
+      counts[y] = n;
+    }
+  });
+  std::size_t total = 0;
+  for (std::size_t n : counts) total += n;
+  return total;
+}
+
+template <class T>
+std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, int height,
+                         const BlurPassOptions& opt, int threads) {
+  // Every lookup of output position p along the axis reads texels in [lo(p), hi(p)] (the taps
+  // are contiguous), on the one or two rows (columns) `across` gives: so the output support is
+  // a sliding-window OR, computed with prefix counts (horizontal) or row ORs (vertical).
+  const bool horizontal = opt.axis == Axis::horizontal;
+  const int n_along = horizontal ? width : height;
+  const int n_across = horizontal ? height : width;
+  const TapTable<T> along = make_taps(n_along, *opt.kernel, opt.subtexel_bits, T());
+  std::vector<int> lo(n_along), hi(n_along);
+  for (int p = 0; p < n_along; ++p) {
+    lo[p] = n_along;
+    hi[p] = -1;
+    for (int k = 0; k < along.per_position; ++k) {
+      const AxisTap<T>& t = along.at(p)[k];
+      lo[p] = std::min({lo[p], t.i0, t.i1});
+      hi[p] = std::max({hi[p], t.i0, t.i1});
+    }
+  }
+  std::vector<AxisTap<T>> across(n_across);
+  for (int i = 0; i < n_across; ++i) across[i] = centre_tap(i, n_across, opt.subtexel_bits, T());
+  std::vector<std::size_t> counts(height, 0);
+  const std::size_t w = static_cast<std::size_t>(width);
+  parallel_rows(height, threads, [&](int y0, int y1) {
+    std::vector<int> prefix(w + 1);
+    std::vector<std::uint8_t> row(w);
+    for (int y = y0; y < y1; ++y) {
+      std::uint8_t* o = out + std::size_t(y) * w;
+      std::size_t n = 0;
+      if (horizontal) {
+        const AxisTap<T>& a = across[y];
+        const std::uint8_t* r0 = in + std::size_t(a.i0) * w;
+        const std::uint8_t* r1 = in + std::size_t(a.i1) * w;
+        for (std::size_t x = 0; x < w; ++x) prefix[x + 1] = prefix[x] + (r0[x] | r1[x]);
+        if (prefix[w] == 0) {
+          std::fill(o, o + w, 0);
+          continue;
+        }
+        for (std::size_t x = 0; x < w; ++x) {
+          o[x] = prefix[hi[x] + 1] - prefix[lo[x]] > 0;
+          n += o[x];
+        }
+      } else {
+        std::fill(row.begin(), row.end(), 0);
+        for (int r = lo[y]; r <= hi[y]; ++r) {
+          const std::uint8_t* src = in + std::size_t(r) * w;
+          for (std::size_t x = 0; x < w; ++x) row[x] |= src[x];
+        }
+        for (std::size_t x = 0; x < w; ++x) {
+          const AxisTap<T>& a = across[x];
+          o[x] = row[a.i0] | row[a.i1];
+          n += o[x];
+        }
+      }
+      counts[y] = n;
+    }
+  });
+  std::size_t total = 0;
+  for (std::size_t n : counts) total += n;
+  return total;
+}
+
+template std::size_t nonzero_support<float>(BasicView<const float>, std::uint8_t*, int);
+template std::size_t nonzero_support<double>(BasicView<const double>, std::uint8_t*, int);
+template std::size_t blur_support<float>(const std::uint8_t*, std::uint8_t*, int, int,
+                                         const BlurPassOptions&, int);
+template std::size_t blur_support<double>(const std::uint8_t*, std::uint8_t*, int, int,
+                                          const BlurPassOptions&, int);
 
 template void blur_pass<float>(BasicView<const float>, BasicView<float>, const BlurPassOptions&,
                                int);

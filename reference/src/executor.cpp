@@ -42,6 +42,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   // Method mip: level k of the down and up chains (index 0 unused), and the full-size bloom.
   std::vector<BasicImage<T>> down(plan.levels.size() + 1), up(plan.levels.size() + 1);
   BasicImage<T> mip_bloom, mapped;
+  std::vector<std::uint8_t> support, next_support;  // adaptive plan: the blur's nonzero texels
   const int top = static_cast<int>(plan.levels.size());
 
   for (const StageSpec& stage : plan.stages) {
@@ -86,6 +87,18 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         if (pong.empty()) pong = BasicImage<T>(w, h);
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
+        if (p.plan == PlanMode::adaptive) {
+          // Blur only the bright pixels' support, dilated pass by pass by the taps' reach.
+          if (support.empty()) {
+            support.resize(std::size_t(w) * h);
+            nonzero_support(bright.cview(), support.data(), threads);
+          }
+          next_support.resize(support.size());
+          const std::size_t n = blur_support<T>(support.data(), next_support.data(), w, h, o, threads);
+          std::swap(support, next_support);
+          o.active = support.data();
+          trace.skipped_fraction.emplace_back(stage.name, 1.0 - double(n) / (double(w) * h));
+        }
         blur_pass(src.cview(), pong.view(), o, threads);
         store(pong.view(), p.storage, rounding, threads);
         std::swap(ping, pong);

@@ -23,6 +23,9 @@ struct StageTrace {
   double total_ms = 0;
   std::optional<ImageF64> output_f64;  ///< the output stage in double (f64 precision only)
   std::vector<std::pair<std::string, double>> timings;  ///< every stage that ran, in order
+  /// Adaptive plan: per blur pass, the fraction of texels left out (outside the bright pixels'
+  /// dilated support, where the blur is exactly 0).
+  std::vector<std::pair<std::string, double>> skipped_fraction;
 
   const Image& final_image() const { return stages.back().image; }
   const StageResult* find(const std::string& name) const;

@@ -84,6 +84,10 @@ struct BlurPassOptions {
   Axis axis = Axis::horizontal;
   const Kernel* kernel = nullptr;
   int subtexel_bits = 0;  ///< f32 only; see sampler.h
+  /// Optional width x height mask, row-major: where 0, the pixel is not computed and is written
+  /// (+0, +0, +0, 1) -- exactly what the blur gives when every texel it reads is +0, which is what
+  /// blur_support guarantees for its zeros (the adaptive plan's tiles, at texel resolution).
+  const std::uint8_t* active = nullptr;
 };
 
 /// Stage `blur.k`: one single-direction pass of a separable kernel, through GL_LINEAR /
@@ -92,6 +96,18 @@ struct BlurPassOptions {
 /// f64: taps at x + o_i texels exactly, exact rational weights. Alpha out is 1.
 template <class T>
 void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& opt, int threads);
+
+/// The texels whose RGB is not +0 in every channel (bit-exact: -0, NaN and Inf count), as a
+/// width x height mask. Returns how many.
+template <class T>
+std::size_t nonzero_support(BasicView<const T> img, std::uint8_t* mask, int threads);
+
+/// The support of a blur pass's output given its input's: a texel is set when any texel one of
+/// its lookups may read (both texels of every tap, both rows across) is set in `in`. Uses the
+/// pass's own tap tables, so it is exact for this pass's coordinates. Returns how many are set.
+template <class T>
+std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, int height,
+                         const BlurPassOptions& opt, int threads);
 
 /// Stage `composite`: scene + strength * bloom (f32: t = strength * bloom; scene + t).
 template <class T>
