@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   auto gl_info = bloomref::cli::add_gl_info(app);
   auto compare = bloomref::cli::add_compare(app);
   auto stability = bloomref::cli::add_stability(app);
+  auto bench = bloomref::cli::add_bench(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -26,7 +27,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    for (auto* cmd : {&run, &scenes, &gl_info, &compare, &stability}) {
+    for (auto* cmd : {&run, &scenes, &gl_info, &compare, &stability, &bench}) {
       const int rc = (*cmd)();
       if (rc >= 0) return rc;
     }

@@ -1,0 +1,234 @@
+// bloomref bench: per-stage and total times of the CPU path (thread wedge 1, 2, all; full and
+// adaptive plans) and the GL path (glFinish after every stage; renderer recorded), over sizes,
+// medians after a warm-up, every timed output checked in the same run: CPU runs must give the
+// 1-thread full plan's bits; GL runs must stay within 2e-3 of the CPU display output (parity
+// finds llvmpipe within 2e-7; 2e-3 is one 8-bit code's half).
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <sstream>
+
+#include "bloomref/error.h"
+#include "bloomref/executor.h"
+#include "bloomref/gpu/gl_executor.h"
+#include "bloomref/io.h"
+#include "bloomref/parallel.h"
+#include "bloomref/scenes.h"
+#include "commands.h"
+#include "json_out.h"
+#include "options.h"
+
+namespace bloomref::cli {
+namespace {
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct Row {
+  std::string size, backend, plan;
+  int threads = 0;
+  long long pixels = 0;
+  double total_ms = 0, blur_ms = 0;
+  std::vector<std::pair<std::string, double>> stages;
+  bool checked = false;
+  std::string check;
+};
+
+void progress(int done, int total, const std::string& what) {
+  if (!isatty(STDERR_FILENO)) return;
+  const int width = 30, filled = total ? done * width / total : width;
+  std::fprintf(stderr, "\r[%s%s] %d/%d %-40s", std::string(filled, '#').c_str(),
+               std::string(width - filled, '.').c_str(), done, total, what.c_str());
+  if (done == total) std::fprintf(stderr, "\n");
+}
+
+std::vector<std::pair<int, int>> parse_sizes(const std::string& s) {
+  std::vector<std::pair<int, int>> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    int w = 0, h = 0;
+    parse_size(item, w, h);
+    out.emplace_back(w, h);
+  }
+  return out;
+}
+
+}  // namespace
+
+std::function<int()> add_bench(CLI::App& app) {
+  struct Args {
+    std::string sizes = "256x256,1024x1024,1920x1080,3840x2160";
+    std::string out_dir;
+    int repeat = 5;
+    bool no_gl = false;
+    PipelineOptions pipeline;
+  };
+  auto a = std::make_shared<Args>();
+  CLI::App* sub = app.add_subcommand("bench", "time CPU and GL per stage, checking every output");
+  sub->add_option("--sizes", a->sizes, "comma-separated WxH list")->capture_default_str();
+  sub->add_option("--repeat", a->repeat, "timed runs per configuration (median reported)")
+      ->capture_default_str();
+  sub->add_option("--out", a->out_dir, "write bench.csv and bench.json to DIR");
+  sub->add_flag("--no-gl", a->no_gl, "CPU only");
+  a->pipeline.add_to(*sub);
+  return [a, sub]() -> int {
+    if (!sub->parsed()) return -1;
+    a->pipeline.finish();
+    if (a->repeat < 1) throw ParamError("--repeat must be >= 1");
+    const auto sizes = parse_sizes(a->sizes);
+    std::unique_ptr<gpu::GlContext> ctx;
+    std::string renderer = "none";
+    if (!a->no_gl) {
+      try {
+        ctx = gpu::GlContext::create();
+        renderer = ctx->info().renderer + ", " + ctx->info().version;
+      } catch (const gpu::GlUnavailable& e) {
+        renderer = std::string("unavailable: ") + e.what();
+      }
+    }
+    const int all = resolve_threads(0);
+    std::vector<int> wedge = {1};
+    if (all >= 2) wedge.push_back(2);
+    if (all > 2) wedge.push_back(all);
+    const int per_size = static_cast<int>(wedge.size()) * 2 + (ctx ? 2 : 0);
+    const int total = per_size * static_cast<int>(sizes.size());
+    int done = 0;
+    std::vector<Row> rows;
+    bool all_ok = true;
+    for (auto [w, h] : sizes) {
+      const std::string size = std::to_string(w) + "x" + std::to_string(h);
+      const Image scene = make_scene(a->pipeline.scene, w, h);
+      Image reference;  // the 1-thread full plan's output
+      auto time_cpu = [&](int threads, PlanMode mode) {
+        BloomParams p = a->pipeline.params;
+        p.threads = threads;
+        p.plan = mode;
+        const Plan plan = make_plan(p, scene.cview());
+        execute(plan, scene.cview());  // warm-up, outside the timer
+        std::vector<double> totals, blurs;
+        std::vector<std::vector<double>> per_stage;
+        StageTrace last;
+        for (int r = 0; r < a->repeat; ++r) {
+          last = execute(plan, scene.cview());
+          totals.push_back(last.total_ms);
+          double b = 0;
+          for (const auto& [n, ms] : last.timings)
+            if (n.rfind("blur.", 0) == 0 || n.rfind("down.", 0) == 0 || n.rfind("up.", 0) == 0 || n == "bloom") b += ms;
+          blurs.push_back(b);
+          per_stage.resize(last.timings.size());
+          for (std::size_t i = 0; i < last.timings.size(); ++i) per_stage[i].push_back(last.timings[i].second);
+        }
+        Row row{size, "cpu", to_string(mode), threads, (long long)w * h, median(totals), median(blurs), {}, true, ""};
+        for (std::size_t i = 0; i < last.timings.size(); ++i)
+          row.stages.emplace_back(last.timings[i].first, median(per_stage[i]));
+        if (reference.empty()) reference = last.final_image();
+        const bool same = reference.values().size() == last.final_image().values().size() &&
+                          std::memcmp(reference.data(), last.final_image().data(),
+                                      reference.values().size() * sizeof(float)) == 0;
+        row.check = same ? "bit-identical to 1-thread full" : "DIFFERS from 1-thread full";
+        row.checked = same;
+        all_ok &= same;
+        rows.push_back(row);
+        progress(++done, total, size + " cpu " + std::to_string(threads) + "t " + to_string(mode));
+      };
+      for (PlanMode mode : {PlanMode::full, PlanMode::adaptive})
+        for (int t : wedge) time_cpu(t, mode);
+      if (ctx) {
+        for (gpu::ShaderKind k : {gpu::ShaderKind::fragment, gpu::ShaderKind::compute}) {
+          BloomParams p = a->pipeline.params;
+          const Plan plan = make_plan(p, scene.cview());
+          gpu::GlOptions go;
+          go.shaders = k;
+          gpu::execute_gl(*ctx, plan, scene.cview(), go);  // warm-up (compiles the shaders)
+          std::vector<double> totals, blurs;
+          StageTrace last;
+          for (int r = 0; r < a->repeat; ++r) {
+            last = gpu::execute_gl(*ctx, plan, scene.cview(), go);
+            totals.push_back(last.total_ms);
+            double b = 0;
+            for (const auto& [n, ms] : last.timings)
+              if (n.rfind("blur.", 0) == 0 || n.rfind("down.", 0) == 0 || n.rfind("up.", 0) == 0 || n == "bloom") b += ms;
+            blurs.push_back(b);
+          }
+          double worst = 0;
+          for (std::size_t i = 0; i < reference.values().size(); ++i)
+            if (i % 4 != 3) worst = std::max(worst, double(std::fabs(reference.values()[i] - last.final_image().values()[i])));
+          Row row{size, "gl-" + gpu::to_string(k), "full", 0, (long long)w * h, median(totals), median(blurs), last.timings, worst <= 2e-3,
+                  "max |gl - cpu| output " + [&] {
+                    char b[32];
+                    std::snprintf(b, sizeof b, "%.3g", worst);
+                    return std::string(b);
+                  }()};
+          all_ok &= row.checked;
+          rows.push_back(row);
+          progress(++done, total, size + " gl " + gpu::to_string(k));
+        }
+      }
+    }
+    // Time against pixel count, per configuration: least squares t = a + b n.
+    std::printf("renderer: %s; CPU threads available: %d; %d timed runs each, median\n",
+                renderer.c_str(), all, a->repeat);
+    std::printf("%-10s %-13s %-8s %-7s %10s %10s  %s\n", "size", "backend", "plan", "threads",
+                "total ms", "blur ms", "check");
+    for (const Row& r : rows)
+      std::printf("%-10s %-13s %-8s %-7d %10.1f %10.1f  %s\n", r.size.c_str(), r.backend.c_str(),
+                  r.plan.c_str(), r.threads, r.total_ms, r.blur_ms, r.check.c_str());
+    nlohmann::ordered_json j = {{"renderer", renderer}, {"threads_available", all},
+                                {"repeat", a->repeat}, {"params", params_json(a->pipeline.params)},
+                                {"timing", "CPU: steady_clock per stage; GL: glFinish after each stage"}};
+    nlohmann::ordered_json jr = nlohmann::ordered_json::array(), fits = nlohmann::ordered_json::array();
+    std::ostringstream csv;
+    csv << "size,pixels,backend,plan,threads,total_ms,blur_ms,check_ok\n";
+    for (const Row& r : rows) {
+      nlohmann::ordered_json st = nlohmann::ordered_json::object();
+      for (const auto& [n, ms] : r.stages) st[n] = ms;
+      jr.push_back({{"size", r.size}, {"pixels", r.pixels}, {"backend", r.backend}, {"plan", r.plan},
+                    {"threads", r.threads}, {"total_ms", r.total_ms}, {"blur_ms", r.blur_ms},
+                    {"stages_ms", st}, {"check", r.check}, {"check_ok", r.checked}});
+      csv << r.size << "," << r.pixels << "," << r.backend << "," << r.plan << "," << r.threads
+          << "," << r.total_ms << "," << r.blur_ms << "," << (r.checked ? 1 : 0) << "\n";
+    }
+    // Linear fits of total time against pixels for each (backend, plan, threads).
+    std::vector<std::tuple<std::string, std::string, int>> keys;
+    for (const Row& r : rows)
+      if (std::find(keys.begin(), keys.end(), std::tuple{r.backend, r.plan, r.threads}) == keys.end())
+        keys.emplace_back(r.backend, r.plan, r.threads);
+    for (const auto& [b, pl, t] : keys) {
+      double sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
+      int n = 0;
+      for (const Row& r : rows)
+        if (r.backend == b && r.plan == pl && r.threads == t) {
+          const double x = r.pixels / 1e6, y = r.total_ms;
+          sx += x; sy += y; sxx += x * x; sxy += x * y; syy += y * y;
+          ++n;
+        }
+      if (n < 2) continue;
+      const double slope = (n * sxy - sx * sy) / (n * sxx - sx * sx), icpt = (sy - slope * sx) / n;
+      const double r2 = std::pow(n * sxy - sx * sy, 2) / ((n * sxx - sx * sx) * (n * syy - sy * sy));
+      fits.push_back({{"backend", b}, {"plan", pl}, {"threads", t}, {"ms_per_megapixel", slope},
+                      {"intercept_ms", icpt}, {"r2", r2}});
+      std::printf("fit %-13s %-8s %dt: %.1f ms/Mpx + %.1f ms, R^2 %.4f\n", b.c_str(), pl.c_str(), t,
+                  slope, icpt, r2);
+    }
+    j["rows"] = jr;
+    j["fits"] = fits;
+    if (!a->out_dir.empty()) {
+      std::filesystem::create_directories(a->out_dir);
+      save_text((std::filesystem::path(a->out_dir) / "bench.json").string(), j.dump(2) + "\n");
+      save_text((std::filesystem::path(a->out_dir) / "bench.csv").string(), csv.str());
+    }
+    return all_ok ? 0 : 1;
+  };
+}
+
+}  // namespace bloomref::cli
