@@ -86,7 +86,7 @@ int run(const RunArgs& a) {
   } else {
     ExecuteOptions eo;
     eo.keep_all = !a.dump_dir.empty();
-    trace = execute(plan, in.image.cview(), eo);
+    trace = execute(plan, std::move(in.image), eo);  // the input is not needed afterwards
   }
 
   const ImageInfo* windows = a.input.empty() ? nullptr : &in.info;

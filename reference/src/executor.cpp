@@ -22,7 +22,8 @@ Image to_float_image(const ImageF64& img) { return convert_image<float>(img.cvie
 // Runs the plan in precision T. The scene, bright image and the latest blur result are the only
 // full-size images alive at once (plus the kept intermediates when asked).
 template <class T>
-StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& opt) {
+StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& opt,
+               Image* owned) {
   const BloomParams& p = plan.params;
   const int threads = p.threads;
   const HalfRounding rounding = opt.half_rounding;
@@ -37,8 +38,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   const auto t_total = Clock::now();
   BasicImage<T> scene;
   BasicImage<T> bright(p.method == Method::gaussian ? w : 0, p.method == Method::gaussian ? h : 0);
-  BasicImage<T> ping(p.method == Method::gaussian ? w : 0, p.method == Method::gaussian ? h : 0),
-      pong;
+  BasicImage<T> ping, pong;  // allocated by the first blur pass
   // Method mip: level k of the down and up chains (index 0 unused), and the full-size bloom.
   std::vector<BasicImage<T>> down(plan.levels.size() + 1), up(plan.levels.size() + 1);
   BasicImage<T> mip_bloom, mapped;
@@ -49,21 +49,21 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
     const auto t0 = Clock::now();
     switch (stage.kind) {
       case StageKind::input: {
-        BasicImage<T> raw;
         if constexpr (std::is_same_v<T, float>) {
-          raw = BasicImage<T>(w, h);
-          for (int y = 0; y < h; ++y)
-            std::copy(scene_in.row(y), scene_in.row(y) + std::size_t(w) * kChannels,
-                      raw.view().row(y));
+          if (owned) {
+            scene = std::move(*owned);  // the caller handed the image over: no copy
+          } else {
+            scene = BasicImage<T>(w, h);
+            for (int y = 0; y < h; ++y)
+              std::copy(scene_in.row(y), scene_in.row(y) + std::size_t(w) * kChannels,
+                        scene.view().row(y));
+          }
         } else {
-          raw = convert_image<T>(scene_in);
+          scene = convert_image<T>(scene_in);
         }
-        if (plan.sanitize) {
-          scene = BasicImage<T>(w, h);
-          trace.nonfinite = sanitize(raw.cview(), scene.view(), p.nonfinite, p.storage, threads);
-        } else {
-          scene = std::move(raw);
-        }
+        // In place: each value is read once and written once at the same index.
+        if (plan.sanitize)
+          trace.nonfinite = sanitize(scene.cview(), scene.view(), p.nonfinite, p.storage, threads);
         // The seeds' MRT pass writes the scene and the bright colour in one draw: bright is
         // decided on the sanitised value before either is stored (rounded to f16).
         if (p.method == Method::gaussian)
@@ -87,6 +87,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         if (pong.empty()) pong = BasicImage<T>(w, h);
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
+        const bool first_pass = stage.pass == 1;
         if (p.plan == PlanMode::adaptive) {
           // Blur only the bright pixels' support, dilated pass by pass by the taps' reach.
           if (support.empty()) {
@@ -102,6 +103,9 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         blur_pass(src.cview(), pong.view(), o, threads);
         store(pong.view(), p.storage, rounding, threads);
         std::swap(ping, pong);
+        // After the first pass the bright image is not read again: its buffer becomes the
+        // other half of the ping-pong pair (three full-size images alive: scene, ping, pong).
+        if (first_pass && pong.empty()) pong = std::move(bright);
         record(stage.name, ping, ms_since(t0), false);
         break;
       }
@@ -147,12 +151,11 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         const bool blurred = p.passes > 0 && !plan.stages[1 + p.passes].skipped;
         const BasicImage<T>& bloom = blurred ? ping : bright;
-        BasicImage<T>& out = blurred ? pong : ping;  // a free full-size buffer
-        if (out.empty()) out = BasicImage<T>(w, h);
-        composite(scene.cview(), bloom.cview(), out.view(), static_cast<T>(p.strength), threads);
-        store(out.view(), p.storage, rounding, threads);
-        scene = std::move(out);  // the scene is not needed again; keep three buffers at most
-        out = BasicImage<T>();
+        // In place into the scene (per value, same index), then the bloom buffers go.
+        composite(scene.cview(), bloom.cview(), scene.view(), static_cast<T>(p.strength), threads);
+        store(scene.view(), p.storage, rounding, threads);
+        ping = BasicImage<T>();
+        pong = BasicImage<T>();
         bright = BasicImage<T>();
         record(stage.name, scene, ms_since(t0), false);
         break;
@@ -173,8 +176,15 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         encode_output(scene.cview(), scene.view(), static_cast<T>(p.gamma), threads);
         store(scene.view(), p.storage, rounding, threads);
         trace.total_ms = ms_since(t_total);
-        record(stage.name, scene, ms_since(t0), false);
         if constexpr (std::is_same_v<T, double>) trace.output_f64 = scene;
+        if constexpr (std::is_same_v<T, float>) {
+          if (!opt.keep_all) {  // hand the buffer over instead of copying it
+            trace.timings.emplace_back(stage.name, ms_since(t0));
+            trace.stages.push_back({stage.name, std::move(scene), ms_since(t0), false});
+            break;
+          }
+        }
+        record(stage.name, scene, ms_since(t0), false);
         break;
     }
   }
@@ -194,8 +204,16 @@ StageTrace execute(const Plan& plan, ConstImageView scene, const ExecuteOptions&
     throw ParamError("the plan was made for a " + std::to_string(plan.facts.width) + "x" +
                      std::to_string(plan.facts.height) + " scene, not " +
                      std::to_string(scene.width) + "x" + std::to_string(scene.height));
-  return plan.params.precision == Precision::f64 ? run<double>(plan, scene, opt)
-                                                 : run<float>(plan, scene, opt);
+  return plan.params.precision == Precision::f64 ? run<double>(plan, scene, opt, nullptr)
+                                                 : run<float>(plan, scene, opt, nullptr);
+}
+
+StageTrace execute(const Plan& plan, Image&& scene, const ExecuteOptions& opt) {
+  if (plan.params.precision == Precision::f64) return execute(plan, scene.cview(), opt);
+  if (scene.width() != plan.facts.width || scene.height() != plan.facts.height)
+    return execute(plan, scene.cview(), opt);  // reports the mismatch
+  const ConstImageView view = scene.cview();
+  return run<float>(plan, view, opt, &scene);
 }
 
 }  // namespace bloomref

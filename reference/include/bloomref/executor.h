@@ -42,4 +42,8 @@ struct ExecuteOptions {
 
 StageTrace execute(const Plan& plan, ConstImageView scene, const ExecuteOptions& opt = {});
 
+/// The same, taking the scene over (f32): its buffer becomes the input stage's, saving a copy
+/// (peak memory of `run`: the scene, two blur buffers and the masks). `scene` is left empty.
+StageTrace execute(const Plan& plan, Image&& scene, const ExecuteOptions& opt = {});
+
 }  // namespace bloomref
