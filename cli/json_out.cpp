@@ -1,5 +1,7 @@
 #include "json_out.h"
 
+#include <sys/resource.h>
+
 #include <charconv>
 #include <string>
 
@@ -50,6 +52,11 @@ nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace) {
           {"nonfinite", counts_json(plan.facts.nonfinite)},
           {"bright_pixels", plan.facts.bright_pixels},
           {"mip_levels_used", plan.levels.size()},
+          {"peak_rss_bytes", [] {
+             rusage u{};
+             getrusage(RUSAGE_SELF, &u);
+             return static_cast<long long>(u.ru_maxrss) * 1024;  // Linux: KiB
+           }()},
           {"width", plan.facts.width},
           {"height", plan.facts.height}};
 }
