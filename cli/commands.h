@@ -11,5 +11,6 @@ std::function<int()> add_gl_info(CLI::App& app);
 std::function<int()> add_compare(CLI::App& app);
 std::function<int()> add_stability(CLI::App& app);
 std::function<int()> add_bench(CLI::App& app);
+std::function<int()> add_tradeoff(CLI::App& app);
 
 }  // namespace bloomref::cli

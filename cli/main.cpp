@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   auto compare = bloomref::cli::add_compare(app);
   auto stability = bloomref::cli::add_stability(app);
   auto bench = bloomref::cli::add_bench(app);
+  auto tradeoff = bloomref::cli::add_tradeoff(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -27,7 +28,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    for (auto* cmd : {&run, &scenes, &gl_info, &compare, &stability, &bench}) {
+    for (auto* cmd : {&run, &scenes, &gl_info, &compare, &stability, &bench, &tradeoff}) {
       const int rc = (*cmd)();
       if (rc >= 0) return rc;
     }
