@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 namespace bloomref {
 namespace {
@@ -25,7 +27,27 @@ T round_half_impl(T x, HalfRounding mode) {
 
 }  // namespace
 
-float round_to_half(float x, HalfRounding mode) { return round_half_impl(x, mode); }
+// The float version works on the bits (about 10x faster than the arithmetic one, which f16
+// storage calls for every stored value); tests check it against Imath over every half, every
+// tie between halves and a million random floats.
+float round_to_half(float x, HalfRounding mode) {
+  std::uint32_t b;
+  std::memcpy(&b, &x, 4);
+  const std::uint32_t sign = b & 0x80000000u, a = b & 0x7fffffffu;
+  if (a >= 0x7f800000u || a == 0) return x;  // NaN, Inf, +-0
+  if (a >= 0x477fe000u) {                     // |x| >= 65504
+    if (mode == HalfRounding::nearest_even && a >= 0x477ff000u) return std::copysign(INFINITY, x);
+    return std::copysign(65504.0f, x);        // below 65520 every mode gives 65504
+  }
+  if (a < 0x38800000u) return round_half_impl(x, mode);  // |x| < 2^-14: the denormal quantum
+  std::uint32_t r = mode == HalfRounding::toward_zero
+                        ? a & ~0x1fffu                                   // keep 10 mantissa bits
+                        : (a + 0x0fffu + ((a >> 13) & 1u)) & ~0x1fffu;   // nearest, ties to even
+  r |= sign;
+  float out;
+  std::memcpy(&out, &r, 4);
+  return out;
+}
 double round_to_half(double x, HalfRounding mode) { return round_half_impl(x, mode); }
 
 }  // namespace bloomref
