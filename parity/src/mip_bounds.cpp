@@ -55,44 +55,6 @@ int base_texel(int x, int tw, int sw, int o) {
   return std::clamp(static_cast<int>(std::floor(u)), 0, sw - 1);
 }
 
-using Values = std::array<double, 5>;
-
-template <class F>
-struct MipBounds : StageBounds {
-  std::vector<const char*> names;
-  F f;
-  int threads;
-  MipBounds(std::vector<const char*> n, F fn, int t) : names(std::move(n)), f(std::move(fn)), threads(t) {}
-  void fill(Image& bound) const override {
-    parallel_rows(bound.height(), threads, [&](int y0, int y1) {
-      for (int y = y0; y < y1; ++y)
-        for (int x = 0; x < bound.width(); ++x)
-          for (int c = 0; c < 3; ++c) {
-            const Values v = f(x, y, c);
-            double s = 0;
-            for (double t : v) s += t;
-            bound.pixel(x, y)[c] = static_cast<float>(s);
-          }
-    });
-  }
-  std::vector<Term> terms(int x, int y, int c) const override {
-    const Values v = f(x, y, c);
-    std::vector<Term> out;
-    for (std::size_t i = 0; i < names.size(); ++i) out.push_back({names[i], v[i]});
-    return out;
-  }
-};
-
-template <class F>
-std::unique_ptr<StageBounds> make(std::vector<const char*> names, F f, int threads) {
-  return std::make_unique<MipBounds<F>>(std::move(names), std::move(f), threads);
-}
-
-double coordinate_error(int n, const DeviceProfile& p) {
-  return n * kU * (2 * p.division_ulps + 4) +
-         (p.subtexel_bits > 0 ? std::ldexp(1.0, -p.subtexel_bits) : 0.0);
-}
-
 }  // namespace
 
 std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView oracle,
@@ -104,7 +66,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
                        coordinate_error(src.height, *ctx.profile);
   const int tw = oracle.width, th = oracle.height;
   const bool use_karis = first && karis;
-  return make(
+  return make_bounds(
       {"coordinate rounding (x local range)", "filter and sum rounding",
        "threshold within the tap's error (kept or dropped)",
        "Karis weights (dL / (1 + L) x group range)", "storage and denormals"},
@@ -170,7 +132,7 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
   const double delta = coordinate_error(small.width, *ctx.profile) +
                        coordinate_error(small.height, *ctx.profile);
   const int tw = oracle.width, th = oracle.height;
-  return make(
+  return make_bounds(
       {"coordinate rounding (x local range)", "filter and sum rounding",
        "current level's own error", "storage and denormals"},
       [=](int x, int y, int c) {

@@ -125,55 +125,6 @@ Image weighted_tap_sum(ConstImageView img, Axis axis, const TapBases& t, int thr
   return out;
 }
 
-// Sub-texel coordinate error of a lookup on an axis of n texels, in texels: the shader's
-// s = (x + 0.5) / n and d = 1 / n (division_ulps each), d * o and s +- d o (one rounding each),
-// then the sampler's u = s * n - 0.5 (two roundings of values below n); plus one weight quantum
-// when the device uses fixed-point weights (it may round where the oracle truncates).
-double coordinate_error(int n, const DeviceProfile& p) {
-  return n * kU * (2 * p.division_ulps + 4) +
-         (p.subtexel_bits > 0 ? std::ldexp(1.0, -p.subtexel_bits) : 0.0);
-}
-
-// Fills an image by a per-value function, in parallel.
-template <class F>
-void fill_values(Image& out, int threads, F f) {
-  parallel_rows(out.height(), threads, [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y)
-      for (int x = 0; x < out.width(); ++x)
-        for (int c = 0; c < 3; ++c) out.pixel(x, y)[c] = static_cast<float>(f(x, y, c));
-  });
-}
-
-// Up to five named terms per value; the names are fixed per stage, the values computed per value.
-using Values = std::array<double, 5>;
-
-template <class F>
-struct TermBounds : StageBounds {
-  std::vector<const char*> names;
-  F f;
-  int threads;
-  TermBounds(std::vector<const char*> n, F fn, int t) : names(std::move(n)), f(std::move(fn)), threads(t) {}
-  void fill(Image& bound) const override {
-    fill_values(bound, threads, [&](int x, int y, int c) {
-      const Values v = f(x, y, c);
-      double s = 0;
-      for (double t : v) s += t;
-      return s;
-    });
-  }
-  std::vector<Term> terms(int x, int y, int c) const override {
-    const Values v = f(x, y, c);
-    std::vector<Term> out;
-    for (std::size_t i = 0; i < names.size(); ++i) out.push_back({names[i], v[i]});
-    return out;
-  }
-};
-
-template <class F>
-std::unique_ptr<StageBounds> make(std::vector<const char*> names, F f, int threads) {
-  return std::make_unique<TermBounds<F>>(std::move(names), std::move(f), threads);
-}
-
 }  // namespace
 
 double storage_term(double v, Storage s, const DeviceProfile& p) {
@@ -187,7 +138,7 @@ double denormal_floor(const DeviceProfile& p) {
 }
 
 std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ctx) {
-  return make(
+  return make_bounds(
       {"storage", "denormal flush"},
       [=](int x, int y, int c) {
         const double v = oracle.pixel(x, y)[c];
@@ -199,7 +150,7 @@ std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ct
 
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,
                                            BoundContext ctx) {
-  return make(
+  return make_bounds(
       {"threshold within luminance rounding (either side is right)", "storage"},
       [=](int x, int y, int c) {
         const float* s = sanitized.pixel(x, y);
@@ -229,7 +180,7 @@ std::unique_ptr<StageBounds> blur_bounds(ConstImageView src, ConstImageView orac
   const double delta = coordinate_error(n_along, *ctx.profile) +
                        coordinate_error(n_across, *ctx.profile);
   const int taps = k.taps();
-  return make(
+  return make_bounds(
       {"coordinate rounding (x local range)",
        "filter and accumulation rounding (Inf: NaN/Inf in the footprint)", "storage",
        "denormal flush"},
@@ -246,7 +197,7 @@ std::unique_ptr<StageBounds> blur_bounds(ConstImageView src, ConstImageView orac
 std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageView bloom,
                                               ConstImageView oracle, float strength,
                                               BoundContext ctx) {
-  return make(
+  return make_bounds(
       {"product and sum rounding", "storage", "denormal flush"},
       [=](int x, int y, int c) {
         const double s = scene.pixel(x, y)[c], b = bloom.pixel(x, y)[c];
@@ -259,7 +210,7 @@ std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageVi
 
 std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView oracle,
                                             float exposure, BoundContext ctx) {
-  return make(
+  return make_bounds(
       {"exp: (3 + 2|x|) ULP (GLSL 4.50)", "argument rounding (x = -hdr * exposure)",
        "1 - e rounding (series below |x| = 0.5)", "storage", "denormal flush"},
       [=](int x, int y, int c) {
@@ -283,7 +234,7 @@ std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView o
 
 std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView oracle,
                                            float gamma, BoundContext ctx) {
-  return make(
+  return make_bounds(
       {"pow at 0 or a denormal (Inf: max(NaN, 0) is not pinned)", "log2: 3 ULP, 2^-21 absolute in [0.5, 2] (GLSL 4.50)",
        "1/gamma and g * log2 rounding", "exp2: (3 + 2|x|) ULP", "storage"},
       [=](int x, int y, int c) {

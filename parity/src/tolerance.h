@@ -3,11 +3,14 @@
 // terms for the report.
 #pragma once
 
+#include <array>
+#include <cmath>
 #include <memory>
 #include <vector>
 
 #include "bloomref/kernel.h"
 #include "bloomref/parity/compare.h"
+#include "bloomref/parallel.h"
 #include "bloomref/stages.h"
 
 namespace bloomref::parity::detail {
@@ -27,6 +30,56 @@ struct StageBounds {
   virtual std::vector<Term> terms(int x, int y, int c) const = 0;
   virtual ~StageBounds() = default;
 };
+
+/// Sub-texel coordinate error of a lookup on an axis of n texels, in texels: the shader's
+/// s = (x + 0.5) / n and d = 1 / n (division_ulps each), d * o and s +- d o (one rounding each),
+/// then the sampler's u = s * n - 0.5 (two roundings of values below n); plus one weight quantum
+/// when the device uses fixed-point weights (it may round where the oracle truncates).
+inline double coordinate_error(int n, const DeviceProfile& p) {
+  return n * kU * (2 * p.division_ulps + 4) +
+         (p.subtexel_bits > 0 ? std::ldexp(1.0, -p.subtexel_bits) : 0.0);
+}
+
+/// Fills an image's RGB by a per-value function, in parallel.
+template <class F>
+void fill_values(Image& out, int threads, F f) {
+  parallel_rows(out.height(), threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < out.width(); ++x)
+        for (int c = 0; c < 3; ++c) out.pixel(x, y)[c] = static_cast<float>(f(x, y, c));
+  });
+}
+
+/// Up to five named terms per value; the names are fixed per stage, the values computed per
+/// value by `f(x, y, c)`.
+using Values = std::array<double, 5>;
+
+template <class F>
+struct TermBounds : StageBounds {
+  std::vector<const char*> names;
+  F f;
+  int threads;
+  TermBounds(std::vector<const char*> n, F fn, int t)
+      : names(std::move(n)), f(std::move(fn)), threads(t) {}
+  void fill(Image& bound) const override {
+    fill_values(bound, threads, [&](int x, int y, int c) {
+      double s = 0;
+      for (double v : f(x, y, c)) s += v;
+      return s;
+    });
+  }
+  std::vector<Term> terms(int x, int y, int c) const override {
+    const Values v = f(x, y, c);
+    std::vector<Term> out;
+    for (std::size_t i = 0; i < names.size(); ++i) out.push_back({names[i], v[i]});
+    return out;
+  }
+};
+
+template <class F>
+std::unique_ptr<StageBounds> make_bounds(std::vector<const char*> names, F f, int threads) {
+  return std::make_unique<TermBounds<F>>(std::move(names), std::move(f), threads);
+}
 
 struct BoundContext {
   const DeviceProfile* profile;
