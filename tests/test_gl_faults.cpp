@@ -4,6 +4,7 @@
 
 #include <catch2/catch.hpp>
 #include <cstdio>
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -55,9 +56,10 @@ int stage_index(const Plan& plan, const std::string& name) {
     if (plan.stages[i].name == name) return static_cast<int>(i);
   return -1;
 }
-}  // namespace
 
-TEST_CASE("every injected fault is caught and charged to its stage", "[gl][faults]") {
+// Injects every fault of `method` on the demo and three corpus images (`corpus_names`) and checks
+// each FAILs, charged to the stage it was injected in.
+void check_fault_matrix(Method method, const std::vector<std::string>& corpus_names) {
   gpu::GlContext* ctx = test::gl_context();
   if (!ctx) return;
   const parity::DeviceProfile profile =
@@ -65,15 +67,17 @@ TEST_CASE("every injected fault is caught and charged to its stage", "[gl][fault
   std::vector<std::pair<std::string, Image>> inputs = {{"demo", make_scene("demo")}};
   for (const std::string& f : test::corpus_files()) {
     const std::string n = std::filesystem::path(f).filename().string();
-    if (n == "hdr-rgb-riverwalk.hdr" || n == "reference-crop.exr" || n == "StageEnvLatLong.exr")
+    if (std::find(corpus_names.begin(), corpus_names.end(), n) != corpus_names.end())
       inputs.emplace_back(n, load_image(f).image);
   }
   if (inputs.size() < 4) WARN("BLOOMREF_CORPUS is not set: faults checked on the demo only");
   for (const auto& [name, image] : inputs) {
     for (const gpu::FaultInfo& fault : gpu::fault_list()) {
-      if (!gpu::fault_applies(fault.fault, Method::gaussian)) continue;
+      if (!gpu::fault_applies(fault.fault, method)) continue;
       BloomParams p;
-      p.exposure = 0.5f;  // exposure-ignored must make a difference
+      p.method = method;
+      p.karis = method == Method::mip;  // karis-unnormalised needs it; the others do not mind
+      p.exposure = 0.5f;                 // exposure-ignored must make a difference
       // threshold-ge needs a tie: the demo has a label at luminance exactly 1; elsewhere put the
       // threshold at the brightest pixel's luminance.
       if (fault.fault == gpu::Fault::threshold_ge && name != "demo") p.threshold = max_luminance(image);
@@ -86,8 +90,9 @@ TEST_CASE("every injected fault is caught and charged to its stage", "[gl][fault
       std::string expected = fault.stage;
       if (fault.fault == gpu::Fault::f16_storage) expected = first_not_half_exact(plan, image);
       const std::string charged = r.first_divergent_stage.value_or("none");
-      std::printf("fault %-19s on %-22s -> %s at %s\n", fault.name.c_str(), name.c_str(),
-                  parity::to_string(r.verdict).c_str(), charged.c_str());
+      std::printf("%s fault %-19s on %-22s -> %s at %s\n", to_string(method).c_str(),
+                  fault.name.c_str(), name.c_str(), parity::to_string(r.verdict).c_str(),
+                  charged.c_str());
       INFO(fault.name << " on " << name);
       if (fault.fault == gpu::Fault::weight_0_01pct) {
         // Reported, not required: 0.01% is near the blur's derived bound (see the closing note).
@@ -107,47 +112,15 @@ TEST_CASE("every injected fault is caught and charged to its stage", "[gl][fault
   }
 }
 
+}  // namespace
+
+TEST_CASE("every injected fault is caught and charged to its stage", "[gl][faults]") {
+  check_fault_matrix(Method::gaussian,
+                     {"hdr-rgb-riverwalk.hdr", "reference-crop.exr", "StageEnvLatLong.exr"});
+}
+
 TEST_CASE("every injected mip fault is caught and charged to its stage", "[gl][faults][mip]") {
-  gpu::GlContext* ctx = test::gl_context();
-  if (!ctx) return;
-  const parity::DeviceProfile profile =
-      ctx->info().software ? parity::profile_llvmpipe() : parity::profile_nvidia_like();
-  std::vector<std::pair<std::string, Image>> inputs = {{"demo", make_scene("demo")}};
-  for (const std::string& f : test::corpus_files()) {
-    const std::string n = std::filesystem::path(f).filename().string();
-    if (n == "hdr-rgb-riverwalk.hdr" || n == "GoldenGate.exr" || n == "StageEnvLatLong.exr")
-      inputs.emplace_back(n, load_image(f).image);
-  }
-  for (const auto& [name, image] : inputs) {
-    for (const gpu::FaultInfo& fault : gpu::fault_list()) {
-      if (!gpu::fault_applies(fault.fault, Method::mip)) continue;
-      BloomParams p;
-      p.method = Method::mip;
-      p.karis = true;  // karis-unnormalised needs it; the others do not mind
-      p.exposure = 0.5f;
-      const Plan plan = parity::plan_for_device(p, image.cview(), profile, name);
-      gpu::GlOptions go;
-      go.keep_all = true;
-      go.fault = fault.fault;
-      const StageTrace gl = gpu::execute_gl(*ctx, plan, image.cview(), go);
-      const parity::ParityResult r = parity::compare_with_oracle(plan, image.cview(), gl, profile);
-      std::string expected = fault.stage;
-      if (fault.fault == gpu::Fault::f16_storage) expected = first_not_half_exact(plan, image);
-      const std::string charged = r.first_divergent_stage.value_or("none");
-      std::printf("mip fault %-19s on %-22s -> %s at %s\n", fault.name.c_str(), name.c_str(),
-                  parity::to_string(r.verdict).c_str(), charged.c_str());
-      INFO(fault.name << " on " << name);
-      CHECK(r.verdict == parity::Verdict::fail);
-      if (fault.fault == gpu::Fault::f16_storage) {
-        // Injected at every stage: charged where a half rounding first exceeds its bound, at
-        // or after the first stage whose values are not all halves (a loose coordinate bound
-        // can cover one half ULP: GoldenGate's mip chain is charged at down.3).
-        CHECK(stage_index(plan, charged) >= stage_index(plan, expected));
-      } else {
-        CHECK(charged == expected);
-      }
-    }
-  }
+  check_fault_matrix(Method::mip, {"hdr-rgb-riverwalk.hdr", "GoldenGate.exr", "StageEnvLatLong.exr"});
 }
 
 TEST_CASE("the measured llvmpipe facts are the llvmpipe profile's", "[gl][facts]") {
