@@ -63,6 +63,15 @@ std::vector<std::pair<int, int>> parse_sizes(const std::string& s) {
   return out;
 }
 
+// Time spent in the blur (gaussian passes, or the mip chain and its full-size bloom).
+double blur_ms(const StageTrace& t) {
+  double b = 0;
+  for (const auto& [n, ms] : t.timings)
+    if (n.rfind("blur.", 0) == 0 || n.rfind("down.", 0) == 0 || n.rfind("up.", 0) == 0 || n == "bloom")
+      b += ms;
+  return b;
+}
+
 }  // namespace
 
 std::function<int()> add_bench(CLI::App& app) {
@@ -121,10 +130,7 @@ std::function<int()> add_bench(CLI::App& app) {
         for (int r = 0; r < a->repeat; ++r) {
           last = execute(plan, scene.cview());
           totals.push_back(last.total_ms);
-          double b = 0;
-          for (const auto& [n, ms] : last.timings)
-            if (n.rfind("blur.", 0) == 0 || n.rfind("down.", 0) == 0 || n.rfind("up.", 0) == 0 || n == "bloom") b += ms;
-          blurs.push_back(b);
+          blurs.push_back(blur_ms(last));
           per_stage.resize(last.timings.size());
           for (std::size_t i = 0; i < last.timings.size(); ++i) per_stage[i].push_back(last.timings[i].second);
         }
@@ -155,10 +161,7 @@ std::function<int()> add_bench(CLI::App& app) {
           for (int r = 0; r < a->repeat; ++r) {
             last = gpu::execute_gl(*ctx, plan, scene.cview(), go);
             totals.push_back(last.total_ms);
-            double b = 0;
-            for (const auto& [n, ms] : last.timings)
-              if (n.rfind("blur.", 0) == 0 || n.rfind("down.", 0) == 0 || n.rfind("up.", 0) == 0 || n == "bloom") b += ms;
-            blurs.push_back(b);
+            blurs.push_back(blur_ms(last));
           }
           double worst = 0;
           for (std::size_t i = 0; i < reference.values().size(); ++i)

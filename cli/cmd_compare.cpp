@@ -50,17 +50,8 @@ int compare_cmd(CompareArgs& a) {
   const gpu::ShaderKind shaders = gpu::parse_shader_kind(a.shaders);
   if (!a.json_path.empty() && !a.input.empty()) refuse_overwrite(a.json_path, a.input);
 
-  LoadedImage in;
   std::string source;
-  if (!a.input.empty()) {
-    in = load_image(a.input);
-    source = a.input;
-  } else {
-    int w = 0, h = 0;
-    a.pipeline.scene_size(w, h);
-    in.image = make_scene(a.pipeline.scene, w, h);
-    source = "scene:" + a.pipeline.scene;
-  }
+  const LoadedImage in = a.pipeline.load_input(a.input, source);
   auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3
   const parity::DeviceProfile profile =
       a.profile == "auto" ? (ctx->info().software ? parity::profile_llvmpipe()
@@ -144,7 +135,9 @@ std::function<int()> add_compare(CLI::App& app) {
   sub->add_option("IN", args->input, "input image; none = --scene");
   sub->add_option("--report", args->report_dir, "write images, tables and index.html to DIR");
   sub->add_option("--json", args->json_path, "write metrics, bounds and verdicts as JSON");
-  sub->add_option("--inject-fault", args->fault, "a deliberate GL bug (see --help-faults)")
+  std::string faults;
+  for (const gpu::FaultInfo& f : gpu::fault_list()) faults += (faults.empty() ? "" : ", ") + f.name;
+  sub->add_option("--inject-fault", args->fault, "a deliberate GL bug: none, " + faults)
       ->capture_default_str();
   sub->add_option("--gl-shaders", args->shaders, "fragment | compute")->capture_default_str();
   sub->add_option("--profile", args->profile, "auto | llvmpipe | nvidia (precision profile)")

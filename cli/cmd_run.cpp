@@ -48,18 +48,8 @@ int run(const RunArgs& a) {
     if (fs::exists(a.dump_dir, ec) && !fs::is_directory(a.dump_dir, ec))
       throw InputError(a.dump_dir, "exists and is not a folder (--dump-stages needs a folder)");
   }
-  LoadedImage in;
   std::string source;
-  if (!a.input.empty()) {
-    in = load_image(a.input);
-    source = a.input;
-  } else {
-    int w = 0, h = 0;
-    a.pipeline.scene_size(w, h);
-    in.image = make_scene(a.pipeline.scene, w, h);
-    in.info.path = "scene:" + a.pipeline.scene;
-    source = in.info.path;
-  }
+  LoadedImage in = a.pipeline.load_input(a.input, source);
   if (!a.dump_dir.empty())
     for (const std::string& name :
          stage_names(a.pipeline.params, in.image.width(), in.image.height()))

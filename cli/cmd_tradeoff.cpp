@@ -36,10 +36,6 @@ struct Point {
   bool front = false;
 };
 
-std::string bloom_name(const Plan& plan) {
-  return plan.params.method == Method::mip ? "bloom" : plan.stages[1 + plan.params.passes].name;
-}
-
 }  // namespace
 
 std::function<int()> add_tradeoff(CLI::App& app) {
@@ -126,8 +122,8 @@ std::function<int()> add_tradeoff(CLI::App& app) {
         pt.codes += quantize_8bit(o.values()[i]) != quantize_8bit(float(o64.values()[i]));
       }
       pt.out_rms = std::sqrt(sum2 / std::max<std::size_t>(n, 1));
-      const Image& b = r.find(bloom_name(plan))->image;
-      const Image& b64 = truth.find(bloom_name(truth_plan))->image;
+      const Image& b = r.find(bloom_stage_name(plan))->image;
+      const Image& b64 = truth.find(bloom_stage_name(truth_plan))->image;
       double peak = 0, diff = 0;
       for (std::size_t i = 0; i < b.values().size(); ++i) {
         if (i % 4 == 3) continue;

@@ -1,6 +1,7 @@
 #include "options.h"
 
 #include "bloomref/error.h"
+#include "bloomref/scenes.h"
 
 namespace bloomref::cli {
 
@@ -51,6 +52,20 @@ void PipelineOptions::finish() {
 void PipelineOptions::scene_size(int& w, int& h) const {
   w = h = 0;
   if (!size.empty()) parse_size(size, w, h);
+}
+
+LoadedImage PipelineOptions::load_input(const std::string& input, std::string& source) const {
+  LoadedImage in;
+  if (!input.empty()) {
+    in = load_image(input);
+    source = input;
+    return in;
+  }
+  int w = 0, h = 0;
+  scene_size(w, h);
+  in.image = make_scene(scene, w, h);
+  in.info.path = source = "scene:" + scene;
+  return in;
 }
 
 void parse_size(const std::string& s, int& w, int& h) {

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <string>
 
+#include "bloomref/io.h"
 #include "bloomref/params.h"
 
 namespace bloomref::cli {
@@ -19,6 +20,8 @@ struct PipelineOptions {
   /// Parses the enum names into `params` and validates; throws ParamError.
   void finish();
   void scene_size(int& w, int& h) const;
+  /// Loads IN, or builds --scene at --size when IN is empty; `source` names it in messages.
+  LoadedImage load_input(const std::string& input, std::string& source) const;
 };
 
 /// Parses "WxH"; throws ParamError.

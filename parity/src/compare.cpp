@@ -210,8 +210,7 @@ ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& g
   auto C = [&](const std::string& n) -> const Image& { return stage_image(cpu, n, "CPU"); };
   auto level = [](const char* kind, int k) { return std::string(kind) + "." + std::to_string(k); };
   // The stage each one reads (its isolation input), by method and composite order.
-  const std::string bloom_stage =
-      mip ? "bloom" : (p.passes > 0 ? "blur." + std::to_string(p.passes) : "bright");
+  const std::string bloom_stage = bloom_stage_name(plan);
   const std::string composite_base = after ? "tonemap" : "input";
   const std::string tonemap_src = after ? "input" : "composite";
   const std::string output_src = after ? "composite" : "tonemap";

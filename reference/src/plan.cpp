@@ -39,6 +39,11 @@ std::string describe(const NonFiniteCounts& c) {
 
 }  // namespace
 
+std::string bloom_stage_name(const Plan& plan) {
+  if (plan.params.method == Method::mip) return "bloom";
+  return plan.params.passes > 0 ? "blur." + std::to_string(plan.params.passes) : "bright";
+}
+
 std::vector<std::string> Plan::skipped_names() const {
   std::vector<std::string> out;
   if (!sanitize) out.push_back("input.sanitize");

@@ -9,6 +9,7 @@
 #include "bloomref/io.h"
 #include "bloomref/kernel.h"
 #include "bloomref/mip.h"
+#include "bloomref/scenes.h"
 
 namespace bloomref {
 namespace {
@@ -40,10 +41,7 @@ bool is_f64(const StabilityRun& r) { return r.plan.params.precision == Precision
 
 const Image& stage(const StabilityRun& r, const std::string& name) { return r.trace.find(name)->image; }
 
-const std::string& bloom_stage(const StabilityRun& r) {
-  static const std::string bloom = "bloom";
-  return r.plan.params.method == Method::mip ? bloom : r.plan.stages[1 + r.plan.params.passes].name;
-}
+std::string bloom_stage(const StabilityRun& r) { return bloom_stage_name(r.plan); }
 
 bool input_finite(const Image& img) {
   for (float v : img.values())
@@ -447,18 +445,7 @@ std::vector<StabilityCase> stability_cases(Method method) {
     }
     add({"threshold-tie", "the threshold-tie scene: luminance exactly 1, one float above and below",
          "exactly the band one float above the threshold is bright (1024 pixels) in every run",
-         [] {
-           Image img(96, 32);
-           const float up = std::nextafter(1.0f, 2.0f), down = std::nextafter(1.0f, 0.0f);
-           for (int y = 0; y < 32; ++y)
-             for (int x = 0; x < 96; ++x) {
-               const int band = 3 * x / 96;
-               const float v = band == 0 ? 1.0f : band == 1 ? up : down;
-               set(img, x, y, v, v, v);
-               img.pixel(x, y)[3] = 1;
-             }
-           return img;
-         },
+         [] { return make_scene("threshold-tie"); },
          [](BloomParams&) {},
          [](const Image& in, const std::vector<StabilityRun>& runs) {
            std::vector<Finding> out;

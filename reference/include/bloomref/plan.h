@@ -50,6 +50,10 @@ struct Plan {
 /// NaN or Inf, or the scene is empty.
 Plan make_plan(const BloomParams& params, ConstImageView scene, const std::string& source = "");
 
+/// The stage whose image is the bloom the composite adds: `bloom` (mip), the last blur pass, or
+/// `bright` when there are no passes.
+std::string bloom_stage_name(const Plan& plan);
+
 /// The stage names of the full plan for these parameters and image size.
 std::vector<std::string> stage_names(const BloomParams& params, int width, int height);
 
