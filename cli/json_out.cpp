@@ -6,6 +6,7 @@
 #include <string>
 
 #include "bloomref/parallel.h"
+#include "bloomref/stages.h"
 
 namespace bloomref::cli {
 namespace {
@@ -25,9 +26,16 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
           {"kernel", to_string(p.kernel)},       {"storage", to_string(p.storage)},
           {"precision", to_string(p.precision)}, {"nonfinite", to_string(p.nonfinite)},
           {"subtexel_bits", p.subtexel_bits},    {"threads", resolve_threads(p.threads)},
-          {"plan", to_string(p.plan)},
+          {"plan", to_string(p.plan)},          {"blur", to_string(p.blur)},
           {"levels", p.levels},             {"karis", p.karis},
           {"composite", to_string(p.composite)}};
+}
+
+std::string cpu_renderer(const BloomParams& p) {
+  const bool fast = p.precision == Precision::f32 && p.blur == BlurImpl::fast;
+  return "cpu: bloomref " + to_string(p.precision) + " (" +
+         (fast ? "fast blur, " + blur_isa_name() : std::string("reference blur")) + "), " +
+         std::to_string(resolve_threads(p.threads)) + " threads";
 }
 
 nlohmann::ordered_json counts_json(const NonFiniteCounts& c) {
@@ -40,8 +48,7 @@ nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace) {
   for (const auto& [name, ms] : trace.timings) timings[name] = ms;
   timings["total"] = trace.total_ms;
   return {{"params", params_json(plan.params)},
-          {"renderer", "cpu: bloomref reference (" + to_string(plan.params.precision) + ", " +
-                           std::to_string(resolve_threads(plan.params.threads)) + " threads)"},
+          {"renderer", cpu_renderer(plan.params)},
           {"timings_ms", timings},
           {"skipped", plan.skipped_names()},
           {"skipped_texel_fraction", [&] {

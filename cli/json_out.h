@@ -10,6 +10,9 @@
 namespace bloomref::cli {
 
 nlohmann::ordered_json params_json(const BloomParams& p);
+
+/// "cpu: bloomref f32 (fast blur, avx2), 2 threads" -- what computed a CPU run.
+std::string cpu_renderer(const BloomParams& p);
 nlohmann::ordered_json counts_json(const NonFiniteCounts& c);
 /// params, renderer, timings_ms (stage -> ms, plus "total"), skipped, nonfinite, plan facts.
 nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace);

@@ -28,6 +28,9 @@ void PipelineOptions::add_to(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--threads", p.threads, "0 = all hardware threads")->capture_default_str();
   app.add_option("--plan", plan, "adaptive | full (same bits)")->capture_default_str();
+  app.add_option("--blur", blur, "f32 gaussian blur: fast (tiled, vectorised) | reference (the "
+                                 "per-texel loop); same bits")
+      ->capture_default_str();
   app.add_option("--levels", p.levels, "mip: downsample levels (fewer when the image ends)")
       ->capture_default_str();
   app.add_flag("--karis", p.karis, "mip: Karis average on the first downsample");
@@ -45,6 +48,7 @@ void PipelineOptions::finish() {
   params.precision = parse_precision(precision);
   params.nonfinite = parse_nonfinite(nonfinite);
   params.plan = parse_plan_mode(plan);
+  params.blur = parse_blur_impl(blur);
   params.composite = parse_composite_order(composite);
   validate(params);
 }

@@ -12,7 +12,8 @@ namespace bloomref::cli {
 struct PipelineOptions {
   BloomParams params;
   std::string method = "gaussian", kernel = "discrete9", storage = "f32", precision = "f32",
-              nonfinite = "zero", plan = "adaptive", composite = "before-tonemap";
+              nonfinite = "zero", plan = "adaptive", blur = "fast",
+              composite = "before-tonemap";
   std::string scene = "demo";
   std::string size;  ///< "WxH" for built-in scenes
 

@@ -48,6 +48,19 @@ bool bit_identical(ConstImageView a, ConstImageView b) {
   return true;
 }
 
+bool same_bits_nan_agnostic(ConstImageView a, ConstImageView b) {
+  if (a.width != b.width || a.height != b.height) return false;
+  for (int y = 0; y < a.height; ++y) {
+    const float* p = a.row(y);
+    const float* q = b.row(y);
+    for (int i = 0; i < a.width * kChannels; ++i) {
+      if (std::isnan(p[i]) && std::isnan(q[i])) continue;
+      if (std::memcmp(p + i, q + i, sizeof(float)) != 0) return false;
+    }
+  }
+  return true;
+}
+
 std::size_t count_nan(ConstImageView img) {
   std::size_t n = 0;
   for (int y = 0; y < img.height; ++y)

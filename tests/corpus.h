@@ -20,6 +20,11 @@ double max_abs_diff(ConstImageView a, ConstImageView b);
 /// True when both images have identical bits in every channel.
 bool bit_identical(ConstImageView a, ConstImageView b);
 
+/// bit_identical, except that any NaN equals any NaN. When two NaNs meet (an input NaN and an
+/// Inf - Inf), IEEE 754 leaves open which one comes out, and on x86 the compiler may commute
+/// an addition's operands, which decides it: sign and payload of NaN are not part of "same bits".
+bool same_bits_nan_agnostic(ConstImageView a, ConstImageView b);
+
 /// Count of NaN values over all channels.
 std::size_t count_nan(ConstImageView img);
 

@@ -6,21 +6,13 @@
 #include <type_traits>
 #include <vector>
 
+#include "blur_internal.h"
 #include "bloomref/parallel.h"
 #include "bloomref/sampler.h"
 #include "bloomref/stages.h"
 
 namespace bloomref {
-namespace {
-
-// Taps of one output position along the blurred axis, in the shader's order:
-// centre, +o1, -o1, +o2, -o2, ...
-template <class T>
-struct TapTable {
-  int per_position = 0;
-  std::vector<AxisTap<T>> taps;
-  const AxisTap<T>* at(int x) const { return taps.data() + std::size_t(x) * per_position; }
-};
+namespace detail {
 
 TapTable<float> make_taps(int n, const Kernel& k, int bits, float) {
   const float d = 1.0f / static_cast<float>(n);  // tex_offset = 1.0 / textureSize
@@ -55,6 +47,14 @@ AxisTap<float> centre_tap(int x, int n, int bits, float) {
   return gl_axis_tap(texel_centre(x, n), n, bits);
 }
 AxisTap<double> centre_tap(int x, int n, int, double) { return exact_axis_tap(x, n); }
+
+}  // namespace detail
+
+namespace {
+
+using detail::TapTable;
+using detail::centre_tap;
+using detail::make_taps;
 
 const std::vector<float>& weights(const Kernel& k, float) { return k.weights_f32; }
 const std::vector<double>& weights(const Kernel& k, double) { return k.weights_f64; }
@@ -115,6 +115,59 @@ inline v4 convolve_v4(const std::vector<float>& w, const AxisTap<float>* taps, T
 
 }  // namespace
 
+namespace detail {
+
+template <class T>
+void blur_texel(BasicView<const T> src, bool horizontal, const AxisTap<T>* taps,
+                const AxisTap<T>& other, const std::vector<T>& w, T* d) {
+  T r[3];
+  if constexpr (std::is_same_v<T, float>) {
+    if (other.w1 == T(0)) {
+      // Four lanes at once (RGBA; alpha is overwritten below): the same IEEE single
+      // multiplications and additions in the same order per lane as the scalar path, so
+      // the same bits (the shader-loop test checks them).
+      const int fixed = other.i0;
+      const v4 rv = convolve_v4(w, taps, [&](const AxisTap<T>& t, int which) {
+        const int i = which ? t.i1 : t.i0;
+        return horizontal ? src.pixel(i, fixed) : src.pixel(fixed, i);
+      });
+      d[0] = rv[0];
+      d[1] = rv[1];
+      d[2] = rv[2];
+      d[3] = T(1);
+      return;
+    }
+  }
+  if (other.w1 == T(0)) {
+    // The lookup sits on one row (column) across the blur: its weight there is exactly 1,
+    // so the bilinear weights are the along-axis ones and sample_rgb reduces to this.
+    const int fixed = other.i0;
+    convolve(w, [&](int k, T s[3]) {
+      const AxisTap<T>& t = taps[k];
+      const T* p0 = horizontal ? src.pixel(t.i0, fixed) : src.pixel(fixed, t.i0);
+      const T* p1 = horizontal ? src.pixel(t.i1, fixed) : src.pixel(fixed, t.i1);
+      sample_pair(p0, p1, t.w0, t.w1, s);
+    }, r);
+  } else {
+    convolve(w, [&](int k, T s[3]) {
+      if (horizontal) sample_rgb(src, taps[k], other, s);
+      else sample_rgb(src, other, taps[k], s);
+    }, r);
+  }
+  d[0] = r[0];
+  d[1] = r[1];
+  d[2] = r[2];
+  d[3] = T(1);
+}
+
+template void blur_texel<float>(BasicView<const float>, bool, const AxisTap<float>*,
+                                const AxisTap<float>&, const std::vector<float>&, float*);
+template void blur_texel<double>(BasicView<const double>, bool,
+                                 const AxisTap<double>*, const AxisTap<double>&,
+                                 const std::vector<double>&, double*);
+
+}  // namespace detail
+
 template <class T>
 void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& opt,
                int threads) {
@@ -138,54 +191,14 @@ void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& 
         continue;
       }
       for (int x = 0; x < src.width; ++x) {
+        T* d = dst.pixel(x, y);
         if (active && !active[x]) {
-          T* d = dst.pixel(x, y);
           d[0] = d[1] = d[2] = T(0);
           d[3] = T(1);
           continue;
         }
-        const AxisTap<T>* taps = along.at(horizontal ? x : y);
-        const AxisTap<T>& other = across[horizontal ? y : x];
-        T r[3];
-        if constexpr (std::is_same_v<T, float>) {
-          if (other.w1 == T(0)) {
-            // Four lanes at once (RGBA; alpha is overwritten below): the same IEEE single
-            // multiplications and additions in the same order per lane as the scalar path, so
-            // the same bits (the shader-loop test checks them).
-            const int fixed = other.i0;
-            const v4 rv = convolve_v4(w, taps, [&](const AxisTap<T>& t, int which) {
-              const int i = which ? t.i1 : t.i0;
-              return horizontal ? src.pixel(i, fixed) : src.pixel(fixed, i);
-            });
-            T* d = dst.pixel(x, y);
-            d[0] = rv[0];
-            d[1] = rv[1];
-            d[2] = rv[2];
-            d[3] = T(1);
-            continue;
-          }
-        }
-        if (other.w1 == T(0)) {
-          // The lookup sits on one row (column) across the blur: its weight there is exactly 1,
-          // so the bilinear weights are the along-axis ones and sample_rgb reduces to this.
-          const int fixed = other.i0;
-          convolve(w, [&](int k, T s[3]) {
-            const AxisTap<T>& t = taps[k];
-            const T* p0 = horizontal ? src.pixel(t.i0, fixed) : src.pixel(fixed, t.i0);
-            const T* p1 = horizontal ? src.pixel(t.i1, fixed) : src.pixel(fixed, t.i1);
-            sample_pair(p0, p1, t.w0, t.w1, s);
-          }, r);
-        } else {
-          convolve(w, [&](int k, T s[3]) {
-            if (horizontal) sample_rgb(src, taps[k], other, s);
-            else sample_rgb(src, other, taps[k], s);
-          }, r);
-        }
-        T* d = dst.pixel(x, y);
-        d[0] = r[0];
-        d[1] = r[1];
-        d[2] = r[2];
-        d[3] = T(1);
+        detail::blur_texel(src, horizontal, along.at(horizontal ? x : y),
+                           across[horizontal ? y : x], w, d);
       }
     }
   });

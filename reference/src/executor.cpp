@@ -100,7 +100,12 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           o.active = support.data();
           trace.skipped_fraction.emplace_back(stage.name, 1.0 - double(n) / (double(w) * h));
         }
-        blur_pass(src.cview(), pong.view(), o, threads);
+        if constexpr (std::is_same_v<T, float>) {
+          if (p.blur == BlurImpl::fast) blur_pass_fast(src.cview(), pong.view(), o, threads);
+          else blur_pass(src.cview(), pong.view(), o, threads);
+        } else {
+          blur_pass(src.cview(), pong.view(), o, threads);
+        }
         store(pong.view(), p.storage, rounding, threads);
         std::swap(ping, pong);
         // After the first pass the bright image is not read again: its buffer becomes the

@@ -42,6 +42,8 @@ constexpr std::pair<const char*, CompositeOrder> kOrders[] = {
     {"after-tonemap", CompositeOrder::after_tonemap}};
 constexpr std::pair<const char*, PlanMode> kPlans[] = {{"adaptive", PlanMode::adaptive},
                                                        {"full", PlanMode::full}};
+constexpr std::pair<const char*, BlurImpl> kBlurs[] = {{"fast", BlurImpl::fast},
+                                                       {"reference", BlurImpl::reference}};
 
 std::string str(float v) {
   std::ostringstream o;
@@ -82,6 +84,7 @@ std::string to_string(Storage v) { return name_of(v, kStorages); }
 std::string to_string(Precision v) { return name_of(v, kPrecisions); }
 std::string to_string(NonFinite v) { return name_of(v, kPolicies); }
 std::string to_string(PlanMode v) { return name_of(v, kPlans); }
+std::string to_string(BlurImpl v) { return name_of(v, kBlurs); }
 std::string to_string(CompositeOrder v) { return name_of(v, kOrders); }
 CompositeOrder parse_composite_order(const std::string& s) {
   return parse_enum("--composite", s, kOrders);
@@ -92,5 +95,6 @@ Storage parse_storage(const std::string& s) { return parse_enum("--storage", s, 
 Precision parse_precision(const std::string& s) { return parse_enum("--precision", s, kPrecisions); }
 NonFinite parse_nonfinite(const std::string& s) { return parse_enum("--nonfinite", s, kPolicies); }
 PlanMode parse_plan_mode(const std::string& s) { return parse_enum("--plan", s, kPlans); }
+BlurImpl parse_blur_impl(const std::string& s) { return parse_enum("--blur", s, kBlurs); }
 
 }  // namespace bloomref

@@ -15,7 +15,9 @@ namespace bloomref {
 AxisTap<float> gl_axis_tap(float s, int n, int subtexel_bits) {
   const float u = s * static_cast<float>(n) - 0.5f;
   float fi = std::floor(u);
-  float a = u - fi;  // exact: u and floor(u) share a binade or a is u itself
+  // Rounds when u is a tiny negative: u = -2.98e-8 (1920 columns, x = 1, offset 1) gives
+  // a = 1 - 2.98e-8 -> 1.0f, so w0 = 0 and the lookup is texel i1 alone.
+  float a = u - fi;
   if (subtexel_bits > 0) {
     const float scale = std::ldexp(1.0f, subtexel_bits);
     a = std::nearbyint(a * scale) / scale;

@@ -19,6 +19,10 @@ enum class Precision { f32, f64 };
 enum class NonFinite { zero, clamp, propagate, error };
 /// `adaptive` leaves out work the scene does not need (same bits as `full`).
 enum class PlanMode { adaptive, full };
+/// How the f32 gaussian blur is computed: `fast` (tiled and vectorised, blur_pass_fast) and
+/// `reference` (the straightforward per-texel loop, blur_pass) give the same bits. f64 always
+/// uses the reference loop.
+enum class BlurImpl { fast, reference };
 /// Where the bloom is added: to the HDR scene before the tone map (the classic, seed 000), or to
 /// the tone-mapped image (seed 003: mapped + 0.02 * bloom with exposure 0.5).
 enum class CompositeOrder { before_tonemap, after_tonemap };
@@ -39,6 +43,7 @@ struct BloomParams {
   int subtexel_bits = 0;
   int threads = 0;  ///< 0 = all hardware threads
   PlanMode plan = PlanMode::adaptive;
+  BlurImpl blur = BlurImpl::fast;
   // Method mip (seed 003):
   int levels = 6;           ///< downsample levels; fewer when the image reaches 1x1
   bool karis = false;       ///< Karis average on the first downsample
@@ -55,6 +60,7 @@ std::string to_string(Storage s);
 std::string to_string(Precision p);
 std::string to_string(NonFinite n);
 std::string to_string(PlanMode m);
+std::string to_string(BlurImpl b);
 std::string to_string(CompositeOrder c);
 Method parse_method(const std::string& s);
 KernelName parse_kernel(const std::string& s);
@@ -62,6 +68,7 @@ Storage parse_storage(const std::string& s);
 Precision parse_precision(const std::string& s);
 NonFinite parse_nonfinite(const std::string& s);
 PlanMode parse_plan_mode(const std::string& s);
+BlurImpl parse_blur_impl(const std::string& s);
 CompositeOrder parse_composite_order(const std::string& s);
 
 }  // namespace bloomref

@@ -15,6 +15,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <string>
 
 #include "bloomref/half.h"
 #include "bloomref/image.h"
@@ -96,6 +97,24 @@ struct BlurPassOptions {
 /// f64: taps at x + o_i texels exactly, exact rational weights. Alpha out is 1.
 template <class T>
 void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& opt, int threads);
+
+/// Instruction sets of the fast blur's kernel. Every one gives blur_pass's bits.
+enum class BlurIsa { best, generic, avx2 };
+/// Whether this CPU (and this build) can run `isa`; `best` and `generic` always can.
+bool blur_isa_available(BlurIsa isa);
+/// The instruction set `best` resolves to here ("avx2" or "generic").
+std::string blur_isa_name(BlurIsa isa = BlurIsa::best);
+
+/// Stage `blur.k` in f32, fast and bit-identical to blur_pass (same IEEE operations in the same
+/// order per channel, tested on every scene and corpus image): tiled, one whole output line at
+/// a time from whole input lines, vectorised across the blur (blur_fast.cpp). Two provisos:
+/// where two NaNs meet, which one comes out (sign, payload) is not specified (IEEE 754 leaves it
+/// open and the compiler may commute an addition); and x * 1 is taken as x, which differs only
+/// for a signalling NaN -- the bright stage passes no NaN and arithmetic makes only quiet ones,
+/// so none reaches a blur. `dst` must not overlap `src`. Throws ParamError for an instruction
+/// set this CPU lacks.
+void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
+                    int threads, BlurIsa isa = BlurIsa::best);
 
 /// The texels whose RGB is not +0 in every channel (bit-exact: -0, NaN and Inf count), as a
 /// width x height mask. Returns how many.

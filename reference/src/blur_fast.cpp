@@ -1,0 +1,121 @@
+// Stage blur.k, the fast way (stages.h: blur_pass_fast). Builds the pass's tap tables exactly as
+// blur_pass does, hands tiles to the instruction-set kernel (blur_tiles.inc), and recomputes with
+// blur_texel the few lines whose lookup across the blur is not exactly on one texel line (with
+// GL float coordinates, e.g. 85 of 2160 rows and 102 of 3840 columns), where the sample is a 2-D
+// bilinear mix of two lines and the kernel's one-line form does not apply.
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "blur_internal.h"
+#include "bloomref/error.h"
+#include "bloomref/parallel.h"
+#include "bloomref/stages.h"
+
+namespace bloomref {
+namespace {
+
+// Tile shape (texels): long along the blur so the tap window's overlap is re-read rarely, narrow
+// across so a tile's input lines stay in L1/L2 (the horizontal pass's transposed copy: about
+// (64 + 8) x 32 texels x 16 bytes = 36 KiB).
+constexpr int kTileAlong = 64;
+constexpr int kTileAcrossH = 32;
+constexpr int kTileAcrossV = 1024;
+
+bool cpu_has_avx2() {
+#if defined(__x86_64__) && defined(BLOOMREF_HAVE_AVX2_KERNEL)
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2");
+#else
+  return false;
+#endif
+}
+
+BlurIsa resolve(BlurIsa isa) {
+  if (isa == BlurIsa::best) return cpu_has_avx2() ? BlurIsa::avx2 : BlurIsa::generic;
+  if (isa == BlurIsa::avx2 && !cpu_has_avx2())
+    throw ParamError("the AVX2 blur kernel is not available on this CPU or build");
+  return isa;
+}
+
+}  // namespace
+
+bool blur_isa_available(BlurIsa isa) { return isa != BlurIsa::avx2 || cpu_has_avx2(); }
+
+std::string blur_isa_name(BlurIsa isa) {
+  return resolve(isa) == BlurIsa::avx2 ? "avx2" : "generic";
+}
+
+void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
+                    int threads, BlurIsa isa) {
+  isa = resolve(isa);
+  const bool horizontal = opt.axis == Axis::horizontal;
+  const int n_along = horizontal ? src.width : src.height;
+  const int n_across = horizontal ? src.height : src.width;
+  const detail::TapTable<float> along =
+      detail::make_taps(n_along, *opt.kernel, opt.subtexel_bits, float());
+  // The kernel's one-texel form is texel i0 times w0. A tap a hair left of texel 0's centre
+  // (u = -2.98e-8 at x = 1, offset 1 of 1920 columns) has a = u - floor(u) rounded up to 1, so
+  // w0 = 0 and the reference takes texel i1 times w1 alone: say that in the one-texel form.
+  detail::TapTable<float> kernel_taps = along;
+  for (AxisTap<float>& t : kernel_taps.taps)
+    if (t.w0 == 0.0f) t = {t.i1, t.i1, t.w1, 0.0f};
+
+  std::vector<AxisTap<float>> across(n_across);
+  std::vector<std::uint8_t> exact(n_across);
+  std::vector<int> inexact;
+  for (int b = 0; b < n_across; ++b) {
+    across[b] = detail::centre_tap(b, n_across, opt.subtexel_bits, float());
+    exact[b] = across[b].w1 == 0.0f && across[b].i0 == b;
+    if (!exact[b]) inexact.push_back(b);
+  }
+
+  detail::TileJob job;
+  job.src = src.data;
+  job.src_stride = src.stride * kChannels;
+  job.dst = dst.data;
+  job.dst_stride = dst.stride * kChannels;
+  job.horizontal = horizontal;
+  job.n_along = n_along;
+  job.n_across = n_across;
+  job.tile_along = kTileAlong;
+  job.tile_across = horizontal ? kTileAcrossH : kTileAcrossV;
+  job.tiles_along = (n_along + kTileAlong - 1) / kTileAlong;
+  job.taps = kernel_taps.taps.data();
+  job.taps_per_position = along.per_position;
+  const std::vector<float>& w = opt.kernel->weights_f32;
+  job.weights = w.data();
+  job.n_weights = static_cast<int>(w.size());
+  job.exact_across = exact.data();
+  job.active = opt.active;
+  job.width = src.width;
+  const int tiles_across = (n_across + job.tile_across - 1) / job.tile_across;
+  const auto kernel = isa == BlurIsa::avx2 ? detail::blur_tiles_avx2 : detail::blur_tiles_generic;
+
+  parallel_rows(job.tiles_along * tiles_across, threads, [&](int t0, int t1) {
+    kernel(job, t0, t1);
+    // The inexact lines inside these tiles, the reference way.
+    for (int t = t0; t < t1; ++t) {
+      const int a0 = (t % job.tiles_along) * job.tile_along;
+      const int a1 = std::min(a0 + job.tile_along, n_along);
+      const int b0 = (t / job.tiles_along) * job.tile_across;
+      const int b1 = std::min(b0 + job.tile_across, n_across);
+      for (auto it = std::lower_bound(inexact.begin(), inexact.end(), b0);
+           it != inexact.end() && *it < b1; ++it) {
+        const int b = *it;
+        for (int a = a0; a < a1; ++a) {
+          const int x = horizontal ? a : b, y = horizontal ? b : a;
+          float* d = dst.pixel(x, y);
+          if (opt.active && !opt.active[std::size_t(y) * src.width + x]) {
+            d[0] = d[1] = d[2] = 0.0f;
+            d[3] = 1.0f;
+            continue;
+          }
+          detail::blur_texel(src, horizontal, along.at(a), across[b], w, d);
+        }
+      }
+    }
+  });
+}
+
+}  // namespace bloomref

@@ -1,0 +1,62 @@
+// bloomref — what the reference blur (blur.cpp) and the fast tiled blur (blur_fast*.cpp) share:
+// the per-pass tap tables, the reference texel, and the tile kernel's job description.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "bloomref/kernel.h"
+#include "bloomref/sampler.h"
+
+namespace bloomref::detail {
+
+// Taps of one output position along the blurred axis, in the shader's order:
+// centre, +o1, -o1, +o2, -o2, ...
+template <class T>
+struct TapTable {
+  int per_position = 0;
+  std::vector<AxisTap<T>> taps;
+  const AxisTap<T>* at(int x) const { return taps.data() + std::size_t(x) * per_position; }
+};
+
+TapTable<float> make_taps(int n, const Kernel& k, int bits, float);
+TapTable<double> make_taps(int n, const Kernel& k, int bits, double);
+
+/// The lookup across the blur for line x: the centre of texel x.
+AxisTap<float> centre_tap(int x, int n, int bits, float);
+AxisTap<double> centre_tap(int x, int n, int bits, double);
+
+/// One texel of blur_pass, computed the reference way (RGB into d[0..2], d[3] = 1).
+template <class T>
+void blur_texel(BasicView<const T> src, bool horizontal, const AxisTap<T>* taps,
+                const AxisTap<T>& other, const std::vector<T>& w, T* d);
+
+/// One pass of the fast blur, cut into tiles of `tile_along` x `tile_across` output texels.
+/// Tile t covers along-block t % tiles_along and across-block t / tiles_along, so consecutive
+/// tiles walk down the same across-block and reuse the rows in cache.
+struct TileJob {
+  const float* src = nullptr;
+  std::ptrdiff_t src_stride = 0;  ///< floats per source row
+  float* dst = nullptr;
+  std::ptrdiff_t dst_stride = 0;  ///< floats per destination row
+  bool horizontal = true;
+  int n_along = 0, n_across = 0;
+  int tile_along = 0, tile_across = 0, tiles_along = 0;
+  const AxisTap<float>* taps = nullptr;  ///< n_along x taps_per_position, shader order
+  int taps_per_position = 0;
+  const float* weights = nullptr;  ///< kernel weights, centre first
+  int n_weights = 0;
+  /// Per across position b: 1 when its lookup sits exactly on line b (weight 1), else 0; the
+  /// kernel computes such lines as if it were exact and the caller recomputes them.
+  const std::uint8_t* exact_across = nullptr;
+  const std::uint8_t* active = nullptr;  ///< optional width x height mask (stages.h)
+  int width = 0;
+};
+
+/// Computes tiles [t0, t1) of `job`: every texel of an exact-across line bit-identical to
+/// blur_texel. Compiled once per instruction set; the same IEEE operations in every lane.
+void blur_tiles_generic(const TileJob& job, int t0, int t1);
+void blur_tiles_avx2(const TileJob& job, int t0, int t1);
+
+}  // namespace bloomref::detail

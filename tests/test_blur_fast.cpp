@@ -1,0 +1,131 @@
+// The fast blur (blur_pass_fast) gives blur_pass's bits (any NaN equal to any NaN: corpus.h says
+// why): pass by pass on hostile values and
+// awkward sizes, with and without the adaptive plan's masks, for every instruction set this CPU
+// has; and whole runs on every scene and corpus image with `--blur fast` and `--blur reference`.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "bloomref/executor.h"
+#include "bloomref/io.h"
+#include "bloomref/scenes.h"
+#include "bloomref/stages.h"
+#include "corpus.h"
+
+using namespace bloomref;
+
+namespace {
+
+std::vector<BlurIsa> isas() {
+  std::vector<BlurIsa> v = {BlurIsa::generic};
+  if (blur_isa_available(BlurIsa::avx2)) v.push_back(BlurIsa::avx2);
+  return v;
+}
+
+// Mostly zero (so the masks have something to leave out), with finite values over many
+// binades, -0, denormals, 1e38, +-Inf and quiet NaN sprinkled in.
+Image hostile_image(int w, int h, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const float special[] = {-0.0f,
+                           std::numeric_limits<float>::denorm_min(),
+                           1e-40f,
+                           1e38f,
+                           -1e38f,
+                           std::numeric_limits<float>::infinity(),
+                           -std::numeric_limits<float>::infinity(),
+                           std::numeric_limits<float>::quiet_NaN(),
+                           65504.0f,
+                           -3.5f};
+  Image img(w, h);
+  for (float& v : img.values()) {
+    const float r = u(rng);
+    if (r < 0.85f) v = 0.0f;
+    else if (r < 0.97f) v = std::ldexp(u(rng), int(u(rng) * 40.0f) - 20);
+    else v = special[int(u(rng) * 10.0f) % 10];
+  }
+  return img;
+}
+
+}  // namespace
+
+TEST_CASE("blur_pass_fast gives blur_pass's bits on hostile values and awkward sizes",
+          "[blur][fast]") {
+  // 1920 columns: a tap at x = 1 lands a hair left of texel 0 (w0 = 0); 1080 and 2160 rows
+  // and 131, 1920 columns have lookups across the blur that straddle two lines.
+  const std::pair<int, int> sizes[] = {{1, 1},   {1, 7},    {7, 1},    {3, 5},   {37, 23},
+                                       {257, 131}, {1920, 9}, {9, 1080}, {131, 2160}};
+  unsigned seed = 1;
+  for (auto [w, h] : sizes) {
+    const Image src = hostile_image(w, h, seed++);
+    std::vector<std::uint8_t> support(std::size_t(w) * h), active(support.size());
+    nonzero_support(src.cview(), support.data(), 1);
+    for (const Kernel* k : {&kernel_discrete9(), &kernel_linear5()}) {
+      for (int bits : {0, 8}) {
+        for (Axis axis : {Axis::horizontal, Axis::vertical}) {
+          BlurPassOptions o{axis, k, bits};
+          blur_support<float>(support.data(), active.data(), w, h, o, 1);
+          for (bool masked : {false, true}) {
+            o.active = masked ? active.data() : nullptr;
+            Image ref(w, h), fast(w, h, 7.0f);
+            blur_pass(src.cview(), ref.view(), o, 1);
+            for (BlurIsa isa : isas()) {
+              for (int threads : {1, 2}) {
+                blur_pass_fast(src.cview(), fast.view(), o, threads, isa);
+                INFO(w << "x" << h << " " << k->name << " bits " << bits << " axis "
+                       << (axis == Axis::horizontal ? "h" : "v") << " masked " << masked
+                       << " isa " << blur_isa_name(isa) << " threads " << threads);
+                CHECK(test::same_bits_nan_agnostic(ref.cview(), fast.cview()));
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST_CASE("the fast blur is not vacuous: a wrong weight is caught", "[blur][fast]") {
+  // The comparison above must be able to fail: the same pass with a weight 1 ULP off differs.
+  const Image src = hostile_image(64, 48, 99);
+  Kernel k = kernel_discrete9();
+  BlurPassOptions o{Axis::horizontal, &kernel_discrete9(), 0};
+  Image ref(64, 48), fast(64, 48);
+  blur_pass(src.cview(), ref.view(), o, 1);
+  k.weights_f32[2] = std::nextafter(k.weights_f32[2], 1.0f);
+  o.kernel = &k;
+  blur_pass_fast(src.cview(), fast.view(), o, 1);
+  CHECK_FALSE(test::same_bits_nan_agnostic(ref.cview(), fast.cview()));
+}
+
+TEST_CASE("the fast and the reference blur give the same bits on scenes and corpus",
+          "[blur][fast][determinism]") {
+  std::vector<std::pair<std::string, Image>> scenes;
+  for (const SceneInfo& s : scene_list()) scenes.emplace_back(s.name, make_scene(s.name));
+  scenes.emplace_back("demo 1920x1080", make_scene("demo", 1920, 1080));
+  for (const std::string& f : test::corpus_files()) scenes.emplace_back(f, load_image(f).image);
+  for (const auto& [name, scene] : scenes) {
+    for (auto [storage, kernel, policy] :
+         {std::tuple{Storage::f32, KernelName::discrete9, NonFinite::zero},
+          {Storage::f16, KernelName::linear5, NonFinite::propagate}}) {
+      BloomParams p;
+      p.storage = storage;
+      p.kernel = kernel;
+      p.nonfinite = policy;
+      p.plan = PlanMode::full;
+      p.blur = BlurImpl::reference;
+      const Plan ref_plan = make_plan(p, scene.cview());
+      const Image ref = execute(ref_plan, scene.cview()).final_image();
+      for (PlanMode mode : {PlanMode::full, PlanMode::adaptive}) {
+        p.plan = mode;
+        p.blur = BlurImpl::fast;
+        INFO(name << " " << to_string(storage) << " " << to_string(kernel) << " "
+                  << to_string(policy) << " plan " << to_string(mode));
+        CHECK(test::same_bits_nan_agnostic(
+            ref.cview(), execute(make_plan(p, scene.cview()), scene.cview()).final_image().cview()));
+      }
+    }
+  }
+}
