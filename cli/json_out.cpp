@@ -32,9 +32,12 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
 }
 
 std::string cpu_renderer(const BloomParams& p) {
-  const bool fast = p.precision == Precision::f32 && p.blur == BlurImpl::fast;
-  return "cpu: bloomref " + to_string(p.precision) + " (" +
-         (fast ? "fast blur, " + blur_isa_name() : std::string("reference blur")) + "), " +
+  const bool f32 = p.precision == Precision::f32;
+  std::string blur = "reference blur";
+  if (f32 && p.blur == BlurImpl::fast) blur = "fast blur, " + blur_isa_name();
+  if (f32 && p.blur == BlurImpl::approx)
+    blur = "approximate blur, " + std::string(blur_isa_name() == "avx2" ? "avx2+fma" : "generic");
+  return "cpu: bloomref " + to_string(p.precision) + " (" + blur + "), " +
          std::to_string(resolve_threads(p.threads)) + " threads";
 }
 

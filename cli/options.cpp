@@ -28,8 +28,9 @@ void PipelineOptions::add_to(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--threads", p.threads, "0 = all hardware threads")->capture_default_str();
   app.add_option("--plan", plan, "adaptive | full (same bits)")->capture_default_str();
-  app.add_option("--blur", blur, "f32 gaussian blur: fast (tiled, vectorised) | reference (the "
-                                 "per-texel loop); same bits")
+  app.add_option("--blur", blur,
+                 "f32 gaussian blur: fast (tiled, vectorised) | reference (the per-texel loop), "
+                 "same bits; approx (texel-exact taps, FMA: faster, not GL's sampling)")
       ->capture_default_str();
   app.add_option("--levels", p.levels, "mip: downsample levels (fewer when the image ends)")
       ->capture_default_str();

@@ -25,7 +25,7 @@ constexpr int kTileAcrossV = 1024;
 bool cpu_has_avx2() {
 #if defined(__x86_64__) && defined(BLOOMREF_HAVE_AVX2_KERNEL)
   __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2");
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
 #else
   return false;
 #endif
@@ -34,7 +34,7 @@ bool cpu_has_avx2() {
 BlurIsa resolve(BlurIsa isa) {
   if (isa == BlurIsa::best) return cpu_has_avx2() ? BlurIsa::avx2 : BlurIsa::generic;
   if (isa == BlurIsa::avx2 && !cpu_has_avx2())
-    throw ParamError("the AVX2 blur kernel is not available on this CPU or build");
+    throw ParamError("the AVX2 (+FMA) blur kernels are not available on this CPU or build");
   return isa;
 }
 
@@ -116,6 +116,29 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
       }
     }
   });
+}
+
+void blur_pass_approx(BasicView<const float> src, BasicView<float> dst,
+                      const BlurPassOptions& opt, int threads, BlurIsa isa) {
+  isa = resolve(isa);
+  // Both kernels' exact sampling is this stencil (tests: "linear5 equals discrete9 with exact
+  // sampling"); the exact rational weights rounded once to float.
+  const Kernel& k = kernel_discrete9();
+  std::vector<float> w(k.weights_f64.begin(), k.weights_f64.end());
+  detail::ApproxJob job;
+  job.src = src.data;
+  job.src_stride = src.stride * kChannels;
+  job.dst = dst.data;
+  job.dst_stride = dst.stride * kChannels;
+  job.width = src.width;
+  job.height = src.height;
+  job.horizontal = opt.axis == Axis::horizontal;
+  job.weights = w.data();
+  job.n_weights = static_cast<int>(w.size());
+  job.active = opt.active;
+  const auto kernel =
+      isa == BlurIsa::avx2 ? detail::blur_approx_avx2_fma : detail::blur_approx_generic;
+  parallel_rows(src.height, threads, [&](int y0, int y1) { kernel(job, y0, y1); });
 }
 
 }  // namespace bloomref

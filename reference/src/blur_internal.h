@@ -60,3 +60,23 @@ void blur_tiles_generic(const TileJob& job, int t0, int t1);
 void blur_tiles_avx2(const TileJob& job, int t0, int t1);
 
 }  // namespace bloomref::detail
+
+namespace bloomref::detail {
+
+/// One pass of the fast approximate blur (blur_approx.inc), rows [y0, y1) of the output.
+struct ApproxJob {
+  const float* src = nullptr;
+  std::ptrdiff_t src_stride = 0;  ///< floats per row
+  float* dst = nullptr;
+  std::ptrdiff_t dst_stride = 0;
+  int width = 0, height = 0;
+  bool horizontal = true;
+  const float* weights = nullptr;  ///< centre first, then pairs at +-1, +-2, ... texels (<= 7)
+  int n_weights = 0;
+  const std::uint8_t* active = nullptr;  ///< optional mask; rows without an active texel are 0
+};
+
+void blur_approx_generic(const ApproxJob& job, int y0, int y1);
+void blur_approx_avx2_fma(const ApproxJob& job, int y0, int y1);
+
+}  // namespace bloomref::detail

@@ -102,6 +102,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         if constexpr (std::is_same_v<T, float>) {
           if (p.blur == BlurImpl::fast) blur_pass_fast(src.cview(), pong.view(), o, threads);
+          else if (p.blur == BlurImpl::approx) blur_pass_approx(src.cview(), pong.view(), o, threads);
           else blur_pass(src.cview(), pong.view(), o, threads);
         } else {
           blur_pass(src.cview(), pong.view(), o, threads);

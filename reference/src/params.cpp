@@ -43,7 +43,8 @@ constexpr std::pair<const char*, CompositeOrder> kOrders[] = {
 constexpr std::pair<const char*, PlanMode> kPlans[] = {{"adaptive", PlanMode::adaptive},
                                                        {"full", PlanMode::full}};
 constexpr std::pair<const char*, BlurImpl> kBlurs[] = {{"fast", BlurImpl::fast},
-                                                       {"reference", BlurImpl::reference}};
+                                                       {"reference", BlurImpl::reference},
+                                                       {"approx", BlurImpl::approx}};
 
 std::string str(float v) {
   std::ostringstream o;

@@ -20,9 +20,10 @@ enum class NonFinite { zero, clamp, propagate, error };
 /// `adaptive` leaves out work the scene does not need (same bits as `full`).
 enum class PlanMode { adaptive, full };
 /// How the f32 gaussian blur is computed: `fast` (tiled and vectorised, blur_pass_fast) and
-/// `reference` (the straightforward per-texel loop, blur_pass) give the same bits. f64 always
-/// uses the reference loop.
-enum class BlurImpl { fast, reference };
+/// `reference` (the straightforward per-texel loop, blur_pass) give the same bits; `approx`
+/// (blur_pass_approx) is faster and not GL's sampling: its error is measured, not assumed.
+/// f64 always uses the reference loop.
+enum class BlurImpl { fast, reference, approx };
 /// Where the bloom is added: to the HDR scene before the tone map (the classic, seed 000), or to
 /// the tone-mapped image (seed 003: mapped + 0.02 * bloom with exposure 0.5).
 enum class CompositeOrder { before_tonemap, after_tonemap };

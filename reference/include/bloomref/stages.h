@@ -116,6 +116,14 @@ std::string blur_isa_name(BlurIsa isa = BlurIsa::best);
 void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
                     int threads, BlurIsa isa = BlurIsa::best);
 
+/// Stage `blur.k`, fast and approximate: not GL's sampling but the 9-tap stencil both kernels
+/// sample exactly (taps on texels x +- i, clamped to the edge, the discrete9 weights rounded to
+/// float), pairs summed first, multiply-adds fused with AVX2+FMA. Its error against the f64
+/// truth is measured (docs/tradeoff.md). Honours opt.active row by row (a row without an active
+/// texel is written (0, 0, 0, 1)); ignores subtexel_bits.
+void blur_pass_approx(BasicView<const float> src, BasicView<float> dst,
+                      const BlurPassOptions& opt, int threads, BlurIsa isa = BlurIsa::best);
+
 /// The texels whose RGB is not +0 in every channel (bit-exact: -0, NaN and Inf count), as a
 /// width x height mask. Returns how many.
 template <class T>
