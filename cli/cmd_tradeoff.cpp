@@ -66,8 +66,13 @@ std::function<int()> add_tradeoff(CLI::App& app) {
       adjust(p);
       configs.push_back({std::move(name), p, gl, k});
     };
-    add("cpu f32 discrete9 full", [](BloomParams& p) { p.plan = PlanMode::full; });
-    add("cpu f32 discrete9 adaptive", [](BloomParams&) {});
+    add("cpu f32 discrete9 full (reference loop)", [](BloomParams& p) {
+      p.plan = PlanMode::full;
+      p.blur = BlurImpl::reference;
+    });
+    add("cpu f32 discrete9 full (fast exact)", [](BloomParams& p) { p.plan = PlanMode::full; });
+    add("cpu f32 discrete9 adaptive (fast exact)", [](BloomParams&) {});
+    add("cpu f32 approx (fast approximate)", [](BloomParams& p) { p.blur = BlurImpl::approx; });
     add("cpu f32 linear5", [](BloomParams& p) { p.kernel = KernelName::linear5; });
     add("cpu f32 discrete9 f16", [](BloomParams& p) { p.storage = Storage::f16; });
     add("cpu f64 discrete9 (truth)", [](BloomParams& p) { p.precision = Precision::f64; });
@@ -192,8 +197,9 @@ std::function<int()> add_tradeoff(CLI::App& app) {
     int i = 0;
     for (const Point& p : points) {
       const double x = X(p.ms), y = Y(p.out_max);
+      ++i;
       svg << "<circle cx='" << x << "' cy='" << y << "' r='5' fill='" << (p.front ? "#c00" : "#36c")
-          << "'/><text x='" << x + 7 << "' y='" << y - 4 << "' font-size='9'>" << ++i << "</text>"
+          << "'/><text x='" << x + 7 << "' y='" << y - 4 << "' font-size='9'>" << i << "</text>"
           << "<text x='" << W - R + 12 << "' y='" << T + 14 * i << "' fill='"
           << (p.front ? "#c00" : "#333") << "'>" << i << ". " << p.name << "</text>";
     }
