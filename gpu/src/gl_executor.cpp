@@ -48,6 +48,46 @@ Image to_image(const Texture& t) {
   return img;
 }
 
+struct Rect {
+  int x, y, w, h;
+};
+
+// The adaptive plan on the GL path: runs of active tiles of a texel mask, as scissor
+// rectangles. A tile is active when a set texel lies in it or one texel outside it (a device
+// whose coordinates round a tap one texel further than the CPU's tables still stays inside).
+std::vector<Rect> active_rects(const std::vector<std::uint8_t>& mask, int w, int h, int tile,
+                               std::size_t& area) {
+  const int tw = (w + tile - 1) / tile, th = (h + tile - 1) / tile;
+  std::vector<std::uint8_t> on(std::size_t(tw) * th, 0);
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* m = mask.data() + std::size_t(y) * w;
+    const int ty0 = std::max(y - 1, 0) / tile, ty1 = std::min(y + 1, h - 1) / tile;
+    for (int x = 0; x < w; ++x) {
+      if (!m[x]) continue;
+      const int tx0 = std::max(x - 1, 0) / tile, tx1 = std::min(x + 1, w - 1) / tile;
+      on[std::size_t(ty0) * tw + tx0] = on[std::size_t(ty0) * tw + tx1] = 1;
+      on[std::size_t(ty1) * tw + tx0] = on[std::size_t(ty1) * tw + tx1] = 1;
+    }
+  }
+  std::vector<Rect> rects;
+  area = 0;
+  for (int ty = 0; ty < th; ++ty) {
+    for (int tx = 0; tx < tw;) {
+      if (!on[std::size_t(ty) * tw + tx]) {
+        ++tx;
+        continue;
+      }
+      const int start = tx;
+      while (tx < tw && on[std::size_t(ty) * tw + tx]) ++tx;
+      const Rect r{start * tile, ty * tile, std::min(w, tx * tile) - start * tile,
+                   std::min(h, (ty + 1) * tile) - ty * tile};
+      area += std::size_t(r.w) * r.h;
+      rects.push_back(r);
+    }
+  }
+  return rects;
+}
+
 // Runs one stage program over the whole texture, as a draw or a dispatch.
 class StageRunner {
  public:
@@ -57,9 +97,11 @@ class StageRunner {
   }
   ~StageRunner() { glDeleteVertexArrays(1, &vao_); }
 
-  /// Binds `inputs` to texture units 0.. and writes `out0` (and `out1`).
+  /// Binds `inputs` to texture units 0.. and writes `out0` (and `out1`). With `rects`
+  /// (fragment shaders only), the target is cleared to (0, 0, 0, 1) -- what the stage gives
+  /// where the adaptive plan left it out -- and drawn inside the rectangles only.
   void run(const Program& prog, const std::vector<const Texture*>& inputs, const Texture& out0,
-           const Texture* out1 = nullptr) {
+           const Texture* out1 = nullptr, const std::vector<Rect>* rects = nullptr) {
     glUseProgram(prog.id);
     if (!compute_) prog.set("u_target_size", out0.width, out0.height);
     for (std::size_t i = 0; i < inputs.size(); ++i) {
@@ -75,7 +117,18 @@ class StageRunner {
     } else {
       Framebuffer fb(out0, out1);
       glViewport(0, 0, out0.width, out0.height);
-      glDrawArrays(GL_TRIANGLES, 0, 3);
+      if (rects) {
+        glClearColor(0.0f, 0.0f, 0.0f, 1.0f);
+        glClear(GL_COLOR_BUFFER_BIT);
+        glEnable(GL_SCISSOR_TEST);
+        for (const Rect& r : *rects) {
+          glScissor(r.x, r.y, r.w, r.h);
+          glDrawArrays(GL_TRIANGLES, 0, 3);
+        }
+        glDisable(GL_SCISSOR_TEST);
+      } else {
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+      }
       glBindFramebuffer(GL_FRAMEBUFFER, 0);
     }
   }
@@ -160,6 +213,15 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
 
   StageRunner runner(compute, fmt);
   StageTrace trace;
+  // The adaptive plan's texel support, as on the CPU, turned into scissor rectangles of 64x64
+  // tiles (fragment shaders; the compute path dispatches whole images). Faults run unscissored.
+  const bool scissor = p.plan == PlanMode::adaptive && !compute && !mip && opt.fault == Fault::none;
+  constexpr int kScissorTile = 64;
+  // Above this fraction of the image the readback, support and many draws cost more than the
+  // texels saved (BrightRingsNanInf: 148 ms unscissored, 186 ms scissored on llvmpipe).
+  constexpr double kScissorMaxFraction = 0.75;
+  bool support_everywhere = false;
+  std::vector<std::uint8_t> support, next_support;
   trace.nonfinite = plan.facts.nonfinite;
   const Texture* bloom = &bright_t;
   auto finish = [&](const std::string& name, const Texture& t, Clock::time_point t0,
@@ -188,11 +250,31 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
         }
         Texture& target = ping[s.pass % 2];
         const Texture* src = bloom;
+        std::vector<Rect> rects;
+        if (scissor && !support_everywhere) {
+          // The CPU plan's texel support (stages.h: blur_support), from GL's own bright image.
+          if (support.empty()) {
+            const Image b = to_image(bright_t);
+            support.resize(std::size_t(w) * h);
+            nonzero_support(b.cview(), support.data(), 0);
+          }
+          next_support.resize(support.size());
+          const BlurPassOptions bo{s.axis, &kernel_for(p.kernel), p.subtexel_bits};
+          blur_support<float>(support.data(), next_support.data(), w, h, bo, 0);
+          std::swap(support, next_support);
+          std::size_t area = 0;
+          rects = active_rects(support, w, h, kScissorTile, area);
+          // Where it does not pay (the support only grows), whole passes from here on.
+          support_everywhere = double(area) > kScissorMaxFraction * double(w) * h;
+          trace.skipped_fraction.emplace_back(
+              s.name, support_everywhere ? 0.0 : 1.0 - double(area) / (double(w) * h));
+        }
         if (!(opt.fault == Fault::skip_pass && s.pass == 3)) {
           src->set_sampling(GL_LINEAR,
                             opt.fault == Fault::repeat_wrap ? GL_REPEAT : GL_CLAMP_TO_EDGE);
           blur.set("horizontal", s.axis == Axis::horizontal ? 1 : 0);
-          runner.run(blur, {src}, target);
+          runner.run(blur, {src}, target, nullptr,
+                     scissor && !support_everywhere ? &rects : nullptr);
         }
         bloom = &target;
         finish(s.name, target, t0);
