@@ -252,6 +252,10 @@ std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, i
   parallel_rows(height, threads, [&](int y0, int y1) {
     std::vector<int> prefix(w + 1);
     std::vector<std::uint8_t> row(w);
+    // Vertical: per-column counts of set texels over the window [lo[y], hi[y]], slid row by row
+    // (lo and hi never decrease), so each output row costs two row updates, not ten.
+    std::vector<std::uint32_t> count(horizontal ? 0 : w);
+    int win_lo = 0, win_hi = -1;  // rows currently counted
     for (int y = y0; y < y1; ++y) {
       std::uint8_t* o = out + std::size_t(y) * w;
       std::size_t n = 0;
@@ -269,11 +273,20 @@ std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, i
           n += o[x];
         }
       } else {
-        std::fill(row.begin(), row.end(), 0);
-        for (int r = lo[y]; r <= hi[y]; ++r) {
-          const std::uint8_t* src = in + std::size_t(r) * w;
-          for (std::size_t x = 0; x < w; ++x) row[x] |= src[x];
+        if (lo[y] > win_hi) {  // restart the window (first row of this range, or a gap)
+          std::fill(count.begin(), count.end(), 0);
+          win_lo = lo[y];
+          win_hi = win_lo - 1;
         }
+        for (; win_hi < hi[y];) {
+          const std::uint8_t* src = in + std::size_t(++win_hi) * w;
+          for (std::size_t x = 0; x < w; ++x) count[x] += src[x];
+        }
+        for (; win_lo < lo[y]; ++win_lo) {
+          const std::uint8_t* src = in + std::size_t(win_lo) * w;
+          for (std::size_t x = 0; x < w; ++x) count[x] -= src[x];
+        }
+        for (std::size_t x = 0; x < w; ++x) row[x] = count[x] != 0;
         for (std::size_t x = 0; x < w; ++x) {
           const AxisTap<T>& a = across[x];
           o[x] = row[a.i0] | row[a.i1];

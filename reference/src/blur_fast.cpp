@@ -21,6 +21,7 @@ namespace {
 constexpr int kTileAlong = 64;
 constexpr int kTileAcrossH = 32;
 constexpr int kTileAcrossV = 1024;
+constexpr int kTileAcrossVMasked = 128;
 
 bool cpu_has_avx2() {
 #if defined(__x86_64__) && defined(BLOOMREF_HAVE_AVX2_KERNEL)
@@ -79,7 +80,8 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   job.n_along = n_along;
   job.n_across = n_across;
   job.tile_along = kTileAlong;
-  job.tile_across = horizontal ? kTileAcrossH : kTileAcrossV;
+  // With a mask, narrower vertical tiles: more of them can be left out whole.
+  job.tile_across = horizontal ? kTileAcrossH : opt.active ? kTileAcrossVMasked : kTileAcrossV;
   job.tiles_along = (n_along + kTileAlong - 1) / kTileAlong;
   job.taps = kernel_taps.taps.data();
   job.taps_per_position = along.per_position;
