@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "blur_internal.h"
+#include "simd_lanes.h"
 #include "bloomref/parallel.h"
 #include "bloomref/sampler.h"
 #include "bloomref/stages.h"
@@ -85,25 +86,20 @@ inline void convolve(const std::vector<T>& w, Sample sample, T out[3]) {
   }
 }
 
-// RGBA as one 4-lane vector (GCC/Clang vector extension: SSE on x86-64, IEEE per lane).
-typedef float v4 __attribute__((vector_size(16)));
-
-inline v4 load4(const float* p) {
-  v4 v;
-  __builtin_memcpy(&v, p, sizeof v);
-  return v;
-}
+// RGBA as one 4-lane vector (simd_lanes.h: SSE on x86-64, IEEE per lane).
+using detail::load;
+using v4 = detail::v4f;
 
 // convolve() with sample_pair(), four lanes at once.
 template <class Texel>
 inline v4 convolve_v4(const std::vector<float>& w, const AxisTap<float>* taps, Texel texel) {
   auto sample = [&](const AxisTap<float>& t) {
     if (t.w0 != 0.0f) {
-      v4 s = load4(texel(t, 0)) * t.w0;
-      if (t.w1 != 0.0f) s = s + load4(texel(t, 1)) * t.w1;
+      v4 s = load<v4>(texel(t, 0)) * t.w0;
+      if (t.w1 != 0.0f) s = s + load<v4>(texel(t, 1)) * t.w1;
       return s;
     }
-    return load4(texel(t, 1)) * t.w1;
+    return load<v4>(texel(t, 1)) * t.w1;
   };
   v4 r = sample(taps[0]) * w[0];
   for (std::size_t i = 1; i < w.size(); ++i) {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "blur_internal.h"
+#include "simd_lanes.h"
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
 #include "bloomref/stages.h"
@@ -62,13 +63,12 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   for (AxisTap<float>& t : kernel_taps.taps)
     if (t.w0 == 0.0f) t = {t.i1, t.i1, t.w1, 0.0f};
 
+  // Lines whose lookup across the blur is not exactly line b (weight 1): recomputed below.
   std::vector<AxisTap<float>> across(n_across);
-  std::vector<std::uint8_t> exact(n_across);
   std::vector<int> inexact;
   for (int b = 0; b < n_across; ++b) {
     across[b] = detail::centre_tap(b, n_across, opt.subtexel_bits, float());
-    exact[b] = across[b].w1 == 0.0f && across[b].i0 == b;
-    if (!exact[b]) inexact.push_back(b);
+    if (across[b].w1 != 0.0f || across[b].i0 != b) inexact.push_back(b);
   }
 
   detail::TileJob job;
@@ -87,8 +87,6 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   job.taps_per_position = along.per_position;
   const std::vector<float>& w = opt.kernel->weights_f32;
   job.weights = w.data();
-  job.n_weights = static_cast<int>(w.size());
-  job.exact_across = exact.data();
   job.active = opt.active;
   job.width = src.width;
   const int tiles_across = (n_across + job.tile_across - 1) / job.tile_across;
@@ -108,12 +106,10 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
         for (int a = a0; a < a1; ++a) {
           const int x = horizontal ? a : b, y = horizontal ? b : a;
           float* d = dst.pixel(x, y);
-          if (opt.active && !opt.active[std::size_t(y) * src.width + x]) {
-            d[0] = d[1] = d[2] = 0.0f;
-            d[3] = 1.0f;
-            continue;
-          }
-          detail::blur_texel(src, horizontal, along.at(a), across[b], w, d);
+          if (opt.active && !opt.active[std::size_t(y) * src.width + x])
+            detail::fill_zero_alpha_one(d, 1, 0);
+          else
+            detail::blur_texel(src, horizontal, along.at(a), across[b], w, d);
         }
       }
     }

@@ -45,17 +45,15 @@ struct TileJob {
   int tile_along = 0, tile_across = 0, tiles_along = 0;
   const AxisTap<float>* taps = nullptr;  ///< n_along x taps_per_position, shader order
   int taps_per_position = 0;
-  const float* weights = nullptr;  ///< kernel weights, centre first
-  int n_weights = 0;
-  /// Per across position b: 1 when its lookup sits exactly on line b (weight 1), else 0; the
-  /// kernel computes such lines as if it were exact and the caller recomputes them.
-  const std::uint8_t* exact_across = nullptr;
+  /// Kernel weights, centre first. Every line is computed as if its lookup across the blur sat
+  /// exactly on it; the caller recomputes the lines where it does not.
+  const float* weights = nullptr;
   const std::uint8_t* active = nullptr;  ///< optional width x height mask (stages.h)
   int width = 0;
 };
 
-/// Computes tiles [t0, t1) of `job`: every texel of an exact-across line bit-identical to
-/// blur_texel. Compiled once per instruction set; the same IEEE operations in every lane.
+/// Computes tiles [t0, t1) of `job`: every texel of a line whose lookup across the blur is
+/// exact is bit-identical to blur_texel. Compiled once per instruction set; the same IEEE operations in every lane.
 void blur_tiles_generic(const TileJob& job, int t0, int t1);
 void blur_tiles_avx2(const TileJob& job, int t0, int t1);
 
