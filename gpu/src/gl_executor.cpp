@@ -55,12 +55,12 @@ struct Rect {
 // The adaptive plan on the GL path: runs of active tiles of a texel mask, as scissor
 // rectangles. A tile is active when a set texel lies in it or one texel outside it (a device
 // whose coordinates round a tap one texel further than the CPU's tables still stays inside).
-std::vector<Rect> active_rects(const std::vector<std::uint8_t>& mask, int w, int h, int tile,
+std::vector<Rect> active_rects(const std::uint8_t* mask, int w, int h, int tile,
                                std::size_t& area) {
   const int tw = (w + tile - 1) / tile, th = (h + tile - 1) / tile;
   std::vector<std::uint8_t> on(std::size_t(tw) * th, 0);
   for (int y = 0; y < h; ++y) {
-    const std::uint8_t* m = mask.data() + std::size_t(y) * w;
+    const std::uint8_t* m = mask + std::size_t(y) * w;
     const int ty0 = std::max(y - 1, 0) / tile, ty1 = std::min(y + 1, h - 1) / tile;
     for (int x = 0; x < w; ++x) {
       if (!m[x]) continue;
@@ -217,11 +217,9 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
   // tiles (fragment shaders; the compute path dispatches whole images). Faults run unscissored.
   const bool scissor = p.plan == PlanMode::adaptive && !compute && !mip && opt.fault == Fault::none;
   constexpr int kScissorTile = 64;
-  // Above this fraction of the image the readback, support and many draws cost more than the
-  // texels saved (BrightRingsNanInf: 148 ms unscissored, 186 ms scissored on llvmpipe).
-  constexpr double kScissorMaxFraction = 0.75;
-  bool support_everywhere = false;
-  std::vector<std::uint8_t> support, next_support;
+  // Above 75% of the image the readback, support and many draws cost more than the texels
+  // saved (BrightRingsNanInf: 148 ms unscissored, 186 ms scissored on llvmpipe).
+  BlurSupportTracker support(w, h, 0.75);
   trace.nonfinite = plan.facts.nonfinite;
   const Texture* bloom = &bright_t;
   auto finish = [&](const std::string& name, const Texture& t, Clock::time_point t0,
@@ -251,30 +249,22 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
         Texture& target = ping[s.pass % 2];
         const Texture* src = bloom;
         std::vector<Rect> rects;
-        if (scissor && !support_everywhere) {
-          // The CPU plan's texel support (stages.h: blur_support), from GL's own bright image.
-          if (support.empty()) {
-            const Image b = to_image(bright_t);
-            support.resize(std::size_t(w) * h);
-            nonzero_support(b.cview(), support.data(), 0);
-          }
-          next_support.resize(support.size());
+        const std::uint8_t* active = nullptr;
+        if (scissor && !support.dense()) {
+          // The CPU plan's texel support (stages.h), from GL's own bright image.
+          if (!support.started()) support.start(to_image(bright_t).cview(), 0);
           const BlurPassOptions bo{s.axis, &kernel_for(p.kernel), p.subtexel_bits};
-          blur_support<float>(support.data(), next_support.data(), w, h, bo, 0);
-          std::swap(support, next_support);
+          active = support.advance<float>(bo, 0);
           std::size_t area = 0;
-          rects = active_rects(support, w, h, kScissorTile, area);
-          // Where it does not pay (the support only grows), whole passes from here on.
-          support_everywhere = double(area) > kScissorMaxFraction * double(w) * h;
+          if (active) rects = active_rects(active, w, h, kScissorTile, area);
           trace.skipped_fraction.emplace_back(
-              s.name, support_everywhere ? 0.0 : 1.0 - double(area) / (double(w) * h));
+              s.name, active ? 1.0 - double(area) / (double(w) * h) : 0.0);
         }
         if (!(opt.fault == Fault::skip_pass && s.pass == 3)) {
           src->set_sampling(GL_LINEAR,
                             opt.fault == Fault::repeat_wrap ? GL_REPEAT : GL_CLAMP_TO_EDGE);
           blur.set("horizontal", s.axis == Axis::horizontal ? 1 : 0);
-          runner.run(blur, {src}, target, nullptr,
-                     scissor && !support_everywhere ? &rects : nullptr);
+          runner.run(blur, {src}, target, nullptr, active ? &rects : nullptr);
         }
         bloom = &target;
         finish(s.name, target, t0);

@@ -297,6 +297,29 @@ std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, i
   return total;
 }
 
+template <class T>
+void BlurSupportTracker::start(BasicView<const T> bright, int threads) {
+  support_.resize(std::size_t(width_) * height_);
+  count_ = nonzero_support(bright, support_.data(), threads);
+}
+
+template <class T>
+const std::uint8_t* BlurSupportTracker::advance(const BlurPassOptions& opt, int threads) {
+  if (!dense_) {
+    next_.resize(support_.size());
+    count_ = blur_support<T>(support_.data(), next_.data(), width_, height_, opt, threads);
+    std::swap(support_, next_);
+    dense_ = double(count_) > dense_fraction_ * double(width_) * height_;
+  }
+  if (dense_) count_ = std::size_t(width_) * height_;
+  return dense_ ? nullptr : support_.data();
+}
+
+template void BlurSupportTracker::start<float>(BasicView<const float>, int);
+template void BlurSupportTracker::start<double>(BasicView<const double>, int);
+template const std::uint8_t* BlurSupportTracker::advance<float>(const BlurPassOptions&, int);
+template const std::uint8_t* BlurSupportTracker::advance<double>(const BlurPassOptions&, int);
+
 template std::size_t nonzero_support<float>(BasicView<const float>, std::uint8_t*, int);
 template std::size_t nonzero_support<double>(BasicView<const double>, std::uint8_t*, int);
 template std::size_t blur_support<float>(const std::uint8_t*, std::uint8_t*, int, int,

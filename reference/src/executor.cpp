@@ -42,9 +42,8 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   // Method mip: level k of the down and up chains (index 0 unused), and the full-size bloom.
   std::vector<BasicImage<T>> down(plan.levels.size() + 1), up(plan.levels.size() + 1);
   BasicImage<T> mip_bloom, mapped;
-  std::vector<std::uint8_t> support, next_support;  // adaptive plan: the blur's nonzero texels
-  constexpr double kDenseSupport = 0.5;
-  bool support_dense = false;
+  // Adaptive plan: the blur's nonzero texels; whole passes once they cover half the image.
+  BlurSupportTracker support(w, h, 0.5);
   const int top = static_cast<int>(plan.levels.size());
 
   for (const StageSpec& stage : plan.stages) {
@@ -90,21 +89,12 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         if (pong.empty()) pong = BasicImage<T>(w, h);
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
         const bool first_pass = stage.pass == 1;
-        if (p.plan == PlanMode::adaptive && !support_dense) {
+        if (p.plan == PlanMode::adaptive) {
           // Blur only the bright pixels' support, dilated pass by pass by the taps' reach.
-          if (support.empty()) {
-            support.resize(std::size_t(w) * h);
-            nonzero_support(bright.cview(), support.data(), threads);
-          }
-          next_support.resize(support.size());
-          const std::size_t n = blur_support<T>(support.data(), next_support.data(), w, h, o, threads);
-          std::swap(support, next_support);
-          // The support only grows: once it covers most of the image, tracking it costs more
-          // than it saves (measured with scripts/adaptive-table), so whole passes from here on.
-          support_dense = double(n) > kDenseSupport * double(w) * h;
-          o.active = support_dense ? nullptr : support.data();
+          if (!support.started()) support.start(bright.cview(), threads);
+          o.active = support.advance<T>(o, threads);
           trace.skipped_fraction.emplace_back(
-              stage.name, support_dense ? 0.0 : 1.0 - double(n) / (double(w) * h));
+              stage.name, 1.0 - double(support.count()) / (double(w) * h));
         }
         if constexpr (std::is_same_v<T, float>) {
           if (p.blur == BlurImpl::fast) blur_pass_fast(src.cview(), pong.view(), o, threads);

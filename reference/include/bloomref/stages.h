@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "bloomref/half.h"
 #include "bloomref/image.h"
@@ -135,6 +136,34 @@ std::size_t nonzero_support(BasicView<const T> img, std::uint8_t* mask, int thre
 template <class T>
 std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, int height,
                          const BlurPassOptions& opt, int threads);
+
+/// The adaptive plan's support through the blur passes, one tracker for the CPU and the GL
+/// executors: the bright image's nonzero texels, then each pass's blur_support. The support only
+/// grows; once it covers more than `dense_fraction` of the image, tracking it costs more than it
+/// saves (scripts/adaptive-table), so the tracker stops and says so: whole passes from there.
+class BlurSupportTracker {
+ public:
+  BlurSupportTracker(int width, int height, double dense_fraction)
+      : width_(width), height_(height), dense_fraction_(dense_fraction) {}
+  /// Pass 1's input, the bright image (read once, on the first advance).
+  template <class T>
+  void start(BasicView<const T> bright, int threads);
+  bool started() const { return !support_.empty(); }
+  /// This pass's output support, width x height, row-major; nullptr once dense. T chooses the
+  /// tap tables (f32: the shader's coordinates; f64: exact taps).
+  template <class T>
+  const std::uint8_t* advance(const BlurPassOptions& opt, int threads);
+  bool dense() const { return dense_; }
+  /// Set texels of the last pass's support (the whole image once dense).
+  std::size_t count() const { return count_; }
+
+ private:
+  int width_, height_;
+  double dense_fraction_;
+  bool dense_ = false;
+  std::size_t count_ = 0;
+  std::vector<std::uint8_t> support_, next_;
+};
 
 /// Stage `composite`: scene + strength * bloom (f32: t = strength * bloom; scene + t).
 template <class T>
