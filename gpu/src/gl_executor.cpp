@@ -217,9 +217,9 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
   // tiles (fragment shaders; the compute path dispatches whole images). Faults run unscissored.
   const bool scissor = p.plan == PlanMode::adaptive && !compute && !mip && opt.fault == Fault::none;
   constexpr int kScissorTile = 64;
-  // Above 75% of the image the readback, support and many draws cost more than the texels
+  // Above half the image the readback, support and many draws cost more than the texels
   // saved (BrightRingsNanInf: 148 ms unscissored, 186 ms scissored on llvmpipe).
-  BlurSupportTracker support(w, h, 0.75);
+  BlurSupportTracker support(w, h, 0.5);
   trace.nonfinite = plan.facts.nonfinite;
   const Texture* bloom = &bright_t;
   auto finish = [&](const std::string& name, const Texture& t, Clock::time_point t0,
