@@ -6,6 +6,10 @@
 #include <cstring>
 #include <filesystem>
 
+#include "bloomref/executor.h"
+#include "bloomref/io.h"
+#include "bloomref/scenes.h"
+
 namespace bloomref::test {
 
 std::vector<std::string> corpus_files() {
@@ -18,6 +22,20 @@ std::vector<std::string> corpus_files() {
   }
   std::sort(files.begin(), files.end());
   return files;
+}
+
+std::vector<std::pair<std::string, Image>> scenes_and_corpus(
+    std::vector<std::pair<std::string, Image>> extra) {
+  std::vector<std::pair<std::string, Image>> inputs;
+  for (const SceneInfo& s : scene_list()) inputs.emplace_back(s.name, make_scene(s.name));
+  for (const std::string& f : corpus_files())
+    inputs.emplace_back(std::filesystem::path(f).filename().string(), load_image(f).image);
+  for (auto& e : extra) inputs.push_back(std::move(e));
+  return inputs;
+}
+
+Image run_output(const Image& scene, const BloomParams& p) {
+  return execute(make_plan(p, scene.cview()), scene.cview()).final_image();
 }
 
 Image constant_image(int w, int h, float v) {

@@ -5,11 +5,20 @@
 #include <vector>
 
 #include "bloomref/image.h"
+#include "bloomref/params.h"
 
 namespace bloomref::test {
 
 /// Paths of every image in $BLOOMREF_CORPUS (sorted); empty when the variable is unset.
 std::vector<std::string> corpus_files();
+
+/// Every built-in scene at its own size, then every corpus image (named by file name), then
+/// `extra` -- the inputs of the "on scenes and corpus" tests.
+std::vector<std::pair<std::string, Image>> scenes_and_corpus(
+    std::vector<std::pair<std::string, Image>> extra = {});
+
+/// The display output of a CPU run with these parameters.
+Image run_output(const Image& scene, const BloomParams& p);
 
 /// A w x h image with every pixel set to (v, v, v, 1).
 Image constant_image(int w, int h, float v);

@@ -10,12 +10,7 @@
 
 using namespace bloomref;
 
-namespace {
-Image run_output(const Image& scene, BloomParams p) {
-  const Plan plan = make_plan(p, scene.cview());
-  return execute(plan, scene.cview()).final_image();
-}
-}  // namespace
+using test::run_output;
 
 TEST_CASE("1, 2 and 8 threads give identical bits", "[determinism]") {
   std::vector<std::pair<std::string, Image>> scenes = {{"demo", make_scene("demo", 640, 360)}};
@@ -44,9 +39,7 @@ TEST_CASE("1, 2 and 8 threads give identical bits", "[determinism]") {
 }
 
 TEST_CASE("the adaptive plan gives the full plan's bits on scenes and corpus", "[determinism]") {
-  std::vector<std::pair<std::string, Image>> scenes;
-  for (const SceneInfo& s : scene_list()) scenes.emplace_back(s.name, make_scene(s.name));
-  for (const std::string& f : test::corpus_files()) scenes.emplace_back(f, load_image(f).image);
+  const auto scenes = test::scenes_and_corpus();
   int skipped_something = 0;
   for (const auto& [name, scene] : scenes) {
     BloomParams p;

@@ -26,10 +26,7 @@ void check_matrix_entry(gpu::ShaderKind shaders, Storage storage, KernelName ker
   gpu::GlContext* ctx = test::gl_context();
   if (!ctx) return;
   const parity::DeviceProfile profile = device_profile(*ctx);
-  std::vector<std::pair<std::string, Image>> inputs;
-  for (const SceneInfo& s : scene_list()) inputs.emplace_back(s.name, make_scene(s.name));
-  for (const std::string& f : test::corpus_files())
-    inputs.emplace_back(std::filesystem::path(f).filename().string(), load_image(f).image);
+  const auto inputs = test::scenes_and_corpus();
   if (test::corpus_files().empty()) WARN("BLOOMREF_CORPUS is not set: scenes only");
   for (const auto& [name, image] : inputs) {
     BloomParams p;
@@ -107,11 +104,8 @@ TEST_CASE("GL fragment: the adaptive plan's scissored passes give the full plan'
           "[gl][adaptive]") {
   gpu::GlContext* ctx = test::gl_context();
   if (!ctx) return;
-  std::vector<std::pair<std::string, Image>> inputs;
-  for (const SceneInfo& s : scene_list()) inputs.emplace_back(s.name, make_scene(s.name));
-  inputs.emplace_back("demo 1920x1080", make_scene("demo", 1920, 1080));
-  for (const std::string& f : test::corpus_files())
-    inputs.emplace_back(std::filesystem::path(f).filename().string(), load_image(f).image);
+  const auto inputs =
+      test::scenes_and_corpus({{"demo 1920x1080", make_scene("demo", 1920, 1080)}});
   int scissored = 0;
   for (const auto& [name, image] : inputs) {
     for (Storage storage : {Storage::f32, Storage::f16}) {
