@@ -8,7 +8,7 @@
 #include "commands.h"
 
 int main(int argc, char** argv) {
-  CLI::App app{"bloomref: the reference HDR bloom (CPU oracle; GL parity comes next)"};
+  CLI::App app{"bloomref: the reference HDR bloom (the CPU oracle and its GL parity)"};
   app.require_subcommand(1);
   auto run = bloomref::cli::add_run(app);
   auto scenes = bloomref::cli::add_scenes(app);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <type_traits>
 
 #include "bloomref/error.h"
@@ -45,6 +46,37 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   // Adaptive plan: the blur's nonzero texels; whole passes once they cover half the image.
   BlurSupportTracker support(w, h, 0.5);
   const int top = static_cast<int>(plan.levels.size());
+  // Adaptive plan, method mip: the texels of a chain stage that can be nonzero (mip_support),
+  // from the nonzero texels of what it reads; null (compute all) under the full plan or once
+  // they cover half the target. Records the skipped fraction.
+  // Up the chain the support only grows (each level adds the tent's reach to the one below and
+  // its own down level's), so once one up stage is dense the rest are computed whole untracked.
+  std::vector<std::uint8_t> mip_src_mask, mip_also_mask, mip_active;
+  bool mip_up_dense = false;
+  auto mip_mask = [&](const std::string& name, const BasicImage<T>& src, const BasicImage<T>& dst,
+                      int reach, const BasicImage<T>& also) -> const std::uint8_t* {
+    if (p.plan != PlanMode::adaptive) return nullptr;
+    const bool up_chain = reach == 1;
+    if (up_chain && mip_up_dense) {
+      trace.skipped_fraction.emplace_back(name, 0.0);
+      return nullptr;
+    }
+    mip_src_mask.resize(src.pixel_count());
+    nonzero_support(src.cview(), mip_src_mask.data(), threads);
+    if (!also.empty()) {
+      mip_also_mask.resize(also.pixel_count());
+      nonzero_support(also.cview(), mip_also_mask.data(), threads);
+    }
+    mip_active.resize(dst.pixel_count());
+    const std::size_t n = mip_support<T>(
+        mip_src_mask.data(), src.width(), src.height(), also.empty() ? nullptr : mip_also_mask.data(),
+        dst.width(), dst.height(), reach, p.subtexel_bits, mip_active.data(), threads);
+    const bool dense = 2 * n > dst.pixel_count();
+    mip_up_dense = up_chain && dense;
+    trace.skipped_fraction.emplace_back(
+        name, dense ? 0.0 : 1.0 - double(n) / double(dst.pixel_count()));
+    return dense ? nullptr : mip_active.data();
+  };
 
   for (const StageSpec& stage : plan.stages) {
     const auto t0 = Clock::now();
@@ -116,7 +148,17 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         const BasicImage<T>& src = k == 1 ? scene : down[k - 1];
         down[k] = BasicImage<T>(plan.levels[k - 1].width, plan.levels[k - 1].height);
         DownsampleOptions o{k == 1, p.threshold, p.karis && k == 1, p.subtexel_bits};
-        downsample(src.cview(), down[k].view(), o, threads);
+        // The first level reads the whole scene; the others only where the level above has
+        // anything (adaptive plan).
+        if (k > 1) o.active = mip_mask(stage.name, src, down[k], 2, BasicImage<T>());
+        if (k == 1 && p.plan == PlanMode::adaptive &&
+            mip_nothing_bright(src.cview(), double(p.threshold), threads)) {
+          std::vector<T>& v = down[k].values();  // every tap thresholded to zero
+          for (std::size_t i = 0; i < v.size(); ++i) v[i] = i % kChannels == 3 ? T(1) : T(0);
+          trace.skipped_fraction.emplace_back(stage.name, 1.0);
+        } else {
+          downsample(src.cview(), down[k].view(), o, threads);
+        }
         store(down[k].view(), p.storage, rounding, threads);
         record(stage.name, down[k], ms_since(t0), false);
         break;
@@ -125,7 +167,8 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         const int k = stage.pass;
         const BasicImage<T>& small = k + 1 == top ? down[top] : up[k + 1];
         up[k] = BasicImage<T>(down[k].width(), down[k].height());
-        upsample_tent(small.cview(), down[k].cview(), up[k].view(), p.subtexel_bits, threads);
+        upsample_tent(small.cview(), down[k].cview(), up[k].view(), p.subtexel_bits, threads,
+                      mip_mask(stage.name, small, up[k], 1, down[k]));
         store(up[k].view(), p.storage, rounding, threads);
         record(stage.name, up[k], ms_since(t0), false);
         break;
@@ -134,7 +177,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         const BasicImage<T>& small = top == 1 ? down[1] : up[1];
         mip_bloom = BasicImage<T>(w, h);
         upsample_tent(small.cview(), BasicView<const T>{}, mip_bloom.view(), p.subtexel_bits,
-                      threads);
+                      threads, mip_mask(stage.name, small, mip_bloom, 1, BasicImage<T>()));
         store(mip_bloom.view(), p.storage, rounding, threads);
         record(stage.name, mip_bloom, ms_since(t0), false);
         break;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "bloomref/parallel.h"
 #include "bloomref/sampler.h"
@@ -29,21 +30,51 @@ constexpr int kTentOffset[kTentTaps][2] = {{0, 0}, {-1, -1}, {0, -1}, {1, -1}, {
 constexpr float kTentWeight[kTentTaps] = {0.25f,  0.0625f, 0.125f,  0.0625f, 0.125f,
                                           0.0625f, 0.125f, 0.0625f, 0.125f};
 
-// One lookup of `src` for target texel (x, y) of a tw x th target, offset (ox, oy) source
-// texels: f32 as the shader computes uv + o * texel; f64 exactly in texel units.
-void lookup(BasicView<const float> src, int x, int y, int tw, int th, int ox, int oy, int bits,
-            float out[3]) {
-  const float u = texel_centre(x, tw), v = texel_centre(y, th);
-  const float tx = 1.0f / static_cast<float>(src.width), ty = 1.0f / static_cast<float>(src.height);
-  const float s = u + static_cast<float>(ox) * tx, t = v + static_cast<float>(oy) * ty;
-  sample_rgb(src, gl_axis_tap(s, src.width, bits), gl_axis_tap(t, src.height, bits), out);
+// One axis of a lookup for target texel x of a tn-texel target axis, offset o source texels on
+// an sn-texel source axis: f32 as the shader computes uv + o * texel; f64 exactly in texel units.
+AxisTap<float> axis_lookup(int x, int tn, int sn, int o, int bits, float) {
+  const float u = texel_centre(x, tn);
+  const float texel = 1.0f / static_cast<float>(sn);
+  return gl_axis_tap(u + static_cast<float>(o) * texel, sn, bits);
 }
 
-void lookup(BasicView<const double> src, int x, int y, int tw, int th, int ox, int oy, int,
-            double out[3]) {
-  const double u = (x + 0.5) * src.width / tw - 0.5 + ox;
-  const double v = (y + 0.5) * src.height / th - 0.5 + oy;
-  sample_rgb(src, exact_axis_tap(u, src.width), exact_axis_tap(v, src.height), out);
+AxisTap<double> axis_lookup(int x, int tn, int sn, int o, int, double) {
+  return exact_axis_tap((x + 0.5) * sn / tn - 0.5 + o, sn);
+}
+
+// A lookup's two axes depend on one coordinate and one offset each, so a stage computes them
+// once into tables (with axis_lookup, so the bits are the same) instead of per texel and tap.
+template <class T>
+class AxisTable {
+ public:
+  AxisTable(int tn, int sn, int o_min, int o_max, int bits) : n_(tn), o_min_(o_min) {
+    taps_.reserve(std::size_t(o_max - o_min + 1) * tn);
+    for (int o = o_min; o <= o_max; ++o)
+      for (int x = 0; x < tn; ++x) taps_.push_back(axis_lookup(x, tn, sn, o, bits, T()));
+  }
+  const AxisTap<T>& at(int x, int o) const { return taps_[std::size_t(o - o_min_) * n_ + x]; }
+
+ private:
+  int n_, o_min_;
+  std::vector<AxisTap<T>> taps_;
+};
+
+template <class T>
+struct Lookups {
+  AxisTable<T> x, y;
+  Lookups(BasicView<const T> src, int tw, int th, int reach, int bits)
+      : x(tw, src.width, -reach, reach, bits), y(th, src.height, -reach, reach, bits) {}
+  void sample(BasicView<const T> src, int tx, int ty, int ox, int oy, T out[3]) const {
+    sample_rgb(src, x.at(tx, ox), y.at(ty, oy), out);
+  }
+};
+
+// Where a stage's texel is left out (its mask is 0), it is written (+0, +0, +0, 1): what it
+// computes when every texel it reads is +0 (mip_support).
+template <class T>
+void write_zero(T* d) {
+  d[0] = d[1] = d[2] = T(0);
+  d[3] = T(1);
 }
 
 }  // namespace
@@ -82,7 +113,8 @@ const std::vector<MipTap>& tent_taps() {
 
 void mip_lookup(ConstImageView src, int x, int y, int tw, int th, int ox, int oy,
                 int subtexel_bits, float out[3]) {
-  lookup(src, x, y, tw, th, ox, oy, subtexel_bits, out);
+  sample_rgb(src, axis_lookup(x, tw, src.width, ox, subtexel_bits, float()),
+             axis_lookup(y, th, src.height, oy, subtexel_bits, float()), out);
 }
 
 std::vector<LevelSize> mip_levels(int width, int height, int levels) {
@@ -101,13 +133,17 @@ template <class T>
 void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
                 int threads) {
   const T threshold = static_cast<T>(opt.threshold);
+  const Lookups<T> lookups(src, dst.width, dst.height, 2, opt.subtexel_bits);
   parallel_rows(dst.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y)
       for (int x = 0; x < dst.width; ++x) {
+        if (opt.active && !opt.active[std::size_t(y) * dst.width + x]) {
+          write_zero(dst.pixel(x, y));
+          continue;
+        }
         T q[kDownTaps][3];
         for (int i = 0; i < kDownTaps; ++i) {
-          lookup(src, x, y, dst.width, dst.height, kDownOffset[i][0], kDownOffset[i][1],
-                 opt.subtexel_bits, q[i]);
+          lookups.sample(src, x, y, kDownOffset[i][0], kDownOffset[i][1], q[i]);
           if (opt.first && luminance(q[i][0], q[i][1], q[i][2]) < threshold)
             q[i][0] = q[i][1] = q[i][2] = T(0);
         }
@@ -142,17 +178,21 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
 
 template <class T>
 void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
-                   int subtexel_bits, int threads) {
+                   int subtexel_bits, int threads, const std::uint8_t* active) {
+  const Lookups<T> lookups(small, dst.width, dst.height, 1, subtexel_bits);
   parallel_rows(dst.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y)
       for (int x = 0; x < dst.width; ++x) {
+        if (active && !active[std::size_t(y) * dst.width + x]) {
+          write_zero(dst.pixel(x, y));
+          continue;
+        }
         T r[3] = {0, 0, 0};
         if (!current.empty())
           for (int c = 0; c < 3; ++c) r[c] = current.pixel(x, y)[c];
         for (int i = 0; i < kTentTaps; ++i) {
-          T s[3];
-          lookup(small, x, y, dst.width, dst.height, kTentOffset[i][0], kTentOffset[i][1],
-                 subtexel_bits, s);
+          T s[3] = {};  // sample_rgb writes all three; the init only quiets -Wuninitialized
+          lookups.sample(small, x, y, kTentOffset[i][0], kTentOffset[i][1], s);
           for (int c = 0; c < 3; ++c) r[c] = r[c] + s[c] * static_cast<T>(kTentWeight[i]);
         }
         T* d = dst.pixel(x, y);
@@ -164,13 +204,86 @@ void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicVi
   });
 }
 
+template <class T>
+bool mip_nothing_bright(BasicView<const T> scene, double threshold, int threads) {
+  if (!(threshold > 0.0)) return false;
+  std::vector<std::uint8_t> bright(scene.height, 0);
+  parallel_rows(scene.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const T* p = scene.row(y);
+      for (int x = 0; x < scene.width && !bright[y]; ++x, p += kChannels) {
+        const double r = p[0], g = p[1], b = p[2];
+        const double l = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+        const double m = std::fabs(r) + std::fabs(g) + std::fabs(b);
+        // !(a < b) also catches NaN and Inf.
+        bright[y] = !(l + 1e-4 * m < threshold);
+      }
+    }
+  });
+  return std::find(bright.begin(), bright.end(), std::uint8_t(1)) == bright.end();
+}
+
+template <class T>
+std::size_t mip_support(const std::uint8_t* src_mask, int sw, int sh, const std::uint8_t* also,
+                        int tw, int th, int reach, int bits, std::uint8_t* out, int threads) {
+  // Target texel (x, y) reads source texels inside [xlo(x), xhi(x)] x [ylo(y), yhi(y)] (both
+  // texels of every lookup at offsets -reach..reach): a box OR, by prefix counts along each
+  // source row, then an OR of the few source rows each target row reads.
+  std::vector<int> xlo(tw), xhi(tw), ylo(th), yhi(th);
+  auto bounds = [&](int tn, int sn, std::vector<int>& lo, std::vector<int>& hi) {
+    for (int x = 0; x < tn; ++x) {
+      lo[x] = sn;
+      hi[x] = -1;
+      for (int o = -reach; o <= reach; ++o) {
+        const AxisTap<T> t = axis_lookup(x, tn, sn, o, bits, T());
+        lo[x] = std::min({lo[x], t.i0, t.i1});
+        hi[x] = std::max({hi[x], t.i0, t.i1});
+      }
+    }
+  };
+  bounds(tw, sw, xlo, xhi);
+  bounds(th, sh, ylo, yhi);
+  // rows[r * tw + x]: source row r has a set texel in [xlo(x), xhi(x)].
+  std::vector<std::uint8_t> rows(std::size_t(sh) * tw);
+  parallel_rows(sh, threads, [&](int r0, int r1) {
+    std::vector<int> prefix(sw + 1);
+    for (int r = r0; r < r1; ++r) {
+      const std::uint8_t* m = src_mask + std::size_t(r) * sw;
+      for (int i = 0; i < sw; ++i) prefix[i + 1] = prefix[i] + m[i];
+      for (int x = 0; x < tw; ++x) rows[std::size_t(r) * tw + x] = prefix[xhi[x] + 1] > prefix[xlo[x]];
+    }
+  });
+  std::vector<std::size_t> counts(th, 0);
+  parallel_rows(th, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      std::uint8_t* o = out + std::size_t(y) * tw;
+      if (also) std::copy(also + std::size_t(y) * tw, also + std::size_t(y + 1) * tw, o);
+      else std::fill(o, o + tw, std::uint8_t(0));
+      for (int r = ylo[y]; r <= yhi[y]; ++r) {
+        const std::uint8_t* m = rows.data() + std::size_t(r) * tw;
+        for (int x = 0; x < tw; ++x) o[x] |= m[x];
+      }
+      counts[y] = std::size_t(std::count(o, o + tw, std::uint8_t(1)));
+    }
+  });
+  std::size_t total = 0;
+  for (std::size_t n : counts) total += n;
+  return total;
+}
+
 template void downsample<float>(BasicView<const float>, BasicView<float>,
                                 const DownsampleOptions&, int);
 template void downsample<double>(BasicView<const double>, BasicView<double>,
                                  const DownsampleOptions&, int);
 template void upsample_tent<float>(BasicView<const float>, BasicView<const float>,
-                                   BasicView<float>, int, int);
+                                   BasicView<float>, int, int, const std::uint8_t*);
 template void upsample_tent<double>(BasicView<const double>, BasicView<const double>,
-                                    BasicView<double>, int, int);
+                                    BasicView<double>, int, int, const std::uint8_t*);
+template bool mip_nothing_bright<float>(BasicView<const float>, double, int);
+template bool mip_nothing_bright<double>(BasicView<const double>, double, int);
+template std::size_t mip_support<float>(const std::uint8_t*, int, int, const std::uint8_t*, int,
+                                        int, int, int, std::uint8_t*, int);
+template std::size_t mip_support<double>(const std::uint8_t*, int, int, const std::uint8_t*,
+                                         int, int, int, int, std::uint8_t*, int);
 
 }  // namespace bloomref

@@ -8,6 +8,8 @@
 // resolution. Lookups follow sampler.h exactly, so odd sizes are sampled as GL samples them.
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "bloomref/image.h"
@@ -45,6 +47,9 @@ struct DownsampleOptions {
   float threshold = 1.0f;
   bool karis = false;         ///< first downsample only: Karis average 1/(1+L) per group of 4
   int subtexel_bits = 0;
+  /// Optional dst-sized mask (adaptive plan): where 0 the texel is written (+0, +0, +0, 1), what
+  /// it computes when every texel it reads is +0 (mip_support); not for the first downsample.
+  const std::uint8_t* active = nullptr;
 };
 
 /// Stage `down.k`: dst (level k) from src (level k-1). f32 order (seed 003): q_i = lookup at
@@ -60,6 +65,25 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
 /// 003's order. Alpha 1.
 template <class T>
 void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
-                   int subtexel_bits, int threads);
+                   int subtexel_bits, int threads, const std::uint8_t* active = nullptr);
+
+/// Whether the first downsample is (+0, +0, +0, 1) everywhere because none of its lookups can
+/// reach the threshold: threshold > 0 and every texel finite with L + 1e-4 (|R| + |G| + |B|)
+/// below it (L in double). A lookup mixes texels with weights summing to 1 within a few ULPs,
+/// so its luminance in float is at most the largest texel's plus a few ULPs of the channel
+/// magnitudes: 1e-4 is a margin of ~1000x. Then every tap is zeroed by the threshold.
+template <class T>
+bool mip_nothing_bright(BasicView<const T> scene, double threshold, int threads);
+
+/// The adaptive plan's support of a chain stage: the texels of a tw x th target whose lookups
+/// (offsets -reach..reach source texels: 2 for down.k, 1 for up.k and the bloom) read a texel
+/// set in `src_mask` (sw x sh), or that are set in `also` (up.k: down.k's support; may be null).
+/// Conservative: the lookups' bounding box. A texel outside it reads only +0 texels and computes
+/// (+0, +0, +0): the sums start at +0 (up.k adds its own texel, +0 outside `also`) and add
+/// products of +0. Not for the first downsample (it reads the whole scene). Returns the count.
+template <class T>
+std::size_t mip_support(const std::uint8_t* src_mask, int sw, int sh, const std::uint8_t* also,
+                        int tw, int th, int reach, int subtexel_bits, std::uint8_t* out,
+                        int threads);
 
 }  // namespace bloomref
