@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <unistd.h>
 
 #include "bloomref/gpu/device_facts.h"
 #include "bloomref/gpu/gl_executor.h"
@@ -145,12 +146,19 @@ struct Run {
   std::string err;
 };
 Run run_cli(const std::string& args, const std::string& env = "") {
+  // One file per call and process: ctest runs test cases of this binary in parallel, and a
+  // shared file let one case read another's (empty) stderr.
+  static int calls = 0;
   const auto dir = std::filesystem::temp_directory_path();
-  const std::string err = (dir / "bloomref_gl_cli_err.txt").string();
+  const std::string err = (dir / ("bloomref_gl_cli_err_" + std::to_string(::getpid()) + "_" +
+                                  std::to_string(++calls) + ".txt")).string();
   const int status = std::system((env + " " + BLOOMREF_EXE + " " + args + " 2>" + err).c_str());
-  std::ifstream f(err);
   std::stringstream ss;
-  ss << f.rdbuf();
+  {
+    std::ifstream f(err);
+    ss << f.rdbuf();
+  }
+  std::filesystem::remove(err);
   return {WIFEXITED(status) ? WEXITSTATUS(status) : 128, ss.str()};
 }
 }  // namespace
