@@ -150,15 +150,15 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         DownsampleOptions o{k == 1, p.threshold, p.karis && k == 1, p.subtexel_bits};
         // The first level reads the whole scene; the others only where the level above has
         // anything (adaptive plan).
-        if (k > 1) o.active = mip_mask(stage.name, src, down[k], 2, BasicImage<T>());
-        if (k == 1 && p.plan == PlanMode::adaptive &&
-            mip_nothing_bright(src.cview(), double(p.threshold), threads)) {
-          std::vector<T>& v = down[k].values();  // every tap thresholded to zero
-          for (std::size_t i = 0; i < v.size(); ++i) v[i] = i % kChannels == 3 ? T(1) : T(0);
+        if (k > 1) {
+          o.active = mip_mask(stage.name, src, down[k], 2, BasicImage<T>());
+        } else if (p.plan == PlanMode::adaptive &&
+                   mip_nothing_bright(src.cview(), double(p.threshold), threads)) {
+          mip_active.assign(down[k].pixel_count(), 0);  // every tap thresholded to zero
+          o.active = mip_active.data();
           trace.skipped_fraction.emplace_back(stage.name, 1.0);
-        } else {
-          downsample(src.cview(), down[k].view(), o, threads);
         }
+        downsample(src.cview(), down[k].view(), o, threads);
         store(down[k].view(), p.storage, rounding, threads);
         record(stage.name, down[k], ms_since(t0), false);
         break;

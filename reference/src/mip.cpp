@@ -69,12 +69,21 @@ struct Lookups {
   }
 };
 
+// A stage's texel: RGB and alpha 1.
+template <class T>
+void write_rgb1(T* d, const T r[3]) {
+  d[0] = r[0];
+  d[1] = r[1];
+  d[2] = r[2];
+  d[3] = T(1);
+}
+
 // Where a stage's texel is left out (its mask is 0), it is written (+0, +0, +0, 1): what it
 // computes when every texel it reads is +0 (mip_support).
 template <class T>
 void write_zero(T* d) {
-  d[0] = d[1] = d[2] = T(0);
-  d[3] = T(1);
+  const T zero[3] = {T(0), T(0), T(0)};
+  write_rgb1(d, zero);
 }
 
 }  // namespace
@@ -167,11 +176,7 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
           for (int i = 0; i < kDownTaps; ++i)
             for (int c = 0; c < 3; ++c) r[c] = r[c] + q[i][c] * static_cast<T>(kDownWeight[i]);
         }
-        T* d = dst.pixel(x, y);
-        d[0] = r[0];
-        d[1] = r[1];
-        d[2] = r[2];
-        d[3] = T(1);
+        write_rgb1(dst.pixel(x, y), r);
       }
   });
 }
@@ -195,11 +200,7 @@ void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicVi
           lookups.sample(small, x, y, kTentOffset[i][0], kTentOffset[i][1], s);
           for (int c = 0; c < 3; ++c) r[c] = r[c] + s[c] * static_cast<T>(kTentWeight[i]);
         }
-        T* d = dst.pixel(x, y);
-        d[0] = r[0];
-        d[1] = r[1];
-        d[2] = r[2];
-        d[3] = T(1);
+        write_rgb1(dst.pixel(x, y), r);
       }
   });
 }

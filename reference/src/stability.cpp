@@ -24,9 +24,10 @@ Image constant(int w, int h, float v) {
   return img;
 }
 
+// An opaque texel (r, g, b, 1).
 void set(Image& img, int x, int y, float r, float g, float b) {
   float* p = img.pixel(x, y);
-  p[0] = r; p[1] = g; p[2] = b;
+  p[0] = r; p[1] = g; p[2] = b; p[3] = 1;
 }
 
 std::string fmt(double v) {
@@ -208,7 +209,6 @@ std::vector<StabilityCase> stability_cases(Method method) {
            for (int x = 0; x < 256; ++x) {
              const float v = std::pow(10.0f, -8.0f + 16.0f * x / 255.0f) * (((x ^ y) & 4) ? 1.5f : 0.5f);
              set(img, x, y, v, v, v);
-             img.pixel(x, y)[3] = 1;
            }
          return img;
        },
@@ -243,7 +243,6 @@ std::vector<StabilityCase> stability_cases(Method method) {
            for (int x = 0; x < 64; ++x) {
              const float v = 1e-3f * (((x + y) & 1) ? 1.5f : 0.5f);
              set(img, x, y, v, v, v);
-             img.pixel(x, y)[3] = 1;
            }
          set(img, 32, 32, 1e6f, 1e6f, 1e6f);
          return img;
@@ -289,7 +288,6 @@ std::vector<StabilityCase> stability_cases(Method method) {
          const float v[7] = {65504.0f, 65520.0f, 70000.0f, 0x1p-14f, 0x1p-24f, 0x1p-26f, 1.0f};
          for (int x = 0; x < 7; ++x) {
            set(img, x, 0, v[x], v[x], v[x]);
-           img.pixel(x, 0)[3] = 1;
          }
          return img;
        },
@@ -470,7 +468,6 @@ std::vector<StabilityCase> stability_cases(Method method) {
              for (int x = 0; x < 32; ++x) {
                if ((x + y) % 2) set(img, x, y, -1.3f, -0.81f, -0.08f);
                else set(img, x, y, -1.0f, -1.0f, -1.0f);
-               img.pixel(x, y)[3] = 1;
              }
            return img;
          },

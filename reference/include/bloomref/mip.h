@@ -48,7 +48,8 @@ struct DownsampleOptions {
   bool karis = false;         ///< first downsample only: Karis average 1/(1+L) per group of 4
   int subtexel_bits = 0;
   /// Optional dst-sized mask (adaptive plan): where 0 the texel is written (+0, +0, +0, 1), what
-  /// it computes when every texel it reads is +0 (mip_support); not for the first downsample.
+  /// it computes there: every texel it reads is +0 (mip_support), or, on the first level, no
+  /// lookup reaches the threshold (mip_nothing_bright: all zero).
   const std::uint8_t* active = nullptr;
 };
 
