@@ -44,7 +44,8 @@ std::vector<std::string> defines_for(const BloomParams& p, Fault fault, GLenum f
 
 Image to_image(const Texture& t) {
   Image img(t.width, t.height);
-  img.values() = t.read();
+  const std::vector<float> v = t.read();
+  img.values().assign(v.begin(), v.end());
   return img;
 }
 

@@ -118,7 +118,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           if (opt.keep_all) record(stage.name, bright, 0.0, true);
           break;
         }
-        if (pong.empty()) pong = BasicImage<T>(w, h);
+        if (pong.empty()) pong = BasicImage<T>::uninitialised(w, h);  // every texel is written
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
         const bool first_pass = stage.pass == 1;
         if (p.plan == PlanMode::adaptive) {
