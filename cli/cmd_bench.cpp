@@ -109,6 +109,10 @@ std::function<int()> add_bench(CLI::App& app) {
     std::vector<int> wedge = {1};
     if (all >= 2) wedge.push_back(2);
     if (all > 2) wedge.push_back(all);
+    // The machine's own ceilings for the thread wedge, before and after the timed runs (the
+    // neighbours of a virtual machine come and go): register-only work and memory copy.
+    std::vector<ParallelCeiling> ceilings;
+    if (all >= 2) ceilings.push_back(parallel_ceiling(2));
     const int per_size = static_cast<int>(wedge.size()) * 2 + (ctx ? 2 : 0);
     const int total = per_size * static_cast<int>(sizes.size());
     int done = 0;
@@ -178,6 +182,7 @@ std::function<int()> add_bench(CLI::App& app) {
         }
       }
     }
+    if (all >= 2) ceilings.push_back(parallel_ceiling(2));
     // Time against pixel count, per configuration: least squares t = a + b n.
     std::printf("renderer: %s; CPU threads available: %d; %d timed runs each, median\n",
                 renderer.c_str(), all, a->repeat);
@@ -223,6 +228,32 @@ std::function<int()> add_bench(CLI::App& app) {
       std::printf("fit %-13s %-8s %dt: %.1f ms/Mpx + %.1f ms, R^2 %.4f\n", b.c_str(), pl.c_str(), t,
                   slope, icpt, r2);
     }
+    // Two threads against one, per size and plan, beside what the machine gives two threads.
+    nlohmann::ordered_json scaling = nlohmann::ordered_json::array();
+    if (all >= 2) {
+      for (const ParallelCeiling& c : ceilings)
+        std::printf("machine ceiling, 2 threads: register-only work %.2fx, memory copy %.2fx "
+                    "(%.1f -> %.1f GB/s)\n",
+                    c.compute, c.memory, c.copy_gb_per_s_one, c.copy_gb_per_s_all);
+      for (const Row& one : rows) {
+        if (one.backend != "cpu" || one.threads != 1) continue;
+        for (const Row& two : rows)
+          if (two.backend == "cpu" && two.threads == 2 && two.size == one.size && two.plan == one.plan) {
+            std::printf("2 threads vs 1, %-10s %-8s: total %.2fx, blur %.2fx\n", one.size.c_str(),
+                        one.plan.c_str(), one.total_ms / two.total_ms, one.blur_ms / two.blur_ms);
+            scaling.push_back({{"size", one.size}, {"plan", one.plan},
+                               {"total_speedup", one.total_ms / two.total_ms},
+                               {"blur_speedup", one.blur_ms / two.blur_ms}});
+          }
+      }
+      nlohmann::ordered_json cj = nlohmann::ordered_json::array();
+      for (const ParallelCeiling& c : ceilings)
+        cj.push_back({{"threads", c.threads}, {"register_only_speedup", c.compute},
+                      {"memory_copy_speedup", c.memory}, {"copy_gb_per_s_1", c.copy_gb_per_s_one},
+                      {"copy_gb_per_s_all", c.copy_gb_per_s_all}});
+      j["machine_ceiling_before_after"] = cj;
+    }
+    j["two_thread_speedup"] = scaling;
     j["rows"] = jr;
     j["fits"] = fits;
     if (!a->out_dir.empty()) {

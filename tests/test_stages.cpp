@@ -1,7 +1,9 @@
 // The per-pixel stages against closed forms written out by hand.
 #include <catch2/catch.hpp>
 #include <cfloat>
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "bloomref/plan.h"
 #include "bloomref/scenes.h"
@@ -194,4 +196,24 @@ TEST_CASE("parameters are validated, not clamped", "[params]") {
                     Catch::Contains("--strength"));
   CHECK_THROWS_WITH(parse_kernel("gauss"), Catch::Contains("discrete9, linear5"));
   CHECK_THROWS_WITH(parse_nonfinite("ignore"), Catch::Contains("zero, clamp, propagate, error"));
+}
+
+TEST_CASE("image buffers start on a cache line; the fill constructor fills, copies keep values",
+          "[stages]") {
+  for (auto [w, h] : {std::pair{1, 1}, {3, 7}, {1920, 1080}}) {
+    Image img(w, h, 0.25f);
+    CHECK(reinterpret_cast<std::uintptr_t>(img.data()) % 64 == 0);
+    CHECK(std::count(img.values().begin(), img.values().end(), 0.25f) ==
+          std::ptrdiff_t(img.values().size()));
+    Image u = Image::uninitialised(w, h);
+    CHECK(reinterpret_cast<std::uintptr_t>(u.data()) % 64 == 0);
+    CHECK(u.values().size() == std::size_t(w) * h * kChannels);
+    const Image copy = img;  // the allocator's copy: a new aligned buffer, same values
+    CHECK(copy.data() != img.data());
+    CHECK(reinterpret_cast<std::uintptr_t>(copy.data()) % 64 == 0);
+    CHECK(copy.values() == img.values());
+    ImageF64 d(w, h, -1.5);
+    CHECK(reinterpret_cast<std::uintptr_t>(d.data()) % 64 == 0);
+    CHECK(d.values().back() == -1.5);
+  }
 }

@@ -1,4 +1,5 @@
 #include "bloomref/executor.h"
+#include "bloomref/parallel.h"
 
 #include <algorithm>
 #include <chrono>
@@ -38,7 +39,9 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
 
   const auto t_total = Clock::now();
   BasicImage<T> scene;
-  BasicImage<T> bright(p.method == Method::gaussian ? w : 0, p.method == Method::gaussian ? h : 0);
+  // Written whole by the input stage (extract_bright).
+  BasicImage<T> bright = BasicImage<T>::uninitialised(p.method == Method::gaussian ? w : 0,
+                                                      p.method == Method::gaussian ? h : 0);
   BasicImage<T> ping, pong;  // allocated by the first blur pass
   // Method mip: level k of the down and up chains (index 0 unused), and the full-size bloom.
   std::vector<BasicImage<T>> down(plan.levels.size() + 1), up(plan.levels.size() + 1);
@@ -86,10 +89,14 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           if (owned) {
             scene = std::move(*owned);  // the caller handed the image over: no copy
           } else {
-            scene = BasicImage<T>(w, h);
-            for (int y = 0; y < h; ++y)
-              std::copy(scene_in.row(y), scene_in.row(y) + std::size_t(w) * kChannels,
-                        scene.view().row(y));
+            // Copied by every thread (the pages are faulted in by whichever thread writes them
+            // first), with no zero fill before the copy.
+            scene = BasicImage<T>::uninitialised(w, h);
+            parallel_rows(h, threads, [&](int y0, int y1) {
+              for (int y = y0; y < y1; ++y)
+                std::copy(scene_in.row(y), scene_in.row(y) + std::size_t(w) * kChannels,
+                          scene.view().row(y));
+            });
           }
         } else {
           scene = convert_image<T>(scene_in);

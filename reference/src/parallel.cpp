@@ -1,5 +1,10 @@
 #include "bloomref/parallel.h"
 
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <vector>
+
 #include <tbb/blocked_range.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
@@ -25,6 +30,74 @@ void parallel_rows(int height, int threads, const std::function<void(int, int)>&
     tbb::parallel_for(tbb::blocked_range<int>(0, height, grain),
                       [&](const tbb::blocked_range<int>& r) { fn(r.begin(), r.end()); });
   });
+}
+
+namespace {
+
+// One unit of register-only work: 8 independent chains of x = x * a + b (no memory traffic).
+// Not inlined: inlined into the one-thread loop, GCC vectorises across units and the ratio lies.
+__attribute__((noinline)) float register_work(float seed) {
+  float x[8];
+  for (int i = 0; i < 8; ++i) x[i] = seed + float(i);
+  for (int it = 0; it < 2000000; ++it)
+    for (int i = 0; i < 8; ++i) x[i] = x[i] * 0.99999994f + 1e-7f;
+  float s = 0;
+  for (int i = 0; i < 8; ++i) s += x[i];
+  return s;
+}
+
+double seconds_for(int threads, int units_per_thread) {
+  std::vector<float> sink(std::size_t(threads) * units_per_thread);
+  const auto t0 = std::chrono::steady_clock::now();
+  parallel_rows(threads * units_per_thread, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) sink[y] = register_work(float(y));
+  });
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  volatile float keep = sink[0];  // the work is observable
+  (void)keep;
+  return s;
+}
+
+constexpr std::size_t kCopyFloats = std::size_t(8) << 20;  // 32 MiB per thread and buffer
+
+double copy_seconds(int threads, std::vector<float>& from, std::vector<float>& to) {
+  const auto t0 = std::chrono::steady_clock::now();
+  parallel_rows(threads * 4, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {  // 4 copies of region y % threads
+      const std::size_t at = std::size_t(y % threads) * kCopyFloats;
+      std::memcpy(to.data() + at, from.data() + at, kCopyFloats * sizeof(float));
+    }
+  });
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+ParallelCeiling parallel_ceiling(int threads, int repeats) {
+  ParallelCeiling c;
+  c.threads = resolve_threads(threads);
+  constexpr int kUnits = 16;  // per thread
+  std::vector<float> from(kCopyFloats * c.threads, 1.0f), to(kCopyFloats * c.threads, 0.0f);
+  std::vector<double> compute, memory, one_gbs, all_gbs;
+  for (int r = 0; r < std::max(1, repeats); ++r) {
+    const double one = seconds_for(1, kUnits), many = seconds_for(c.threads, kUnits);
+    compute.push_back(c.threads * one / many);
+    const double copy_one = copy_seconds(1, from, to), copy_all = copy_seconds(c.threads, from, to);
+    memory.push_back(c.threads * copy_one / copy_all);
+    const double bytes = 2.0 * 4 * kCopyFloats * sizeof(float);  // 4 copies, read + write
+    one_gbs.push_back(bytes / copy_one / 1e9);
+    all_gbs.push_back(c.threads * bytes / copy_all / 1e9);
+  }
+  c.compute = median(compute);
+  c.memory = median(memory);
+  c.copy_gb_per_s_one = median(one_gbs);
+  c.copy_gb_per_s_all = median(all_gbs);
+  return c;
 }
 
 }  // namespace bloomref

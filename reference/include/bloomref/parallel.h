@@ -13,4 +13,17 @@ int resolve_threads(int threads);
 /// Calls fn(y0, y1) over disjoint half-open row ranges covering [0, height).
 void parallel_rows(int height, int threads, const std::function<void(int y0, int y1)>& fn);
 
+/// What `threads` threads can give on this machine at best, each a speedup over one thread with
+/// the same work per thread through parallel_rows, median of `repeats` alternating measurements:
+/// `compute` on work that touches no memory (independent float multiply-add chains in
+/// registers), `memory` on copying 32 MiB per thread between buffers far larger than the caches.
+/// The ceilings the blur's thread scaling is judged against: two vCPUs that share a physical
+/// core, or share one memory channel, stay well below `threads`.
+struct ParallelCeiling {
+  int threads = 1;
+  double compute = 1, memory = 1;
+  double copy_gb_per_s_one = 0, copy_gb_per_s_all = 0;  ///< bytes read + written per second
+};
+ParallelCeiling parallel_ceiling(int threads, int repeats = 5);
+
 }  // namespace bloomref
