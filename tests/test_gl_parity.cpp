@@ -124,3 +124,52 @@ TEST_CASE("GL fragment: the adaptive plan's scissored passes give the full plan'
   }
   CHECK(scissored > 0);  // some passes were really left out
 }
+
+TEST_CASE("GL mip: with nothing that can reach the threshold, the chain is cleared, not drawn, "
+          "and the output keeps the full plan's bits",
+          "[gl][adaptive][mip]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  const Image demo = make_scene("demo", 320, 180);
+  for (gpu::ShaderKind shaders : {gpu::ShaderKind::fragment, gpu::ShaderKind::compute}) {
+    for (Storage storage : {Storage::f32, Storage::f16}) {
+      for (float threshold : {1e30f, 1.0f}) {
+        BloomParams p;
+        p.method = Method::mip;
+        p.storage = storage;
+        p.threshold = threshold;
+        gpu::GlOptions go;
+        go.shaders = shaders;
+        go.keep_all = true;
+        p.plan = PlanMode::full;
+        const StageTrace full = gpu::execute_gl(*ctx, make_plan(p, demo.cview()), demo.cview(), go);
+        p.plan = PlanMode::adaptive;
+        const Plan plan = make_plan(p, demo.cview());
+        const StageTrace t = gpu::execute_gl(*ctx, plan, demo.cview(), go);
+        INFO(gpu::to_string(shaders) << " " << to_string(storage) << " threshold " << threshold);
+        CHECK(test::same_bits_nan_agnostic(full.final_image().cview(), t.final_image().cview()));
+        const int chain = 2 * static_cast<int>(plan.levels.size());  // down.k, up.k, bloom
+        if (threshold > 1e29f) {
+          // The demo's brightest texels are far below 1e30: every chain stage left out, and
+          // each stage image is exactly (0, 0, 0, 1) as the full plan's draw gives.
+          CHECK(static_cast<int>(t.skipped_fraction.size()) == chain);
+          for (const auto& [stage, frac] : t.skipped_fraction) CHECK(frac == 1.0);
+          for (const StageResult& s : t.stages) {
+            if (s.name.rfind("down.", 0) != 0 && s.name.rfind("up.", 0) != 0 && s.name != "bloom")
+              continue;
+            const StageResult* f = full.find(s.name);
+            REQUIRE(f);
+            CHECK(test::same_bits_nan_agnostic(f->image.cview(), s.image.cview()));
+            for (std::size_t i = 0; i < s.image.values().size(); ++i)
+              if (s.image.values()[i] != (i % 4 == 3 ? 1.0f : 0.0f)) {
+                FAIL_CHECK(s.name << " value " << i << " is " << s.image.values()[i]);
+                break;
+              }
+          }
+        } else {
+          CHECK(t.skipped_fraction.empty());  // the demo has texels above 1: the chain is drawn
+        }
+      }
+    }
+  }
+}
