@@ -111,9 +111,25 @@ class StageRunner {
       glBindTexture(GL_TEXTURE_2D, inputs[i]->id);
     }
     if (compute_) {
+      if (rects) {
+        clear(out0);
+        glUseProgram(prog.id);
+        // Framebuffer writes before image stores to the same texture.
+        glMemoryBarrier(GL_FRAMEBUFFER_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+      }
       glBindImageTexture(0, out0.id, 0, GL_FALSE, 0, GL_WRITE_ONLY, format_);
       glBindImageTexture(1, (out1 ? out1 : &out0)->id, 0, GL_FALSE, 0, GL_WRITE_ONLY, format_);
-      glDispatchCompute((out0.width + 7) / 8, (out0.height + 7) / 8, 1);
+      if (rects) {
+        // One dispatch per rectangle (whole 8x8 groups: a texel past the rectangle gets its
+        // true value, which is always right).
+        for (const Rect& r : *rects) {
+          prog.set("u_origin", r.x, r.y);
+          glDispatchCompute((r.w + 7) / 8, (r.h + 7) / 8, 1);
+        }
+        prog.set("u_origin", 0, 0);
+      } else {
+        glDispatchCompute((out0.width + 7) / 8, (out0.height + 7) / 8, 1);
+      }
       glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GL_TEXTURE_UPDATE_BARRIER_BIT);
     } else {
@@ -225,9 +241,10 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
 
   StageRunner runner(compute, fmt);
   StageTrace trace;
-  // The adaptive plan's texel support, as on the CPU, turned into scissor rectangles of 64x64
-  // tiles (fragment shaders; the compute path dispatches whole images). Faults run unscissored.
-  const bool scissor = p.plan == PlanMode::adaptive && !compute && !mip && opt.fault == Fault::none;
+  // The adaptive plan's texel support, as on the CPU, turned into rectangles of 64x64 tiles:
+  // scissor rectangles for fragment shaders, one dispatch each for compute shaders. Faults run
+  // whole.
+  const bool scissor = p.plan == PlanMode::adaptive && !mip && opt.fault == Fault::none;
   constexpr int kScissorTile = 64;
   // Above half the image the readback, support and many draws cost more than the texels
   // saved (BrightRingsNanInf: 148 ms unscissored, 186 ms scissored on llvmpipe).
