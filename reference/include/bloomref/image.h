@@ -21,19 +21,16 @@ namespace bloomref {
 
 constexpr int kChannels = 4;
 
-/// The allocator of image buffers. Every buffer starts on a 64-byte (cache line) boundary, so
-/// that a row whose byte length is a multiple of 32 starts every 32-byte vector load of the blur
-/// kernels inside one cache line (malloc's large blocks start 16 bytes into a page: half of those
-/// loads straddled two lines). Buffers of 4 MiB and more start on a 2 MiB boundary and ask Linux
-/// for transparent huge pages (madvise): a 3840x2160 float RGBA image is 63 huge pages instead
-/// of 32400 small ones to fault in, and a vertical pass's nine rows stay within the TLB.
-/// Elements are default-initialised: `PixelBuffer<float>(n)` leaves the values unwritten (the
-/// caller writes them all); BasicImage's constructor fills explicitly.
 namespace detail {
 void* allocate_pixels(std::size_t bytes);
 void free_pixels(void* p, std::size_t bytes) noexcept;
 }  // namespace detail
 
+/// The allocator of image buffers. Every buffer starts on a 64-byte (cache line) boundary, so
+/// that a row whose byte length is a multiple of 32 starts every 32-byte vector load of the blur
+/// kernels inside one cache line (malloc's large blocks start 16 bytes into a page: half of those
+/// loads straddled two lines). Elements are default-initialised: `PixelBuffer<float>(n)` leaves
+/// the values unwritten (for a producer that writes them all); BasicImage's constructor fills.
 template <class T>
 struct CacheAlignedAllocator {
   using value_type = T;
