@@ -111,19 +111,23 @@ TEST_CASE("GL: the adaptive plan's scissored draws and per-rectangle dispatches 
     int scissored = 0;
     gpu::GlOptions go;
     go.shaders = shaders;
+    go.keep_all = true;  // every pass compared, alpha included (the output takes the scene's)
     for (const auto& [name, image] : inputs) {
       for (Storage storage : {Storage::f32, Storage::f16}) {
         BloomParams p;
         p.storage = storage;
         p.nonfinite = NonFinite::propagate;
         p.plan = PlanMode::full;
-        const Image full =
-            gpu::execute_gl(*ctx, make_plan(p, image.cview()), image.cview(), go).final_image();
+        const StageTrace full = gpu::execute_gl(*ctx, make_plan(p, image.cview()), image.cview(), go);
         p.plan = PlanMode::adaptive;
         const StageTrace t = gpu::execute_gl(*ctx, make_plan(p, image.cview()), image.cview(), go);
         for (const auto& [stage, frac] : t.skipped_fraction) scissored += frac > 0.0;
         INFO(name << " " << gpu::to_string(shaders) << " " << to_string(storage));
-        CHECK(test::same_bits_nan_agnostic(full.cview(), t.final_image().cview()));
+        REQUIRE(full.stages.size() == t.stages.size());
+        for (std::size_t i = 0; i < t.stages.size(); ++i) {
+          INFO("stage " << t.stages[i].name);
+          CHECK(test::same_bits_nan_agnostic(full.stages[i].image.cview(), t.stages[i].image.cview()));
+        }
       }
     }
     INFO(gpu::to_string(shaders));

@@ -44,9 +44,8 @@ std::vector<std::string> defines_for(const BloomParams& p, Fault fault, GLenum f
 }
 
 Image to_image(const Texture& t) {
-  Image img(t.width, t.height);
-  const std::vector<float> v = t.read();
-  img.values().assign(v.begin(), v.end());
+  Image img = Image::uninitialised(t.width, t.height);
+  t.read(img.data());
   return img;
 }
 
@@ -111,17 +110,13 @@ class StageRunner {
       glBindTexture(GL_TEXTURE_2D, inputs[i]->id);
     }
     if (compute_) {
-      if (rects) {
-        clear(out0);
-        glUseProgram(prog.id);
-        // Framebuffer writes before image stores to the same texture.
-        glMemoryBarrier(GL_FRAMEBUFFER_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
-      }
       glBindImageTexture(0, out0.id, 0, GL_FALSE, 0, GL_WRITE_ONLY, format_);
       glBindImageTexture(1, (out1 ? out1 : &out0)->id, 0, GL_FALSE, 0, GL_WRITE_ONLY, format_);
       if (rects) {
-        // One dispatch per rectangle (whole 8x8 groups: a texel past the rectangle gets its
-        // true value, which is always right).
+        // Cleared, then one dispatch per rectangle (whole 8x8 groups: a texel past the
+        // rectangle gets its true value, which is always right). GL orders the clear before
+        // the image stores that follow it.
+        clear(out0);
         for (const Rect& r : *rects) {
           prog.set("u_origin", r.x, r.y);
           glDispatchCompute((r.w + 7) / 8, (r.h + 7) / 8, 1);
@@ -255,12 +250,8 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
   // The test is made on GL's own stored scene, as the CPU makes it on its stored scene; the
   // readback is done only where the user's scene passes it with a 2x margin (f16 storage
   // rounds by up to 2^-11, sanitising only removes what fails it anyway).
-  bool mip_dark = false;
-  auto decide_mip_dark = [&] {
-    mip_dark = mip && p.plan == PlanMode::adaptive && opt.fault == Fault::none &&
-               mip_nothing_bright(scene, 0.5 * double(p.threshold), 0) &&
-               mip_nothing_bright(to_image(scene_t).cview(), double(p.threshold), 0);
-  };
+  const bool may_skip_mip = mip && p.plan == PlanMode::adaptive && opt.fault == Fault::none;
+  bool mip_dark = false;  // decided by the input stage
   trace.nonfinite = plan.facts.nonfinite;
   const Texture* bloom = &bright_t;
   auto finish = [&](const std::string& name, const Texture& t, Clock::time_point t0,
@@ -272,12 +263,21 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
     if (opt.keep_all || name == "output") trace.stages.push_back({name, to_image(t), ms, skipped});
   };
 
+  // A chain stage under mip_dark: its target cleared, the stage listed as skipped.
+  auto cleared_dark = [&](const std::string& name, const Texture& target) {
+    if (!mip_dark) return false;
+    runner.clear(target);
+    trace.skipped_fraction.emplace_back(name, 1.0);
+    return true;
+  };
+
   for (const StageSpec& s : plan.stages) {
     const auto t0 = Clock::now();
     switch (s.kind) {
       case StageKind::input:
         runner.run(extract, {&raw}, scene_t, &bright_t);
-        decide_mip_dark();
+        mip_dark = may_skip_mip && mip_nothing_bright(scene, 0.5 * double(p.threshold), 0) &&
+                   mip_nothing_bright(to_image(scene_t).cview(), double(p.threshold), 0);
         finish(s.name, scene_t, t0);
         break;
       case StageKind::bright:  // written by the input stage's draw
@@ -314,10 +314,7 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
       }
       case StageKind::down: {
         const int k = s.pass;
-        if (mip_dark) {
-          runner.clear(down_t[k - 1]);
-          trace.skipped_fraction.emplace_back(s.name, 1.0);
-        } else {
+        if (!cleared_dark(s.name, down_t[k - 1])) {
           down_p.set("first_level", k == 1 ? 1 : 0);
           runner.run(down_p, {k == 1 ? &scene_t : &down_t[k - 2]}, down_t[k - 1]);
         }
@@ -327,10 +324,7 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
       case StageKind::up: {
         const int k = s.pass, top = static_cast<int>(plan.levels.size());
         const Texture& small = k + 1 == top ? down_t[top - 1] : up_t[k];
-        if (mip_dark) {
-          runner.clear(up_t[k - 1]);
-          trace.skipped_fraction.emplace_back(s.name, 1.0);
-        } else {
+        if (!cleared_dark(s.name, up_t[k - 1])) {
           up_p.set("has_current", 1);
           runner.run(up_p, {&small, &down_t[k - 1]}, up_t[k - 1]);
         }
@@ -339,10 +333,7 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
       }
       case StageKind::bloom: {
         const Texture& small = plan.levels.size() == 1 ? down_t[0] : up_t[0];
-        if (mip_dark) {
-          runner.clear(bloom_t);
-          trace.skipped_fraction.emplace_back(s.name, 1.0);
-        } else {
+        if (!cleared_dark(s.name, bloom_t)) {
           up_p.set("has_current", 0);
           runner.run(up_p, {&small, &small}, bloom_t);
         }

@@ -37,11 +37,15 @@ void Texture::set_sampling(GLenum filter, GLenum wrap) const {
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, wrap);
 }
 
-std::vector<float> Texture::read() const {
-  std::vector<float> out(static_cast<std::size_t>(width) * height * 4);
+void Texture::read(float* out) const {
   glBindTexture(GL_TEXTURE_2D, id);
   glPixelStorei(GL_PACK_ALIGNMENT, 4);
-  glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_FLOAT, out.data());
+  glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_FLOAT, out);
+}
+
+std::vector<float> Texture::read() const {
+  std::vector<float> out(static_cast<std::size_t>(width) * height * 4);
+  read(out.data());
   return out;
 }
 

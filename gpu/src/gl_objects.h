@@ -21,7 +21,8 @@ struct Texture {
   Texture& operator=(Texture&& o) noexcept;
   /// GL_LINEAR or GL_NEAREST filtering, GL_CLAMP_TO_EDGE or GL_REPEAT wrapping.
   void set_sampling(GLenum filter, GLenum wrap) const;
-  /// RGBA float readback (half textures convert exactly).
+  /// RGBA float readback (half textures convert exactly) into width * height * 4 floats at out.
+  void read(float* out) const;
   std::vector<float> read() const;
 };
 

@@ -60,7 +60,7 @@ double seconds_for(int threads, int units_per_thread) {
 
 constexpr std::size_t kCopyFloats = std::size_t(8) << 20;  // 32 MiB per thread and buffer
 
-double copy_seconds(int threads, std::vector<float>& from, std::vector<float>& to) {
+double copy_seconds(int threads, const std::vector<float>& from, std::vector<float>& to) {
   const auto t0 = std::chrono::steady_clock::now();
   parallel_rows(threads * 4, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {  // 4 copies of region y % threads
