@@ -109,51 +109,99 @@ inline v4 convolve_v4(const std::vector<float>& w, const AxisTap<float>* taps, T
   return r;
 }
 
+// blur_texel in f32, RGBA as four lanes (alpha is overwritten): the same IEEE single
+// multiplications and additions in the same order per lane as the scalar path, so the same bits
+// (the shader-loop test checks them). Src gives pixel(x, y): an image view or a row table.
+template <class Src>
+void blur_texel_f32(const Src& src, bool horizontal, const AxisTap<float>* taps,
+                    const AxisTap<float>& other, const std::vector<float>& w, float* d) {
+  v4 rv;
+  if (other.w1 == 0.0f) {
+    // The lookup sits on one line across the blur (weight exactly 1 there).
+    const int fixed = other.i0;
+    rv = convolve_v4(w, taps, [&](const AxisTap<float>& t, int which) {
+      const int i = which ? t.i1 : t.i0;
+      return horizontal ? src.pixel(i, fixed) : src.pixel(fixed, i);
+    });
+  } else {
+    // It mixes two lines across the blur: sample_rgb's four terms in its order (the vertical
+    // axis outer), zero-weight terms left out.
+    auto bilinear = [&](const AxisTap<float>& tx, const AxisTap<float>& ty) {
+      const float wx[2] = {tx.w0, tx.w1};
+      const float wy[2] = {ty.w0, ty.w1};
+      const int ix[2] = {tx.i0, tx.i1};
+      const int iy[2] = {ty.i0, ty.i1};
+      v4 s = {0.0f, 0.0f, 0.0f, 0.0f};
+      bool first = true;
+      for (int j = 0; j < 2; ++j) {
+        for (int i = 0; i < 2; ++i) {
+          const float wij = wx[i] * wy[j];
+          if (wij == 0.0f) continue;
+          const v4 t = load<v4>(src.pixel(ix[i], iy[j]));
+          s = first ? t * wij : s + t * wij;
+          first = false;
+        }
+      }
+      return s;
+    };
+    auto sample = [&](int k) {
+      return horizontal ? bilinear(taps[k], other) : bilinear(other, taps[k]);
+    };
+    rv = sample(0) * w[0];
+    for (std::size_t i = 1; i < w.size(); ++i) {
+      rv = rv + sample(int(2 * i - 1)) * w[i];
+      rv = rv + sample(int(2 * i)) * w[i];
+    }
+  }
+  d[0] = rv[0];
+  d[1] = rv[1];
+  d[2] = rv[2];
+  d[3] = 1.0f;
+}
+
+struct RowTable {
+  const float* const* rows;
+  const float* pixel(int x, int y) const { return rows[y] + std::ptrdiff_t(x) * kChannels; }
+};
+
 }  // namespace
 
 namespace detail {
 
+void blur_texel_rows(const float* const* rows, bool horizontal, const AxisTap<float>* taps,
+                     const AxisTap<float>& other, const std::vector<float>& w, float* d) {
+  blur_texel_f32(RowTable{rows}, horizontal, taps, other, w, d);
+}
+
 template <class T>
 void blur_texel(BasicView<const T> src, bool horizontal, const AxisTap<T>* taps,
                 const AxisTap<T>& other, const std::vector<T>& w, T* d) {
-  T r[3];
   if constexpr (std::is_same_v<T, float>) {
-    if (other.w1 == T(0)) {
-      // Four lanes at once (RGBA; alpha is overwritten below): the same IEEE single
-      // multiplications and additions in the same order per lane as the scalar path, so
-      // the same bits (the shader-loop test checks them).
-      const int fixed = other.i0;
-      const v4 rv = convolve_v4(w, taps, [&](const AxisTap<T>& t, int which) {
-        const int i = which ? t.i1 : t.i0;
-        return horizontal ? src.pixel(i, fixed) : src.pixel(fixed, i);
-      });
-      d[0] = rv[0];
-      d[1] = rv[1];
-      d[2] = rv[2];
-      d[3] = T(1);
-      return;
-    }
-  }
-  if (other.w1 == T(0)) {
-    // The lookup sits on one row (column) across the blur: its weight there is exactly 1,
-    // so the bilinear weights are the along-axis ones and sample_rgb reduces to this.
-    const int fixed = other.i0;
-    convolve(w, [&](int k, T s[3]) {
-      const AxisTap<T>& t = taps[k];
-      const T* p0 = horizontal ? src.pixel(t.i0, fixed) : src.pixel(fixed, t.i0);
-      const T* p1 = horizontal ? src.pixel(t.i1, fixed) : src.pixel(fixed, t.i1);
-      sample_pair(p0, p1, t.w0, t.w1, s);
-    }, r);
+    blur_texel_f32(src, horizontal, taps, other, w, d);
+    return;
   } else {
-    convolve(w, [&](int k, T s[3]) {
-      if (horizontal) sample_rgb(src, taps[k], other, s);
-      else sample_rgb(src, other, taps[k], s);
-    }, r);
+    T r[3];
+    if (other.w1 == T(0)) {
+      // The lookup sits on one row (column) across the blur: its weight there is exactly 1,
+      // so the bilinear weights are the along-axis ones and sample_rgb reduces to this.
+      const int fixed = other.i0;
+      convolve(w, [&](int k, T s[3]) {
+        const AxisTap<T>& t = taps[k];
+        const T* p0 = horizontal ? src.pixel(t.i0, fixed) : src.pixel(fixed, t.i0);
+        const T* p1 = horizontal ? src.pixel(t.i1, fixed) : src.pixel(fixed, t.i1);
+        sample_pair(p0, p1, t.w0, t.w1, s);
+      }, r);
+    } else {
+      convolve(w, [&](int k, T s[3]) {
+        if (horizontal) sample_rgb(src, taps[k], other, s);
+        else sample_rgb(src, other, taps[k], s);
+      }, r);
+    }
+    d[0] = r[0];
+    d[1] = r[1];
+    d[2] = r[2];
+    d[3] = T(1);
   }
-  d[0] = r[0];
-  d[1] = r[1];
-  d[2] = r[2];
-  d[3] = T(1);
 }
 
 template void blur_texel<float>(BasicView<const float>, bool, const AxisTap<float>*,

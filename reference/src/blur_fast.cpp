@@ -71,11 +71,13 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
     if (across[b].w1 != 0.0f || across[b].i0 != b) inexact.push_back(b);
   }
 
+  std::vector<const float*> src_rows(src.height);
+  std::vector<float*> dst_rows(dst.height);
+  for (int y = 0; y < src.height; ++y) src_rows[y] = src.row(y);
+  for (int y = 0; y < dst.height; ++y) dst_rows[y] = dst.row(y);
   detail::TileJob job;
-  job.src = src.data;
-  job.src_stride = src.stride * kChannels;
-  job.dst = dst.data;
-  job.dst_stride = dst.stride * kChannels;
+  job.src_rows = src_rows.data();
+  job.dst_rows = dst_rows.data();
   job.horizontal = horizontal;
   job.n_along = n_along;
   job.n_across = n_across;

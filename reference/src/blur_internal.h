@@ -32,14 +32,18 @@ template <class T>
 void blur_texel(BasicView<const T> src, bool horizontal, const AxisTap<T>* taps,
                 const AxisTap<T>& other, const std::vector<T>& w, T* d);
 
+/// blur_texel in f32 on an image given by row pointers (image row y at rows[y]): the same bits.
+void blur_texel_rows(const float* const* rows, bool horizontal, const AxisTap<float>* taps,
+                     const AxisTap<float>& other, const std::vector<float>& w, float* d);
+
 /// One pass of the fast blur, cut into tiles of `tile_along` x `tile_across` output texels.
 /// Tile t covers along-block t % tiles_along and across-block t / tiles_along, so consecutive
 /// tiles walk down the same across-block and reuse the rows in cache.
+/// Rows are reached through tables of row pointers (image row y at src_rows[y]), so the same
+/// kernel reads a whole image or the fused blur's ring buffers (blur_fused.cpp).
 struct TileJob {
-  const float* src = nullptr;
-  std::ptrdiff_t src_stride = 0;  ///< floats per source row
-  float* dst = nullptr;
-  std::ptrdiff_t dst_stride = 0;  ///< floats per destination row
+  const float* const* src_rows = nullptr;
+  float* const* dst_rows = nullptr;
   bool horizontal = true;
   int n_along = 0, n_across = 0;
   int tile_along = 0, tile_across = 0, tiles_along = 0;
