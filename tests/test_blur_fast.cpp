@@ -87,6 +87,48 @@ TEST_CASE("blur_pass_fast gives blur_pass's bits on hostile values and awkward s
   }
 }
 
+TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][fused]") {
+  // Several column strips (512 wide) and row chunks (16), strips narrower than a pass's reach,
+  // lookups that straddle two lines in both directions (1920, 1080, 131), pass counts from 1
+  // to 11 and axis orders the plan does not make.
+  const std::pair<int, int> sizes[] = {{1, 1},   {7, 1},      {1, 9},    {37, 23},  {513, 17},
+                                       {1100, 37}, {1920, 21}, {9, 1080}, {131, 300},
+                                       {533, 19}};
+  // 533 columns: column 511, the last of the first strip, reads column 512 across a vertical
+  // pass (its lookup straddles two columns), which the pass before must compute for the strip.
+  const std::vector<std::vector<Axis>> orders = {
+      {Axis::horizontal},
+      {Axis::horizontal, Axis::vertical},
+      {Axis::vertical, Axis::vertical, Axis::horizontal},
+      {Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical, Axis::horizontal,
+       Axis::vertical, Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical,
+       Axis::horizontal}};
+  unsigned seed = 40;
+  for (auto [w, h] : sizes) {
+    const Image src = hostile_image(w, h, seed++);
+    for (const Kernel* k : {&kernel_discrete9(), &kernel_linear5()}) {
+      for (int bits : {0, 8}) {
+        for (const std::vector<Axis>& axes : orders) {
+          Image a = src, b(w, h);
+          for (Axis axis : axes) {
+            blur_pass(a.cview(), b.view(), BlurPassOptions{axis, k, bits}, 2);
+            std::swap(a, b);
+          }
+          for (BlurIsa isa : isas()) {
+            for (int threads : {1, 2}) {
+              Image fused(w, h, 7.0f);
+              blur_passes_fused(src.cview(), fused.view(), axes, *k, bits, threads, isa);
+              INFO(w << "x" << h << " " << k->name << " bits " << bits << " passes "
+                     << axes.size() << " isa " << blur_isa_name(isa) << " threads " << threads);
+              CHECK(test::same_bits_nan_agnostic(a.cview(), fused.cview()));
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
 TEST_CASE("the fast blur is not vacuous: a wrong weight is caught", "[blur][fast]") {
   // The comparison above must be able to fail: the same pass with a weight 1 ULP off differs.
   const Image src = hostile_image(64, 48, 99);

@@ -47,6 +47,8 @@ struct TileJob {
   bool horizontal = true;
   int n_along = 0, n_across = 0;
   int tile_along = 0, tile_across = 0, tiles_along = 0;
+  /// Only output texels with a in [along_lo, along_hi) and b in [across_lo, across_hi).
+  int along_lo = 0, along_hi = 1 << 30, across_lo = 0, across_hi = 1 << 30;
   const AxisTap<float>* taps = nullptr;  ///< n_along x taps_per_position, shader order
   int taps_per_position = 0;
   /// Kernel weights, centre first. Every line is computed as if its lookup across the blur sat

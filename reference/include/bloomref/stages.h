@@ -117,6 +117,16 @@ std::string blur_isa_name(BlurIsa isa = BlurIsa::best);
 void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
                     int threads, BlurIsa isa = BlurIsa::best);
 
+/// Stages `blur.1` ... `blur.n` of the dense plan in f32 at once (pass k along axes[k - 1]),
+/// with blur_pass_fast's bits in every texel (tested), but fused: the image is cut into
+/// column strips, and each strip streams through all n passes keeping per pass only the rows
+/// the next pass still reads (a ring of about 2 x (16 + 5) rows of the strip), so the image is
+/// read and written once instead of n times (blur_fused.cpp). Nothing is rounded between passes
+/// (f32 storage).
+void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
+                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
+                       int threads, BlurIsa isa = BlurIsa::best);
+
 /// Stage `blur.k`, fast and approximate: not GL's sampling but the 9-tap stencil both kernels
 /// sample exactly (taps on texels x +- i, clamped to the edge, the discrete9 weights rounded to
 /// float), pairs summed first, multiply-adds fused with AVX2+FMA. Its error against the f64

@@ -1,0 +1,250 @@
+// Stages blur.1 ... blur.n at once, the fused way (stages.h: blur_passes_fused).
+//
+// Pass by pass, the blur reads and writes the whole image n times (3840x2160 RGBA float: 133 MB
+// each way, ten times). Here the image is cut into column strips (512 texels), and each strip
+// streams through all n passes: pass k keeps only the rows the next pass still reads, in a ring
+// of about 2 x (16 + 5) rows of the strip (~0.4 MB), and computes them 16 rows at a time when
+// the next pass asks for them. The image is read once and written once; the strips run in
+// parallel.
+//
+// Every texel of every pass is computed by the same tile kernel and the same reference texel
+// as blur_pass_fast (blur_tiles.inc, blur_texel_rows), from the same tap tables, so the bits are
+// blur_pass_fast's (tests/test_blur_fast.cpp). A strip also computes, in its earlier passes, the
+// columns beside it that its later passes read (the horizontal taps' reach, 5 texels per pass),
+// a few percent of the work.
+#include <algorithm>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "blur_internal.h"
+#include "bloomref/error.h"
+#include "bloomref/parallel.h"
+#include "bloomref/stages.h"
+
+namespace bloomref {
+namespace {
+
+// Rows per chunk: the horizontal kernel's lanes run across rows, and its widest group is
+// 16 texels (AVX2: 8 vectors of 2 texels).
+constexpr int kChunk = 16;
+constexpr int kTileAlongH = 64;     // as blur_pass_fast
+constexpr int kTileAcrossV = 1024;  // as blur_pass_fast
+// Columns per strip: a pass's ring of ~42 rows x (512 + reach) texels is ~0.4 MB.
+constexpr int kStripWidth = 512;
+
+// One pass's tables, built exactly as blur_pass_fast builds them.
+struct Pass {
+  bool horizontal = false;
+  detail::TapTable<float> along;        // the reference taps (inexact lines)
+  detail::TapTable<float> kernel_taps;  // the kernel's one-texel form
+  std::vector<AxisTap<float>> across;
+  std::vector<int> inexact;          // lines whose lookup across the blur is not exact
+  std::vector<int> need_lo, need_hi;  // per output row: the input rows it reads
+};
+
+Pass make_pass(Axis axis, int w, int h, const Kernel& kernel, int bits) {
+  Pass p;
+  p.horizontal = axis == Axis::horizontal;
+  const int n_along = p.horizontal ? w : h;
+  const int n_across = p.horizontal ? h : w;
+  p.along = detail::make_taps(n_along, kernel, bits, float());
+  p.kernel_taps = p.along;
+  for (AxisTap<float>& t : p.kernel_taps.taps)
+    if (t.w0 == 0.0f) t = {t.i1, t.i1, t.w1, 0.0f};  // as blur_pass_fast
+  p.across.resize(n_across);
+  for (int b = 0; b < n_across; ++b) {
+    p.across[b] = detail::centre_tap(b, n_across, bits, float());
+    if (p.across[b].w1 != 0.0f || p.across[b].i0 != b) p.inexact.push_back(b);
+  }
+  p.need_lo.resize(h);
+  p.need_hi.resize(h);
+  for (int y = 0; y < h; ++y) {
+    int lo = y, hi = y;
+    if (p.horizontal) {
+      lo = std::min(lo, p.across[y].i0);
+      hi = std::max(hi, p.across[y].i1);
+    } else {
+      for (int k = 0; k < p.along.per_position; ++k) {
+        lo = std::min(lo, p.along.at(y)[k].i0);
+        hi = std::max(hi, p.along.at(y)[k].i1);
+      }
+    }
+    p.need_lo[y] = lo;
+    p.need_hi[y] = hi;
+  }
+  return p;
+}
+
+// Rows [r0, r1) of one pass read input rows [lo, hi).
+struct RowRange {
+  int lo, hi;
+};
+RowRange input_rows(const Pass& p, int r0, int r1) {
+  RowRange r{r0, r1};
+  for (int y = r0; y < r1; ++y) {
+    r.lo = std::min(r.lo, p.need_lo[y]);
+    r.hi = std::max(r.hi, p.need_hi[y] + 1);
+  }
+  return r;
+}
+
+// One column strip's schedule: the columns each pass computes ([x0[k], x1[k]): the strip plus
+// what later passes read beside it) and the rows of the ring each intermediate pass needs, found
+// by walking the chunks in order (every pass computes every row, chunk by chunk).
+struct Strip {
+  std::vector<int> x0, x1, ring;
+};
+
+Strip plan_strip(const std::vector<Pass>& passes, int h, int sx0, int sx1) {
+  const int n = static_cast<int>(passes.size());
+  Strip s;
+  s.x0.assign(n, sx0);
+  s.x1.assign(n, sx1);
+  s.ring.assign(n, 0);
+  for (int k = n - 1; k > 0; --k) {
+    const Pass& p = passes[k];
+    int lo = s.x0[k], hi = s.x1[k] - 1;
+    for (int x = s.x0[k]; x < s.x1[k]; ++x) {
+      if (p.horizontal) {
+        for (int t = 0; t < p.along.per_position; ++t) {
+          lo = std::min(lo, p.along.at(x)[t].i0);
+          hi = std::max(hi, p.along.at(x)[t].i1);
+        }
+      } else {
+        lo = std::min(lo, p.across[x].i0);
+        hi = std::max(hi, p.across[x].i1);
+      }
+    }
+    s.x0[k - 1] = lo;
+    s.x1[k - 1] = hi + 1;
+  }
+  // Pass k + 1 computing chunk [r, r + kChunk) reads pass k's rows [in.lo, in.hi); pass k has
+  // then produced rows up to the first chunk boundary at or after in.hi. The ring holds that.
+  for (int k = 0; k + 1 < n; ++k) {
+    int produced = 0;
+    for (int r = 0; r < h; r += kChunk) {
+      const RowRange in = input_rows(passes[k + 1], r, std::min(r + kChunk, h));
+      while (produced < in.hi) produced = std::min(produced + kChunk, h);
+      s.ring[k] = std::max(s.ring[k], produced - in.lo);
+    }
+  }
+  return s;
+}
+
+// A pointer that reaches `p` at column x0: row tables index rows by absolute column.
+float* shifted(float* p, int x0) {
+  return reinterpret_cast<float*>(reinterpret_cast<std::uintptr_t>(p) -
+                                  std::uintptr_t(x0) * kChannels * sizeof(float));
+}
+
+}  // namespace
+
+void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
+                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
+                       int threads, BlurIsa isa) {
+  const int w = src.width, h = src.height;
+  const int n = static_cast<int>(axes.size());
+  if (n == 0) throw ParamError("blur_passes_fused: no passes");
+  if (dst.width != w || dst.height != h)
+    throw ParamError("blur_passes_fused: source and destination sizes differ");
+  const auto tile_kernel = blur_isa_name(isa) == "avx2" ? detail::blur_tiles_avx2
+                                                        : detail::blur_tiles_generic;
+  std::vector<Pass> passes;
+  passes.reserve(n);
+  for (Axis a : axes) passes.push_back(make_pass(a, w, h, kernel, subtexel_bits));
+  const std::vector<float>& weights = kernel.weights_f32;
+
+  std::vector<const float*> src_rows(h);
+  std::vector<float*> dst_rows(h);
+  for (int y = 0; y < h; ++y) {
+    src_rows[y] = src.row(y);
+    dst_rows[y] = dst.row(y);
+  }
+  const int tiles_h = (w + kTileAlongH - 1) / kTileAlongH;  // horizontal tiles per row block
+  const int chunks = (h + kChunk - 1) / kChunk;
+
+  const int nstrips = (w + kStripWidth - 1) / kStripWidth;
+  parallel_rows(nstrips, threads, [&](int first_strip, int last_strip) {
+    for (int si = first_strip; si < last_strip; ++si) {
+      const int sx0 = si * kStripWidth, sx1 = std::min(w, sx0 + kStripWidth);
+      const Strip strip = plan_strip(passes, h, sx0, sx1);
+
+      // Pass k's output rows: a ring for the intermediate passes (row r in slot r mod ring[k],
+      // columns x0[k] ... x1[k] - 1), dst for the last.
+      std::vector<PixelBuffer<float>> rings(n);
+      std::vector<std::vector<float*>> out_rows(n);
+      for (int k = 0; k + 1 < n; ++k) {
+        const std::size_t row_floats = std::size_t(strip.x1[k] - strip.x0[k]) * kChannels;
+        rings[k] = PixelBuffer<float>(std::size_t(strip.ring[k]) * row_floats);
+        out_rows[k].resize(h);
+        for (int r = 0; r < h; ++r)
+          out_rows[k][r] = shifted(rings[k].data() + (r % strip.ring[k]) * row_floats, strip.x0[k]);
+      }
+      std::vector<int> produced(n, 0);
+
+      auto compute_chunk = [&](int k, int r0, int r1) {
+        const Pass& p = passes[k];
+        const int x0 = strip.x0[k], x1 = strip.x1[k];
+        const float* const* in = k == 0 ? src_rows.data() : out_rows[k - 1].data();
+        float* const* out = k + 1 == n ? dst_rows.data() : out_rows[k].data();
+        detail::TileJob job;
+        job.src_rows = in;
+        job.dst_rows = out;
+        job.horizontal = p.horizontal;
+        job.taps = p.kernel_taps.taps.data();
+        job.taps_per_position = p.kernel_taps.per_position;
+        job.weights = weights.data();
+        job.width = w;
+        if (p.horizontal) {
+          // Along = columns [x0, x1); across = rows, this chunk is across-block r0 / kChunk.
+          job.n_along = w;
+          job.n_across = h;
+          job.tile_along = kTileAlongH;
+          job.tile_across = kChunk;
+          job.tiles_along = tiles_h;
+          job.along_lo = x0;
+          job.along_hi = x1;
+          const int t0 = (r0 / kChunk) * tiles_h;
+          tile_kernel(job, t0 + x0 / kTileAlongH, t0 + (x1 + kTileAlongH - 1) / kTileAlongH);
+          for (auto it = std::lower_bound(p.inexact.begin(), p.inexact.end(), r0);
+               it != p.inexact.end() && *it < r1; ++it)
+            for (int x = x0; x < x1; ++x)
+              detail::blur_texel_rows(in, true, p.along.at(x), p.across[*it], weights,
+                                      out[*it] + std::ptrdiff_t(x) * kChannels);
+        } else {
+          // Along = rows, block r0 / kChunk; across = columns [x0, x1).
+          job.n_along = h;
+          job.n_across = w;
+          job.tile_along = kChunk;
+          job.tile_across = kTileAcrossV;
+          job.tiles_along = chunks;
+          job.across_lo = x0;
+          job.across_hi = x1;
+          for (int c = x0 / kTileAcrossV; c * kTileAcrossV < x1; ++c) {
+            const int t = c * chunks + r0 / kChunk;
+            tile_kernel(job, t, t + 1);
+          }
+          const auto first = std::lower_bound(p.inexact.begin(), p.inexact.end(), x0);
+          for (int y = r0; y < r1; ++y)
+            for (auto it = first; it != p.inexact.end() && *it < x1; ++it)
+              detail::blur_texel_rows(in, false, p.along.at(y), p.across[*it], weights,
+                                      out[y] + std::ptrdiff_t(*it) * kChannels);
+        }
+      };
+
+      // Pass k computes its rows up to `upto`, asking pass k - 1 for what each chunk reads.
+      std::function<void(int, int)> ensure = [&](int k, int upto) {
+        while (produced[k] < upto) {
+          const int r0 = produced[k], r1 = std::min(r0 + kChunk, h);
+          if (k > 0) ensure(k - 1, input_rows(passes[k], r0, r1).hi);
+          compute_chunk(k, r0, r1);
+          produced[k] = r1;
+        }
+      };
+      ensure(n - 1, h);
+    }
+  });
+}
+
+}  // namespace bloomref
