@@ -43,7 +43,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   BasicImage<T> bright = BasicImage<T>::uninitialised(p.method == Method::gaussian ? w : 0,
                                                       p.method == Method::gaussian ? h : 0);
   BasicImage<T> ping, pong;  // allocated by the first blur pass
-  bool blur_fused_done = false;  // every blur pass ran at blur.1 (blur_passes_fused)
+  bool blur_fused_done = false;  // the remaining blur passes ran fused (blur_passes_fused)
   // Method mip: level k of the down and up chains (index 0 unused), and the full-size bloom.
   std::vector<BasicImage<T>> down(plan.levels.size() + 1), up(plan.levels.size() + 1);
   BasicImage<T> mip_bloom, mapped;
@@ -138,20 +138,29 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
               stage.name, 1.0 - double(support.count()) / (double(w) * h));
         }
         if constexpr (std::is_same_v<T, float>) {
-          // The dense plan with nothing rounded or kept between passes: all passes at once,
-          // fused (the same bits as pass by pass, tested; the image is read and written once).
-          if (first_pass && p.blur == BlurImpl::fast && p.plan == PlanMode::full &&
-              p.storage == Storage::f32 && !opt.keep_all) {
+          // Dense from here on (the full plan, or the adaptive plan once its support covers
+          // half the image), nothing rounded or kept between passes: this pass and the rest at
+          // once, fused (the same bits as pass by pass, tested; the image is read and written
+          // once). The adaptive plan stops tracking its support once dense, so the rest are
+          // recorded as not skipping anything.
+          if (o.active == nullptr && p.blur == BlurImpl::fast && p.storage == Storage::f32 &&
+              !opt.keep_all) {
             std::vector<Axis> axes;
             for (const StageSpec& s : plan.stages)
-              if (s.kind == StageKind::blur) axes.push_back(s.axis);
+              if (s.kind == StageKind::blur && s.pass >= stage.pass) {
+                axes.push_back(s.axis);
+                if (p.plan == PlanMode::adaptive && s.pass > stage.pass)
+                  trace.skipped_fraction.emplace_back(s.name, 0.0);
+              }
             blur_passes_fused(src.cview(), pong.view(), axes, kernel_for(p.kernel),
                               p.subtexel_bits, threads);
             std::swap(ping, pong);
             pong = BasicImage<T>();
             bright = BasicImage<T>();  // not read again
             blur_fused_done = true;
-            trace.timings.emplace_back("blur.1-" + std::to_string(axes.size()), ms_since(t0));
+            trace.timings.emplace_back("blur." + std::to_string(stage.pass) + "-" +
+                                           std::to_string(stage.pass + int(axes.size()) - 1),
+                                       ms_since(t0));
             break;
           }
           if (p.blur == BlurImpl::fast) blur_pass_fast(src.cview(), pong.view(), o, threads);
