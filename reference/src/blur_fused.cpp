@@ -32,6 +32,7 @@ constexpr int kTileAlongH = 64;     // as blur_pass_fast
 constexpr int kTileAcrossV = 1024;  // as blur_pass_fast
 // Columns per strip: a pass's ring of ~42 rows x (512 + reach) texels is ~0.4 MB.
 constexpr int kStripWidth = 512;
+constexpr int kMinStripWidth = 64;
 
 // One pass's tables, built exactly as blur_pass_fast builds them.
 struct Pass {
@@ -164,10 +165,14 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
   const int tiles_h = (w + kTileAlongH - 1) / kTileAlongH;  // horizontal tiles per row block
   const int chunks = (h + kChunk - 1) / kChunk;
 
-  const int nstrips = (w + kStripWidth - 1) / kStripWidth;
+  // At least one strip per thread (narrower strips recompute more columns beside them, but a
+  // 256-texel-wide image on one thread would leave the other idle), at most kStripWidth wide.
+  const int per_thread = (w + resolve_threads(threads) - 1) / resolve_threads(threads);
+  const int strip_width = std::max(kMinStripWidth, std::min(kStripWidth, per_thread));
+  const int nstrips = (w + strip_width - 1) / strip_width;
   parallel_rows(nstrips, threads, [&](int first_strip, int last_strip) {
     for (int si = first_strip; si < last_strip; ++si) {
-      const int sx0 = si * kStripWidth, sx1 = std::min(w, sx0 + kStripWidth);
+      const int sx0 = si * strip_width, sx1 = std::min(w, sx0 + strip_width);
       const Strip strip = plan_strip(passes, h, sx0, sx1);
 
       // Pass k's output rows: a ring for the intermediate passes (row r in slot r mod ring[k],
