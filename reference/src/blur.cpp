@@ -178,7 +178,6 @@ void blur_texel(BasicView<const T> src, bool horizontal, const AxisTap<T>* taps,
                 const AxisTap<T>& other, const std::vector<T>& w, T* d) {
   if constexpr (std::is_same_v<T, float>) {
     blur_texel_f32(src, horizontal, taps, other, w, d);
-    return;
   } else {
     T r[3];
     if (other.w1 == T(0)) {

@@ -48,28 +48,60 @@ std::string blur_isa_name(BlurIsa isa) {
   return resolve(isa) == BlurIsa::avx2 ? "avx2" : "generic";
 }
 
-void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
-                    int threads, BlurIsa isa) {
-  isa = resolve(isa);
-  const bool horizontal = opt.axis == Axis::horizontal;
-  const int n_along = horizontal ? src.width : src.height;
-  const int n_across = horizontal ? src.height : src.width;
-  const detail::TapTable<float> along =
-      detail::make_taps(n_along, *opt.kernel, opt.subtexel_bits, float());
+namespace detail {
+
+TileKernel tile_kernel_for(BlurIsa isa) {
+  return resolve(isa) == BlurIsa::avx2 ? blur_tiles_avx2 : blur_tiles_generic;
+}
+
+PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits) {
+  PassTables t;
+  t.horizontal = axis == Axis::horizontal;
+  const int n_along = t.horizontal ? width : height;
+  const int n_across = t.horizontal ? height : width;
+  t.along = make_taps(n_along, k, bits, float());
   // The kernel's one-texel form is texel i0 times w0. A tap a hair left of texel 0's centre
   // (u = -2.98e-8 at x = 1, offset 1 of 1920 columns) has a = u - floor(u) rounded up to 1, so
   // w0 = 0 and the reference takes texel i1 times w1 alone: say that in the one-texel form.
-  detail::TapTable<float> kernel_taps = along;
-  for (AxisTap<float>& t : kernel_taps.taps)
-    if (t.w0 == 0.0f) t = {t.i1, t.i1, t.w1, 0.0f};
-
-  // Lines whose lookup across the blur is not exactly line b (weight 1): recomputed below.
-  std::vector<AxisTap<float>> across(n_across);
-  std::vector<int> inexact;
+  t.kernel_taps = t.along;
+  for (AxisTap<float>& tap : t.kernel_taps.taps)
+    if (tap.w0 == 0.0f) tap = {tap.i1, tap.i1, tap.w1, 0.0f};
+  // Lines whose lookup across the blur is not exactly line b (weight 1).
+  t.across.resize(n_across);
   for (int b = 0; b < n_across; ++b) {
-    across[b] = detail::centre_tap(b, n_across, opt.subtexel_bits, float());
-    if (across[b].w1 != 0.0f || across[b].i0 != b) inexact.push_back(b);
+    t.across[b] = centre_tap(b, n_across, bits, float());
+    if (t.across[b].w1 != 0.0f || t.across[b].i0 != b) t.inexact.push_back(b);
   }
+  return t;
+}
+
+void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
+                        const std::vector<float>& w, int a0, int a1, int b0, int b1,
+                        const std::uint8_t* active, int width) {
+  for (auto it = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
+       it != t.inexact.end() && *it < b1; ++it) {
+    const int b = *it;
+    for (int a = a0; a < a1; ++a) {
+      const int x = t.horizontal ? a : b, y = t.horizontal ? b : a;
+      float* d = out[y] + std::ptrdiff_t(x) * kChannels;
+      if (active && !active[std::size_t(y) * width + x])
+        fill_zero_alpha_one(d, 1, 0);
+      else
+        blur_texel_rows(in, t.horizontal, t.along.at(a), t.across[b], w, d);
+    }
+  }
+}
+
+}  // namespace detail
+
+void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
+                    int threads, BlurIsa isa) {
+  const detail::TileKernel kernel = detail::tile_kernel_for(isa);
+  const detail::PassTables tables =
+      detail::make_pass_tables(opt.axis, src.width, src.height, *opt.kernel, opt.subtexel_bits);
+  const bool horizontal = tables.horizontal;
+  const int n_along = horizontal ? src.width : src.height;
+  const int n_across = horizontal ? src.height : src.width;
 
   std::vector<const float*> src_rows(src.height);
   std::vector<float*> dst_rows(dst.height);
@@ -85,35 +117,23 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   // With a mask, narrower vertical tiles: more of them can be left out whole.
   job.tile_across = horizontal ? kTileAcrossH : opt.active ? kTileAcrossVMasked : kTileAcrossV;
   job.tiles_along = (n_along + kTileAlong - 1) / kTileAlong;
-  job.taps = kernel_taps.taps.data();
-  job.taps_per_position = along.per_position;
+  job.taps = tables.kernel_taps.taps.data();
+  job.taps_per_position = tables.kernel_taps.per_position;
   const std::vector<float>& w = opt.kernel->weights_f32;
   job.weights = w.data();
   job.active = opt.active;
   job.width = src.width;
   const int tiles_across = (n_across + job.tile_across - 1) / job.tile_across;
-  const auto kernel = isa == BlurIsa::avx2 ? detail::blur_tiles_avx2 : detail::blur_tiles_generic;
 
   parallel_rows(job.tiles_along * tiles_across, threads, [&](int t0, int t1) {
     kernel(job, t0, t1);
     // The inexact lines inside these tiles, the reference way.
     for (int t = t0; t < t1; ++t) {
       const int a0 = (t % job.tiles_along) * job.tile_along;
-      const int a1 = std::min(a0 + job.tile_along, n_along);
       const int b0 = (t / job.tiles_along) * job.tile_across;
-      const int b1 = std::min(b0 + job.tile_across, n_across);
-      for (auto it = std::lower_bound(inexact.begin(), inexact.end(), b0);
-           it != inexact.end() && *it < b1; ++it) {
-        const int b = *it;
-        for (int a = a0; a < a1; ++a) {
-          const int x = horizontal ? a : b, y = horizontal ? b : a;
-          float* d = dst.pixel(x, y);
-          if (opt.active && !opt.active[std::size_t(y) * src.width + x])
-            detail::fill_zero_alpha_one(d, 1, 0);
-          else
-            detail::blur_texel(src, horizontal, along.at(a), across[b], w, d);
-        }
-      }
+      detail::blur_inexact_lines(tables, src_rows.data(), dst_rows.data(), w, a0,
+                                 std::min(a0 + job.tile_along, n_along), b0,
+                                 std::min(b0 + job.tile_across, n_across), opt.active, src.width);
     }
   });
 }

@@ -34,41 +34,25 @@ constexpr int kTileAcrossV = 1024;  // as blur_pass_fast
 constexpr int kStripWidth = 512;
 constexpr int kMinStripWidth = 64;
 
-// One pass's tables, built exactly as blur_pass_fast builds them.
+// One pass's tables (blur_pass_fast's) and, per output row, the input rows it reads.
 struct Pass {
-  bool horizontal = false;
-  detail::TapTable<float> along;        // the reference taps (inexact lines)
-  detail::TapTable<float> kernel_taps;  // the kernel's one-texel form
-  std::vector<AxisTap<float>> across;
-  std::vector<int> inexact;          // lines whose lookup across the blur is not exact
-  std::vector<int> need_lo, need_hi;  // per output row: the input rows it reads
+  detail::PassTables t;
+  std::vector<int> need_lo, need_hi;
 };
 
 Pass make_pass(Axis axis, int w, int h, const Kernel& kernel, int bits) {
-  Pass p;
-  p.horizontal = axis == Axis::horizontal;
-  const int n_along = p.horizontal ? w : h;
-  const int n_across = p.horizontal ? h : w;
-  p.along = detail::make_taps(n_along, kernel, bits, float());
-  p.kernel_taps = p.along;
-  for (AxisTap<float>& t : p.kernel_taps.taps)
-    if (t.w0 == 0.0f) t = {t.i1, t.i1, t.w1, 0.0f};  // as blur_pass_fast
-  p.across.resize(n_across);
-  for (int b = 0; b < n_across; ++b) {
-    p.across[b] = detail::centre_tap(b, n_across, bits, float());
-    if (p.across[b].w1 != 0.0f || p.across[b].i0 != b) p.inexact.push_back(b);
-  }
+  Pass p{detail::make_pass_tables(axis, w, h, kernel, bits), {}, {}};
   p.need_lo.resize(h);
   p.need_hi.resize(h);
   for (int y = 0; y < h; ++y) {
     int lo = y, hi = y;
-    if (p.horizontal) {
-      lo = std::min(lo, p.across[y].i0);
-      hi = std::max(hi, p.across[y].i1);
+    if (p.t.horizontal) {
+      lo = std::min(lo, p.t.across[y].i0);
+      hi = std::max(hi, p.t.across[y].i1);
     } else {
-      for (int k = 0; k < p.along.per_position; ++k) {
-        lo = std::min(lo, p.along.at(y)[k].i0);
-        hi = std::max(hi, p.along.at(y)[k].i1);
+      for (int k = 0; k < p.t.along.per_position; ++k) {
+        lo = std::min(lo, p.t.along.at(y)[k].i0);
+        hi = std::max(hi, p.t.along.at(y)[k].i1);
       }
     }
     p.need_lo[y] = lo;
@@ -90,47 +74,51 @@ RowRange input_rows(const Pass& p, int r0, int r1) {
   return r;
 }
 
-// One column strip's schedule: the columns each pass computes ([x0[k], x1[k]): the strip plus
-// what later passes read beside it) and the rows of the ring each intermediate pass needs, found
-// by walking the chunks in order (every pass computes every row, chunk by chunk).
-struct Strip {
-  std::vector<int> x0, x1, ring;
-};
-
-Strip plan_strip(const std::vector<Pass>& passes, int h, int sx0, int sx1) {
+// The rows of the ring each intermediate pass needs, found by walking the chunks in order (every
+// pass computes every row, chunk by chunk; the same for every strip). Pass k + 1 computing
+// chunk [r, r + kChunk) reads pass k's rows [in.lo, in.hi); pass k has then produced rows up to
+// the first chunk boundary at or after in.hi. The ring holds that span.
+std::vector<int> ring_rows(const std::vector<Pass>& passes, int h) {
   const int n = static_cast<int>(passes.size());
-  Strip s;
-  s.x0.assign(n, sx0);
-  s.x1.assign(n, sx1);
-  s.ring.assign(n, 0);
-  for (int k = n - 1; k > 0; --k) {
-    const Pass& p = passes[k];
-    int lo = s.x0[k], hi = s.x1[k] - 1;
-    for (int x = s.x0[k]; x < s.x1[k]; ++x) {
-      if (p.horizontal) {
-        for (int t = 0; t < p.along.per_position; ++t) {
-          lo = std::min(lo, p.along.at(x)[t].i0);
-          hi = std::max(hi, p.along.at(x)[t].i1);
-        }
-      } else {
-        lo = std::min(lo, p.across[x].i0);
-        hi = std::max(hi, p.across[x].i1);
-      }
-    }
-    s.x0[k - 1] = lo;
-    s.x1[k - 1] = hi + 1;
-  }
-  // Pass k + 1 computing chunk [r, r + kChunk) reads pass k's rows [in.lo, in.hi); pass k has
-  // then produced rows up to the first chunk boundary at or after in.hi. The ring holds that.
+  std::vector<int> ring(n, 0);
   for (int k = 0; k + 1 < n; ++k) {
     int produced = 0;
     for (int r = 0; r < h; r += kChunk) {
       const RowRange in = input_rows(passes[k + 1], r, std::min(r + kChunk, h));
       while (produced < in.hi) produced = std::min(produced + kChunk, h);
-      s.ring[k] = std::max(s.ring[k], produced - in.lo);
+      ring[k] = std::max(ring[k], produced - in.lo);
     }
   }
-  return s;
+  return ring;
+}
+
+// The columns each pass computes for the strip [sx0, sx1): [x0[k], x1[k]), the strip plus what
+// later passes read beside it.
+struct Columns {
+  std::vector<int> x0, x1;
+};
+
+Columns strip_columns(const std::vector<Pass>& passes, int sx0, int sx1) {
+  const int n = static_cast<int>(passes.size());
+  Columns c{std::vector<int>(n, sx0), std::vector<int>(n, sx1)};
+  for (int k = n - 1; k > 0; --k) {
+    const detail::PassTables& t = passes[k].t;
+    int lo = c.x0[k], hi = c.x1[k] - 1;
+    for (int x = c.x0[k]; x < c.x1[k]; ++x) {
+      if (t.horizontal) {
+        for (int i = 0; i < t.along.per_position; ++i) {
+          lo = std::min(lo, t.along.at(x)[i].i0);
+          hi = std::max(hi, t.along.at(x)[i].i1);
+        }
+      } else {
+        lo = std::min(lo, t.across[x].i0);
+        hi = std::max(hi, t.across[x].i1);
+      }
+    }
+    c.x0[k - 1] = lo;
+    c.x1[k - 1] = hi + 1;
+  }
+  return c;
 }
 
 // A pointer that reaches `p` at column x0: row tables index rows by absolute column.
@@ -149,11 +137,11 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
   if (n == 0) throw ParamError("blur_passes_fused: no passes");
   if (dst.width != w || dst.height != h)
     throw ParamError("blur_passes_fused: source and destination sizes differ");
-  const auto tile_kernel = blur_isa_name(isa) == "avx2" ? detail::blur_tiles_avx2
-                                                        : detail::blur_tiles_generic;
+  const detail::TileKernel tile_kernel = detail::tile_kernel_for(isa);
   std::vector<Pass> passes;
   passes.reserve(n);
   for (Axis a : axes) passes.push_back(make_pass(a, w, h, kernel, subtexel_bits));
+  const std::vector<int> ring = ring_rows(passes, h);
   const std::vector<float>& weights = kernel.weights_f32;
 
   std::vector<const float*> src_rows(h);
@@ -173,7 +161,7 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
   parallel_rows(nstrips, threads, [&](int first_strip, int last_strip) {
     for (int si = first_strip; si < last_strip; ++si) {
       const int sx0 = si * strip_width, sx1 = std::min(w, sx0 + strip_width);
-      const Strip strip = plan_strip(passes, h, sx0, sx1);
+      const Columns strip = strip_columns(passes, sx0, sx1);
 
       // Pass k's output rows: a ring for the intermediate passes (row r in slot r mod ring[k],
       // columns x0[k] ... x1[k] - 1), dst for the last.
@@ -181,27 +169,27 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
       std::vector<std::vector<float*>> out_rows(n);
       for (int k = 0; k + 1 < n; ++k) {
         const std::size_t row_floats = std::size_t(strip.x1[k] - strip.x0[k]) * kChannels;
-        rings[k] = PixelBuffer<float>(std::size_t(strip.ring[k]) * row_floats);
+        rings[k] = PixelBuffer<float>(std::size_t(ring[k]) * row_floats);
         out_rows[k].resize(h);
         for (int r = 0; r < h; ++r)
-          out_rows[k][r] = shifted(rings[k].data() + (r % strip.ring[k]) * row_floats, strip.x0[k]);
+          out_rows[k][r] = shifted(rings[k].data() + (r % ring[k]) * row_floats, strip.x0[k]);
       }
       std::vector<int> produced(n, 0);
 
       auto compute_chunk = [&](int k, int r0, int r1) {
-        const Pass& p = passes[k];
+        const detail::PassTables& t = passes[k].t;
         const int x0 = strip.x0[k], x1 = strip.x1[k];
         const float* const* in = k == 0 ? src_rows.data() : out_rows[k - 1].data();
         float* const* out = k + 1 == n ? dst_rows.data() : out_rows[k].data();
         detail::TileJob job;
         job.src_rows = in;
         job.dst_rows = out;
-        job.horizontal = p.horizontal;
-        job.taps = p.kernel_taps.taps.data();
-        job.taps_per_position = p.kernel_taps.per_position;
+        job.horizontal = t.horizontal;
+        job.taps = t.kernel_taps.taps.data();
+        job.taps_per_position = t.kernel_taps.per_position;
         job.weights = weights.data();
         job.width = w;
-        if (p.horizontal) {
+        if (t.horizontal) {
           // Along = columns [x0, x1); across = rows, this chunk is across-block r0 / kChunk.
           job.n_along = w;
           job.n_across = h;
@@ -212,11 +200,7 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
           job.along_hi = x1;
           const int t0 = (r0 / kChunk) * tiles_h;
           tile_kernel(job, t0 + x0 / kTileAlongH, t0 + (x1 + kTileAlongH - 1) / kTileAlongH);
-          for (auto it = std::lower_bound(p.inexact.begin(), p.inexact.end(), r0);
-               it != p.inexact.end() && *it < r1; ++it)
-            for (int x = x0; x < x1; ++x)
-              detail::blur_texel_rows(in, true, p.along.at(x), p.across[*it], weights,
-                                      out[*it] + std::ptrdiff_t(x) * kChannels);
+          detail::blur_inexact_lines(t, in, out, weights, x0, x1, r0, r1, nullptr, w);
         } else {
           // Along = rows, block r0 / kChunk; across = columns [x0, x1).
           job.n_along = h;
@@ -227,14 +211,10 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
           job.across_lo = x0;
           job.across_hi = x1;
           for (int c = x0 / kTileAcrossV; c * kTileAcrossV < x1; ++c) {
-            const int t = c * chunks + r0 / kChunk;
-            tile_kernel(job, t, t + 1);
+            const int tile = c * chunks + r0 / kChunk;
+            tile_kernel(job, tile, tile + 1);
           }
-          const auto first = std::lower_bound(p.inexact.begin(), p.inexact.end(), x0);
-          for (int y = r0; y < r1; ++y)
-            for (auto it = first; it != p.inexact.end() && *it < x1; ++it)
-              detail::blur_texel_rows(in, false, p.along.at(y), p.across[*it], weights,
-                                      out[y] + std::ptrdiff_t(*it) * kChannels);
+          detail::blur_inexact_lines(t, in, out, weights, r0, r1, x0, x1, nullptr, w);
         }
       };
 

@@ -8,6 +8,7 @@
 
 #include "bloomref/kernel.h"
 #include "bloomref/sampler.h"
+#include "bloomref/stages.h"
 
 namespace bloomref::detail {
 
@@ -62,6 +63,28 @@ struct TileJob {
 /// exact is bit-identical to blur_texel. Compiled once per instruction set; the same IEEE operations in every lane.
 void blur_tiles_generic(const TileJob& job, int t0, int t1);
 void blur_tiles_avx2(const TileJob& job, int t0, int t1);
+
+using TileKernel = void (*)(const TileJob&, int, int);
+/// The tile kernel for `isa` (best: AVX2 where this CPU and build have it); throws ParamError
+/// for AVX2 where they do not.
+TileKernel tile_kernel_for(BlurIsa isa);
+
+/// One f32 pass's tables, shared by blur_pass_fast and blur_passes_fused.
+struct PassTables {
+  bool horizontal = true;
+  TapTable<float> along;        ///< the reference taps along the blur (blur_texel's)
+  TapTable<float> kernel_taps;  ///< the tile kernel's one-texel form of `along`
+  std::vector<AxisTap<float>> across;  ///< the lookup across the blur, per line
+  std::vector<int> inexact;  ///< lines whose lookup across the blur is not exactly on them
+};
+PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits);
+
+/// Recomputes, the reference way (blur_texel_rows), the texels (a, b) with a in [a0, a1) and
+/// b an inexact line in [b0, b1), where the tile kernel's one-line form does not apply; texels
+/// outside `active` (optional width x height mask) are (0, 0, 0, 1).
+void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
+                        const std::vector<float>& w, int a0, int a1, int b0, int b1,
+                        const std::uint8_t* active, int width);
 
 }  // namespace bloomref::detail
 
