@@ -50,6 +50,8 @@ std::string blur_isa_name(BlurIsa isa) {
 
 namespace detail {
 
+bool resolves_to_avx2(BlurIsa isa) { return resolve(isa) == BlurIsa::avx2; }
+
 TileKernel tile_kernel_for(BlurIsa isa) {
   return resolve(isa) == BlurIsa::avx2 ? blur_tiles_avx2 : blur_tiles_generic;
 }

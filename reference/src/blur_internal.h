@@ -64,6 +64,10 @@ struct TileJob {
 void blur_tiles_generic(const TileJob& job, int t0, int t1);
 void blur_tiles_avx2(const TileJob& job, int t0, int t1);
 
+/// Whether `isa` means the AVX2 kernels here (best: where this CPU and build have them); throws
+/// ParamError for AVX2 where they do not. Shared by every fast stage's dispatch.
+bool resolves_to_avx2(BlurIsa isa);
+
 using TileKernel = void (*)(const TileJob&, int, int);
 /// The tile kernel for `isa` (best: AVX2 where this CPU and build have it); throws ParamError
 /// for AVX2 where they do not.

@@ -3,10 +3,12 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <type_traits>
 #include <vector>
 
 #include "bloomref/parallel.h"
 #include "bloomref/sampler.h"
+#include "oracle_math.h"
 
 namespace bloomref {
 
@@ -147,7 +149,7 @@ inline float tonemap_value(float h, float exposure) {
     r = 1.0f - a * 0.5f * r;
     return a * r;
   }
-  return 1.0f - std::exp(x);
+  return 1.0f - oracle_exp(x);
 }
 inline double tonemap_value(double h, double exposure) { return -std::expm1(-h * exposure); }
 }  // namespace
@@ -166,16 +168,31 @@ void tonemap(BasicView<const T> hdr, BasicView<T> dst, T exposure, int threads) 
   });
 }
 
+float oracle_exp(float x) { return detail::exp_f32<1>(x); }
+float oracle_pow(float x, float y) { return detail::PowF32<1>(y)(x); }
+
+namespace {
+// pow as the output stage's T computes it; f32 builds the oracle's pow for 1 / gamma once.
+struct PowOf {
+  explicit PowOf(double y) : y(y) {}
+  double operator()(double x) const { return std::pow(x, y); }
+  double y;
+};
+template <class T>
+using PowFor = std::conditional_t<std::is_same_v<T, float>, detail::PowF32<1>, PowOf>;
+}  // namespace
+
 template <class T>
 void encode_output(BasicView<const T> mapped, BasicView<T> dst, T gamma, int threads) {
   const T inv_gamma = T(1) / gamma;
+  const PowFor<T> pow(inv_gamma);
   parallel_rows(mapped.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       for (int x = 0; x < mapped.width; ++x) {
         const T* s = mapped.pixel(x, y);
         T* d = dst.pixel(x, y);
         // std::max(NaN, 0) is NaN: a propagated NaN stays visible in the output.
-        for (int c = 0; c < 3; ++c) d[c] = std::pow(std::max(s[c], T(0)), inv_gamma);
+        for (int c = 0; c < 3; ++c) d[c] = pow(std::max(s[c], T(0)));
         d[3] = s[3];
       }
     }

@@ -180,15 +180,44 @@ template <class T>
 void composite(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> dst, T strength,
                int threads);
 
+/// The f32 oracle's exp: IEEE basic operations only, evaluated in double and rounded once, so
+/// its bits are the same on every machine and in every vector lane (the C library's expf is
+/// not correctly rounded and differs between libraries). Within 1e-15 relative of e^x before
+/// the rounding, so it returns the correctly rounded float except where e^x lies that close to
+/// a rounding boundary (none of 16 million sampled values: tests/test_stages.cpp). Method:
+/// reference/src/oracle_math.h.
+float oracle_exp(float x);
+/// The f32 oracle's pow for x >= 0 (or NaN), the same way; IEEE pow's special cases for those x
+/// (including pow(-0, odd integer y) = -0), NaN for x < 0.
+float oracle_pow(float x, float y);
+
 /// Stage `tonemap`: 1 - exp(-hdr * exposure). f64 computes -expm1(-hdr * exposure); f32 (and
-/// the shader) evaluate 1 - exp(x) for |x| >= 0.5 and a Horner-form Taylor series below, which
-/// keeps full relative precision where hdr * exposure is tiny (1 - exp cancels there).
+/// the shader) evaluate 1 - exp(x) for |x| >= 0.5 (exp: oracle_exp) and a Horner-form Taylor
+/// series below, which keeps full relative precision where hdr * exposure is tiny (1 - exp
+/// cancels there).
 template <class T>
 void tonemap(BasicView<const T> hdr, BasicView<T> dst, T exposure, int threads);
 
-/// Stage `output`: pow(max(x, 0), 1 / gamma), with 1 / gamma computed in T. Display-referred.
+/// Stage `output`: pow(max(x, 0), 1 / gamma), with 1 / gamma computed in T (f32: oracle_pow).
+/// Display-referred.
 template <class T>
 void encode_output(BasicView<const T> mapped, BasicView<T> dst, T gamma, int threads);
+
+/// Stages `tonemap` and `output` in f32, fast and bit-identical to tonemap<float> and
+/// encode_output<float> (tested): each row's RGB values packed into a line and run through
+/// oracle_exp / oracle_pow four double lanes at a time (finish_kernels.inc). `dst` may be
+/// `src`. Throws ParamError for an instruction set this CPU lacks.
+void tonemap_fast(BasicView<const float> hdr, BasicView<float> dst, float exposure, int threads,
+                  BlurIsa isa = BlurIsa::best);
+void encode_output_fast(BasicView<const float> mapped, BasicView<float> dst, float gamma,
+                        int threads, BlurIsa isa = BlurIsa::best);
+/// Stages `composite`, `tonemap` and `output` in f32 at once, row by row (the image is read
+/// and written once instead of three times), with the three stages' bits (tested); `bloom`
+/// empty means no composite. `dst` may be `scene`. Nothing is rounded between the stages (f32
+/// storage).
+void finish_fast(BasicView<const float> scene, BasicView<const float> bloom,
+                 BasicView<float> dst, float strength, float exposure, float gamma, int threads,
+                 BlurIsa isa = BlurIsa::best);
 
 /// Rounds every channel to the storage format in place. f32 storage is a no-op in either
 /// precision (the f64 truth is not narrowed to float); f16 storage rounds to binary16.

@@ -1,0 +1,62 @@
+// Stages composite, tonemap and output in f32, the fast way (stages.h: tonemap_fast,
+// encode_output_fast, finish_fast): rows handed to the instruction set's kernel
+// (finish_kernels.inc), which computes what stages.cpp computes, value by value.
+#include "blur_internal.h"
+#include "finish_internal.h"
+#include "bloomref/error.h"
+#include "bloomref/parallel.h"
+#include "bloomref/stages.h"
+
+namespace bloomref {
+namespace {
+
+void run_rows(BasicView<const float> scene, BasicView<const float> bloom, BasicView<float> dst,
+              const detail::FinishRow& job, int threads, BlurIsa isa) {
+  if (dst.width != scene.width || dst.height != scene.height ||
+      (!bloom.empty() && (bloom.width != scene.width || bloom.height != scene.height)))
+    throw ParamError("finishing stages: images of different sizes");
+  detail::FinishKernel kernel = detail::finish_row_generic;
+#ifdef BLOOMREF_HAVE_AVX2_KERNEL
+  if (detail::resolves_to_avx2(isa)) kernel = detail::finish_row_avx2;
+#else
+  detail::resolves_to_avx2(isa);  // throws for avx2
+#endif
+  const bool with_bloom = !bloom.empty();
+  parallel_rows(scene.height, threads, [&](int y0, int y1) {
+    std::vector<float> line;
+    for (int y = y0; y < y1; ++y)
+      kernel(job, scene.row(y), with_bloom ? bloom.row(y) : nullptr, dst.row(y), scene.width,
+             line);
+  });
+}
+
+}  // namespace
+
+void tonemap_fast(BasicView<const float> hdr, BasicView<float> dst, float exposure, int threads,
+                  BlurIsa isa) {
+  detail::FinishRow job;
+  job.tonemap = true;
+  job.exposure = exposure;
+  run_rows(hdr, BasicView<const float>{}, dst, job, threads, isa);
+}
+
+void encode_output_fast(BasicView<const float> mapped, BasicView<float> dst, float gamma,
+                        int threads, BlurIsa isa) {
+  detail::FinishRow job;
+  job.encode = true;
+  job.inv_gamma = 1.0f / gamma;
+  run_rows(mapped, BasicView<const float>{}, dst, job, threads, isa);
+}
+
+void finish_fast(BasicView<const float> scene, BasicView<const float> bloom,
+                 BasicView<float> dst, float strength, float exposure, float gamma, int threads,
+                 BlurIsa isa) {
+  detail::FinishRow job;
+  job.strength = strength;
+  job.tonemap = job.encode = true;
+  job.exposure = exposure;
+  job.inv_gamma = 1.0f / gamma;
+  run_rows(scene, bloom, dst, job, threads, isa);
+}
+
+}  // namespace bloomref

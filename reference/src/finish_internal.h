@@ -1,0 +1,29 @@
+// bloomref — what the fast f32 finishing stages (composite, tonemap, output) share between
+// stages_fast.cpp and the per-ISA row kernels (finish_kernels.inc).
+#pragma once
+
+#include <vector>
+
+namespace bloomref::detail {
+
+/// What one row goes through: composite when bloom is given, then the tone map and the output
+/// encoding where asked.
+struct FinishRow {
+  float strength = 1.0f;
+  bool tonemap = false;
+  float exposure = 1.0f;
+  bool encode = false;
+  float inv_gamma = 1.0f;  ///< 1 / gamma computed in float, as encode_output does
+};
+
+/// One row of `width` RGBA pixels: scene (+ strength * bloom when bloom is not null), tone
+/// mapped, encoded, into dst (which may be scene); alpha is the scene's. `line` is scratch.
+using FinishKernel = void (*)(const FinishRow& job, const float* scene, const float* bloom,
+                              float* dst, int width, std::vector<float>& line);
+
+void finish_row_generic(const FinishRow&, const float*, const float*, float*, int,
+                        std::vector<float>&);
+void finish_row_avx2(const FinishRow&, const float*, const float*, float*, int,
+                     std::vector<float>&);
+
+}  // namespace bloomref::detail

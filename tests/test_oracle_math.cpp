@@ -1,0 +1,233 @@
+// The f32 oracle's exp and pow (stages.h: oracle_exp, oracle_pow) against an independent
+// evaluation -- the C library's double exp and pow rounded to float -- and the fast finishing
+// stages (tonemap_fast, encode_output_fast, finish_fast) against the staged reference, bit for
+// bit, on hostile values.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "bloomref/stages.h"
+
+using namespace bloomref;
+
+namespace {
+
+std::uint32_t bits(float x) {
+  std::uint32_t u;
+  std::memcpy(&u, &x, sizeof u);
+  return u;
+}
+
+/// Distance in units in the last place between two finite floats of the same sign (the
+/// ordered-integer trick); a large number for anything else.
+std::int64_t ulps(float a, float b) {
+  if (std::isnan(a) || std::isnan(b)) return std::isnan(a) && std::isnan(b) ? 0 : 1 << 30;
+  if (a == b) return 0;
+  if (std::signbit(a) != std::signbit(b)) return 1 << 30;
+  return std::llabs(std::int64_t(bits(a)) - std::int64_t(bits(b)));
+}
+
+float from_bits(std::uint32_t u) {
+  float x;
+  std::memcpy(&x, &u, sizeof x);
+  return x;
+}
+
+struct Agreement {
+  std::int64_t n = 0, differ = 0, worst = 0;
+  void add(float ours, float truth) {
+    ++n;
+    const std::int64_t d = ulps(ours, truth);
+    if (d) ++differ;
+    worst = std::max(worst, d);
+  }
+};
+
+std::vector<BlurIsa> isas() {
+  std::vector<BlurIsa> v = {BlurIsa::generic};
+  if (blur_isa_available(BlurIsa::avx2)) v.push_back(BlurIsa::avx2);
+  return v;
+}
+
+}  // namespace
+
+TEST_CASE("oracle_exp is the correctly rounded exp on sampled floats", "[stages][oracle-math]") {
+  // Every float bit pattern is equally likely, restricted to the arguments whose exp is neither
+  // 0 nor Inf nor within the series branch's |x| < 0.5 only: [-104, 89] covers subnormal
+  // results and the overflow edge.
+  std::mt19937 rng(7);
+  Agreement a;
+  for (int i = 0; i < 400000; ++i) {
+    const float x = from_bits(rng());
+    if (!(std::fabs(x) <= 104.0f) || x > 89.0f) continue;
+    a.add(oracle_exp(x), static_cast<float>(std::exp(static_cast<double>(x))));
+  }
+  // Uniform over [-104, 89] too (the bit sampling above is dense near 0).
+  std::uniform_real_distribution<float> u(-104.0f, 89.0f);
+  for (int i = 0; i < 400000; ++i) {
+    const float x = u(rng);
+    a.add(oracle_exp(x), static_cast<float>(std::exp(static_cast<double>(x))));
+  }
+  INFO(a.n << " values, " << a.differ << " differ, worst " << a.worst << " ulp");
+  CHECK(a.n > 500000);
+  CHECK(a.worst <= 1);
+  CHECK(a.differ <= 2);  // the method's 1e-15 relative error: expected ~0.1 in this many
+}
+
+TEST_CASE("oracle_exp's special values and overflow edges", "[stages][oracle-math]") {
+  const float inf = std::numeric_limits<float>::infinity();
+  CHECK(oracle_exp(0.0f) == 1.0f);
+  CHECK(oracle_exp(-0.0f) == 1.0f);
+  CHECK(oracle_exp(inf) == inf);
+  CHECK(bits(oracle_exp(-inf)) == bits(0.0f));
+  CHECK(std::isnan(oracle_exp(std::numeric_limits<float>::quiet_NaN())));
+  CHECK(oracle_exp(1e30f) == inf);
+  CHECK(bits(oracle_exp(-1e30f)) == bits(0.0f));
+  // ln(FLT_MAX) = 88.7228391...: the largest float below it has a finite exp, the next one
+  // rounds to Inf (truth: the double exp rounded to float); e^-103.97 is the smallest
+  // subnormal's neighbourhood.
+  for (float x : {88.72283f, 88.72284f, 88.7229f, -87.33654f, -87.33655f, -103.2789f,
+                  -103.972f, -103.98f, -104.0f, 1.0f, -1.0f, 0.5f, -0.5f}) {
+    INFO("x = " << x);
+    CHECK(bits(oracle_exp(x)) == bits(static_cast<float>(std::exp(double(x)))));
+  }
+  CHECK(oracle_exp(1.0f) == 2.71828182845904523536f);
+}
+
+TEST_CASE("oracle_pow is the correctly rounded pow on sampled floats", "[stages][oracle-math]") {
+  std::mt19937 rng(11);
+  for (float y : {1.0f / 2.2f, 1.0f / 2.4f, 1.0f / 1.8f, 0.5f, 2.2f, 3.0f, -1.0f, -0.45f, 7.5f}) {
+    Agreement a;
+    for (int i = 0; i < 150000; ++i) {
+      // Positive floats of every binade (bit sampling), and the display range (0, 1].
+      const float x = i % 2 ? from_bits(rng() & 0x7fffffffu)
+                            : std::uniform_real_distribution<float>(0.0f, 1.0f)(rng);
+      if (!std::isfinite(x)) continue;
+      a.add(oracle_pow(x, y), static_cast<float>(std::pow(double(x), double(y))));
+    }
+    INFO("y = " << y << ": " << a.n << " values, " << a.differ << " differ, worst " << a.worst
+                << " ulp");
+    CHECK(a.worst <= 1);
+    CHECK(a.differ <= 2);
+  }
+}
+
+TEST_CASE("oracle_pow's special cases are IEEE pow's for x >= 0", "[stages][oracle-math]") {
+  const float inf = std::numeric_limits<float>::infinity();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float xs[] = {0.0f, -0.0f, 1.0f, inf, nan, 1e-45f, 3.4e38f, 0.5f, 2.0f};
+  const float ys[] = {1.0f / 2.2f, 1.0f, 3.0f, 2.0f, -1.0f, -3.0f, -2.0f, 0.0f, -0.0f,
+                      inf, -inf, nan, 1e30f, -1e30f, 0.5f, 1e-30f};
+  for (float y : ys)
+    for (float x : xs) {
+      INFO("pow(" << x << ", " << y << ")");
+      // Truth: the C library's double pow (IEEE's special cases), rounded to float.
+      const float truth = static_cast<float>(std::pow(double(x), double(y)));
+      const float ours = oracle_pow(x, y);
+      if (std::isnan(truth)) CHECK(std::isnan(ours));
+      else CHECK(bits(ours) == bits(truth));
+    }
+  CHECK(std::isnan(oracle_pow(-0.5f, 1.0f / 2.2f)));  // documented: x < 0 is NaN
+}
+
+namespace {
+
+// Values that take every branch: the series (|x| < 0.5) and exp branches of the tone map, both
+// signs, -0, subnormals, 1e38, +-Inf, NaN; display values in [0, 1] for the output stage.
+Image hostile(int w, int h, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const float special[] = {-0.0f, 0.0f, 1e-45f, 1e-40f, 1e38f, -1e38f,
+                           std::numeric_limits<float>::infinity(),
+                           -std::numeric_limits<float>::infinity(),
+                           std::numeric_limits<float>::quiet_NaN(), 0.25f, 0.5f, 1.0f};
+  Image img(w, h);
+  for (float& v : img.values()) {
+    const float r = u(rng);
+    if (r < 0.45f) v = std::ldexp(u(rng), int(u(rng) * 60.0f) - 40);
+    else if (r < 0.6f) v = -std::ldexp(u(rng), int(u(rng) * 20.0f) - 10);
+    else if (r < 0.9f) v = u(rng);
+    else v = special[int(u(rng) * 12.0f) % 12];
+  }
+  return img;
+}
+
+bool same_bits(const Image& a, const Image& b) {
+  return a.values().size() == b.values().size() &&
+         std::memcmp(a.values().data(), b.values().data(), a.values().size() * 4) == 0;
+}
+
+}  // namespace
+
+TEST_CASE("the fast finishing stages give the staged reference's bits", "[stages][oracle-math]") {
+  unsigned seed = 1;
+  for (auto [w, h] : {std::pair{1, 1}, {3, 1}, {5, 3}, {17, 9}, {640, 3}, {1, 37}}) {
+    for (float exposure : {1.0f, 0.37f, 8.0f}) {
+      const float gamma = exposure == 1.0f ? 2.2f : exposure == 8.0f ? 1.0f : 2.4f;
+      const float strength = 0.04f * exposure;
+      const Image scene = hostile(w, h, seed++), bloom = hostile(w, h, seed++);
+      // Reference: the three stages one after the other.
+      Image composed(w, h), mapped(w, h), out(w, h), encoded(w, h);
+      composite(scene.cview(), bloom.cview(), composed.view(), strength, 1);
+      tonemap(composed.cview(), mapped.view(), exposure, 1);
+      encode_output(mapped.cview(), out.view(), gamma, 1);
+      encode_output(scene.cview(), encoded.view(), gamma, 1);  // raw values: < 0, > 1, NaN
+      Image scene_mapped(w, h);
+      tonemap(scene.cview(), scene_mapped.view(), exposure, 1);
+      for (BlurIsa isa : isas())
+        for (int threads : {1, 2}) {
+          INFO(w << "x" << h << " exposure " << exposure << " gamma " << gamma << " "
+                 << blur_isa_name(isa) << " threads " << threads);
+          Image t(w, h);
+          tonemap_fast(scene.cview(), t.view(), exposure, threads, isa);
+          CHECK(same_bits(t, scene_mapped));
+          Image e(w, h);
+          encode_output_fast(scene.cview(), e.view(), gamma, threads, isa);
+          CHECK(same_bits(e, encoded));
+          Image f(w, h);
+          finish_fast(scene.cview(), bloom.cview(), f.view(), strength, exposure, gamma,
+                      threads, isa);
+          CHECK(same_bits(f, out));
+          Image in_place = scene;  // dst = scene, as the executor runs it
+          finish_fast(in_place.cview(), bloom.cview(), in_place.view(), strength, exposure,
+                      gamma, threads, isa);
+          CHECK(same_bits(in_place, out));
+        }
+    }
+  }
+}
+
+TEST_CASE("the fast output stage gives the reference's bits for every kind of exponent",
+          "[stages][oracle-math]") {
+  // 1 / gamma = 1/2.2, 1, 3 (odd: pow(-0, 3) = -0), 2, -1, +Inf, -Inf, 0, NaN: each of
+  // oracle_pow's special-case branches in vector lanes.
+  const float inf = std::numeric_limits<float>::infinity();
+  const Image scene = hostile(29, 5, 77);
+  for (float gamma : {2.2f, 1.0f, 1.0f / 3.0f, 0.5f, -1.0f, 0.0f, -0.0f, inf,
+                      std::numeric_limits<float>::quiet_NaN()}) {
+    Image ref(29, 5);
+    encode_output(scene.cview(), ref.view(), gamma, 1);
+    for (BlurIsa isa : isas()) {
+      INFO("gamma " << gamma << " " << blur_isa_name(isa));
+      Image fast(29, 5);
+      encode_output_fast(scene.cview(), fast.view(), gamma, 1, isa);
+      CHECK(same_bits(fast, ref));
+    }
+  }
+}
+
+TEST_CASE("the fast finishing stages are not vacuous: one ulp off is caught",
+          "[stages][oracle-math]") {
+  const Image scene = hostile(33, 7, 5);
+  Image ref(33, 7), fast(33, 7);
+  tonemap(scene.cview(), ref.view(), 1.0f, 1);
+  tonemap_fast(scene.cview(), fast.view(), std::nextafter(1.0f, 2.0f), 1);
+  CHECK_FALSE(same_bits(ref, fast));
+  encode_output(scene.cview(), ref.view(), 2.2f, 1);
+  encode_output_fast(scene.cview(), fast.view(), std::nextafter(2.2f, 3.0f), 1);
+  CHECK_FALSE(same_bits(ref, fast));
+}
