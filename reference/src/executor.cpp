@@ -44,6 +44,24 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
                                                       p.method == Method::gaussian ? h : 0);
   BasicImage<T> ping, pong;  // allocated by the first blur pass
   bool blur_fused_done = false;  // the remaining blur passes ran fused (blur_passes_fused)
+  // The finishing stages: the fast f32 ones unless the staged reference was asked for (--blur
+  // reference) or values are rounded to f16 between stages; and all three in one sweep
+  // (finish_fast) where no intermediate is kept and the composite comes before the tone map.
+  const bool fast_finish = std::is_same_v<T, float> && p.blur != BlurImpl::reference &&
+                           p.storage == Storage::f32;
+  const bool fuse_finish = fast_finish && !opt.keep_all &&
+                           !(p.method == Method::mip &&
+                             p.composite == CompositeOrder::after_tonemap);
+  auto tonemap_as = [&](const BasicImage<T>& src, BasicImage<T>& dst) {
+    if constexpr (std::is_same_v<T, float>)
+      if (fast_finish) return tonemap_fast(src.cview(), dst.view(), p.exposure, threads);
+    tonemap(src.cview(), dst.view(), static_cast<T>(p.exposure), threads);
+  };
+  auto encode_output_as = [&](const BasicImage<T>& src, BasicImage<T>& dst) {
+    if constexpr (std::is_same_v<T, float>)
+      if (fast_finish) return encode_output_fast(src.cview(), dst.view(), p.gamma, threads);
+    encode_output(src.cview(), dst.view(), static_cast<T>(p.gamma), threads);
+  };
   // Method mip: level k of the down and up chains (index 0 unused), and the full-size bloom.
   std::vector<BasicImage<T>> down(plan.levels.size() + 1), up(plan.levels.size() + 1);
   BasicImage<T> mip_bloom, mapped;
@@ -217,6 +235,24 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         break;
       }
       case StageKind::composite: {
+        if (fuse_finish) {
+          // composite, tonemap and output at once, in place into the scene (finish_fast: the
+          // three stages' bits, tested); one timing for the three.
+          if constexpr (std::is_same_v<T, float>) {
+            const bool blurred = p.method == Method::mip ||
+                                 (p.passes > 0 && !plan.stages[1 + p.passes].skipped);
+            const BasicImage<T>& bloom =
+                p.method == Method::mip ? mip_bloom : blurred ? ping : bright;
+            finish_fast(scene.cview(), bloom.cview(), scene.view(), p.strength, p.exposure,
+                        p.gamma, threads);
+          }
+          ping = BasicImage<T>();
+          pong = BasicImage<T>();
+          bright = BasicImage<T>();
+          mip_bloom = BasicImage<T>();
+          trace.timings.emplace_back("composite+tonemap+output", ms_since(t0));
+          break;
+        }
         if (p.method == Method::mip) {
           // before-tonemap: scene + strength * bloom; after-tonemap: mapped + strength * bloom.
           BasicImage<T>& base = p.composite == CompositeOrder::after_tonemap ? mapped : scene;
@@ -240,19 +276,27 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         break;
       }
       case StageKind::tonemap:
+        if (fuse_finish) break;  // done with the composite
         if (p.method == Method::mip && p.composite == CompositeOrder::after_tonemap) {
           mapped = BasicImage<T>(w, h);  // the scene tone-mapped; the bloom is added after
-          tonemap(scene.cview(), mapped.view(), static_cast<T>(p.exposure), threads);
+          tonemap_as(scene, mapped);
           store(mapped.view(), p.storage, rounding, threads);
           record(stage.name, mapped, ms_since(t0), false);
           break;
         }
-        tonemap(scene.cview(), scene.view(), static_cast<T>(p.exposure), threads);
+        tonemap_as(scene, scene);
         store(scene.view(), p.storage, rounding, threads);
         record(stage.name, scene, ms_since(t0), false);
         break;
       case StageKind::output:
-        encode_output(scene.cview(), scene.view(), static_cast<T>(p.gamma), threads);
+        if constexpr (std::is_same_v<T, float>) {
+          if (fuse_finish) {  // done with the composite; the buffer is handed over
+            trace.total_ms = ms_since(t_total);
+            trace.stages.push_back({stage.name, std::move(scene), 0.0, false});
+            break;
+          }
+        }
+        encode_output_as(scene, scene);
         store(scene.view(), p.storage, rounding, threads);
         trace.total_ms = ms_since(t_total);
         if constexpr (std::is_same_v<T, double>) trace.output_f64 = scene;
