@@ -29,8 +29,9 @@ void PipelineOptions::add_to(CLI::App& app) {
   app.add_option("--threads", p.threads, "0 = all hardware threads")->capture_default_str();
   app.add_option("--plan", plan, "adaptive | full (same bits)")->capture_default_str();
   app.add_option("--blur", blur,
-                 "f32 gaussian blur: fast (tiled, vectorised) | reference (the per-texel loop), "
-                 "same bits; approx (texel-exact taps, FMA: faster, not GL's sampling)")
+                 "f32 gaussian blur: fast (tiled, vectorised; vectorised tone map and output) | "
+                 "reference (the per-texel loop, the scalar stages), same bits; approx "
+                 "(texel-exact taps, FMA: faster, not GL's sampling)")
       ->capture_default_str();
   app.add_option("--levels", p.levels, "mip: downsample levels (fewer when the image ends)")
       ->capture_default_str();
