@@ -184,8 +184,8 @@ void composite(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> 
 /// its bits are the same on every machine and in every vector lane (the C library's expf is
 /// not correctly rounded and differs between libraries). Within 1e-15 relative of e^x before
 /// the rounding, so it returns the correctly rounded float except where e^x lies that close to
-/// a rounding boundary (none of 16 million sampled values: tests/test_stages.cpp). Method:
-/// reference/src/oracle_math.h.
+/// a rounding boundary (measured: README, "The f32 oracle's exp and pow are its own"; tested in
+/// tests/test_oracle_math.cpp). Method: reference/src/oracle_math.h.
 float oracle_exp(float x);
 /// The f32 oracle's pow for x >= 0 (or NaN), the same way; IEEE pow's special cases for those x
 /// (including pow(-0, odd integer y) = -0), NaN for x < 0.
