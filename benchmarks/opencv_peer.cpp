@@ -201,13 +201,9 @@ int main(int argc, char** argv) {
   lines.push_back(summary);
   std::puts(summary);
   // What two threads can give on this machine right now (parallel.h), beside the runs above.
-  const ParallelCeiling c = parallel_ceiling(2);
-  std::snprintf(summary, sizeof summary,
-                "machine ceiling, 2 threads: register-only work %.2fx, memory copy %.2fx (%.1f -> "
-                "%.1f GB/s)",
-                c.compute, c.memory, c.copy_gb_per_s_one, c.copy_gb_per_s_all);
-  lines.push_back(summary);
-  std::puts(summary);
+  const std::string ceiling = describe(parallel_ceiling(2));
+  lines.push_back(ceiling);
+  std::puts(ceiling.c_str());
   if (!out_dir.empty()) {
     std::filesystem::create_directories(out_dir);
     std::ofstream f(std::filesystem::path(out_dir) / "opencv_peer.txt");

@@ -231,10 +231,7 @@ std::function<int()> add_bench(CLI::App& app) {
     // Two threads against one, per size and plan, beside what the machine gives two threads.
     nlohmann::ordered_json scaling = nlohmann::ordered_json::array();
     if (all >= 2) {
-      for (const ParallelCeiling& c : ceilings)
-        std::printf("machine ceiling, 2 threads: register-only work %.2fx, memory copy %.2fx "
-                    "(%.1f -> %.1f GB/s)\n",
-                    c.compute, c.memory, c.copy_gb_per_s_one, c.copy_gb_per_s_all);
+      for (const ParallelCeiling& c : ceilings) std::printf("%s\n", describe(c).c_str());
       for (const Row& one : rows) {
         if (one.backend != "cpu" || one.threads != 1) continue;
         for (const Row& two : rows)

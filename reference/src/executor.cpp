@@ -235,44 +235,38 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         break;
       }
       case StageKind::composite: {
+        // What is added: the mip chain's bloom, the last blur pass, or (no pass ran) bright.
+        const bool blurred = p.method == Method::gaussian && p.passes > 0 &&
+                             !plan.stages[1 + p.passes].skipped;
+        const BasicImage<T>& bloom =
+            p.method == Method::mip ? mip_bloom : blurred ? ping : bright;
         if (fuse_finish) {
           // composite, tonemap and output at once, in place into the scene (finish_fast: the
           // three stages' bits, tested); one timing for the three.
-          if constexpr (std::is_same_v<T, float>) {
-            const bool blurred = p.method == Method::mip ||
-                                 (p.passes > 0 && !plan.stages[1 + p.passes].skipped);
-            const BasicImage<T>& bloom =
-                p.method == Method::mip ? mip_bloom : blurred ? ping : bright;
+          if constexpr (std::is_same_v<T, float>)
             finish_fast(scene.cview(), bloom.cview(), scene.view(), p.strength, p.exposure,
                         p.gamma, threads);
-          }
-          ping = BasicImage<T>();
-          pong = BasicImage<T>();
-          bright = BasicImage<T>();
           mip_bloom = BasicImage<T>();
-          trace.timings.emplace_back("composite+tonemap+output", ms_since(t0));
-          break;
-        }
-        if (p.method == Method::mip) {
+        } else if (p.method == Method::mip) {
           // before-tonemap: scene + strength * bloom; after-tonemap: mapped + strength * bloom.
           BasicImage<T>& base = p.composite == CompositeOrder::after_tonemap ? mapped : scene;
           BasicImage<T> out(w, h);
-          composite(base.cview(), mip_bloom.cview(), out.view(), static_cast<T>(p.strength),
+          composite(base.cview(), bloom.cview(), out.view(), static_cast<T>(p.strength),
                     threads);
           store(out.view(), p.storage, rounding, threads);
           scene = std::move(out);
-          record(stage.name, scene, ms_since(t0), false);
-          break;
+        } else {
+          // In place into the scene (per value, same index).
+          composite(scene.cview(), bloom.cview(), scene.view(), static_cast<T>(p.strength),
+                    threads);
+          store(scene.view(), p.storage, rounding, threads);
         }
-        const bool blurred = p.passes > 0 && !plan.stages[1 + p.passes].skipped;
-        const BasicImage<T>& bloom = blurred ? ping : bright;
-        // In place into the scene (per value, same index), then the bloom buffers go.
-        composite(scene.cview(), bloom.cview(), scene.view(), static_cast<T>(p.strength), threads);
-        store(scene.view(), p.storage, rounding, threads);
+        // The bloom buffers go (empty under the mip method).
         ping = BasicImage<T>();
         pong = BasicImage<T>();
         bright = BasicImage<T>();
-        record(stage.name, scene, ms_since(t0), false);
+        if (fuse_finish) trace.timings.emplace_back("composite+tonemap+output", ms_since(t0));
+        else record(stage.name, scene, ms_since(t0), false);
         break;
       }
       case StageKind::tonemap:

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 #include <vector>
 
@@ -98,6 +99,15 @@ ParallelCeiling parallel_ceiling(int threads, int repeats) {
   c.copy_gb_per_s_one = median(one_gbs);
   c.copy_gb_per_s_all = median(all_gbs);
   return c;
+}
+
+std::string describe(const ParallelCeiling& c) {
+  char line[160];
+  std::snprintf(line, sizeof line,
+                "machine ceiling, %d threads: register-only work %.2fx, memory copy %.2fx "
+                "(%.1f -> %.1f GB/s)",
+                c.threads, c.compute, c.memory, c.copy_gb_per_s_one, c.copy_gb_per_s_all);
+  return line;
 }
 
 }  // namespace bloomref

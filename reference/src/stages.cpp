@@ -130,27 +130,9 @@ void composite(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> 
 }
 
 namespace {
-// 1 - exp(-x) cancels for small |x| (exp(-1e-10) rounds to 1 and the result to 0, where the
-// truth is 1e-10; the gamma curve then turns a 6e-8 error into 5e-4). Below |x| = 0.5 the f32
-// path (and tonemap.glsl) evaluates the Taylor series in Horner form instead:
-// x (1 - x/2 (1 - x/3 (1 - ... (1 - x/8)))), truncation x^8/9! < 1e-8 relative, the 1/k as the
-// same float constants in C++ and GLSL, multiplications and subtractions only (correctly
-// rounded in GLSL). Measured effect: README, "Stiff and extreme inputs".
-inline float tonemap_value(float h, float exposure) {
-  const float x = -h * exposure;  // the shader's argument of exp
-  const float a = -x;
-  if (std::fabs(a) < 0.5f) {
-    float r = 1.0f - a * 0.125f;
-    r = 1.0f - a * 0.14285715f * r;
-    r = 1.0f - a * 0.16666667f * r;
-    r = 1.0f - a * 0.2f * r;
-    r = 1.0f - a * 0.25f * r;
-    r = 1.0f - a * 0.33333334f * r;
-    r = 1.0f - a * 0.5f * r;
-    return a * r;
-  }
-  return 1.0f - oracle_exp(x);
-}
+// f32: the shader's order, with the series below |x| = 0.5 (detail::tonemap_f32, which the
+// fast stages run in vector lanes).
+inline float tonemap_value(float h, float exposure) { return detail::tonemap_f32<1>(h, exposure); }
 inline double tonemap_value(double h, double exposure) { return -std::expm1(-h * exposure); }
 }  // namespace
 

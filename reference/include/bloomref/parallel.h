@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <string>
 
 namespace bloomref {
 
@@ -25,5 +26,7 @@ struct ParallelCeiling {
   double copy_gb_per_s_one = 0, copy_gb_per_s_all = 0;  ///< bytes read + written per second
 };
 ParallelCeiling parallel_ceiling(int threads, int repeats = 5);
+/// One line for the reports: "machine ceiling, N threads: register-only work ..., memory copy ...".
+std::string describe(const ParallelCeiling& c);
 
 }  // namespace bloomref
