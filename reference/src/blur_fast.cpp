@@ -68,6 +68,21 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
   t.kernel_taps = t.along;
   for (AxisTap<float>& tap : t.kernel_taps.taps)
     if (tap.w0 == 0.0f) tap = {tap.i1, tap.i1, tap.w1, 0.0f};
+  const int per = t.kernel_taps.per_position;
+  t.reach_lo.assign(n_along, 0);
+  t.reach_hi.assign(n_along, 0);
+  t.plain.assign(n_along, 1);
+  for (int a = 0; a < n_along; ++a) {
+    const AxisTap<float>* at = t.kernel_taps.at(a);
+    int lo = at[0].i0, hi = at[0].i1;
+    for (int i = 0; i < per; ++i) {
+      lo = std::min(lo, at[i].i0);
+      hi = std::max(hi, at[i].i1);
+      if (at[i].w1 != 0.0f || at[i].w0 != 1.0f) t.plain[a] = 0;
+    }
+    t.reach_lo[a] = lo;
+    t.reach_hi[a] = hi;
+  }
   // Lines whose lookup across the blur is not exactly line b (weight 1).
   t.across.resize(n_across);
   for (int b = 0; b < n_across; ++b) {
@@ -75,6 +90,14 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
     if (t.across[b].w1 != 0.0f || t.across[b].i0 != b) t.inexact.push_back(b);
   }
   return t;
+}
+
+void set_tables(TileJob& job, const PassTables& t) {
+  job.taps = t.kernel_taps.taps.data();
+  job.taps_per_position = t.kernel_taps.per_position;
+  job.reach_lo = t.reach_lo.data();
+  job.reach_hi = t.reach_hi.data();
+  job.plain = t.plain.data();
 }
 
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
@@ -119,8 +142,7 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   // With a mask, narrower vertical tiles: more of them can be left out whole.
   job.tile_across = horizontal ? kTileAcrossH : opt.active ? kTileAcrossVMasked : kTileAcrossV;
   job.tiles_along = (n_along + kTileAlong - 1) / kTileAlong;
-  job.taps = tables.kernel_taps.taps.data();
-  job.taps_per_position = tables.kernel_taps.per_position;
+  detail::set_tables(job, tables);
   const std::vector<float>& w = opt.kernel->weights_f32;
   job.weights = w.data();
   job.active = opt.active;

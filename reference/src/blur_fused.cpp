@@ -185,8 +185,7 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
         job.src_rows = in;
         job.dst_rows = out;
         job.horizontal = t.horizontal;
-        job.taps = t.kernel_taps.taps.data();
-        job.taps_per_position = t.kernel_taps.per_position;
+        detail::set_tables(job, t);
         job.weights = weights.data();
         job.width = w;
         if (t.horizontal) {

@@ -52,6 +52,11 @@ struct TileJob {
   int along_lo = 0, along_hi = 1 << 30, across_lo = 0, across_hi = 1 << 30;
   const AxisTap<float>* taps = nullptr;  ///< n_along x taps_per_position, shader order
   int taps_per_position = 0;
+  /// Per position along the blur: the lowest and highest input line its taps read, and
+  /// whether every tap is one texel at weight exactly 1 (PassTables: reach_lo, reach_hi, plain).
+  const int* reach_lo = nullptr;
+  const int* reach_hi = nullptr;
+  const std::uint8_t* plain = nullptr;
   /// Kernel weights, centre first. Every line is computed as if its lookup across the blur sat
   /// exactly on it; the caller recomputes the lines where it does not.
   const float* weights = nullptr;
@@ -78,10 +83,16 @@ struct PassTables {
   bool horizontal = true;
   TapTable<float> along;        ///< the reference taps along the blur (blur_texel's)
   TapTable<float> kernel_taps;  ///< the tile kernel's one-texel form of `along`
+  /// Per position along the blur, from kernel_taps: the input lines its taps reach, and
+  /// whether every tap is one texel at weight exactly 1 (the tile kernel's branch-free lines).
+  std::vector<int> reach_lo, reach_hi;
+  std::vector<std::uint8_t> plain;
   std::vector<AxisTap<float>> across;  ///< the lookup across the blur, per line
   std::vector<int> inexact;  ///< lines whose lookup across the blur is not exactly on them
 };
 PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits);
+/// Points `job`'s tap tables at `t`'s.
+void set_tables(TileJob& job, const PassTables& t);
 
 /// Recomputes, the reference way (blur_texel_rows), the texels (a, b) with a in [a0, a1) and
 /// b an inexact line in [b0, b1), where the tile kernel's one-line form does not apply; texels
