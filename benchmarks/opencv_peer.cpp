@@ -124,6 +124,9 @@ int main(int argc, char** argv) {
   Image ping(w, h), pong(w, h), reference_out;
   double ours_best = 1e30, approx_best = 1e30;
   enum class Impl { reference, fast, approx };
+  auto same_bits = [&](const Image& x, const Image& y) {
+    return std::memcmp(x.data(), y.data(), x.values().size() * sizeof(float)) == 0;
+  };
   auto ten_passes = [&](Impl impl, int threads, int bits = 0) {
     const Image* s = &bright;
     for (int p = 0; p < passes; ++p) {
@@ -135,25 +138,24 @@ int main(int argc, char** argv) {
       s = &d;
     }
   };
+  std::vector<Axis> axes;  // H, V, H, ... as ten_passes
+  for (int p = 0; p < passes; ++p) axes.push_back(p % 2 == 0 ? Axis::horizontal : Axis::vertical);
   for (int threads : {1, 2}) {
     const double ref_ms = median_ms(runs, [&] { ten_passes(Impl::reference, threads); });
     report("bloomref reference loop, 10 passes", threads, ref_ms, rel_error(pong.data(), truth), 1e-4);
     reference_out = pong;
     const double ms = median_ms(runs, [&] { ten_passes(Impl::fast, threads); });
     ours_best = std::min(ours_best, ms);
-    const bool same = std::memcmp(reference_out.data(), pong.data(), pong.values().size() * 4) == 0;
+    const bool same = same_bits(reference_out, pong);
     ok &= same;
     report(same ? "bloomref exact f32 blur (fast), 10 passes" : "bloomref fast blur DIFFERS from the reference",
            threads, ms, rel_error(pong.data(), truth), 1e-4);
     // All ten passes fused (blur_passes_fused: column strips through ring buffers).
-    std::vector<Axis> axes;
-    for (int p = 0; p < passes; ++p) axes.push_back(p % 2 == 0 ? Axis::horizontal : Axis::vertical);
     const double fused_ms = median_ms(runs, [&] {
       blur_passes_fused(bright.cview(), ping.view(), axes, kernel_discrete9(), 0, threads);
     });
     ours_best = std::min(ours_best, fused_ms);
-    const bool fused_same =
-        std::memcmp(reference_out.data(), ping.data(), ping.values().size() * 4) == 0;
+    const bool fused_same = same_bits(reference_out, ping);
     ok &= fused_same;
     report(fused_same ? "bloomref exact f32 blur (fused), 10 passes"
                       : "bloomref fused blur DIFFERS from the reference",
@@ -176,17 +178,15 @@ int main(int argc, char** argv) {
   // (sampler.h; the default, float weights, is llvmpipe's). Every tap then sits on one texel, so
   // no line needs the 2-D bilinear mix: checked bit for bit against the reference loop with the
   // same weights in this run.
-  std::vector<Axis> hw_axes;
-  for (int p = 0; p < passes; ++p) hw_axes.push_back(p % 2 == 0 ? Axis::horizontal : Axis::vertical);
   double hw_best = 1e30;
   ten_passes(Impl::reference, 2, 8);
   reference_out = pong;
   for (int threads : {1, 2}) {
     const double ms = median_ms(runs, [&] {
-      blur_passes_fused(bright.cview(), ping.view(), hw_axes, kernel_discrete9(), 8, threads);
+      blur_passes_fused(bright.cview(), ping.view(), axes, kernel_discrete9(), 8, threads);
     });
     hw_best = std::min(hw_best, ms);
-    const bool same = std::memcmp(reference_out.data(), ping.data(), ping.values().size() * 4) == 0;
+    const bool same = same_bits(reference_out, ping);
     ok &= same;
     report(same ? "bloomref exact f32 blur, 8-bit weights (fused)"
                 : "bloomref fused blur, 8-bit weights, DIFFERS",
@@ -210,7 +210,7 @@ int main(int argc, char** argv) {
     lines.push_back(line);
     std::puts(line);
   }
-  const bool same = std::memcmp(full_out.data(), adaptive_out.data(), full_out.values().size() * 4) == 0;
+  const bool same = same_bits(full_out, adaptive_out);
   ok &= same;
   char summary[360];
   std::snprintf(summary, sizeof summary,

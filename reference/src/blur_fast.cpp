@@ -69,6 +69,7 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
   for (AxisTap<float>& tap : t.kernel_taps.taps)
     if (tap.w0 == 0.0f) tap = {tap.i1, tap.i1, tap.w1, 0.0f};
   const int per = t.kernel_taps.per_position;
+  t.forms.resize(t.kernel_taps.taps.size());
   t.reach_lo.assign(n_along, 0);
   t.reach_hi.assign(n_along, 0);
   t.plain.assign(n_along, 1);
@@ -78,7 +79,9 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
     for (int i = 0; i < per; ++i) {
       lo = std::min(lo, at[i].i0);
       hi = std::max(hi, at[i].i1);
-      if (at[i].w1 != 0.0f || at[i].w0 != 1.0f) t.plain[a] = 0;
+      const TapForm f = form_of(at[i]);
+      t.forms[std::size_t(a) * per + i] = f;
+      if (f != TapForm::one) t.plain[a] = 0;
     }
     t.reach_lo[a] = lo;
     t.reach_hi[a] = hi;
@@ -95,6 +98,7 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
 void set_tables(TileJob& job, const PassTables& t) {
   job.taps = t.kernel_taps.taps.data();
   job.taps_per_position = t.kernel_taps.per_position;
+  job.forms = t.forms.data();
   job.reach_lo = t.reach_lo.data();
   job.reach_hi = t.reach_hi.data();
   job.plain = t.plain.data();

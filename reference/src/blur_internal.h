@@ -37,6 +37,15 @@ void blur_texel(BasicView<const T> src, bool horizontal, const AxisTap<T>* taps,
 void blur_texel_rows(const float* const* rows, bool horizontal, const AxisTap<float>* taps,
                      const AxisTap<float>& other, const std::vector<float>& w, float* d);
 
+/// How the tile kernel forms a tap's term, in blur_texel's form (p0 w0 [+ p1 w1]) wk: `one` when
+/// w0 is exactly 1 and there is no second texel (x * 1 == x: no signalling NaN reaches the blur,
+/// stages.h), `scaled` when there is no second texel (kept as the reference's case; the tap
+/// tables give w1 = 0 only with w0 = 1 - 0 = 1), `two` otherwise.
+enum class TapForm : unsigned char { one, scaled, two };
+inline TapForm form_of(const AxisTap<float>& t) {
+  return t.w1 != 0.0f ? TapForm::two : t.w0 == 1.0f ? TapForm::one : TapForm::scaled;
+}
+
 /// One pass of the fast blur, cut into tiles of `tile_along` x `tile_across` output texels.
 /// Tile t covers along-block t % tiles_along and across-block t / tiles_along, so consecutive
 /// tiles walk down the same across-block and reuse the rows in cache.
@@ -52,8 +61,8 @@ struct TileJob {
   int along_lo = 0, along_hi = 1 << 30, across_lo = 0, across_hi = 1 << 30;
   const AxisTap<float>* taps = nullptr;  ///< n_along x taps_per_position, shader order
   int taps_per_position = 0;
-  /// Per position along the blur: the lowest and highest input line its taps read, and
-  /// whether every tap is one texel at weight exactly 1 (PassTables: reach_lo, reach_hi, plain).
+  /// PassTables' per-tap forms and per-position reach and plainness (same layout as `taps`).
+  const TapForm* forms = nullptr;
   const int* reach_lo = nullptr;
   const int* reach_hi = nullptr;
   const std::uint8_t* plain = nullptr;
@@ -83,8 +92,9 @@ struct PassTables {
   bool horizontal = true;
   TapTable<float> along;        ///< the reference taps along the blur (blur_texel's)
   TapTable<float> kernel_taps;  ///< the tile kernel's one-texel form of `along`
-  /// Per position along the blur, from kernel_taps: the input lines its taps reach, and
-  /// whether every tap is one texel at weight exactly 1 (the tile kernel's branch-free lines).
+  /// From kernel_taps: each tap's form (same layout), and per position along the blur the input
+  /// lines its taps reach and whether every tap's form is `one` (the kernel's branch-free lines).
+  std::vector<TapForm> forms;
   std::vector<int> reach_lo, reach_hi;
   std::vector<std::uint8_t> plain;
   std::vector<AxisTap<float>> across;  ///< the lookup across the blur, per line
