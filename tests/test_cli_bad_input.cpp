@@ -4,6 +4,7 @@
 //
 // The command runs as a separate process (BLOOMREF_EXE) in a temporary folder.
 #include <ImfInputFile.h>
+#include <OpenImageIO/imageio.h>
 #include <sys/wait.h>
 
 #include <catch2/catch.hpp>
@@ -23,10 +24,11 @@ struct CliResult {
   std::string out, err;
 };
 
-/// Runs `bloomref ARGS` with `cwd` as its working folder.
-CliResult run_cli(const TempDir& cwd, const std::string& args) {
+/// Runs `bloomref ARGS` with `cwd` as its working folder; `env` (NAME=value ...) is put
+/// before the command.
+CliResult run_cli(const TempDir& cwd, const std::string& args, const std::string& env = "") {
   TempDir logs;
-  const std::string cmd = "cd '" + cwd.path().string() + "' && '" BLOOMREF_EXE "' " + args +
+  const std::string cmd = "cd '" + cwd.path().string() + "' && " + env + " '" BLOOMREF_EXE "' " + args +
                           " >'" + (logs / "out") + "' 2>'" + (logs / "err") + "'";
   const int status = std::system(cmd.c_str());
   CliResult r;
@@ -195,6 +197,58 @@ TEST_CASE("bloomref run writes EXR, PNG and JSON", "[cli]") {
   CHECK(j.contains("renderer"));
   CHECK(j["timings_ms"].contains("total"));
   CHECK(j.contains("skipped"));
+}
+
+/// A 4x2 Radiance .hdr written through OIIO (this test links it; bloomref does not).
+void write_small_hdr(const std::string& path) {
+  OIIO::ImageSpec spec(4, 2, 3, OIIO::TypeDesc::FLOAT);
+  std::vector<float> px(4 * 2 * 3, 0.5f);
+  px[0] = 8.0f;  // one bright texel
+  auto out = OIIO::ImageOutput::create(path);
+  REQUIRE(out);
+  REQUIRE(out->open(path, spec));
+  REQUIRE(out->write_image(OIIO::TypeDesc::FLOAT, px.data()));
+  REQUIRE(out->close());
+}
+
+TEST_CASE("OpenImageIO is loaded only for the formats that need it", "[cli]") {
+  // LD_DEBUG=libs makes the dynamic loader say on stderr which libraries it loads.
+  TempDir dir;
+  bloomref::test::write_test_exr(dir / "in.exr", 8, 8, {"R", "G", "B"},
+                                 std::vector<float>(64, 2.0f));
+  write_small_hdr(dir / "in.hdr");
+  const CliResult exr = run_cli(dir, "run in.exr -o out.png -o out.exr", "LD_DEBUG=libs");
+  INFO(exr.err.substr(0, 2000));
+  REQUIRE(exr.code == 0);
+  CHECK(exr.err.find("libOpenImageIO") == std::string::npos);
+  CHECK(exr.err.find("libbloomref_oiio") == std::string::npos);
+  // The control: reading a .hdr loads the module, and through it OIIO.
+  const CliResult hdr = run_cli(dir, "run in.hdr -o hdr.exr", "LD_DEBUG=libs");
+  INFO(hdr.err.substr(0, 2000));
+  REQUIRE(hdr.code == 0);
+  CHECK(hdr.err.find("libbloomref_oiio") != std::string::npos);
+  CHECK(hdr.err.find("libOpenImageIO") != std::string::npos);
+  Imath::Box2i dw;
+  const auto px = read_exr_rgba(dir / "hdr.exr", dw);
+  CHECK(dw.max.x - dw.min.x + 1 == 4);
+  CHECK(dw.max.y - dw.min.y + 1 == 2);
+}
+
+TEST_CASE("a missing OpenImageIO module is a clear input error", "[cli]") {
+  TempDir dir;
+  write_small_hdr(dir / "in.hdr");
+  // BLOOMREF_OIIO_MODULE, when set, is the only place the module is looked for.
+  const CliResult r = run_cli(dir, "run in.hdr -o out.exr", "BLOOMREF_OIIO_MODULE=./nowhere.so");
+  INFO(r.err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("in.hdr") != std::string::npos);
+  CHECK(r.err.find("libbloomref_oiio.so") != std::string::npos);
+  CHECK(r.err.find("nowhere.so") != std::string::npos);
+  CHECK(!fs::exists(dir / "out.exr"));
+  // EXR input needs no module.
+  bloomref::test::write_test_exr(dir / "in.exr", 8, 8, {"R", "G", "B"},
+                                 std::vector<float>(64, 2.0f));
+  CHECK(run_cli(dir, "run in.exr -o out.exr", "BLOOMREF_OIIO_MODULE=./nowhere.so").code == 0);
 }
 
 TEST_CASE("bloomref run succeeds on every corpus image, with no NaN out", "[cli][corpus]") {

@@ -1,12 +1,16 @@
-// Formats other than EXR (Radiance .hdr, PNG, TIFF, ...) through OpenImageIO.
-#include <OpenImageIO/imageio.h>
+// Formats other than EXR (Radiance .hdr, PNG, TIFF, ...) through OpenImageIO, which lives in a
+// module loaded on first use (oiio_module.h says why; oiio_module.cpp is the OIIO side).
+#include <dlfcn.h>
+#include <unistd.h>
 
+#include <cstdlib>
 #include <string>
 #include <vector>
 
 #include "bloomref/error.h"
 #include "bloomref/stages.h"
 #include "io_internal.h"
+#include "oiio_module.h"
 
 namespace bloomref::detail {
 namespace {
@@ -22,13 +26,13 @@ struct ChannelMap {
   bool grey = false;
 };
 
-ChannelMap map_channels(const OIIO::ImageSpec& spec) {
+ChannelMap map_channels(const OiioHeader& spec) {
   ChannelMap m;
   const int nch = spec.nchannels;
   m.alpha = spec.alpha_channel >= 0 && spec.alpha_channel < nch ? spec.alpha_channel : -1;
   bool named = false;
   for (int c = 0; c < nch; ++c) {
-    const std::string n = spec.channel_name(c);
+    const std::string& n = spec.channel_names[c];
     if (n == "R" || n == "G" || n == "B") {
       m.rgb[n == "R" ? 0 : n == "G" ? 1 : 2] = c;
       named = true;
@@ -50,37 +54,99 @@ ChannelMap map_channels(const OIIO::ImageSpec& spec) {
   return m;
 }
 
+/// Where the module may be: $BLOOMREF_OIIO_MODULE alone when it is set; otherwise next to the
+/// running program (an installed layout), then where this build put it
+/// (BLOOMREF_OIIO_MODULE_PATH, set by CMake).
+std::vector<std::string> module_candidates() {
+  std::vector<std::string> paths;
+  if (const char* env = std::getenv("BLOOMREF_OIIO_MODULE"); env && *env) return {env};
+  std::string exe(4096, '\0');
+  const ssize_t n = ::readlink("/proc/self/exe", exe.data(), exe.size() - 1);
+  if (n > 0) {
+    exe.resize(static_cast<std::size_t>(n));
+    paths.push_back(exe.substr(0, exe.rfind('/') + 1) + "libbloomref_oiio.so");
+  }
+#ifdef BLOOMREF_OIIO_MODULE_PATH
+  paths.push_back(BLOOMREF_OIIO_MODULE_PATH);
+#endif
+  return paths;
+}
+
+/// The module's reader, loaded once per process; throws InputError naming `path` when no
+/// candidate loads (the message lists what was tried).
+OiioReadFn oiio_reader(const std::string& path) {
+  struct Loaded {
+    OiioReadFn read = nullptr;
+    std::string why;
+  };
+  static const Loaded loaded = [] {
+    Loaded l;
+    for (const std::string& candidate : module_candidates()) {
+      ::dlerror();
+      void* handle = ::dlopen(candidate.c_str(), RTLD_NOW | RTLD_LOCAL);
+      if (!handle) {
+        const char* e = ::dlerror();
+        l.why += (l.why.empty() ? "" : "; ") + std::string(e ? e : candidate);
+        continue;
+      }
+      l.read = reinterpret_cast<OiioReadFn>(::dlsym(handle, kOiioReadSymbol));
+      if (l.read) return l;
+      l.why += (l.why.empty() ? "" : "; ") + candidate + ": no " + kOiioReadSymbol;
+    }
+    return l;
+  }();
+  if (!loaded.read)
+    throw InputError(path, "reading this format needs bloomref's OpenImageIO module "
+                           "(libbloomref_oiio.so), which did not load: " + loaded.why);
+  return loaded.read;
+}
+
+struct AcceptContext {
+  const std::string* path;
+  const SizeLimits* limits;
+};
+
+/// Refuses, before any pixel memory is allocated, what load_image would not take.
+void accept_header(const OiioHeader& h, void* ctx) {
+  const auto& a = *static_cast<const AcceptContext*>(ctx);
+  check_size(*a.path, h.width, h.height, *a.limits);
+  if (h.depth > 1) throw InputError(*a.path, "volume images are not supported");
+  if (h.nchannels < 1)
+    throw InputError(*a.path, "unsupported channel layout: the image has no channels");
+  if (map_channels(h).colours == 0)
+    throw InputError(*a.path, "unsupported channel layout: alpha only");
+}
+
 }  // namespace
 
 LoadedImage load_oiio(const std::string& path, const SizeLimits& limits) {
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) {
-    std::string why = OIIO::geterror();
-    throw InputError(path, "cannot read this image: " + (why.empty() ? "unknown format" : why));
+  const OiioReadFn read = oiio_reader(path);
+  OiioHeader spec;
+  std::vector<float> buf;
+  std::string why;
+  AcceptContext ctx{&path, &limits};
+  switch (read(path.c_str(), spec, accept_header, &ctx, buf, why)) {
+    case OiioStatus::ok:
+      break;
+    case OiioStatus::cannot_open:
+      throw InputError(path, "cannot read this image: " + (why.empty() ? "unknown format" : why));
+    case OiioStatus::cannot_read:
+      throw InputError(path, "cannot read the pixels: " + why);
   }
-  const OIIO::ImageSpec spec = in->spec();
-  check_size(path, spec.width, spec.height, limits);
-  if (spec.depth > 1) throw InputError(path, "volume images are not supported");
   const int nch = spec.nchannels;
-  if (nch < 1) throw InputError(path, "unsupported channel layout: the image has no channels");
 
   LoadedImage out;
   ImageInfo& info = out.info;
   info.path = path;
-  info.format = in->format_name();
+  info.format = spec.format;
   info.data_window = {spec.x, spec.y, spec.x + spec.width - 1, spec.y + spec.height - 1};
   info.display_window = {spec.full_x, spec.full_y, spec.full_x + spec.full_width - 1,
                          spec.full_y + spec.full_height - 1};
   for (int c = 0; c < nch; ++c)
-    info.channels += (c ? ", " : "") + std::string(spec.channel_name(c));
+    info.channels += (c ? ", " : "") + spec.channel_names[c];
   const ChannelMap map = map_channels(spec);
-  if (map.colours == 0) throw InputError(path, "unsupported channel layout: alpha only");
   info.has_alpha = map.alpha >= 0;
   info.layout = map.grey ? "one channel read as grey" : "RGB";
-
-  std::vector<float> buf(static_cast<std::size_t>(spec.width) * spec.height * nch);
-  if (!in->read_image(0, 0, 0, nch, OIIO::TypeDesc::FLOAT, buf.data()))
-    throw InputError(path, "cannot read the pixels: " + in->geterror());
 
   out.image = Image(spec.width, spec.height);
   float* d = out.image.data();
@@ -90,24 +156,6 @@ LoadedImage load_oiio(const std::string& path, const SizeLimits& limits) {
     d[i * kChannels + 3] = map.alpha >= 0 ? s[map.alpha] : 1.0f;
   }
   return out;
-}
-
-void write_png_file(const std::string& path, ConstImageView img) {
-  // Opaque RGB: the PNG is the display-referred picture. Alpha after a bloom is not a coverage
-  // any viewer can use (CandleGlass.exr's flame has A = 0 and bright RGB; a viewer would show
-  // it transparent), so it stays in the EXR output only.
-  constexpr int kOut = 3;
-  std::vector<unsigned char> px(static_cast<std::size_t>(img.width) * img.height * kOut);
-  for (int y = 0; y < img.height; ++y)
-    for (int x = 0; x < img.width; ++x)
-      for (int c = 0; c < kOut; ++c)
-        px[(std::size_t(y) * img.width + x) * kOut + c] = quantize_8bit(img.pixel(x, y)[c]);
-  auto out = OIIO::ImageOutput::create(path);
-  if (!out) throw InputError(path, "cannot create a PNG writer: " + OIIO::geterror());
-  OIIO::ImageSpec spec(img.width, img.height, kOut, OIIO::TypeDesc::UINT8);
-  if (!out->open(path, spec) || !out->write_image(OIIO::TypeDesc::UINT8, px.data()) ||
-      !out->close())
-    throw InputError(path, "cannot write: " + out->geterror());
 }
 
 }  // namespace bloomref::detail
