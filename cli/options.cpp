@@ -62,6 +62,7 @@ void PipelineOptions::scene_size(int& w, int& h) const {
 
 LoadedImage PipelineOptions::load_input(const std::string& input, std::string& source) const {
   LoadedImage in;
+  set_io_threads(params.threads);  // the EXR reader and writers use as many as the pipeline
   if (!input.empty()) {
     in = load_image(input);
     source = input;

@@ -9,17 +9,39 @@
 #include <ImfOutputFile.h>
 #include <ImfPartType.h>
 #include <ImfRgbaFile.h>
+#include <ImfThreading.h>
 #include <ImfVersion.h>
 #include <openexr.h>
 
+#include <atomic>
 #include <fstream>
 #include <set>
+#include <thread>
 
 #include "bloomref/error.h"
 #include "io_internal.h"
 
+namespace bloomref {
+namespace {
+std::atomic<int> g_io_threads{0};
+}  // namespace
+
+void set_io_threads(int threads) { g_io_threads = threads < 0 ? 0 : threads; }
+
+}  // namespace bloomref
+
 namespace bloomref::detail {
 namespace {
+
+/// OpenEXR's numThreads argument (chunks in flight), with its global pool, which runs them, set
+/// to as many workers (0: everything in the caller).
+int exr_threads() {
+  const int t = g_io_threads.load();
+  const int n = t > 0 ? t : static_cast<int>(std::thread::hardware_concurrency());
+  const int workers = n > 1 ? n : 0;
+  if (Imf::globalThreadCount() != workers) Imf::setGlobalThreadCount(workers);
+  return workers;
+}
 
 Window to_window(const Imath::Box2i& b) { return {b.min.x, b.min.y, b.max.x, b.max.y}; }
 
@@ -119,7 +141,7 @@ LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
     check_part_sizes(path, limits, f ? static_cast<unsigned long long>(f.tellg()) : ~0ull);
   }
   try {
-    Imf::MultiPartInputFile file(path.c_str());
+    Imf::MultiPartInputFile file(path.c_str(), exr_threads());
     const int parts = file.parts();
     int chosen = -1;
     PartChannels pc;
@@ -159,7 +181,7 @@ LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
       if (chosen != 0)
         throw InputError(path, "luminance/chroma channels are supported in part 0 only");
       info.layout += ", luminance/chroma reconstructed to RGB";
-      Imf::RgbaInputFile rgba(path.c_str());
+      Imf::RgbaInputFile rgba(path.c_str(), exr_threads());
       Imf::Array2D<Imf::Rgba> px(ht, w);
       rgba.setFrameBuffer(&px[0][0] - dw.min.x - (long)dw.min.y * w, 1, w);
       rgba.readPixels(dw.min.y, dw.max.y);
@@ -215,7 +237,9 @@ void write_exr_file(const std::string& path, ConstImageView img, const ImageInfo
     if (v.width() > 0 && v.height() > 0)
       header.displayWindow() = Imath::Box2i({v.x0, v.y0}, {v.x1, v.y1});
   }
-  header.compression() = Imf::ZIP_COMPRESSION;
+  // PIZ (lossless: wavelet + Huffman): on the demo scene's 3840x2160 output 82 MB against ZIP's
+  // 89 MB, written in ~1.35 s against ~2.0 s on two threads, read as fast (README: EXR output).
+  header.compression() = Imf::PIZ_COMPRESSION;
   for (const char* c : {"R", "G", "B", "A"}) header.channels().insert(c, Imf::Channel(Imf::FLOAT));
   const Imath::Box2i dw = header.dataWindow();
   // OpenEXR takes non-const pointers for writing too; it only reads through them.
@@ -225,7 +249,7 @@ void write_exr_file(const std::string& path, ConstImageView img, const ImageInfo
   const char* names[] = {"R", "G", "B", "A"};
   for (int c = 0; c < 4; ++c)
     fb.insert(names[c], Imf::Slice::Make(Imf::FLOAT, base + c * sizeof(float), dw, xs, ys));
-  Imf::OutputFile file(path.c_str(), header);
+  Imf::OutputFile file(path.c_str(), header, exr_threads());
   file.setFrameBuffer(fb);
   file.writePixels(img.height);
 }

@@ -5,6 +5,7 @@
 #include <functional>
 
 #include "bloomref/error.h"
+#include "bloomref/parallel.h"
 
 namespace bloomref {
 namespace {
@@ -18,9 +19,13 @@ float hash01(std::uint32_t x, std::uint32_t y, std::uint32_t seed) {
   return static_cast<float>(h & 0xffffffu) / 16777216.0f;
 }
 
+// Every pixel from its coordinates alone, so rows are filled in parallel (all hardware threads)
+// with the same result as in order: the demo scene at 3840x2160 took ~0.25 s on one thread.
 void fill(Image& img, const std::function<void(int, int, float*)>& f) {
-  for (int y = 0; y < img.height(); ++y)
-    for (int x = 0; x < img.width(); ++x) f(x, y, img.pixel(x, y));
+  parallel_rows(img.height(), 0, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < img.width(); ++x) f(x, y, img.pixel(x, y));
+  });
 }
 
 void set(float* p, float r, float g, float b) {

@@ -60,6 +60,11 @@ void save_image(const std::string& path, ConstImageView img, const ImageInfo* wi
 void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
 void save_png(const std::string& path, ConstImageView img);
 
+/// Threads OpenEXR may use to decompress and compress (its chunks are independent, the bytes do
+/// not depend on the count): 0 = all hardware threads (the default), 1 = none besides the
+/// caller's. Process-wide, like OpenEXR's own pool.
+void set_io_threads(int threads);
+
 /// Throws InputError if writing `output` would replace `input` (same file, via any path).
 void refuse_overwrite(const std::string& output, const std::string& input);
 
