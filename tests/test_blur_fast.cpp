@@ -4,6 +4,7 @@
 // has; and whole runs on every scene and corpus image with `--blur fast` and `--blur reference`.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <vector>
@@ -85,6 +86,79 @@ TEST_CASE("blur_pass_fast gives blur_pass's bits on hostile values and awkward s
       }
     }
   }
+}
+
+TEST_CASE("a masked fast pass told dst is zero outside leaves those texels alone",
+          "[blur][fast]") {
+  // The adaptive plan's passes after the first (stages.h: dst_zero_outside): texels outside the
+  // mask keep whatever dst held (a sentinel here, to see that nothing wrote them), texels inside
+  // get blur_pass's bits; and blur_support's output contains its input, the growth the plan's
+  // claim rests on (pass k's buffer was zeroed outside pass k - 2's support). Inactive texels in
+  // a tile with an active one are computed, and come out (+0, +0, +0, 1).
+  const std::pair<int, int> sizes[] = {{1, 1}, {7, 1}, {3, 5}, {37, 23}, {257, 131},
+                                       {1920, 9}, {9, 1080}, {131, 2160}};
+  unsigned seed = 90;
+  std::size_t total_kept = 0;
+  for (auto [w, h] : sizes) {
+    // Sparse: the hostile values kept on a few texels only, so whole tiles are inactive.
+    Image src = hostile_image(w, h, seed++);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        if ((x / 3 + 7 * (y / 5)) % 61 != 0)
+          for (int c = 0; c < 4; ++c) src.view().pixel(x, y)[c] = 0.0f;
+    std::vector<std::uint8_t> support(std::size_t(w) * h), active(support.size());
+    const std::size_t set = nonzero_support(src.cview(), support.data(), 1);
+    for (const Kernel* k : {&kernel_discrete9(), &kernel_linear5()}) {
+      for (int bits : {0, 8}) {
+        for (Axis axis : {Axis::horizontal, Axis::vertical}) {
+          BlurPassOptions o{axis, k, bits};
+          const std::size_t grown = blur_support<float>(support.data(), active.data(), w, h, o, 2);
+          INFO(w << "x" << h << " " << k->name << " bits " << bits << " axis "
+                 << (axis == Axis::horizontal ? "h" : "v"));
+          CHECK(grown >= set);
+          std::size_t contained = 0, outside = 0;
+          for (std::size_t i = 0; i < support.size(); ++i) {
+            contained += !support[i] || active[i];
+            outside += !active[i];
+          }
+          CHECK(contained == support.size());
+          o.active = active.data();
+          Image ref(w, h);
+          blur_pass(src.cview(), ref.view(), o, 1);
+          for (BlurIsa isa : isas()) {
+            o.dst_zero_outside = true;
+            const float sentinel = -123.25f;
+            Image fast(w, h, sentinel);
+            blur_pass_fast(src.cview(), fast.view(), o, 2, isa);
+            std::size_t kept = 0, zeroed = 0, differ = 0;
+            for (int y = 0; y < h; ++y)
+              for (int x = 0; x < w; ++x) {
+                const float* f = fast.cview().pixel(x, y);
+                const float* r = ref.cview().pixel(x, y);
+                if (!active[std::size_t(y) * w + x]) {
+                  // Untouched, or (in a tile with active texels) computed: (+0, +0, +0, 1).
+                  const bool untouched = f[0] == sentinel && f[1] == sentinel &&
+                                         f[2] == sentinel && f[3] == sentinel;
+                  const float zero_one[4] = {0.0f, 0.0f, 0.0f, 1.0f};
+                  kept += untouched;
+                  zeroed += std::memcmp(f, zero_one, sizeof zero_one) == 0;
+                } else {
+                  for (int c = 0; c < 4; ++c)
+                    differ += !(std::isnan(f[c]) && std::isnan(r[c])) &&
+                              std::memcmp(&f[c], &r[c], sizeof(float)) != 0;
+                }
+              }
+            INFO("isa " << blur_isa_name(isa) << ", " << outside << " texels outside");
+            CHECK(kept + zeroed == outside);
+            CHECK(differ == 0);
+            total_kept += kept;
+          }
+        }
+      }
+    }
+  }
+  // Not vacuous: whole tiles were left alone.
+  CHECK(total_kept > 10000);
 }
 
 TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][fused]") {

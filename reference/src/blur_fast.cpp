@@ -106,17 +106,18 @@ void set_tables(TileJob& job, const PassTables& t) {
 
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
-                        const std::uint8_t* active, int width) {
+                        const std::uint8_t* active, int width, bool dst_zero_outside) {
   for (auto it = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
        it != t.inexact.end() && *it < b1; ++it) {
     const int b = *it;
     for (int a = a0; a < a1; ++a) {
       const int x = t.horizontal ? a : b, y = t.horizontal ? b : a;
       float* d = out[y] + std::ptrdiff_t(x) * kChannels;
-      if (active && !active[std::size_t(y) * width + x])
-        fill_zero_alpha_one(d, 1, 0);
-      else
+      if (active && !active[std::size_t(y) * width + x]) {
+        if (!dst_zero_outside) fill_zero_alpha_one(d, 1, 0);
+      } else {
         blur_texel_rows(in, t.horizontal, t.along.at(a), t.across[b], w, d);
+      }
     }
   }
 }
@@ -150,6 +151,7 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   const std::vector<float>& w = opt.kernel->weights_f32;
   job.weights = w.data();
   job.active = opt.active;
+  job.dst_zero_outside = opt.active && opt.dst_zero_outside;
   job.width = src.width;
   const int tiles_across = (n_across + job.tile_across - 1) / job.tile_across;
 
@@ -161,7 +163,8 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
       const int b0 = (t / job.tiles_along) * job.tile_across;
       detail::blur_inexact_lines(tables, src_rows.data(), dst_rows.data(), w, a0,
                                  std::min(a0 + job.tile_along, n_along), b0,
-                                 std::min(b0 + job.tile_across, n_across), opt.active, src.width);
+                                 std::min(b0 + job.tile_across, n_across), opt.active, src.width,
+                                 job.dst_zero_outside);
     }
   });
 }

@@ -70,6 +70,7 @@ struct TileJob {
   /// exactly on it; the caller recomputes the lines where it does not.
   const float* weights = nullptr;
   const std::uint8_t* active = nullptr;  ///< optional width x height mask (stages.h)
+  bool dst_zero_outside = false;  ///< tiles without an active texel are left alone (stages.h)
   int width = 0;
 };
 
@@ -106,10 +107,11 @@ void set_tables(TileJob& job, const PassTables& t);
 
 /// Recomputes, the reference way (blur_texel_rows), the texels (a, b) with a in [a0, a1) and
 /// b an inexact line in [b0, b1), where the tile kernel's one-line form does not apply; texels
-/// outside `active` (optional width x height mask) are (0, 0, 0, 1).
+/// outside `active` (optional width x height mask) are (0, 0, 0, 1), written unless
+/// `dst_zero_outside` says they already are.
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
-                        const std::uint8_t* active, int width);
+                        const std::uint8_t* active, int width, bool dst_zero_outside = false);
 
 }  // namespace bloomref::detail
 

@@ -152,6 +152,9 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           // Blur only the bright pixels' support, dilated pass by pass by the taps' reach.
           if (!support.started()) support.start(bright.cview(), threads);
           o.active = support.advance<T>(o, threads);
+          // Pass 1 writes a new buffer; pass k > 1 the one pass k - 2 (pass 2: bright) left
+          // (+0, +0, +0, 1) outside a support contained in this one (stages.h).
+          o.dst_zero_outside = !first_pass;
           trace.skipped_fraction.emplace_back(
               stage.name, 1.0 - double(support.count()) / (double(w) * h));
         }

@@ -90,6 +90,13 @@ struct BlurPassOptions {
   /// (+0, +0, +0, 1) -- exactly what the blur gives when every texel it reads is +0, which is what
   /// blur_support guarantees for its zeros (the adaptive plan's tiles, at texel resolution).
   const std::uint8_t* active = nullptr;
+  /// With `active`: dst already holds (+0, +0, +0, 1) wherever active is 0, so the fast pass
+  /// (blur_pass_fast) does not write its tiles without an active texel again (texels of the
+  /// other tiles are computed, and the inactive ones come out (+0, +0, +0, 1) as before). The adaptive plan
+  /// sets it from pass 2 on: its supports only grow, and pass k writes the buffer pass k - 2 wrote
+  /// (pass 2: the bright image, (+0, +0, +0, 1) outside its nonzero support). Other passes write
+  /// them anyway (the same values).
+  bool dst_zero_outside = false;
 };
 
 /// Stage `blur.k`: one single-direction pass of a separable kernel, through GL_LINEAR /
