@@ -73,6 +73,16 @@ struct Lanes<1> {
   static F narrow(D x) { return static_cast<F>(x); }
 };
 
+/// Whether every lane of a comparison's result is true (one lane: the bool itself).
+inline bool all_lanes(bool m) { return m; }
+template <class M>
+inline bool all_lanes(const M& m) {
+  constexpr int n = int(sizeof(M) / sizeof(m[0]));
+  bool all = true;
+  for (int i = 0; i < n; ++i) all = all && m[i] != 0;
+  return all;
+}
+
 namespace oracle_math {
 constexpr double kInvLn2 = 0x1.71547652b82fep+0;
 constexpr double kLn2 = 0x1.62e42fefa39efp-1;
@@ -228,9 +238,13 @@ inline typename Lanes<N>::F tonemap_f32(typename Lanes<N>::F h, float exposure) 
   r = 1.0f - a * 0.33333334f * r;
   r = 1.0f - a * 0.5f * r;
   const F series = a * r;
-  const F far = 1.0f - exp_f32<N>(x);
   const F abs_a = a < 0.0f ? -a : a;  // NaN: not below 0.5 -> 1 - exp(NaN) = NaN
-  return abs_a < 0.5f ? series : far;
+  const auto near = abs_a < 0.5f;
+  // Where every lane takes the series (dark pixels, most of a typical frame), exp is not
+  // evaluated at all: the lanes' results are the same, the time is a third of the stage's.
+  if (all_lanes(near)) return series;
+  const F far = 1.0f - exp_f32<N>(x);
+  return near ? series : far;
 }
 
 }  // namespace bloomref::detail
