@@ -198,6 +198,41 @@ TEST_CASE("parameters are validated, not clamped", "[params]") {
   CHECK_THROWS_WITH(parse_nonfinite("ignore"), Catch::Contains("zero, clamp, propagate, error"));
 }
 
+TEST_CASE("zero_lazily and Image::zeroed give zero bytes over dirty memory, any alignment",
+          "[stages]") {
+  // Dirty heap memory (written with a pattern) at offsets that are not page-aligned, sizes below,
+  // at and across page boundaries: every byte in the range becomes 0, the bytes around it keep
+  // the pattern.
+  const std::size_t page = 4096;
+  std::vector<unsigned char> buf(8 * page + 64);
+  for (std::size_t off : {std::size_t(0), std::size_t(1), std::size_t(63), page - 3, page}) {
+    for (std::size_t n : {std::size_t(0), std::size_t(5), page, page + 7, 3 * page + 100,
+                          6 * page}) {
+      std::fill(buf.begin(), buf.end(), 0xA5);
+      bloomref::detail::zero_lazily(buf.data() + off, n);
+      std::size_t zero = 0, kept = 0;
+      for (std::size_t i = 0; i < buf.size(); ++i) {
+        const bool inside = i >= off && i < off + n;
+        zero += inside && buf[i] == 0;
+        kept += !inside && buf[i] == 0xA5;
+      }
+      INFO("offset " << off << " bytes " << n);
+      CHECK(zero == n);
+      CHECK(kept == buf.size() - n);
+    }
+  }
+  for (int round = 0; round < 3; ++round) {
+    {
+      Image dirty(1024, 1024, -7.0f);  // 16 MiB: leaves dirty memory for the next allocation
+    }
+    const Image z = Image::zeroed(1024, 1024);
+    CHECK(reinterpret_cast<std::uintptr_t>(z.data()) % 64 == 0);
+    std::size_t nonzero = 0;
+    for (float v : z.values()) nonzero += std::signbit(v) || v != 0.0f;
+    CHECK(nonzero == 0);
+  }
+}
+
 TEST_CASE("image buffers start on a cache line; the fill constructor fills, copies keep values",
           "[stages]") {
   for (auto [w, h] : {std::pair{1, 1}, {3, 7}, {1920, 1080}}) {

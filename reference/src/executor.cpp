@@ -39,9 +39,12 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
 
   const auto t_total = Clock::now();
   BasicImage<T> scene;
-  // Written whole by the input stage (extract_bright).
-  BasicImage<T> bright = BasicImage<T>::uninitialised(p.method == Method::gaussian ? w : 0,
-                                                      p.method == Method::gaussian ? h : 0);
+  // Written by the input stage (extract_bright): whole when stages are kept, else only its
+  // bright pixels into a zeroed image (its pages exist where written; no stage after it reads
+  // its alpha, left 0 elsewhere).
+  const int bw = p.method == Method::gaussian ? w : 0, bh = p.method == Method::gaussian ? h : 0;
+  BasicImage<T> bright = opt.keep_all ? BasicImage<T>::uninitialised(bw, bh)
+                                      : BasicImage<T>::zeroed(bw, bh);
   BasicImage<T> ping, pong;  // allocated by the first blur pass
   bool blur_fused_done = false;  // the remaining blur passes ran fused (blur_passes_fused)
   // The finishing stages: the fast f32 ones unless the staged reference was asked for (--blur
@@ -125,8 +128,20 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           trace.nonfinite = sanitize(scene.cview(), scene.view(), p.nonfinite, p.storage, threads);
         // The seeds' MRT pass writes the scene and the bright colour in one draw: bright is
         // decided on the sanitised value before either is stored (rounded to f16).
-        if (p.method == Method::gaussian)
-          extract_bright(scene.cview(), bright.view(), static_cast<T>(p.threshold), threads);
+        if (p.method == Method::gaussian) {
+          // The adaptive plan's first support comes out of the same sweep (the bright image's
+          // nonzero texels): no second read of the bright image, most of whose pages are
+          // never written (zeroed).
+          std::vector<std::uint8_t> nonzero;
+          const bool blurs = std::any_of(plan.stages.begin(), plan.stages.end(), [](const StageSpec& s) {
+            return s.kind == StageKind::blur && !s.skipped;
+          });
+          if (p.plan == PlanMode::adaptive && blurs) nonzero.resize(std::size_t(w) * h);
+          const std::size_t count =
+              extract_bright(scene.cview(), bright.view(), static_cast<T>(p.threshold), threads,
+                             /*dst_zeroed=*/!opt.keep_all, nonzero.empty() ? nullptr : nonzero.data());
+          if (!nonzero.empty()) support.start(std::move(nonzero), count);
+        }
         store(scene.view(), p.storage, rounding, threads);
         record(stage.name, scene, ms_since(t0), false);
         break;
@@ -145,16 +160,24 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           if (opt.keep_all) record(stage.name, bright, 0.0, true);
           break;
         }
-        if (pong.empty()) pong = BasicImage<T>::uninitialised(w, h);  // every texel is written
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
         const bool first_pass = stage.pass == 1;
+        // The adaptive fast f32 blur writes only the tiles its support reaches when what it
+        // writes into is already +0 around them (stages.h: dst_zero_outside), and no stage image
+        // is kept (the texels left alone keep alpha 0, which nothing after the blur reads): its
+        // first pass then writes into pages that only exist where written (image.h: zeroed).
+        const bool leave_zeros = p.plan == PlanMode::adaptive && p.blur == BlurImpl::fast &&
+                                 std::is_same_v<T, float> && !opt.keep_all;
+        if (pong.empty())
+          pong = leave_zeros && first_pass ? BasicImage<T>::zeroed(w, h)
+                                           : BasicImage<T>::uninitialised(w, h);
         if (p.plan == PlanMode::adaptive) {
           // Blur only the bright pixels' support, dilated pass by pass by the taps' reach.
           if (!support.started()) support.start(bright.cview(), threads);
           o.active = support.advance<T>(o, threads);
-          // Pass 1 writes a new buffer; pass k > 1 the one pass k - 2 (pass 2: bright) left
-          // (+0, +0, +0, 1) outside a support contained in this one (stages.h).
-          o.dst_zero_outside = !first_pass;
+          // Pass k > 1 writes the buffer pass k - 2 (pass 2: bright) left +0 outside a support
+          // contained in this one (stages.h); pass 1 a zeroed one, or a new one it fills.
+          o.dst_zero_outside = !first_pass || leave_zeros;
           trace.skipped_fraction.emplace_back(
               stage.name, 1.0 - double(support.count()) / (double(w) * h));
         }

@@ -1,6 +1,11 @@
 // bloomref — image buffers (image.h: CacheAlignedAllocator).
 #include "bloomref/image.h"
 
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <cstdint>
+#include <cstring>
 #include <new>
 
 namespace bloomref::detail {
@@ -13,5 +18,17 @@ constexpr std::align_val_t kAlign{64};
 void* allocate_pixels(std::size_t bytes) { return ::operator new(bytes, kAlign); }
 
 void free_pixels(void* p, std::size_t) noexcept { ::operator delete(p, kAlign); }
+
+void zero_lazily(void* p, std::size_t bytes) noexcept {
+  static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const auto begin = reinterpret_cast<std::uintptr_t>(p), end = begin + bytes;
+  const std::uintptr_t first = (begin + page - 1) / page * page, last = end / page * page;
+  if (first >= last || ::madvise(reinterpret_cast<void*>(first), last - first, MADV_DONTNEED) != 0) {
+    std::memset(p, 0, bytes);
+    return;
+  }
+  std::memset(p, 0, first - begin);
+  std::memset(reinterpret_cast<void*>(last), 0, end - last);
+}
 
 }  // namespace bloomref::detail

@@ -96,18 +96,32 @@ NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite pol
 }
 
 template <class T>
-void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads) {
+std::size_t extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
+                           bool dst_zeroed, std::uint8_t* nonzero) {
+  std::vector<std::size_t> counts(src.height, 0);
   parallel_rows(src.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
+      std::uint8_t* nz = nonzero ? nonzero + std::size_t(y) * src.width : nullptr;
       for (int x = 0; x < src.width; ++x) {
         const T* s = src.pixel(x, y);
         T* d = dst.pixel(x, y);
         const bool bright = luminance(s[0], s[1], s[2]) > threshold;
+        if (nz) {
+          // nonzero_support's test on what is written: RGB not +0 in every channel.
+          bool set = false;
+          for (int c = 0; c < 3; ++c) set |= !(s[c] == T(0) && !std::signbit(s[c]));
+          nz[x] = bright && set;
+          counts[y] += nz[x];
+        }
+        if (dst_zeroed && !bright) continue;  // +0 already; the page may stay unwritten
         for (int c = 0; c < 3; ++c) d[c] = bright ? s[c] : T(0);
         d[3] = T(1);
       }
     }
   });
+  std::size_t total = 0;
+  for (std::size_t n : counts) total += n;
+  return total;
 }
 
 template <class T>
@@ -202,7 +216,8 @@ std::uint8_t quantize_8bit(float x) {
   template NonFiniteCounts count_nonfinite<T>(BasicView<const T>, int);                          \
   template NonFiniteCounts sanitize<T>(BasicView<const T>, BasicView<T>, NonFinite, Storage,     \
                                        int);                                                      \
-  template void extract_bright<T>(BasicView<const T>, BasicView<T>, T, int);                     \
+  template std::size_t extract_bright<T>(BasicView<const T>, BasicView<T>, T, int, bool,       \
+                                         std::uint8_t*);                     \
   template void composite<T>(BasicView<const T>, BasicView<const T>, BasicView<T>, T, int);      \
   template void tonemap<T>(BasicView<const T>, BasicView<T>, T, int);                            \
   template void encode_output<T>(BasicView<const T>, BasicView<T>, T, int);                      \

@@ -24,6 +24,11 @@ constexpr int kChannels = 4;
 namespace detail {
 void* allocate_pixels(std::size_t bytes);
 void free_pixels(void* p, std::size_t bytes) noexcept;
+/// Sets `bytes` at p to zero without writing the whole pages inside: those are handed back to
+/// the kernel (madvise MADV_DONTNEED: private anonymous memory then reads as zero, and a page
+/// is only materialised when written), the partial pages at the ends are written. Falls back to
+/// memset where madvise refuses.
+void zero_lazily(void* p, std::size_t bytes) noexcept;
 }  // namespace detail
 
 /// The allocator of image buffers. Every buffer starts on a 64-byte (cache line) boundary, so
@@ -84,6 +89,14 @@ class BasicImage {
     img.width_ = width;
     img.height_ = height;
     img.pixels_ = PixelBuffer<T>(static_cast<std::size_t>(width) * height * kChannels);
+    return img;
+  }
+
+  /// An image of +0 in every channel, alpha included, whose pages are only materialised where
+  /// they are written (detail::zero_lazily): for a destination written in a few places.
+  static BasicImage zeroed(int width, int height) {
+    BasicImage img = uninitialised(width, height);
+    detail::zero_lazily(img.pixels_.data(), img.pixels_.size() * sizeof(T));
     return img;
   }
 

@@ -76,9 +76,14 @@ NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite pol
                          Storage storage, int threads);
 
 /// Stage `bright`: (rgb, 1) where luminance(rgb) > threshold (strictly; a tie is not bright),
-/// else (0, 0, 0, 1). NaN luminance is not bright.
+/// else (0, 0, 0, 1). NaN luminance is not bright. With dst_zeroed (dst holds +0 everywhere, as
+/// BasicImage::zeroed gives) only the bright pixels are written: the others keep (0, 0, 0, 0),
+/// for a caller that reads no alpha of the bright image (the executor when no stage is kept).
+/// With `nonzero` (width x height), also what nonzero_support(dst) would give, without reading
+/// dst again; returns its count (0 without it).
 template <class T>
-void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads);
+std::size_t extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
+                           bool dst_zeroed = false, std::uint8_t* nonzero = nullptr);
 
 enum class Axis { horizontal, vertical };
 
@@ -90,12 +95,13 @@ struct BlurPassOptions {
   /// (+0, +0, +0, 1) -- exactly what the blur gives when every texel it reads is +0, which is what
   /// blur_support guarantees for its zeros (the adaptive plan's tiles, at texel resolution).
   const std::uint8_t* active = nullptr;
-  /// With `active`: dst already holds (+0, +0, +0, 1) wherever active is 0, so the fast pass
-  /// (blur_pass_fast) does not write its tiles without an active texel again (texels of the
-  /// other tiles are computed, and the inactive ones come out (+0, +0, +0, 1) as before). The adaptive plan
-  /// sets it from pass 2 on: its supports only grow, and pass k writes the buffer pass k - 2 wrote
-  /// (pass 2: the bright image, (+0, +0, +0, 1) outside its nonzero support). Other passes write
-  /// them anyway (the same values).
+  /// With `active`: dst already holds +0 in R, G and B wherever active is 0, so the fast pass
+  /// (blur_pass_fast) does not write its tiles without an active texel (texels of the other
+  /// tiles are computed, the inactive ones (+0, +0, +0, 1)); the tiles left alone keep dst's
+  /// alpha. The adaptive plan sets it from pass 2 on (its supports only grow, and pass k writes
+  /// the buffer pass k - 2 wrote; pass 2: the bright image, (+0, +0, +0, 1) outside its nonzero
+  /// support), and on pass 1 when it writes into a zeroed image (alpha 0 where left alone: no
+  /// stage after the blur reads the bloom's alpha). The other passes write them anyway.
   bool dst_zero_outside = false;
 };
 
@@ -165,6 +171,11 @@ class BlurSupportTracker {
   /// Pass 1's input, the bright image (read once, on the first advance).
   template <class T>
   void start(BasicView<const T> bright, int threads);
+  /// Pass 1's input support given directly (extract_bright's `nonzero`), with its count.
+  void start(std::vector<std::uint8_t>&& support, std::size_t count) {
+    support_ = std::move(support);
+    count_ = count;
+  }
   bool started() const { return !support_.empty(); }
   /// This pass's output support, width x height, row-major; nullptr once dense. T chooses the
   /// tap tables (f32: the shader's coordinates; f64: exact taps).
