@@ -21,6 +21,9 @@ double ms_since(Clock::time_point t0) {
 Image to_float_image(const Image& img) { return img; }
 Image to_float_image(const ImageF64& img) { return convert_image<float>(img.cview()); }
 
+// Adaptive blur passes whose support has fewer texels than this run on one thread.
+constexpr std::size_t kSerialSupport = std::size_t(1) << 15;
+
 // Runs the plan in precision T. The scene, bright image and the latest blur result are the only
 // full-size images alive at once (plus the kept intermediates when asked).
 template <class T>
@@ -171,10 +174,14 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         if (pong.empty())
           pong = leave_zeros && first_pass ? BasicImage<T>::zeroed(w, h)
                                            : BasicImage<T>::uninitialised(w, h);
+        int pass_threads = threads;
         if (p.plan == PlanMode::adaptive) {
           // Blur only the bright pixels' support, dilated pass by pass by the taps' reach.
           if (!support.started()) support.start(bright.cview(), threads);
-          o.active = support.advance<T>(o, threads);
+          // A small support is blurred on one thread: waking the others for its three loops
+          // cost more than they saved (the demo at 256x256: two threads 0.79x one, bench).
+          if (support.count() < kSerialSupport) pass_threads = 1;
+          o.active = support.advance<T>(o, pass_threads);
           // Pass k > 1 writes the buffer pass k - 2 (pass 2: bright) left +0 outside a support
           // contained in this one (stages.h); pass 1 a zeroed one, or a new one it fills.
           o.dst_zero_outside = !first_pass || leave_zeros;
@@ -207,11 +214,11 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
                                        ms_since(t0));
             break;
           }
-          if (p.blur == BlurImpl::fast) blur_pass_fast(src.cview(), pong.view(), o, threads);
-          else if (p.blur == BlurImpl::approx) blur_pass_approx(src.cview(), pong.view(), o, threads);
-          else blur_pass(src.cview(), pong.view(), o, threads);
+          if (p.blur == BlurImpl::fast) blur_pass_fast(src.cview(), pong.view(), o, pass_threads);
+          else if (p.blur == BlurImpl::approx) blur_pass_approx(src.cview(), pong.view(), o, pass_threads);
+          else blur_pass(src.cview(), pong.view(), o, pass_threads);
         } else {
-          blur_pass(src.cview(), pong.view(), o, threads);
+          blur_pass(src.cview(), pong.view(), o, pass_threads);
         }
         store(pong.view(), p.storage, rounding, threads);
         std::swap(ping, pong);

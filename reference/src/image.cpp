@@ -20,6 +20,7 @@ void* allocate_pixels(std::size_t bytes) { return ::operator new(bytes, kAlign);
 void free_pixels(void* p, std::size_t) noexcept { ::operator delete(p, kAlign); }
 
 void zero_lazily(void* p, std::size_t bytes) noexcept {
+  if (bytes == 0) return;
   static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
   const auto begin = reinterpret_cast<std::uintptr_t>(p), end = begin + bytes;
   const std::uintptr_t first = (begin + page - 1) / page * page, last = end / page * page;
