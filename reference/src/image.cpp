@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <new>
 
 namespace bloomref::detail {
@@ -24,12 +25,27 @@ void zero_lazily(void* p, std::size_t bytes) noexcept {
   static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
   const auto begin = reinterpret_cast<std::uintptr_t>(p), end = begin + bytes;
   const std::uintptr_t first = (begin + page - 1) / page * page, last = end / page * page;
-  if (first >= last || ::madvise(reinterpret_cast<void*>(first), last - first, MADV_DONTNEED) != 0) {
+  const std::size_t pages = first < last ? (last - first) / page : 0;
+  // Which pages are resident (mincore): those are written (a resident page costs a memset; given
+  // back, it would cost a fault and the kernel's zeroing when written again, as a buffer
+  // recycled by malloc is), the runs of the others given back with madvise. Where either call
+  // refuses, memset.
+  std::unique_ptr<unsigned char[]> resident(pages ? new (std::nothrow) unsigned char[pages] : nullptr);
+  if (!resident || ::mincore(reinterpret_cast<void*>(first), last - first, resident.get()) != 0) {
     std::memset(p, 0, bytes);
     return;
   }
   std::memset(p, 0, first - begin);
   std::memset(reinterpret_cast<void*>(last), 0, end - last);
+  for (std::size_t i = 0; i < pages;) {
+    std::size_t j = i + 1;
+    const bool in_core = resident[i] & 1;
+    while (j < pages && bool(resident[j] & 1) == in_core) ++j;
+    void* run = reinterpret_cast<void*>(first + i * page);
+    const std::size_t run_bytes = (j - i) * page;
+    if (in_core || ::madvise(run, run_bytes, MADV_DONTNEED) != 0) std::memset(run, 0, run_bytes);
+    i = j;
+  }
 }
 
 }  // namespace bloomref::detail

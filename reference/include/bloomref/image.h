@@ -24,10 +24,10 @@ constexpr int kChannels = 4;
 namespace detail {
 void* allocate_pixels(std::size_t bytes);
 void free_pixels(void* p, std::size_t bytes) noexcept;
-/// Sets `bytes` at p to zero without writing the whole pages inside: those are handed back to
-/// the kernel (madvise MADV_DONTNEED: private anonymous memory then reads as zero, and a page
-/// is only materialised when written), the partial pages at the ends are written. Falls back to
-/// memset where madvise refuses.
+/// Sets `bytes` at p to zero without writing the whole pages inside that are not resident: those
+/// are handed back to the kernel (madvise MADV_DONTNEED: private anonymous memory then reads as
+/// zero, and a page is only materialised when written); resident pages and the partial pages at
+/// the ends are written. Falls back to memset where mincore or madvise refuses.
 void zero_lazily(void* p, std::size_t bytes) noexcept;
 }  // namespace detail
 
