@@ -101,22 +101,34 @@ std::size_t extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold
   std::vector<std::size_t> counts(src.height, 0);
   parallel_rows(src.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
+      if (!dst_zeroed && !nonzero) {  // the dense sweep, kept branch-free
+        for (int x = 0; x < src.width; ++x) {
+          const T* s = src.pixel(x, y);
+          T* d = dst.pixel(x, y);
+          const bool bright = luminance(s[0], s[1], s[2]) > threshold;
+          for (int c = 0; c < 3; ++c) d[c] = bright ? s[c] : T(0);
+          d[3] = T(1);
+        }
+        continue;
+      }
       std::uint8_t* nz = nonzero ? nonzero + std::size_t(y) * src.width : nullptr;
+      std::size_t n = 0;
       for (int x = 0; x < src.width; ++x) {
         const T* s = src.pixel(x, y);
-        T* d = dst.pixel(x, y);
         const bool bright = luminance(s[0], s[1], s[2]) > threshold;
         if (nz) {
           // nonzero_support's test on what is written: RGB not +0 in every channel.
           bool set = false;
           for (int c = 0; c < 3; ++c) set |= !(s[c] == T(0) && !std::signbit(s[c]));
           nz[x] = bright && set;
-          counts[y] += nz[x];
+          n += nz[x];
         }
         if (dst_zeroed && !bright) continue;  // +0 already; the page may stay unwritten
+        T* d = dst.pixel(x, y);
         for (int c = 0; c < 3; ++c) d[c] = bright ? s[c] : T(0);
         d[3] = T(1);
       }
+      counts[y] = n;
     }
   });
   std::size_t total = 0;
