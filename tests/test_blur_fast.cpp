@@ -11,6 +11,7 @@
 
 #include "bloomref/executor.h"
 #include "bloomref/io.h"
+#include "bloomref/sampler.h"
 #include "bloomref/scenes.h"
 #include "bloomref/stages.h"
 #include "corpus.h"
@@ -81,6 +82,69 @@ TEST_CASE("blur_pass_fast gives blur_pass's bits on hostile values and awkward s
                 CHECK(test::same_bits_nan_agnostic(ref.cview(), fast.cview()));
               }
             }
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST_CASE("blur_support is exactly the texels whose lookups read a set texel", "[blur][fast]") {
+  // The definition (stages.h), computed texel by texel from the shader's coordinates (uv =
+  // (p + 0.5f) / n, taps uv +- offset / n, sampler.h's gl_axis_tap) on sparse random masks:
+  // an output texel is set iff one of the texels its taps read (both of each tap, on both lines
+  // its lookup across the blur reads) is set. Sizes with lookups straddling two lines (1920,
+  // 1080, 131, 2160) and edges closer than the taps' reach.
+  const std::pair<int, int> sizes[] = {{1, 1}, {5, 3}, {37, 23}, {300, 131}, {1920, 7},
+                                       {9, 1080}, {131, 60}};
+  std::mt19937 rng(7);
+  for (auto [w, h] : sizes) {
+    for (double density : {0.002, 0.05, 0.5}) {
+      std::bernoulli_distribution set(density);
+      std::vector<std::uint8_t> in(std::size_t(w) * h), out(in.size());
+      for (auto& v : in) v = set(rng);
+      for (const Kernel* k : {&kernel_discrete9(), &kernel_linear5()}) {
+        for (int bits : {0, 8}) {
+          for (Axis axis : {Axis::horizontal, Axis::vertical}) {
+            const bool horizontal = axis == Axis::horizontal;
+            const int n_along = horizontal ? w : h, n_across = horizontal ? h : w;
+            // Per position along: the input positions its taps read; per line across: its two.
+            std::vector<std::vector<int>> reads(n_along);
+            const float d = 1.0f / float(n_along);
+            for (int p = 0; p < n_along; ++p) {
+              const float uv = texel_centre(p, n_along);
+              std::vector<float> coords = {uv};
+              for (std::size_t i = 1; i < k->offsets_f32.size(); ++i) {
+                coords.push_back(uv + d * k->offsets_f32[i]);
+                coords.push_back(uv - d * k->offsets_f32[i]);
+              }
+              for (float c : coords) {
+                const AxisTap<float> t = gl_axis_tap(c, n_along, bits);
+                reads[p].push_back(t.i0);
+                reads[p].push_back(t.i1);
+              }
+            }
+            std::size_t expected_count = 0, differ = 0;
+            const std::size_t got = blur_support<float>(in.data(), out.data(), w, h,
+                                                        BlurPassOptions{axis, k, bits}, 2);
+            for (int b = 0; b < n_across; ++b) {
+              const AxisTap<float> c = gl_axis_tap(texel_centre(b, n_across), n_across, bits);
+              for (int a = 0; a < n_along; ++a) {
+                bool any = false;
+                for (int s : reads[a])
+                  for (int line : {c.i0, c.i1}) {
+                    const int x = horizontal ? s : line, y = horizontal ? line : s;
+                    any = any || in[std::size_t(y) * w + x];
+                  }
+                const int x = horizontal ? a : b, y = horizontal ? b : a;
+                expected_count += any;
+                differ += bool(out[std::size_t(y) * w + x]) != any;
+              }
+            }
+            INFO(w << "x" << h << " density " << density << " " << k->name << " bits " << bits
+                   << " axis " << (horizontal ? "h" : "v"));
+            CHECK(differ == 0);
+            CHECK(got == expected_count);
           }
         }
       }
