@@ -28,16 +28,25 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-double median_ms(int runs, const std::function<void()>& f) {
-  f();  // warm-up
-  std::vector<double> t;
-  for (int i = 0; i < runs; ++i) {
-    const auto t0 = Clock::now();
-    f();
-    t.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
-  }
+double median(std::vector<double> t) {
   std::sort(t.begin(), t.end());
   return t[t.size() / 2];
+}
+
+// The median of `runs` values of f() after one warm-up call.
+double median_of(int runs, const std::function<double()>& f) {
+  f();  // warm-up
+  std::vector<double> t;
+  for (int i = 0; i < runs; ++i) t.push_back(f());
+  return median(t);
+}
+
+double median_ms(int runs, const std::function<void()>& f) {
+  return median_of(runs, [&] {
+    const auto t0 = Clock::now();
+    f();
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  });
 }
 
 // Largest |a - truth| over RGB, relative to the truth's largest value.
@@ -140,6 +149,18 @@ int main(int argc, char** argv) {
   };
   std::vector<Axis> axes;  // H, V, H, ... as ten_passes
   for (int p = 0; p < passes; ++p) axes.push_back(p % 2 == 0 ? Axis::horizontal : Axis::vertical);
+  // All ten passes fused (blur_passes_fused: column strips through ring buffers) with `bits`
+  // subtexel weights, checked bit for bit against reference_out; returns the median ms.
+  auto time_fused = [&](int bits, int threads, const std::string& name) {
+    const double ms = median_ms(runs, [&] {
+      blur_passes_fused(bright.cview(), ping.view(), axes, kernel_discrete9(), bits, threads);
+    });
+    const bool same = same_bits(reference_out, ping);
+    ok &= same;
+    report(same ? name : name + " DIFFERS from the reference", threads, ms,
+           rel_error(ping.data(), truth), 1e-4);
+    return ms;
+  };
   for (int threads : {1, 2}) {
     const double ref_ms = median_ms(runs, [&] { ten_passes(Impl::reference, threads); });
     report("bloomref reference loop, 10 passes", threads, ref_ms, rel_error(pong.data(), truth), 1e-4);
@@ -150,16 +171,7 @@ int main(int argc, char** argv) {
     ok &= same;
     report(same ? "bloomref exact f32 blur (fast), 10 passes" : "bloomref fast blur DIFFERS from the reference",
            threads, ms, rel_error(pong.data(), truth), 1e-4);
-    // All ten passes fused (blur_passes_fused: column strips through ring buffers).
-    const double fused_ms = median_ms(runs, [&] {
-      blur_passes_fused(bright.cview(), ping.view(), axes, kernel_discrete9(), 0, threads);
-    });
-    ours_best = std::min(ours_best, fused_ms);
-    const bool fused_same = same_bits(reference_out, ping);
-    ok &= fused_same;
-    report(fused_same ? "bloomref exact f32 blur (fused), 10 passes"
-                      : "bloomref fused blur DIFFERS from the reference",
-           threads, fused_ms, rel_error(ping.data(), truth), 1e-4);
+    ours_best = std::min(ours_best, time_fused(0, threads, "bloomref exact f32 blur (fused), 10 passes"));
     const double approx_ms = median_ms(runs, [&] { ten_passes(Impl::approx, threads); });
     approx_best = std::min(approx_best, approx_ms);
     report("bloomref approximate blur, 10 passes", threads, approx_ms, rel_error(pong.data(), truth), 1e-5);
@@ -181,17 +193,8 @@ int main(int argc, char** argv) {
   double hw_best = 1e30;
   ten_passes(Impl::reference, 2, 8);
   reference_out = pong;
-  for (int threads : {1, 2}) {
-    const double ms = median_ms(runs, [&] {
-      blur_passes_fused(bright.cview(), ping.view(), axes, kernel_discrete9(), 8, threads);
-    });
-    hw_best = std::min(hw_best, ms);
-    const bool same = same_bits(reference_out, ping);
-    ok &= same;
-    report(same ? "bloomref exact f32 blur, 8-bit weights (fused)"
-                : "bloomref fused blur, 8-bit weights, DIFFERS",
-           threads, ms, rel_error(ping.data(), truth), 1e-4);
-  }
+  for (int threads : {1, 2})
+    hw_best = std::min(hw_best, time_fused(8, threads, "bloomref exact f32 blur, 8-bit weights (fused)"));
 
   // The whole pipeline, full and adaptive plans, 2 threads; outputs must be identical.
   Image full_out, adaptive_out;
@@ -204,13 +207,10 @@ int main(int argc, char** argv) {
     StageTrace t;
     // Each run gets its own copy of the scene, made outside the timer (as `bloomref run` hands
     // over the image it read); the time is the executor's own total.
-    std::vector<double> totals;
-    for (int r = 0; r <= runs; ++r) {  // run 0: warm-up
+    const double ms = median_of(runs, [&] {
       t = execute(plan, Image(scene));
-      if (r > 0) totals.push_back(t.total_ms);
-    }
-    std::sort(totals.begin(), totals.end());
-    const double ms = totals[totals.size() / 2];
+      return t.total_ms;
+    });
     (mode == PlanMode::full ? full_out : adaptive_out) = t.final_image();
     pipe[mode == PlanMode::full ? 0 : 1] = ms;
     char line[200];

@@ -255,9 +255,7 @@ std::size_t nonzero_support(BasicView<const T> img, std::uint8_t* mask, int thre
     for (int y = y0; y < y1; ++y) {
       std::size_t n = 0;
       for (int x = 0; x < img.width; ++x) {
-        const T* p = img.pixel(x, y);
-        bool nz = false;
-        for (int c = 0; c < 3; ++c) nz |= !(p[c] == T(0) && !std::signbit(p[c]));
+        const bool nz = rgb_not_plus_zero(img.pixel(x, y));
         mask[std::size_t(y) * img.width + x] = nz;
         n += nz;
       }

@@ -55,6 +55,12 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   BasicImage<T> bright = sparse_bright ? BasicImage<T>::zeroed(bw, bh)
                                        : BasicImage<T>::uninitialised(bw, bh);
   BasicImage<T> ping, pong;  // allocated by the first blur pass
+  // The adaptive fast f32 blur writes only the tiles its support reaches when what it writes
+  // into is already +0 around them (stages.h: dst_zero_outside), and no stage image is kept (the
+  // texels left alone keep alpha 0, which nothing after the blur reads): its first pass then
+  // writes into pages that only exist where written (image.h: zeroed).
+  const bool leave_zeros = p.plan == PlanMode::adaptive && p.blur == BlurImpl::fast &&
+                           std::is_same_v<T, float> && !opt.keep_all;
   bool blur_fused_done = false;  // the remaining blur passes ran fused (blur_passes_fused)
   // The finishing stages: the fast f32 ones unless the staged reference was asked for (--blur
   // reference) or values are rounded to f16 between stages; and all three in one sweep
@@ -171,19 +177,13 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
         const bool first_pass = stage.pass == 1;
-        // The adaptive fast f32 blur writes only the tiles its support reaches when what it
-        // writes into is already +0 around them (stages.h: dst_zero_outside), and no stage image
-        // is kept (the texels left alone keep alpha 0, which nothing after the blur reads): its
-        // first pass then writes into pages that only exist where written (image.h: zeroed).
-        const bool leave_zeros = p.plan == PlanMode::adaptive && p.blur == BlurImpl::fast &&
-                                 std::is_same_v<T, float> && !opt.keep_all;
         if (pong.empty())
           pong = leave_zeros && first_pass ? BasicImage<T>::zeroed(w, h)
                                            : BasicImage<T>::uninitialised(w, h);
         int pass_threads = threads;
         if (p.plan == PlanMode::adaptive) {
-          // Blur only the bright pixels' support, dilated pass by pass by the taps' reach.
-          if (!support.started()) support.start(bright.cview(), threads);
+          // Blur only the bright pixels' support (started by the input stage), dilated pass by
+          // pass by the taps' reach.
           // A small support is blurred on one thread: waking the others for its three loops
           // cost more than they saved (the demo at 256x256: two threads 0.79x one, bench).
           if (support.count() < kSerialSupport) pass_threads = 1;

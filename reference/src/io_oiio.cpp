@@ -58,8 +58,8 @@ ChannelMap map_channels(const OiioHeader& spec) {
 /// running program (an installed layout), then where this build put it
 /// (BLOOMREF_OIIO_MODULE_PATH, set by CMake).
 std::vector<std::string> module_candidates() {
-  std::vector<std::string> paths;
   if (const char* env = std::getenv("BLOOMREF_OIIO_MODULE"); env && *env) return {env};
+  std::vector<std::string> paths;
   std::string exe(4096, '\0');
   const ssize_t n = ::readlink("/proc/self/exe", exe.data(), exe.size() - 1);
   if (n > 0) {

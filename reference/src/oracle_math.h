@@ -198,7 +198,7 @@ struct PowF32 {
     const auto over = t_rough > 130.0;
     const D out_of_range = over ? inf : D{};
     D r = over | (t_rough < -160.0) ? out_of_range
-                                                  : exp_series(g * om::kLn2) * pow2_from_k<N>(k);
+                                    : exp_series(g * om::kLn2) * pow2_from_k<N>(k);
     // IEEE pow's special cases for these x (y is fixed per call, so they are chosen once).
     const D at_zero = y_pos_ ? (y_odd_ ? x : D{}) : (y_odd_ ? 1.0 / x : inf);
     const D at_inf = y_pos_ ? inf : D{};
@@ -241,7 +241,8 @@ inline typename Lanes<N>::F tonemap_f32(typename Lanes<N>::F h, float exposure) 
   const F abs_a = a < 0.0f ? -a : a;  // NaN: not below 0.5 -> 1 - exp(NaN) = NaN
   const auto near = abs_a < 0.5f;
   // Where every lane takes the series (dark pixels, most of a typical frame), exp is not
-  // evaluated at all: the lanes' results are the same, the time is a third of the stage's.
+  // evaluated at all: the lanes' results are the same (the demo scene's finishing stages at
+  // 3840x2160, one thread: 250-254 -> 203-211 ms).
   if (all_lanes(near)) return series;
   const F far = 1.0f - exp_f32<N>(x);
   return near ? series : far;

@@ -117,10 +117,7 @@ std::size_t extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold
         const T* s = src.pixel(x, y);
         const bool bright = luminance(s[0], s[1], s[2]) > threshold;
         if (nz) {
-          // nonzero_support's test on what is written: RGB not +0 in every channel.
-          bool set = false;
-          for (int c = 0; c < 3; ++c) set |= !(s[c] == T(0) && !std::signbit(s[c]));
-          nz[x] = bright && set;
+          nz[x] = bright && rgb_not_plus_zero(s);  // nonzero_support's test on what is written
           n += nz[x];
         }
         if (dst_zeroed && !bright) continue;  // +0 already; the page may stay unwritten

@@ -148,6 +148,15 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
 void blur_pass_approx(BasicView<const float> src, BasicView<float> dst,
                       const BlurPassOptions& opt, int threads, BlurIsa isa = BlurIsa::best);
 
+/// Whether a texel's RGB is not +0 in every channel (bit-exact: -0, NaN and Inf count): what
+/// the adaptive plan tracks (nonzero_support, extract_bright's `nonzero`).
+template <class T>
+inline bool rgb_not_plus_zero(const T* p) {
+  bool nz = false;
+  for (int c = 0; c < 3; ++c) nz |= !(p[c] == T(0) && !std::signbit(p[c]));
+  return nz;
+}
+
 /// The texels whose RGB is not +0 in every channel (bit-exact: -0, NaN and Inf count), as a
 /// width x height mask. Returns how many.
 template <class T>
