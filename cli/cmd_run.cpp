@@ -1,5 +1,8 @@
 // bloomref run [IN] -o OUT.exr|OUT.png ... : the main job.
+#include <algorithm>
+#include <cstring>
 #include <filesystem>
+#include <stdexcept>
 #include <iostream>
 #include <memory>
 #include <set>
@@ -24,12 +27,61 @@ struct RunArgs {
   std::string dump_dir;
   std::string json_path;
   bool quiet = false;
+  int repeat = 1;
   PipelineOptions pipeline;
 };
+
+/// Median of v (the mean of the two middle values for an even count).
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/// Runs 2..repeat of the CPU pipeline in this process ("warm": the buffers an earlier frame
+/// freed are reused, as in a renderer that keeps its memory from frame to frame; the first run,
+/// the trace given, pays for every page it touches). Each run gets its own copy of the input,
+/// made outside the timer, and must give the first run's output bits. Returns the JSON entry.
+nlohmann::ordered_json repeat_runs(const Plan& plan, const Image& input, const StageTrace& first,
+                                   int repeat) {
+  std::vector<std::string> names;
+  for (const auto& [name, ms] : first.timings) names.push_back(name);
+  std::vector<std::vector<double>> stage_ms(names.size());
+  std::vector<double> totals{first.total_ms}, warm_totals;
+  const Image& reference = first.final_image();
+  for (int r = 1; r < repeat; ++r) {
+    Image copy = input;
+    const StageTrace t = execute(plan, std::move(copy), ExecuteOptions{});
+    const Image& out = t.final_image();
+    if (out.values().size() != reference.values().size() ||
+        std::memcmp(out.values().data(), reference.values().data(),
+                    out.values().size() * sizeof(float)) != 0)
+      throw std::runtime_error("run " + std::to_string(r + 1) +
+                               " of --repeat gave other bits than the first");
+    totals.push_back(t.total_ms);
+    warm_totals.push_back(t.total_ms);
+    for (std::size_t i = 0; i < names.size(); ++i)
+      for (const auto& [name, ms] : t.timings)
+        if (name == names[i]) stage_ms[i].push_back(ms);
+  }
+  nlohmann::ordered_json warm = nlohmann::ordered_json::object();
+  for (std::size_t i = 0; i < names.size(); ++i)
+    if (!stage_ms[i].empty()) warm[names[i]] = median(stage_ms[i]);
+  if (!warm_totals.empty()) warm["total"] = median(warm_totals);
+  return {{"runs", repeat},
+          {"total_ms", totals},
+          {"first_ms", first.total_ms},
+          {"warm_median_ms", warm},
+          {"same_bits", true}};
+}
 
 int run(const RunArgs& a) {
   if (a.backend != "cpu" && a.backend != "gl")
     throw ParamError("--backend '" + a.backend + "' is not one of: cpu, gl");
+  if (a.repeat < 1) throw ParamError("--repeat must be >= 1");
+  if (a.repeat > 1 && a.backend != "cpu") throw ParamError("--repeat times the CPU backend only");
+  if (a.repeat > 1 && !a.dump_dir.empty())
+    throw ParamError("--repeat and --dump-stages do not go together (stages kept change the timings)");
   if (a.outputs.empty() && a.dump_dir.empty() && a.json_path.empty())
     throw ParamError("nothing to write: give -o OUT.exr and/or -o OUT.png (or --dump-stages, --json)");
 
@@ -64,6 +116,7 @@ int run(const RunArgs& a) {
 
   const Plan plan = make_plan(a.pipeline.params, in.image.cview(), source);
   StageTrace trace;
+  nlohmann::ordered_json repeated;  // --repeat's entry in the JSON
   std::string renderer = "cpu";
   if (a.backend == "gl") {
     auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3
@@ -76,7 +129,13 @@ int run(const RunArgs& a) {
   } else {
     ExecuteOptions eo;
     eo.keep_all = !a.dump_dir.empty();
-    trace = execute(plan, std::move(in.image), eo);  // the input is not needed afterwards
+    if (a.repeat > 1) {
+      Image copy = in.image;  // kept for the repeated runs
+      trace = execute(plan, std::move(copy), eo);
+      repeated = repeat_runs(plan, in.image, trace, a.repeat);
+    } else {
+      trace = execute(plan, std::move(in.image), eo);  // the input is not needed afterwards
+    }
   }
 
   const ImageInfo* windows = a.input.empty() ? nullptr : &in.info;
@@ -95,6 +154,7 @@ int run(const RunArgs& a) {
                   {"layout", in.info.layout}, {"channels", in.info.channels},
                   {"has_alpha", in.info.has_alpha}};
     j["outputs"] = a.outputs;
+    if (!repeated.is_null()) j["repeat"] = repeated;
     save_text(a.json_path, j.dump(2) + "\n");
   }
   if (!a.quiet) {
@@ -103,6 +163,9 @@ int run(const RunArgs& a) {
               << plan.facts.bright_pixels << " bright pixels, " << c.total()
               << " non-finite values (" << to_string(plan.params.nonfinite) << "), "
               << trace.total_ms << " ms";
+    if (!repeated.is_null())
+      std::cout << " (first of " << a.repeat << " runs; the others' median "
+                << repeated["warm_median_ms"]["total"].get<double>() << " ms)";
     const auto skipped = plan.skipped_names();
     if (!skipped.empty()) std::cout << ", skipped " << skipped.size() << " stage(s)";
     for (const std::string& o : a.outputs) std::cout << "\n  wrote " << o;
@@ -126,6 +189,10 @@ std::function<int()> add_run(CLI::App& app) {
   sub->add_option("--dump-stages", args->dump_dir, "write DIR/<stage>.exr for every stage");
   sub->add_option("--json", args->json_path, "write parameters, timings and counts as JSON");
   sub->add_flag("-q,--quiet", args->quiet, "print nothing on success");
+  sub->add_option("--repeat", args->repeat,
+                  "run the CPU pipeline N times in this process, each output checked against the "
+                  "first; --json gets the first run's timings and the others' medians")
+      ->capture_default_str();
   args->pipeline.add_to(*sub);
   return [args, sub]() -> int {
     if (!sub->parsed()) return -1;

@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -197,6 +198,43 @@ TEST_CASE("bloomref run writes EXR, PNG and JSON", "[cli]") {
   CHECK(j.contains("renderer"));
   CHECK(j["timings_ms"].contains("total"));
   CHECK(j.contains("skipped"));
+}
+
+TEST_CASE("bloomref run --repeat times later runs in the same process, same bits", "[cli]") {
+  TempDir dir;
+  // 64x48 with a bright block: the blur runs (the adaptive plan's masked passes).
+  std::vector<float> px(64 * 48 * 3, 0.25f);
+  for (int y = 20; y < 24; ++y)
+    for (int x = 30; x < 34; ++x)
+      for (int c = 0; c < 3; ++c) px[(std::size_t(y) * 64 + x) * 3 + c] = 6.0f;
+  bloomref::test::write_test_exr(dir / "in.exr", 64, 48, {"R", "G", "B"}, px);
+  const CliResult once = run_cli(dir, "run in.exr -o once.exr");
+  REQUIRE(once.code == 0);
+  const CliResult r = run_cli(dir, "run in.exr -o rep.exr --repeat 4 --json rep.json");
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK(r.out.find("first of 4 runs") != std::string::npos);
+  // The output written is the first run's, the bytes a single run writes.
+  CHECK(bloomref::test::read_bytes(dir / "rep.exr") == bloomref::test::read_bytes(dir / "once.exr"));
+  const auto j = nlohmann::json::parse(bloomref::test::read_bytes(dir / "rep.json"));
+  const auto& rep = j["repeat"];
+  REQUIRE(rep["total_ms"].size() == 4);
+  CHECK(rep["runs"] == 4);
+  CHECK(rep["same_bits"] == true);
+  // The first run is the one timings_ms reports; the warm median is that of runs 2-4.
+  std::vector<double> t;
+  for (const auto& v : rep["total_ms"]) t.push_back(v.get<double>());
+  CHECK(t[0] == j["timings_ms"]["total"].get<double>());
+  CHECK(rep["first_ms"].get<double>() == t[0]);
+  std::vector<double> warm(t.begin() + 1, t.end());
+  std::sort(warm.begin(), warm.end());
+  CHECK(rep["warm_median_ms"]["total"].get<double>() == warm[1]);
+  for (const auto& [name, ms] : j["timings_ms"].items()) CHECK(rep["warm_median_ms"].contains(name));
+  // Bad counts and combinations are refused before any work.
+  expect_bad_input(dir, "run in.exr -o x.exr --repeat 0", {"--repeat"}, {"in.exr"});
+  expect_bad_input(dir, "run in.exr -o x.exr --repeat 2 --backend gl", {"--repeat", "CPU"}, {"in.exr"});
+  expect_bad_input(dir, "run in.exr -o x.exr --repeat 2 --dump-stages d", {"--repeat", "--dump-stages"},
+                   {"in.exr"});
 }
 
 /// A 4x2 Radiance .hdr written through OIIO (this test links it; bloomref does not).
