@@ -38,10 +38,12 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-/// Runs 2..repeat of the CPU pipeline in this process ("warm": the buffers an earlier frame
-/// freed are reused, as in a renderer that keeps its memory from frame to frame; the first run,
-/// the trace given, pays for every page it touches). Each run gets its own copy of the input,
-/// made outside the timer, and must give the first run's output bits. Returns the JSON entry.
+/// Runs 2..repeat of the CPU pipeline in this process. The first run (the trace given) pays a
+/// page fault for every page its buffers touch; later runs reuse what earlier ones freed as far
+/// as the C library's allocator keeps it (glibc gave large buffers back to the kernel for the
+/// first few runs: StarField.exr's adaptive blur.2 took 12-17 ms in runs 1-3, 2.5-4.5 ms from
+/// about run 9). Each run gets its own copy of the input, made outside the timer, and must give
+/// the first run's output bits. Returns the JSON entry.
 nlohmann::ordered_json repeat_runs(const Plan& plan, const Image& input, const StageTrace& first,
                                    int repeat) {
   std::vector<std::string> names;
