@@ -23,15 +23,10 @@
 #include "commands.h"
 #include "json_out.h"
 #include "options.h"
+#include "timing.h"
 
 namespace bloomref::cli {
 namespace {
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 struct Row {
   std::string size, backend, plan;
@@ -144,9 +139,7 @@ std::function<int()> add_bench(CLI::App& app) {
         for (std::size_t i = 0; i < last.timings.size(); ++i)
           row.stages.emplace_back(last.timings[i].first, median(per_stage[i]));
         if (reference.empty()) reference = last.final_image();
-        const bool same = reference.values().size() == last.final_image().values().size() &&
-                          std::memcmp(reference.data(), last.final_image().data(),
-                                      reference.values().size() * sizeof(float)) == 0;
+        const bool same = same_bits(reference, last.final_image());
         row.check = same ? "bit-identical to 1-thread full" : "DIFFERS from 1-thread full";
         row.checked = same;
         all_ok &= same;

@@ -1,6 +1,4 @@
 // bloomref run [IN] -o OUT.exr|OUT.png ... : the main job.
-#include <algorithm>
-#include <cstring>
 #include <filesystem>
 #include <stdexcept>
 #include <iostream>
@@ -15,6 +13,7 @@
 #include "commands.h"
 #include "json_out.h"
 #include "options.h"
+#include "timing.h"
 
 namespace bloomref::cli {
 namespace {
@@ -31,13 +30,6 @@ struct RunArgs {
   PipelineOptions pipeline;
 };
 
-/// Median of v (the mean of the two middle values for an even count).
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 /// Runs 2..repeat of the CPU pipeline in this process. The first run (the trace given) pays a
 /// page fault for every page its buffers touch; later runs reuse what earlier ones freed as far
 /// as the C library's allocator keeps it (glibc gave large buffers back to the kernel for the
@@ -46,30 +38,22 @@ double median(std::vector<double> v) {
 /// the first run's output bits. Returns the JSON entry.
 nlohmann::ordered_json repeat_runs(const Plan& plan, const Image& input, const StageTrace& first,
                                    int repeat) {
-  std::vector<std::string> names;
-  for (const auto& [name, ms] : first.timings) names.push_back(name);
-  std::vector<std::vector<double>> stage_ms(names.size());
-  std::vector<double> totals{first.total_ms}, warm_totals;
-  const Image& reference = first.final_image();
+  // The same plan each time, so every run's timings list the same stages in the same order.
+  std::vector<std::vector<double>> stage_ms(first.timings.size());
+  std::vector<double> totals{first.total_ms};
   for (int r = 1; r < repeat; ++r) {
     Image copy = input;
     const StageTrace t = execute(plan, std::move(copy), ExecuteOptions{});
-    const Image& out = t.final_image();
-    if (out.values().size() != reference.values().size() ||
-        std::memcmp(out.values().data(), reference.values().data(),
-                    out.values().size() * sizeof(float)) != 0)
+    if (!same_bits(t.final_image(), first.final_image()))
       throw std::runtime_error("run " + std::to_string(r + 1) +
                                " of --repeat gave other bits than the first");
     totals.push_back(t.total_ms);
-    warm_totals.push_back(t.total_ms);
-    for (std::size_t i = 0; i < names.size(); ++i)
-      for (const auto& [name, ms] : t.timings)
-        if (name == names[i]) stage_ms[i].push_back(ms);
+    for (std::size_t i = 0; i < stage_ms.size(); ++i) stage_ms[i].push_back(t.timings[i].second);
   }
   nlohmann::ordered_json warm = nlohmann::ordered_json::object();
-  for (std::size_t i = 0; i < names.size(); ++i)
-    if (!stage_ms[i].empty()) warm[names[i]] = median(stage_ms[i]);
-  if (!warm_totals.empty()) warm["total"] = median(warm_totals);
+  for (std::size_t i = 0; i < stage_ms.size(); ++i)
+    warm[first.timings[i].first] = median(stage_ms[i]);
+  warm["total"] = median(std::vector<double>(totals.begin() + 1, totals.end()));
   return {{"runs", repeat},
           {"total_ms", totals},
           {"first_ms", first.total_ms},
