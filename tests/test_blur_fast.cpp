@@ -3,9 +3,11 @@
 // awkward sizes, with and without the adaptive plan's masks, for every instruction set this CPU
 // has; and whole runs on every scene and corpus image with `--blur fast` and `--blur reference`.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -23,6 +25,14 @@ namespace {
 std::vector<BlurIsa> isas() {
   std::vector<BlurIsa> v = {BlurIsa::generic};
   if (blur_isa_available(BlurIsa::avx2)) v.push_back(BlurIsa::avx2);
+  return v;
+}
+
+// Every instruction set, with the masked tiles found from the mask and from the spans.
+std::vector<std::pair<BlurIsa, bool>> isa_and_spans() {
+  std::vector<std::pair<BlurIsa, bool>> v;
+  for (BlurIsa isa : isas())
+    for (bool spans : {false, true}) v.emplace_back(isa, spans);
   return v;
 }
 
@@ -189,8 +199,11 @@ TEST_CASE("a masked fast pass told dst is zero outside leaves those texels alone
           o.active = active.data();
           Image ref(w, h);
           blur_pass(src.cview(), ref.view(), o, 1);
-          for (BlurIsa isa : isas()) {
+          RowSpans spans;
+          mask_spans(active.data(), w, h, spans, 1);
+          for (auto [isa, with_spans] : isa_and_spans()) {
             o.dst_zero_outside = true;
+            o.active_spans = with_spans ? &spans : nullptr;
             const float sentinel = -123.25f;
             Image fast(w, h, sentinel);
             blur_pass_fast(src.cview(), fast.view(), o, 2, isa);
@@ -212,7 +225,8 @@ TEST_CASE("a masked fast pass told dst is zero outside leaves those texels alone
                               std::memcmp(&f[c], &r[c], sizeof(float)) != 0;
                 }
               }
-            INFO("isa " << blur_isa_name(isa) << ", " << outside << " texels outside");
+            INFO("isa " << blur_isa_name(isa) << (with_spans ? ", tiles from spans, " : ", ")
+                        << outside << " texels outside");
             CHECK(kept + zeroed == outside);
             CHECK(differ == 0);
             total_kept += kept;
@@ -223,6 +237,115 @@ TEST_CASE("a masked fast pass told dst is zero outside leaves those texels alone
   }
   // Not vacuous: whole tiles were left alone.
   CHECK(total_kept > 10000);
+}
+
+TEST_CASE("blur_support_spans is blur_support's set, as canonical spans", "[blur][fast]") {
+  // blur_support is checked against the definition above; the spans must give the same set and
+  // count on every size, density, kernel, subtexel precision, axis and tap table (f32: the
+  // shader's coordinates, f64: exact taps), and be sorted, disjoint and not touching. Masks
+  // of clustered runs as well as scattered texels (a run's ends are where spans can go wrong).
+  const std::pair<int, int> sizes[] = {{1, 1}, {5, 3}, {37, 23}, {300, 131}, {1920, 7},
+                                       {9, 1080}, {131, 60}, {2, 2}};
+  std::mt19937 rng(11);
+  std::size_t compared = 0;
+  for (auto [w, h] : sizes) {
+    for (double density : {0.0, 0.002, 0.05, 0.5, 1.0}) {
+      for (bool runs : {false, true}) {
+        std::bernoulli_distribution set(density);
+        std::uniform_int_distribution<int> run_length(1, 40);
+        std::vector<std::uint8_t> in(std::size_t(w) * h, 0);
+        for (std::size_t i = 0; i < in.size();) {
+          const int n = runs ? run_length(rng) : 1;
+          const bool v = set(rng);
+          for (int j = 0; j < n && i < in.size(); ++j, ++i) in[i] = v;
+        }
+        RowSpans in_spans;
+        std::size_t in_count = 0;
+        for (std::uint8_t v : in) in_count += v;
+        CHECK(mask_spans(in.data(), w, h, in_spans, 2) == in_count);
+        for (const Kernel* k : {&kernel_discrete9(), &kernel_linear5()}) {
+          for (int bits : {0, 8}) {
+            for (Axis axis : {Axis::horizontal, Axis::vertical}) {
+              for (bool f64 : {false, true}) {
+                const BlurPassOptions o{axis, k, bits};
+                std::vector<std::uint8_t> expected(in.size());
+                const std::size_t n =
+                    f64 ? blur_support<double>(in.data(), expected.data(), w, h, o, 1)
+                        : blur_support<float>(in.data(), expected.data(), w, h, o, 1);
+                RowSpans out;
+                const std::optional<std::size_t> got =
+                    f64 ? blur_support_spans<double>(in_spans, out, w, h, o, 2)
+                        : blur_support_spans<float>(in_spans, out, w, h, o, 2);
+                INFO(w << "x" << h << " density " << density << (runs ? " runs " : " ")
+                       << k->name << " bits " << bits << " axis "
+                       << (axis == Axis::horizontal ? "h" : "v") << (f64 ? " f64" : " f32"));
+                REQUIRE(got.has_value());
+                CHECK(*got == n);
+                REQUIRE(out.size() == std::size_t(h));
+                std::vector<std::uint8_t> from_spans(in.size(), 0);
+                bool canonical = true;
+                for (int y = 0; y < h; ++y) {
+                  int prev_end = -1;
+                  for (const Span& sp : out[y]) {
+                    canonical = canonical && sp.x0 >= 0 && sp.x0 < sp.x1 && sp.x1 <= w &&
+                                sp.x0 > prev_end;
+                    prev_end = sp.x1;
+                    for (int x = std::max(sp.x0, 0); x < std::min(sp.x1, w); ++x)
+                      from_spans[std::size_t(y) * w + x] = 1;
+                  }
+                }
+                CHECK(canonical);
+                CHECK(from_spans == expected);
+                ++compared;
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+  CHECK(compared == 8 * 5 * 2 * 2 * 2 * 2 * 2);
+}
+
+TEST_CASE("the adaptive plan's support tracker keeps its mask equal to its spans",
+          "[blur][fast]") {
+  // Ten passes of the plan from a sparse start: after each, the mask advance returns is the
+  // set blur_support gives from the previous mask (computed here independently), and spans()
+  // describes that same set, until the tracker turns dense (then null, and the whole image).
+  const int w = 641, h = 479;
+  std::mt19937 rng(5);
+  std::bernoulli_distribution set(0.00003);
+  std::vector<std::uint8_t> mask(std::size_t(w) * h);
+  for (auto& v : mask) v = set(rng);
+  BlurSupportTracker tracker(w, h, 0.5);
+  tracker.start(std::vector<std::uint8_t>(mask), 2);
+  int tracked = 0;
+  for (int pass = 1; pass <= 10; ++pass) {
+    const BlurPassOptions o{pass % 2 ? Axis::horizontal : Axis::vertical, &kernel_discrete9(), 0};
+    std::vector<std::uint8_t> grown(mask.size());
+    const std::size_t n = blur_support<float>(mask.data(), grown.data(), w, h, o, 1);
+    const std::uint8_t* active = tracker.advance<float>(o, 2);
+    INFO("pass " << pass);
+    if (2 * n > mask.size()) {
+      CHECK(active == nullptr);
+      CHECK(tracker.spans() == nullptr);
+      CHECK(tracker.count() == mask.size());
+      break;
+    }
+    REQUIRE(active != nullptr);
+    REQUIRE(tracker.spans() != nullptr);
+    CHECK(std::equal(grown.begin(), grown.end(), active));
+    CHECK(tracker.count() == n);
+    std::vector<std::uint8_t> from_spans(mask.size(), 0);
+    for (int y = 0; y < h; ++y)
+      for (const Span& sp : (*tracker.spans())[y])
+        std::fill(from_spans.begin() + std::ptrdiff_t(y) * w + sp.x0,
+                  from_spans.begin() + std::ptrdiff_t(y) * w + sp.x1, 1);
+    CHECK(from_spans == grown);
+    mask = grown;
+    ++tracked;
+  }
+  CHECK(tracked == 10);  // this start stays sparse through all ten passes
 }
 
 TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][fused]") {

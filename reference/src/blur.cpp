@@ -367,22 +367,176 @@ std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, i
   return total;
 }
 
+std::size_t mask_spans(const std::uint8_t* mask, int width, int height, RowSpans& out,
+                       int threads) {
+  out.resize(height);
+  std::vector<std::size_t> counts(height, 0);
+  const std::size_t w = static_cast<std::size_t>(width);
+  parallel_rows(height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      std::vector<Span>& row = out[y];
+      row.clear();
+      const std::uint8_t* m = mask + std::size_t(y) * w;
+      std::size_t x = 0, n = 0;
+      // Masks hold 0 or 1: a span starts at the next 1 and ends at the next 0 after it.
+      while (x < w) {
+        const void* one = std::memchr(m + x, 1, w - x);
+        if (!one) break;
+        const std::size_t x0 = std::size_t(static_cast<const std::uint8_t*>(one) - m);
+        const void* zero = std::memchr(m + x0, 0, w - x0);
+        const std::size_t x1 = zero ? std::size_t(static_cast<const std::uint8_t*>(zero) - m) : w;
+        row.push_back(Span{int(x0), int(x1)});
+        n += x1 - x0;
+        x = x1;
+      }
+      counts[y] = n;
+    }
+  });
+  std::size_t total = 0;
+  for (std::size_t n : counts) total += n;
+  return total;
+}
+
+namespace {
+
+// Spans `in` (sorted by x0) merged where they overlap or touch, into `out` (appended).
+void merge_sorted(const std::vector<Span>& in, std::vector<Span>& out) {
+  for (const Span& s : in) {
+    if (!out.empty() && s.x0 <= out.back().x1) out.back().x1 = std::max(out.back().x1, s.x1);
+    else out.push_back(s);
+  }
+}
+
+// Positions p in [0, n) whose reads [lo[p], hi[p]] meet the set `in` (lo and hi non-decreasing):
+// for an input span [s, e), the p with hi[p] >= s and lo[p] <= e - 1, a range found by two
+// binary searches. The output ranges come in order; appended to `out`, merged.
+void dilate(const std::vector<Span>& in, const std::vector<int>& lo, const std::vector<int>& hi,
+            std::vector<Span>& out) {
+  for (const Span& s : in) {
+    const int p0 = int(std::lower_bound(hi.begin(), hi.end(), s.x0) - hi.begin());
+    const int p1 = int(std::upper_bound(lo.begin(), lo.end(), s.x1 - 1) - lo.begin());
+    if (p0 >= p1) continue;
+    if (!out.empty() && p0 <= out.back().x1) out.back().x1 = std::max(out.back().x1, p1);
+    else out.push_back(Span{p0, p1});
+  }
+}
+
+}  // namespace
+
+template <class T>
+std::optional<std::size_t> blur_support_spans(const RowSpans& in, RowSpans& out, int width,
+                                              int height, const BlurPassOptions& opt,
+                                              int threads) {
+  const bool horizontal = opt.axis == Axis::horizontal;
+  const int n_along = horizontal ? width : height;
+  const int n_across = horizontal ? height : width;
+  // Along the blur: the range of positions each output position's taps read (blur_support's).
+  const TapTable<T> along = make_taps(n_along, *opt.kernel, opt.subtexel_bits, T());
+  std::vector<int> lo(n_along), hi(n_along);
+  for (int p = 0; p < n_along; ++p) {
+    lo[p] = n_along;
+    hi[p] = -1;
+    for (int k = 0; k < along.per_position; ++k) {
+      const AxisTap<T>& t = along.at(p)[k];
+      lo[p] = std::min({lo[p], t.i0, t.i1});
+      hi[p] = std::max({hi[p], t.i0, t.i1});
+    }
+  }
+  // Across it: the one or two lines each line's lookup reads.
+  std::vector<int> alo(n_across), ahi(n_across);
+  for (int i = 0; i < n_across; ++i) {
+    const AxisTap<T> a = centre_tap(i, n_across, opt.subtexel_bits, T());
+    alo[i] = std::min(a.i0, a.i1);
+    ahi[i] = std::max(a.i0, a.i1);
+  }
+  // The shape the spans rely on (ranges of reads, ends non-decreasing, adjacent lines across).
+  auto shaped = [](const std::vector<int>& l, const std::vector<int>& h, int max_width) {
+    for (std::size_t p = 0; p < l.size(); ++p) {
+      if (h[p] - l[p] > max_width) return false;
+      if (p > 0 && (l[p] < l[p - 1] || h[p] < h[p - 1])) return false;
+    }
+    return true;
+  };
+  // Along, the taps are contiguous by construction (make_taps: offsets step by at most a
+  // texel); blur_support relies on the same.
+  if (!shaped(lo, hi, n_along) || !shaped(alo, ahi, 1)) return std::nullopt;
+
+  out.resize(height);
+  std::vector<std::size_t> counts(height, 0);
+  parallel_rows(height, threads, [&](int y0, int y1) {
+    std::vector<Span> gathered, merged;
+    for (int y = y0; y < y1; ++y) {
+      std::vector<Span>& o = out[y];
+      o.clear();
+      gathered.clear();
+      merged.clear();
+      // The input lines this output row reads: across (horizontal) or along (vertical).
+      const int r0 = horizontal ? alo[y] : lo[y], r1 = horizontal ? ahi[y] : hi[y];
+      int nonempty = 0, last = -1;
+      for (int r = r0; r <= r1; ++r)
+        if (!in[r].empty()) ++nonempty, last = r;
+      if (nonempty == 0) continue;
+      const std::vector<Span>* row = &in[last];
+      if (nonempty > 1) {
+        for (int r = r0; r <= r1; ++r) gathered.insert(gathered.end(), in[r].begin(), in[r].end());
+        std::sort(gathered.begin(), gathered.end(),
+                  [](const Span& a, const Span& b) { return a.x0 < b.x0; });
+        merge_sorted(gathered, merged);
+        row = &merged;
+      }
+      // Then along x: the blur's reach (horizontal) or the lookup across (vertical).
+      if (horizontal) dilate(*row, lo, hi, o);
+      else dilate(*row, alo, ahi, o);
+      std::size_t n = 0;
+      for (const Span& s : o) n += std::size_t(s.x1 - s.x0);
+      counts[y] = n;
+    }
+  });
+  std::size_t total = 0;
+  for (std::size_t n : counts) total += n;
+  return total;
+}
+
 template <class T>
 void BlurSupportTracker::start(BasicView<const T> bright, int threads) {
-  support_.resize(std::size_t(width_) * height_);
-  count_ = nonzero_support(bright, support_.data(), threads);
+  mask_.resize(std::size_t(width_) * height_);
+  nonzero_support(bright, mask_.data(), threads);
+  count_ = mask_spans(mask_.data(), width_, height_, spans_, threads);
+}
+
+void BlurSupportTracker::start(std::vector<std::uint8_t>&& support, int threads) {
+  mask_ = std::move(support);
+  count_ = mask_spans(mask_.data(), width_, height_, spans_, threads);
 }
 
 template <class T>
 const std::uint8_t* BlurSupportTracker::advance(const BlurPassOptions& opt, int threads) {
   if (!dense_) {
-    next_.resize(support_.size());
-    count_ = blur_support<T>(support_.data(), next_.data(), width_, height_, opt, threads);
-    std::swap(support_, next_);
+    const std::size_t w = std::size_t(width_);
+    const std::optional<std::size_t> n =
+        blur_support_spans<T>(spans_, next_, width_, height_, opt, threads);
+    if (n) {
+      count_ = *n;
+    } else {  // tables without the spans' shape: through masks
+      std::vector<std::uint8_t> grown(mask_.size());
+      count_ = blur_support<T>(mask_.data(), grown.data(), width_, height_, opt, threads);
+      mask_spans(grown.data(), width_, height_, next_, threads);
+    }
     dense_ = double(count_) > dense_fraction_ * double(width_) * height_;
+    if (!dense_) {
+      // The mask follows the spans: the old ones cleared, the new ones set.
+      parallel_rows(height_, threads, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y) {
+          std::uint8_t* m = mask_.data() + std::size_t(y) * w;
+          for (const Span& s : spans_[y]) std::memset(m + s.x0, 0, std::size_t(s.x1 - s.x0));
+          for (const Span& s : next_[y]) std::memset(m + s.x0, 1, std::size_t(s.x1 - s.x0));
+        }
+      });
+    }
+    std::swap(spans_, next_);
   }
   if (dense_) count_ = std::size_t(width_) * height_;
-  return dense_ ? nullptr : support_.data();
+  return dense_ ? nullptr : mask_.data();
 }
 
 template void BlurSupportTracker::start<float>(BasicView<const float>, int);
@@ -396,6 +550,10 @@ template std::size_t blur_support<float>(const std::uint8_t*, std::uint8_t*, int
                                          const BlurPassOptions&, int);
 template std::size_t blur_support<double>(const std::uint8_t*, std::uint8_t*, int, int,
                                           const BlurPassOptions&, int);
+template std::optional<std::size_t> blur_support_spans<float>(const RowSpans&, RowSpans&, int,
+                                                              int, const BlurPassOptions&, int);
+template std::optional<std::size_t> blur_support_spans<double>(const RowSpans&, RowSpans&, int,
+                                                               int, const BlurPassOptions&, int);
 
 template void blur_pass<float>(BasicView<const float>, BasicView<float>, const BlurPassOptions&,
                                int);

@@ -155,10 +155,36 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   job.width = src.width;
   const int tiles_across = (n_across + job.tile_across - 1) / job.tile_across;
 
-  parallel_rows(job.tiles_along * tiles_across, threads, [&](int t0, int t1) {
-    kernel(job, t0, t1);
+  // With the support's spans, and nothing to write outside it: only the tiles the spans touch,
+  // listed in tile order, without reading the mask (the demo scene at 3840x2160 touches a few
+  // percent of them), and shared out between the threads by count.
+  std::vector<int> listed;
+  if (opt.active && opt.active_spans && job.dst_zero_outside) {
+    std::vector<std::uint8_t> touched(std::size_t(job.tiles_along) * tiles_across);
+    for (int y = 0; y < src.height; ++y) {
+      for (const Span& s : (*opt.active_spans)[y]) {
+        // Horizontal: x runs along (blocks of tile_along), y across; vertical the other way.
+        const int block = horizontal ? s.x0 / job.tile_along : s.x0 / job.tile_across;
+        const int last = horizontal ? (s.x1 - 1) / job.tile_along : (s.x1 - 1) / job.tile_across;
+        for (int b = block; b <= last; ++b) {
+          const std::size_t t = horizontal
+                                    ? std::size_t(y / job.tile_across) * job.tiles_along + b
+                                    : std::size_t(b) * job.tiles_along + y / job.tile_along;
+          touched[t] = 1;
+        }
+      }
+    }
+    for (std::size_t t = 0; t < touched.size(); ++t)
+      if (touched[t]) listed.push_back(int(t));
+    job.tile_ids = listed.data();
+  }
+  const int n_tiles = job.tile_ids ? int(listed.size()) : job.tiles_along * tiles_across;
+
+  parallel_rows(n_tiles, threads, [&](int i0, int i1) {
+    kernel(job, i0, i1);
     // The inexact lines inside these tiles, the reference way.
-    for (int t = t0; t < t1; ++t) {
+    for (int i = i0; i < i1; ++i) {
+      const int t = job.tile_ids ? job.tile_ids[i] : i;
       const int a0 = (t % job.tiles_along) * job.tile_along;
       const int b0 = (t / job.tiles_along) * job.tile_across;
       detail::blur_inexact_lines(tables, src_rows.data(), dst_rows.data(), w, a0,

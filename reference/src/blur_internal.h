@@ -70,6 +70,9 @@ struct TileJob {
   /// exactly on it; the caller recomputes the lines where it does not.
   const float* weights = nullptr;
   const std::uint8_t* active = nullptr;  ///< optional width x height mask (stages.h)
+  /// Optional: the tiles to compute, in order; tiles [t0, t1) of the kernel are then entries
+  /// [t0, t1) of this list (the adaptive plan's touched tiles), the others left alone.
+  const int* tile_ids = nullptr;
   bool dst_zero_outside = false;  ///< tiles without an active texel are left alone (stages.h)
   int width = 0;
 };

@@ -152,10 +152,9 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
             return s.kind == StageKind::blur && !s.skipped;
           });
           if (p.plan == PlanMode::adaptive && blurs) nonzero.resize(std::size_t(w) * h);
-          const std::size_t count =
-              extract_bright(scene.cview(), bright.view(), static_cast<T>(p.threshold), threads,
-                             /*dst_zeroed=*/sparse_bright, nonzero.empty() ? nullptr : nonzero.data());
-          if (!nonzero.empty()) support.start(std::move(nonzero), count);
+          extract_bright(scene.cview(), bright.view(), static_cast<T>(p.threshold), threads,
+                         /*dst_zeroed=*/sparse_bright, nonzero.empty() ? nullptr : nonzero.data());
+          if (!nonzero.empty()) support.start(std::move(nonzero), threads);
         }
         store(scene.view(), p.storage, rounding, threads);
         record(stage.name, scene, ms_since(t0), false);
@@ -188,6 +187,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           // cost more than they saved (the demo at 256x256: two threads 0.79x one, bench).
           if (support.count() < kSerialSupport) pass_threads = 1;
           o.active = support.advance<T>(o, pass_threads);
+          o.active_spans = support.spans();
           // Pass k > 1 writes the buffer pass k - 2 (pass 2: bright) left +0 outside a support
           // contained in this one (stages.h); pass 1 a zeroed one, or a new one it fills.
           o.dst_zero_outside = !first_pass || leave_zeros;

@@ -15,6 +15,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -87,6 +88,15 @@ std::size_t extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold
 
 enum class Axis { horizontal, vertical };
 
+/// A run of set texels on one row: x in [x0, x1).
+struct Span {
+  int x0 = 0, x1 = 0;
+};
+/// A set of texels as spans per row (rows[y] for image row y): sorted, disjoint and not
+/// touching (x1 of one < x0 of the next). The adaptive plan's supports in this form cost time in
+/// proportion to their spans, not to the image (a mask costs a sweep of every byte per pass).
+using RowSpans = std::vector<std::vector<Span>>;
+
 struct BlurPassOptions {
   Axis axis = Axis::horizontal;
   const Kernel* kernel = nullptr;
@@ -103,6 +113,10 @@ struct BlurPassOptions {
   /// support), and on pass 1 when it writes into a zeroed image (alpha 0 where left alone: no
   /// stage after the blur reads the bloom's alpha). The other passes write them anyway.
   bool dst_zero_outside = false;
+  /// Optional, with `active` and dst_zero_outside: the same set as `active`, as spans per row.
+  /// blur_pass_fast then visits only the tiles these spans touch (found without reading the
+  /// mask), shared out between threads by count, not by position in the image.
+  const RowSpans* active_spans = nullptr;
 };
 
 /// Stage `blur.k`: one single-direction pass of a separable kernel, through GL_LINEAR /
@@ -169,8 +183,23 @@ template <class T>
 std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, int height,
                          const BlurPassOptions& opt, int threads);
 
+/// The set texels of a width x height mask (0 or 1 per texel) as spans per row. Returns how many.
+std::size_t mask_spans(const std::uint8_t* mask, int width, int height, RowSpans& out,
+                       int threads);
+
+/// blur_support on spans: the same set (tested), in time proportional to the spans. Each pass's
+/// lookups read a contiguous range of positions along the blur whose ends never decrease with
+/// the position, and one or two adjacent lines across it: an input span maps to an output span
+/// found by two binary searches. Returns how many are set, or nothing when a pass's tables lack
+/// that shape (then use blur_support).
+template <class T>
+std::optional<std::size_t> blur_support_spans(const RowSpans& in, RowSpans& out, int width,
+                                              int height, const BlurPassOptions& opt,
+                                              int threads);
+
 /// The adaptive plan's support through the blur passes, one tracker for the CPU and the GL
-/// executors: the bright image's nonzero texels, then each pass's blur_support. The support only
+/// executors: the bright image's nonzero texels, then each pass's blur_support_spans (as spans,
+/// with a mask kept equal to them for the consumers that read texels). The support only
 /// grows; once it covers more than `dense_fraction` of the image, tracking it costs more than it
 /// saves (scripts/adaptive-table), so the tracker stops and says so: whole passes from there.
 class BlurSupportTracker {
@@ -180,12 +209,9 @@ class BlurSupportTracker {
   /// Pass 1's input, the bright image (read once, on the first advance).
   template <class T>
   void start(BasicView<const T> bright, int threads);
-  /// Pass 1's input support given directly (extract_bright's `nonzero`), with its count.
-  void start(std::vector<std::uint8_t>&& support, std::size_t count) {
-    support_ = std::move(support);
-    count_ = count;
-  }
-  bool started() const { return !support_.empty(); }
+  /// Pass 1's input support given directly as a mask (extract_bright's `nonzero`).
+  void start(std::vector<std::uint8_t>&& support, int threads);
+  bool started() const { return !mask_.empty(); }
   /// This pass's output support, width x height, row-major; nullptr once dense. T chooses the
   /// tap tables (f32: the shader's coordinates; f64: exact taps).
   template <class T>
@@ -193,13 +219,19 @@ class BlurSupportTracker {
   bool dense() const { return dense_; }
   /// Set texels of the last pass's support (the whole image once dense).
   std::size_t count() const { return count_; }
+  /// The last pass's support as spans per row (the same set as advance's mask); nullptr once
+  /// dense.
+  const RowSpans* spans() const { return dense_ ? nullptr : &spans_; }
 
  private:
   int width_, height_;
   double dense_fraction_;
   bool dense_ = false;
   std::size_t count_ = 0;
-  std::vector<std::uint8_t> support_, next_;
+  // The support is tracked as spans; the mask is kept equal to them by clearing the old spans
+  // and setting the new ones (both in proportion to the support, not to the image).
+  std::vector<std::uint8_t> mask_;
+  RowSpans spans_, next_;
 };
 
 /// Stage `composite`: scene + strength * bloom (f32: t = strength * bloom; scene + t).
