@@ -95,6 +95,13 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
   return t;
 }
 
+std::shared_ptr<const PassTables> pass_tables(Axis axis, int width, int height, const Kernel& k,
+                                              int bits) {
+  static TableMemo<PassTables> memo;
+  return memo.get(TableKey(axis, width, height, k, bits, false),
+                  [&] { return make_pass_tables(axis, width, height, k, bits); });
+}
+
 void set_tables(TileJob& job, const PassTables& t) {
   job.taps = t.kernel_taps.taps.data();
   job.taps_per_position = t.kernel_taps.per_position;
@@ -127,8 +134,9 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
 void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
                     int threads, BlurIsa isa) {
   const detail::TileKernel kernel = detail::tile_kernel_for(isa);
-  const detail::PassTables tables =
-      detail::make_pass_tables(opt.axis, src.width, src.height, *opt.kernel, opt.subtexel_bits);
+  const std::shared_ptr<const detail::PassTables> kept =
+      detail::pass_tables(opt.axis, src.width, src.height, *opt.kernel, opt.subtexel_bits);
+  const detail::PassTables& tables = *kept;
   const bool horizontal = tables.horizontal;
   const int n_along = horizontal ? src.width : src.height;
   const int n_across = horizontal ? src.height : src.width;

@@ -36,23 +36,23 @@ constexpr int kMinStripWidth = 64;
 
 // One pass's tables (blur_pass_fast's) and, per output row, the input rows it reads.
 struct Pass {
-  detail::PassTables t;
+  std::shared_ptr<const detail::PassTables> t;  // kept between runs (detail::pass_tables)
   std::vector<int> need_lo, need_hi;
 };
 
 Pass make_pass(Axis axis, int w, int h, const Kernel& kernel, int bits) {
-  Pass p{detail::make_pass_tables(axis, w, h, kernel, bits), {}, {}};
+  Pass p{detail::pass_tables(axis, w, h, kernel, bits), {}, {}};
   p.need_lo.resize(h);
   p.need_hi.resize(h);
   for (int y = 0; y < h; ++y) {
     int lo = y, hi = y;
-    if (p.t.horizontal) {
-      lo = std::min(lo, p.t.across[y].i0);
-      hi = std::max(hi, p.t.across[y].i1);
+    if (p.t->horizontal) {
+      lo = std::min(lo, p.t->across[y].i0);
+      hi = std::max(hi, p.t->across[y].i1);
     } else {
-      for (int k = 0; k < p.t.along.per_position; ++k) {
-        lo = std::min(lo, p.t.along.at(y)[k].i0);
-        hi = std::max(hi, p.t.along.at(y)[k].i1);
+      for (int k = 0; k < p.t->along.per_position; ++k) {
+        lo = std::min(lo, p.t->along.at(y)[k].i0);
+        hi = std::max(hi, p.t->along.at(y)[k].i1);
       }
     }
     p.need_lo[y] = lo;
@@ -102,7 +102,7 @@ Columns strip_columns(const std::vector<Pass>& passes, int sx0, int sx1) {
   const int n = static_cast<int>(passes.size());
   Columns c{std::vector<int>(n, sx0), std::vector<int>(n, sx1)};
   for (int k = n - 1; k > 0; --k) {
-    const detail::PassTables& t = passes[k].t;
+    const detail::PassTables& t = *passes[k].t;
     int lo = c.x0[k], hi = c.x1[k] - 1;
     for (int x = c.x0[k]; x < c.x1[k]; ++x) {
       if (t.horizontal) {
@@ -177,7 +177,7 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
       std::vector<int> produced(n, 0);
 
       auto compute_chunk = [&](int k, int r0, int r1) {
-        const detail::PassTables& t = passes[k].t;
+        const detail::PassTables& t = *passes[k].t;
         const int x0 = strip.x0[k], x1 = strip.x1[k];
         const float* const* in = k == 0 ? src_rows.data() : out_rows[k - 1].data();
         float* const* out = k + 1 == n ? dst_rows.data() : out_rows[k].data();

@@ -4,6 +4,9 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
+#include <mutex>
+#include <utility>
 #include <vector>
 
 #include "bloomref/kernel.h"
@@ -105,6 +108,55 @@ struct PassTables {
   std::vector<int> inexact;  ///< lines whose lookup across the blur is not exactly on them
 };
 PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits);
+/// make_pass_tables, kept for the last few (axis, size, kernel offsets, bits) asked: the
+/// adaptive plan's passes ask for the same two, and building them (about 0.3 ms at 3840x2160)
+/// was a serial part of every pass.
+std::shared_ptr<const PassTables> pass_tables(Axis axis, int width, int height, const Kernel& k,
+                                              int bits);
+
+/// What a pass's tables depend on: the axis, the image's size, the kernel's tap offsets (and
+/// count) and the subtexel precision; `f64` for the exact taps. The key of the table memos.
+struct TableKey {
+  Axis axis;
+  int width, height, bits;
+  bool f64;
+  std::vector<float> offsets_f32;
+  std::vector<double> offsets_f64;
+  std::size_t weights;
+  TableKey(Axis a, int w, int h, const Kernel& k, int b, bool exact)
+      : axis(a), width(w), height(h), bits(b), f64(exact), offsets_f32(k.offsets_f32),
+        offsets_f64(k.offsets_f64), weights(k.weights_f32.size()) {}
+  bool operator==(const TableKey& o) const {
+    return axis == o.axis && width == o.width && height == o.height && bits == o.bits &&
+           f64 == o.f64 && offsets_f32 == o.offsets_f32 && offsets_f64 == o.offsets_f64 &&
+           weights == o.weights;
+  }
+};
+
+/// A memo of the last kSize tables built, shared by all threads: `get` returns the table for
+/// `key`, building it with `make` (outside the lock) when it is not kept.
+template <class V>
+class TableMemo {
+ public:
+  template <class Make>
+  std::shared_ptr<const V> get(const TableKey& key, const Make& make) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      for (const auto& [k, v] : kept_)
+        if (k == key) return v;
+    }
+    auto v = std::make_shared<const V>(make());
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (kept_.size() == kSize) kept_.erase(kept_.begin());
+    kept_.emplace_back(key, v);
+    return v;
+  }
+
+ private:
+  static constexpr std::size_t kSize = 8;
+  std::mutex mutex_;
+  std::vector<std::pair<TableKey, std::shared_ptr<const V>>> kept_;
+};
 /// Points `job`'s tap tables at `t`'s.
 void set_tables(TileJob& job, const PassTables& t);
 
