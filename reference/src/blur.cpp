@@ -268,6 +268,57 @@ std::size_t nonzero_support(BasicView<const T> img, std::uint8_t* mask, int thre
   return total;
 }
 
+namespace {
+
+// What blur_support and blur_support_spans read of a pass's tables: along the blur, the range of positions
+// each output position's taps read (blur_support's lo, hi); across it, the one or two lines
+// each line's lookup reads; and whether they have the shape the spans rely on (ranges whose
+// ends never decrease, adjacent lines across).
+struct SpanReach {
+  std::vector<int> lo, hi, alo, ahi;
+  bool shaped = true;
+};
+
+template <class T>
+SpanReach make_span_reach(bool horizontal, int width, int height, const Kernel& kernel,
+                          int bits) {
+  const int n_along = horizontal ? width : height;
+  const int n_across = horizontal ? height : width;
+  SpanReach r;
+  const TapTable<T> along = make_taps(n_along, kernel, bits, T());
+  r.lo.resize(n_along);
+  r.hi.resize(n_along);
+  for (int p = 0; p < n_along; ++p) {
+    r.lo[p] = n_along;
+    r.hi[p] = -1;
+    for (int k = 0; k < along.per_position; ++k) {
+      const AxisTap<T>& t = along.at(p)[k];
+      r.lo[p] = std::min({r.lo[p], t.i0, t.i1});
+      r.hi[p] = std::max({r.hi[p], t.i0, t.i1});
+    }
+  }
+  r.alo.resize(n_across);
+  r.ahi.resize(n_across);
+  for (int i = 0; i < n_across; ++i) {
+    const AxisTap<T> a = centre_tap(i, n_across, bits, T());
+    r.alo[i] = std::min(a.i0, a.i1);
+    r.ahi[i] = std::max(a.i0, a.i1);
+  }
+  auto shaped = [](const std::vector<int>& l, const std::vector<int>& h, int max_width) {
+    for (std::size_t p = 0; p < l.size(); ++p) {
+      if (h[p] - l[p] > max_width) return false;
+      if (p > 0 && (l[p] < l[p - 1] || h[p] < h[p - 1])) return false;
+    }
+    return true;
+  };
+  // Along, the taps are contiguous by construction (make_taps: offsets step by at most a
+  // texel); blur_support relies on the same.
+  r.shaped = shaped(r.lo, r.hi, n_along) && shaped(r.alo, r.ahi, 1);
+  return r;
+}
+
+}  // namespace
+
 template <class T>
 std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, int height,
                          const BlurPassOptions& opt, int threads) {
@@ -275,19 +326,10 @@ std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, i
   // are contiguous), on the one or two rows (columns) `across` gives: so the output support is
   // a sliding-window OR, computed with prefix counts (horizontal) or row ORs (vertical).
   const bool horizontal = opt.axis == Axis::horizontal;
-  const int n_along = horizontal ? width : height;
   const int n_across = horizontal ? height : width;
-  const TapTable<T> along = make_taps(n_along, *opt.kernel, opt.subtexel_bits, T());
-  std::vector<int> lo(n_along), hi(n_along);
-  for (int p = 0; p < n_along; ++p) {
-    lo[p] = n_along;
-    hi[p] = -1;
-    for (int k = 0; k < along.per_position; ++k) {
-      const AxisTap<T>& t = along.at(p)[k];
-      lo[p] = std::min({lo[p], t.i0, t.i1});
-      hi[p] = std::max({hi[p], t.i0, t.i1});
-    }
-  }
+  const SpanReach reach = make_span_reach<T>(horizontal, width, height, *opt.kernel,
+                                              opt.subtexel_bits);
+  const std::vector<int>&lo = reach.lo, &hi = reach.hi;
   std::vector<AxisTap<T>> across(n_across);
   for (int i = 0; i < n_across; ++i) across[i] = centre_tap(i, n_across, opt.subtexel_bits, T());
   std::vector<std::size_t> counts(height, 0);
@@ -420,53 +462,6 @@ void dilate(const std::vector<Span>& in, const std::vector<int>& lo, const std::
     if (!out.empty() && p0 <= out.back().x1) out.back().x1 = std::max(out.back().x1, p1);
     else out.push_back(Span{p0, p1});
   }
-}
-
-// What blur_support_spans reads of a pass's tables: along the blur, the range of positions
-// each output position's taps read (blur_support's lo, hi); across it, the one or two lines
-// each line's lookup reads; and whether they have the shape the spans rely on (ranges whose
-// ends never decrease, adjacent lines across).
-struct SpanReach {
-  std::vector<int> lo, hi, alo, ahi;
-  bool shaped = true;
-};
-
-template <class T>
-SpanReach make_span_reach(bool horizontal, int width, int height, const Kernel& kernel,
-                          int bits) {
-  const int n_along = horizontal ? width : height;
-  const int n_across = horizontal ? height : width;
-  SpanReach r;
-  const TapTable<T> along = make_taps(n_along, kernel, bits, T());
-  r.lo.resize(n_along);
-  r.hi.resize(n_along);
-  for (int p = 0; p < n_along; ++p) {
-    r.lo[p] = n_along;
-    r.hi[p] = -1;
-    for (int k = 0; k < along.per_position; ++k) {
-      const AxisTap<T>& t = along.at(p)[k];
-      r.lo[p] = std::min({r.lo[p], t.i0, t.i1});
-      r.hi[p] = std::max({r.hi[p], t.i0, t.i1});
-    }
-  }
-  r.alo.resize(n_across);
-  r.ahi.resize(n_across);
-  for (int i = 0; i < n_across; ++i) {
-    const AxisTap<T> a = centre_tap(i, n_across, bits, T());
-    r.alo[i] = std::min(a.i0, a.i1);
-    r.ahi[i] = std::max(a.i0, a.i1);
-  }
-  auto shaped = [](const std::vector<int>& l, const std::vector<int>& h, int max_width) {
-    for (std::size_t p = 0; p < l.size(); ++p) {
-      if (h[p] - l[p] > max_width) return false;
-      if (p > 0 && (l[p] < l[p - 1] || h[p] < h[p - 1])) return false;
-    }
-    return true;
-  };
-  // Along, the taps are contiguous by construction (make_taps: offsets step by at most a
-  // texel); blur_support relies on the same.
-  r.shaped = shaped(r.lo, r.hi, n_along) && shaped(r.alo, r.ahi, 1);
-  return r;
 }
 
 }  // namespace
