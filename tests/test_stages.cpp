@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
+#include <vector>
 
 #include "bloomref/plan.h"
 #include "bloomref/scenes.h"
@@ -43,6 +45,63 @@ TEMPLATE_TEST_CASE("threshold is strict: luminance exactly at it is not bright",
   BasicImage<T> nan = one_pixel<T>(T(NAN), 0, 0), dst(1, 1);
   extract_bright(nan.cview(), dst.view(), T(1), 1);
   CHECK(dst.pixel(0, 0)[0] == T(0));
+}
+
+TEMPLATE_TEST_CASE("extract_bright into a zeroed image writes only bright pixels and gives their "
+                   "nonzero mask", "[stages]", float, double) {
+  using T = TestType;
+  // One row of hostile pixels, each followed by its expected (bright, nonzero): luminance
+  // 0.2126 r + 0.7152 g + 0.0722 b against threshold 1 (strict), nonzero meaning some channel's
+  // bits are not +0's (-0, NaN and Inf count).
+  const T inf = std::numeric_limits<T>::infinity(), nan = std::numeric_limits<T>::quiet_NaN();
+  struct Case {
+    T r, g, b;
+    bool bright, nonzero;
+  };
+  const std::vector<Case> cases = {
+      {T(0), T(0), T(0), false, false},       {T(1), T(1), T(1), false, false},  // tie
+      {T(2), T(2), T(2), true, true},         {T(10), T(0), T(0), true, true},   // L = 2.126
+      {T(-0.0), T(5), T(0), true, true},      // -0 in a bright pixel counts
+      {T(0), T(0), T(20), true, true},        // L = 1.444
+      {inf, T(0), T(0), true, true},          {nan, T(9), T(9), false, false},   // NaN L
+      {T(-50), T(0), T(0), false, false},     {T(0), T(3), T(0), true, true},
+      {T(0.5), T(0.5), T(0.5), false, false}, {T(100), T(-1), T(0), true, true},
+  };
+  const int w = int(cases.size());
+  BasicImage<T> src(w, 1);
+  for (int x = 0; x < w; ++x) {
+    T* p = src.pixel(x, 0);
+    p[0] = cases[x].r;
+    p[1] = cases[x].g;
+    p[2] = cases[x].b;
+    p[3] = T(1);
+  }
+  BasicImage<T> sparse = BasicImage<T>::zeroed(w, 1);
+  std::vector<std::uint8_t> nonzero(w, 7);
+  extract_bright(src.cview(), sparse.view(), T(1), 1, /*dst_zeroed=*/true, nonzero.data());
+  for (int x = 0; x < w; ++x) {
+    INFO("pixel " << x);
+    CHECK(bool(nonzero[x]) == cases[x].nonzero);
+    CHECK(nonzero[x] <= 1);
+    const T* d = sparse.pixel(x, 0);
+    if (cases[x].bright) {
+      for (int c = 0; c < 3; ++c)
+        CHECK(std::memcmp(&d[c], &src.pixel(x, 0)[c], sizeof(T)) == 0);
+      CHECK(d[3] == T(1));
+    } else {  // left alone: +0 everywhere, alpha included
+      for (int c = 0; c < 4; ++c) CHECK((d[c] == T(0) && !std::signbit(d[c])));
+    }
+  }
+  // Below a negative threshold black is bright but writes +0: not in the nonzero mask; -0 is.
+  BasicImage<T> dark(2, 1, T(0));
+  dark.pixel(1, 0)[0] = T(-0.0);
+  BasicImage<T> out = BasicImage<T>::zeroed(2, 1);
+  std::vector<std::uint8_t> nz(2, 7);
+  extract_bright(dark.cview(), out.view(), T(-1), 1, true, nz.data());
+  CHECK(nz[0] == 0);
+  CHECK(nz[1] == 1);
+  CHECK(out.pixel(0, 0)[3] == T(1));  // bright: written, alpha 1
+  CHECK(std::signbit(out.pixel(1, 0)[0]));
 }
 
 TEST_CASE("the threshold-tie scene: exactly one band of three is bright", "[stages]") {

@@ -96,9 +96,8 @@ NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite pol
 }
 
 template <class T>
-std::size_t extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
-                           bool dst_zeroed, std::uint8_t* nonzero) {
-  std::vector<std::size_t> counts(src.height, 0);
+void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
+                    bool dst_zeroed, std::uint8_t* nonzero) {
   parallel_rows(src.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       if (!dst_zeroed && !nonzero) {  // the dense sweep, kept branch-free
@@ -112,25 +111,17 @@ std::size_t extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold
         continue;
       }
       std::uint8_t* nz = nonzero ? nonzero + std::size_t(y) * src.width : nullptr;
-      std::size_t n = 0;
       for (int x = 0; x < src.width; ++x) {
         const T* s = src.pixel(x, y);
         const bool bright = luminance(s[0], s[1], s[2]) > threshold;
-        if (nz) {
-          nz[x] = bright && rgb_not_plus_zero(s);  // nonzero_support's test on what is written
-          n += nz[x];
-        }
+        if (nz) nz[x] = bright && rgb_not_plus_zero(s);  // nonzero_support's test on what is written
         if (dst_zeroed && !bright) continue;  // +0 already; the page may stay unwritten
         T* d = dst.pixel(x, y);
         for (int c = 0; c < 3; ++c) d[c] = bright ? s[c] : T(0);
         d[3] = T(1);
       }
-      counts[y] = n;
     }
   });
-  std::size_t total = 0;
-  for (std::size_t n : counts) total += n;
-  return total;
 }
 
 template <class T>
@@ -225,8 +216,8 @@ std::uint8_t quantize_8bit(float x) {
   template NonFiniteCounts count_nonfinite<T>(BasicView<const T>, int);                          \
   template NonFiniteCounts sanitize<T>(BasicView<const T>, BasicView<T>, NonFinite, Storage,     \
                                        int);                                                      \
-  template std::size_t extract_bright<T>(BasicView<const T>, BasicView<T>, T, int, bool,       \
-                                         std::uint8_t*);                     \
+  template void extract_bright<T>(BasicView<const T>, BasicView<T>, T, int, bool,              \
+                                  std::uint8_t*);                                                 \
   template void composite<T>(BasicView<const T>, BasicView<const T>, BasicView<T>, T, int);      \
   template void tonemap<T>(BasicView<const T>, BasicView<T>, T, int);                            \
   template void encode_output<T>(BasicView<const T>, BasicView<T>, T, int);                      \

@@ -81,10 +81,10 @@ NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite pol
 /// BasicImage::zeroed gives) only the bright pixels are written: the others keep (0, 0, 0, 0),
 /// for a caller that reads no alpha of the bright image (the executor when no stage is kept).
 /// With `nonzero` (width x height), also what nonzero_support(dst) would give, without reading
-/// dst again; returns its count (0 without it).
+/// dst again.
 template <class T>
-std::size_t extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
-                           bool dst_zeroed = false, std::uint8_t* nonzero = nullptr);
+void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
+                    bool dst_zeroed = false, std::uint8_t* nonzero = nullptr);
 
 enum class Axis { horizontal, vertical };
 
