@@ -111,12 +111,14 @@ inline v4 convolve_v4(const std::vector<float>& w, const AxisTap<float>* taps, T
   return r;
 }
 
-// blur_texel in f32, RGBA as four lanes (alpha is overwritten): the same IEEE single
+// blur_texel in f32, four lanes from each texel's address (the fourth, alpha or with RGB rows
+// the next texel's red, is never written): the same IEEE single
 // multiplications and additions in the same order per lane as the scalar path, so the same bits
 // (the shader-loop test checks them). Src gives pixel(x, y): an image view or a row table.
 template <class Src>
 void blur_texel_f32(const Src& src, bool horizontal, const AxisTap<float>* taps,
-                    const AxisTap<float>& other, const std::vector<float>& w, float* d) {
+                    const AxisTap<float>& other, const std::vector<float>& w, float* d,
+                    int out_channels = 4) {
   v4 rv;
   if (other.w1 == 0.0f) {
     // The lookup sits on one line across the blur (weight exactly 1 there).
@@ -158,21 +160,23 @@ void blur_texel_f32(const Src& src, bool horizontal, const AxisTap<float>* taps,
   d[0] = rv[0];
   d[1] = rv[1];
   d[2] = rv[2];
-  d[3] = 1.0f;
+  if (out_channels == 4) d[3] = 1.0f;
 }
 
 struct RowTable {
   const float* const* rows;
-  const float* pixel(int x, int y) const { return rows[y] + std::ptrdiff_t(x) * kChannels; }
+  int channels;
+  const float* pixel(int x, int y) const { return rows[y] + std::ptrdiff_t(x) * channels; }
 };
 
 }  // namespace
 
 namespace detail {
 
-void blur_texel_rows(const float* const* rows, bool horizontal, const AxisTap<float>* taps,
-                     const AxisTap<float>& other, const std::vector<float>& w, float* d) {
-  blur_texel_f32(RowTable{rows}, horizontal, taps, other, w, d);
+void blur_texel_rows(const float* const* rows, int channels, bool horizontal,
+                     const AxisTap<float>* taps, const AxisTap<float>& other,
+                     const std::vector<float>& w, float* d, int out_channels) {
+  blur_texel_f32(RowTable{rows, channels}, horizontal, taps, other, w, d, out_channels);
 }
 
 template <class T>

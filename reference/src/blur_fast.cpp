@@ -113,17 +113,19 @@ void set_tables(TileJob& job, const PassTables& t) {
 
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
-                        const std::uint8_t* active, int width, bool dst_zero_outside) {
+                        const std::uint8_t* active, int width, bool dst_zero_outside,
+                        int in_channels, int out_channels) {
   for (auto it = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
        it != t.inexact.end() && *it < b1; ++it) {
     const int b = *it;
     for (int a = a0; a < a1; ++a) {
       const int x = t.horizontal ? a : b, y = t.horizontal ? b : a;
-      float* d = out[y] + std::ptrdiff_t(x) * kChannels;
+      float* d = out[y] + std::ptrdiff_t(x) * out_channels;
       if (active && !active[std::size_t(y) * width + x]) {
         if (!dst_zero_outside) fill_zero_alpha_one(d, 1, 0);
       } else {
-        blur_texel_rows(in, t.horizontal, t.along.at(a), t.across[b], w, d);
+        blur_texel_rows(in, in_channels, t.horizontal, t.along.at(a), t.across[b], w, d,
+                        out_channels);
       }
     }
   }

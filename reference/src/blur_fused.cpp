@@ -3,9 +3,10 @@
 // Pass by pass, the blur reads and writes the whole image n times (3840x2160 RGBA float: 133 MB
 // each way, ten times). Here the image is cut into column strips (512 texels), and each strip
 // streams through all n passes: pass k keeps only the rows the next pass still reads, in a ring
-// of about 2 x (16 + 5) rows of the strip (~0.4 MB), and computes them 16 rows at a time when
+// of about 2 x (16 + 5) rows of the strip (~0.3 MB), and computes them 16 rows at a time when
 // the next pass asks for them. The image is read once and written once; the strips run in
-// parallel.
+// parallel. The rings hold R, G, B only (every blur writes alpha 1): a quarter less to compute,
+// load and store than RGBA in every pass between the first and the last.
 //
 // Every texel of every pass is computed by the same tile kernel and the same reference texel
 // as blur_pass_fast (blur_tiles.inc, blur_texel_rows), from the same tap tables, so the bits are
@@ -30,9 +31,13 @@ namespace {
 constexpr int kChunk = 16;
 constexpr int kTileAlongH = 64;     // as blur_pass_fast
 constexpr int kTileAcrossV = 1024;  // as blur_pass_fast
-// Columns per strip: a pass's ring of ~42 rows x (512 + reach) texels is ~0.4 MB.
+// Columns per strip: a pass's ring of ~42 rows x (512 + reach) texels is ~0.3 MB.
 constexpr int kStripWidth = 512;
 constexpr int kMinStripWidth = 64;
+// Floats a texel of the rings (R, G, B), and of slack after a ring (the tile kernel reads rows
+// of 3 eight floats at a time, TileJob).
+constexpr int kRingChannels = 3;
+constexpr int kRingPad = 8;
 
 // One pass's tables (blur_pass_fast's) and, per output row, the input rows it reads.
 struct Pass {
@@ -121,10 +126,11 @@ Columns strip_columns(const std::vector<Pass>& passes, int sx0, int sx1) {
   return c;
 }
 
-// A pointer that reaches `p` at column x0: row tables index rows by absolute column.
+// A pointer that reaches `p` at column x0 of a ring row: row tables index rows by absolute
+// column.
 float* shifted(float* p, int x0) {
   return reinterpret_cast<float*>(reinterpret_cast<std::uintptr_t>(p) -
-                                  std::uintptr_t(x0) * kChannels * sizeof(float));
+                                  std::uintptr_t(x0) * kRingChannels * sizeof(float));
 }
 
 }  // namespace
@@ -168,8 +174,8 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
       std::vector<PixelBuffer<float>> rings(n);
       std::vector<std::vector<float*>> out_rows(n);
       for (int k = 0; k + 1 < n; ++k) {
-        const std::size_t row_floats = std::size_t(strip.x1[k] - strip.x0[k]) * kChannels;
-        rings[k] = PixelBuffer<float>(std::size_t(ring[k]) * row_floats);
+        const std::size_t row_floats = std::size_t(strip.x1[k] - strip.x0[k]) * kRingChannels;
+        rings[k] = PixelBuffer<float>(std::size_t(ring[k]) * row_floats + kRingPad);
         out_rows[k].resize(h);
         for (int r = 0; r < h; ++r)
           out_rows[k][r] = shifted(rings[k].data() + (r % ring[k]) * row_floats, strip.x0[k]);
@@ -181,7 +187,11 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
         const int x0 = strip.x0[k], x1 = strip.x1[k];
         const float* const* in = k == 0 ? src_rows.data() : out_rows[k - 1].data();
         float* const* out = k + 1 == n ? dst_rows.data() : out_rows[k].data();
+        const int cin = k == 0 ? kChannels : kRingChannels;
+        const int cout = k + 1 == n ? kChannels : kRingChannels;
         detail::TileJob job;
+        job.src_channels = cin;
+        job.dst_channels = cout;
         job.src_rows = in;
         job.dst_rows = out;
         job.horizontal = t.horizontal;
@@ -199,7 +209,8 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
           job.along_hi = x1;
           const int t0 = (r0 / kChunk) * tiles_h;
           tile_kernel(job, t0 + x0 / kTileAlongH, t0 + (x1 + kTileAlongH - 1) / kTileAlongH);
-          detail::blur_inexact_lines(t, in, out, weights, x0, x1, r0, r1, nullptr, w);
+          detail::blur_inexact_lines(t, in, out, weights, x0, x1, r0, r1, nullptr, w, false, cin,
+                                     cout);
         } else {
           // Along = rows, block r0 / kChunk; across = columns [x0, x1).
           job.n_along = h;
@@ -213,7 +224,8 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
             const int tile = c * chunks + r0 / kChunk;
             tile_kernel(job, tile, tile + 1);
           }
-          detail::blur_inexact_lines(t, in, out, weights, r0, r1, x0, x1, nullptr, w);
+          detail::blur_inexact_lines(t, in, out, weights, r0, r1, x0, x1, nullptr, w, false, cin,
+                                     cout);
         }
       };
 

@@ -36,9 +36,12 @@ template <class T>
 void blur_texel(BasicView<const T> src, bool horizontal, const AxisTap<T>* taps,
                 const AxisTap<T>& other, const std::vector<T>& w, T* d);
 
-/// blur_texel in f32 on an image given by row pointers (image row y at rows[y]): the same bits.
-void blur_texel_rows(const float* const* rows, bool horizontal, const AxisTap<float>* taps,
-                     const AxisTap<float>& other, const std::vector<float>& w, float* d);
+/// blur_texel in f32 on an image given by row pointers (image row y at rows[y], `channels`
+/// floats a texel, 3 or 4; a texel's 16 bytes are read, so a row of 3 needs a float after it):
+/// the same bits. Writes R, G, B to d[0..2], and d[3] = 1 when `out_channels` is 4.
+void blur_texel_rows(const float* const* rows, int channels, bool horizontal,
+                     const AxisTap<float>* taps, const AxisTap<float>& other,
+                     const std::vector<float>& w, float* d, int out_channels = 4);
 
 /// How the tile kernel forms a tap's term, in blur_texel's form (p0 w0 [+ p1 w1]) wk: `one` when
 /// w0 is exactly 1 and there is no second texel (x * 1 == x: no signalling NaN reaches the blur,
@@ -78,6 +81,10 @@ struct TileJob {
   const int* tile_ids = nullptr;
   bool dst_zero_outside = false;  ///< tiles without an active texel are left alone (stages.h)
   int width = 0;
+  /// Floats a texel of the source and destination rows: 4 (RGBA; the destination's alpha is
+  /// written 1) or 3 (RGB: the fused blur's intermediate rows; a row of 3 is read 8 floats at a
+  /// time, so it needs 8 floats of slack after it). The fused blur's, with active == nullptr.
+  int src_channels = 4, dst_channels = 4;
 };
 
 /// Computes tiles [t0, t1) of `job`: every texel of a line whose lookup across the blur is
@@ -166,7 +173,8 @@ void set_tables(TileJob& job, const PassTables& t);
 /// `dst_zero_outside` says they already are.
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
-                        const std::uint8_t* active, int width, bool dst_zero_outside = false);
+                        const std::uint8_t* active, int width, bool dst_zero_outside = false,
+                        int in_channels = 4, int out_channels = 4);
 
 }  // namespace bloomref::detail
 
