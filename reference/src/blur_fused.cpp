@@ -159,11 +159,17 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
   const int tiles_h = (w + kTileAlongH - 1) / kTileAlongH;  // horizontal tiles per row block
   const int chunks = (h + kChunk - 1) / kChunk;
 
-  // At least one strip per thread (narrower strips recompute more columns beside them, but a
-  // 256-texel-wide image on one thread would leave the other idle), at most kStripWidth wide.
-  const int per_thread = (w + resolve_threads(threads) - 1) / resolve_threads(threads);
-  const int strip_width = std::max(kMinStripWidth, std::min(kStripWidth, per_thread));
-  const int nstrips = (w + strip_width - 1) / strip_width;
+  // Strips of equal width, a whole number per thread (3840 columns on two threads: 8 strips
+  // of 480, not 7 of 512 and one of 256, which left one thread half a strip of work more), at
+  // most kStripWidth wide, and at least kMinStripWidth where the image allows (narrower strips
+  // recompute more columns beside them, but a 256-texel-wide image on one thread would leave
+  // the other idle).
+  const int nthreads = resolve_threads(threads);
+  int nstrips = (w + kStripWidth - 1) / kStripWidth;
+  nstrips = (nstrips + nthreads - 1) / nthreads * nthreads;
+  nstrips = std::max(1, std::min(nstrips, w / kMinStripWidth));
+  const int strip_width = (w + nstrips - 1) / nstrips;
+  nstrips = (w + strip_width - 1) / strip_width;
   parallel_rows(nstrips, threads, [&](int first_strip, int last_strip) {
     for (int si = first_strip; si < last_strip; ++si) {
       const int sx0 = si * strip_width, sx1 = std::min(w, sx0 + strip_width);
