@@ -390,6 +390,24 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
   }
 }
 
+TEST_CASE("the fast and fused blurs take empty images", "[blur][fast][fused]") {
+  // 0 columns once made the fused blur's strip width 0 and divided by it (SIGFPE).
+  const std::vector<Axis> axes = {Axis::horizontal, Axis::vertical};
+  for (auto [w, h] : {std::pair{0, 4}, std::pair{4, 0}, std::pair{0, 0}}) {
+    const Image src(w, h);
+    for (int threads : {1, 2}) {
+      INFO(w << "x" << h << " threads " << threads);
+      Image fused(w, h), fast(w, h);
+      CHECK_NOTHROW(blur_passes_fused(src.cview(), fused.view(), axes, kernel_discrete9(), 0,
+                                      threads));
+      CHECK_NOTHROW(blur_pass_fast(src.cview(), fast.view(),
+                                   BlurPassOptions{Axis::horizontal, &kernel_discrete9(), 0},
+                                   threads));
+      CHECK(fused.values().empty());
+    }
+  }
+}
+
 TEST_CASE("the fast blur is not vacuous: a wrong weight is caught", "[blur][fast]") {
   // The comparison above must be able to fail: the same pass with a weight 1 ULP off differs.
   const Image src = hostile_image(64, 48, 99);

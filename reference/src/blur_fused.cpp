@@ -144,6 +144,7 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
   if (dst.width != w || dst.height != h)
     throw ParamError("blur_passes_fused: source and destination sizes differ");
   const detail::TileKernel tile_kernel = detail::tile_kernel_for(isa);
+  if (w == 0 || h == 0) return;  // nothing to write (and no strip width to divide by)
   std::vector<Pass> passes;
   passes.reserve(n);
   for (Axis a : axes) passes.push_back(make_pass(a, w, h, kernel, subtexel_bits));
