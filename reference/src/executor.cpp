@@ -12,6 +12,25 @@
 namespace bloomref {
 namespace {
 
+// Faults in a buffer about to be written whole, the threads taking equal parts (detail::prefault):
+// the dense plan's bright image and blur target. `bloomref run --size 3840x2160 --plan full`,
+// fresh processes alternated with the build before: one thread 828-1133 ms against 840-1155
+// (medians of two sets 947 / 898 against 1048 / 1069), two threads 484-623 against 500-638
+// (530 / 548 against 585 / 587); one unsplit call made two threads slower (605-711 against
+// 537-687), since first-touch faults are taken by both threads. Buffers under 8 MiB are left
+// to fault as they are written.
+template <class T>
+void prefault_image(BasicImage<T>& img, int threads) {
+  const std::size_t bytes = img.values().size() * sizeof(T);
+  if (bytes < (std::size_t(8) << 20)) return;
+  char* base = reinterpret_cast<char*>(img.values().data());
+  const int parts = 64;
+  parallel_rows(parts, threads, [&](int i0, int i1) {
+    const std::size_t a = bytes * i0 / parts, b = bytes * i1 / parts;
+    detail::prefault(base + a, b - a);
+  });
+}
+
 using Clock = std::chrono::steady_clock;
 
 double ms_since(Clock::time_point t0) {
@@ -54,6 +73,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
                              plan.facts.bright_pixels * 100 <= std::uint64_t(w) * std::uint64_t(h);
   BasicImage<T> bright = sparse_bright ? BasicImage<T>::zeroed(bw, bh)
                                        : BasicImage<T>::uninitialised(bw, bh);
+  if (!sparse_bright) prefault_image(bright, threads);
   BasicImage<T> ping, pong;  // allocated by the first blur pass
   // The adaptive fast f32 blur writes only the tiles its support reaches when what it writes
   // into is already +0 around them (stages.h: dst_zero_outside), and no stage image is kept (the
@@ -176,9 +196,14 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
         const bool first_pass = stage.pass == 1;
-        if (pong.empty())
-          pong = leave_zeros && first_pass ? BasicImage<T>::zeroed(w, h)
-                                           : BasicImage<T>::uninitialised(w, h);
+        if (pong.empty()) {
+          if (leave_zeros && first_pass) {
+            pong = BasicImage<T>::zeroed(w, h);
+          } else {
+            pong = BasicImage<T>::uninitialised(w, h);
+            prefault_image(pong, threads);  // written whole by this pass
+          }
+        }
         int pass_threads = threads;
         if (p.plan == PlanMode::adaptive) {
           // Blur only the bright pixels' support (started by the input stage), dilated pass by
