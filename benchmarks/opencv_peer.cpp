@@ -2,8 +2,9 @@
 // the discrete9 weights, 5 H+V applications = 10 passes) against bloomref's exact f32 blur, a
 // naive loop, and the whole pipeline, on the same 3840x2160 RGBA float image (the demo scene's
 // bright pixels), 1 and 2 threads (OpenCV also split over both cores by hand: its own threading
-// barely uses the second), medians of 5 after a warm-up; the ratios are to OpenCV's best run. Every timed result is checked
-// against the f64 truth in the same run (Halide's blur test does the same), exit 1 on a miss.
+// barely uses the second), medians of 5 after a warm-up; the ratios are to OpenCV's best run.
+// Every timed result is checked against the f64 truth in the same run (Halide's blur test does
+// the same), exit 1 on a miss.
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 

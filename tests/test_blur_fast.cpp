@@ -403,7 +403,6 @@ TEST_CASE("the fast and fused blurs take empty images", "[blur][fast][fused]") {
       CHECK_NOTHROW(blur_pass_fast(src.cview(), fast.view(),
                                    BlurPassOptions{Axis::horizontal, &kernel_discrete9(), 0},
                                    threads));
-      CHECK(fused.values().empty());
     }
   }
 }

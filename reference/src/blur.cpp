@@ -274,9 +274,9 @@ std::size_t nonzero_support(BasicView<const T> img, std::uint8_t* mask, int thre
 
 namespace {
 
-// What blur_support and blur_support_spans read of a pass's tables: along the blur, the range of positions
-// each output position's taps read (blur_support's lo, hi); across it, the one or two lines
-// each line's lookup reads; and whether they have the shape the spans rely on (ranges whose
+// What blur_support and blur_support_spans read of a pass's tables: along the blur, the range
+// of positions each output position's taps read (blur_support's lo, hi); across it, the one or
+// two lines each line's lookup reads; and whether they have the shape the spans rely on (ranges whose
 // ends never decrease, adjacent lines across).
 struct SpanReach {
   std::vector<int> lo, hi, alo, ahi;

@@ -122,9 +122,7 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
       const int x = t.horizontal ? a : b, y = t.horizontal ? b : a;
       float* d = out[y] + std::ptrdiff_t(x) * out_channels;
       if (active && !active[std::size_t(y) * width + x]) {
-        if (dst_zero_outside) continue;
-        if (out_channels == 4) fill_zero_alpha_one(d, 1, 0);
-        else d[0] = d[1] = d[2] = 0.0f;
+        if (!dst_zero_outside) fill_zero_texels(d, 1, out_channels);
       } else {
         blur_texel_rows(in, in_channels, t.horizontal, t.along.at(a), t.across[b], w, d,
                         out_channels);

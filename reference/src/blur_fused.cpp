@@ -1,7 +1,8 @@
 // Stages blur.1 ... blur.n at once, the fused way (stages.h: blur_passes_fused).
 //
 // Pass by pass, the blur reads and writes the whole image n times (3840x2160 RGBA float: 133 MB
-// each way, ten times). Here the image is cut into column strips (512 texels), and each strip
+// each way, ten times). Here the image is cut into column strips (of equal width, at most 512
+// texels), and each strip
 // streams through all n passes: pass k keeps only the rows the next pass still reads, in a ring
 // of about 2 x (16 + 5) rows of the strip (~0.3 MB), and computes them 16 rows at a time when
 // the next pass asks for them. The image is read once and written once; the strips run in

@@ -83,7 +83,8 @@ struct TileJob {
   int width = 0;
   /// Floats a texel of the source and destination rows: 4 (RGBA; the destination's alpha is
   /// written 1) or 3 (RGB: the fused blur's intermediate rows; a row of 3 is read 8 floats at a
-  /// time, so it needs 8 floats of slack after it). The fused blur's, with active == nullptr.
+  /// time, so it needs 8 floats of slack after it). 3 only from the fused blur, which gives no
+  /// mask (`active`).
   int src_channels = 4, dst_channels = 4;
 };
 

@@ -13,12 +13,11 @@ namespace bloomref {
 namespace {
 
 // Faults in a buffer about to be written whole, the threads taking equal parts (detail::prefault):
-// the dense plan's bright image and blur target. `bloomref run --size 3840x2160 --plan full`,
-// fresh processes alternated with the build before: one thread 828-1133 ms against 840-1155
-// (medians of two sets 947 / 898 against 1048 / 1069), two threads 484-623 against 500-638
-// (530 / 548 against 585 / 587); one unsplit call made two threads slower (605-711 against
-// 537-687), since first-touch faults are taken by both threads. Buffers under 8 MiB are left
-// to fault as they are written.
+// the dense plan's bright image and blur target. In parts because first-touch faults are taken
+// by every writing thread, a single call by one (README, stop 17: `bloomref run --size
+// 3840x2160 --plan full`, medians 947 / 898 ms against 1048 / 1069 on one thread, 530 / 548
+// against 585 / 587 on two; one unsplit call made two threads slower). Buffers under 8 MiB are
+// left to fault as they are written.
 template <class T>
 void prefault_image(BasicImage<T>& img, int threads) {
   const std::size_t bytes = img.values().size() * sizeof(T);

@@ -1,5 +1,5 @@
 // bloomref — the few vector helpers the blur kernels share (GCC/Clang vector extensions: the
-// same IEEE operation in every lane). A texel is 4 lanes, RGBA.
+// same IEEE operation in every lane). A texel is 4 lanes, RGBA, or 3, RGB (fill_zero_texels).
 #pragma once
 
 #include <cstddef>
@@ -37,6 +37,13 @@ inline void fill_zero_alpha_one(float* out, int n, std::ptrdiff_t step) {
     d[0] = d[1] = d[2] = 0.0f;
     d[3] = 1.0f;
   }
+}
+
+/// n consecutive texels of zero RGB, `channels` floats a texel: (0, 0, 0, 1) each for 4 (RGBA),
+/// (0, 0, 0) for 3 (the fused blur's intermediate rows).
+inline void fill_zero_texels(float* out, int n, int channels) {
+  if (channels == 4) fill_zero_alpha_one(out, n, 4);
+  else std::memset(out, 0, std::size_t(n) * channels * sizeof(float));
 }
 
 }  // namespace bloomref::detail
