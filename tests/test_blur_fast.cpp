@@ -66,9 +66,12 @@ Image hostile_image(int w, int h, unsigned seed) {
 TEST_CASE("blur_pass_fast gives blur_pass's bits on hostile values and awkward sizes",
           "[blur][fast]") {
   // 1920 columns: a tap at x = 1 lands a hair left of texel 0 (w0 = 0); 1080 and 2160 rows
-  // and 131, 1920 columns have lookups across the blur that straddle two lines.
-  const std::pair<int, int> sizes[] = {{1, 1},   {1, 7},    {7, 1},    {3, 5},   {37, 23},
-                                       {257, 131}, {1920, 9}, {9, 1080}, {131, 2160}};
+  // and 131, 1920 columns have lookups across the blur that straddle two lines; with 41 columns
+  // and 47 rows the lookup across the blur at line 0 is (0, 0) with weights (0, 1): an inexact
+  // line whose across mix leaves out its first term.
+  const std::pair<int, int> sizes[] = {{1, 1},     {1, 7},    {7, 1},    {3, 5},
+                                       {37, 23},   {41, 47},  {257, 131}, {1920, 9},
+                                       {9, 1080},  {131, 2160}};
   unsigned seed = 1;
   for (auto [w, h] : sizes) {
     const Image src = hostile_image(w, h, seed++);

@@ -111,6 +111,58 @@ inline v4 convolve_v4(const std::vector<float>& w, const AxisTap<float>* taps, T
   return r;
 }
 
+// sample_rgb's 2-D mix of the texels (tx.i0 | tx.i1, ty.i0 | ty.i1), four lanes from each
+// texel's address: its four terms in its order (the vertical axis outer), zero-weight terms left
+// out. Src gives pixel(x, y): an image view or a row table.
+template <class Src>
+inline v4 bilinear_v4(const Src& src, const AxisTap<float>& tx, const AxisTap<float>& ty) {
+  const float wx[2] = {tx.w0, tx.w1};
+  const float wy[2] = {ty.w0, ty.w1};
+  const int ix[2] = {tx.i0, tx.i1};
+  const int iy[2] = {ty.i0, ty.i1};
+  v4 s = {0.0f, 0.0f, 0.0f, 0.0f};
+  bool first = true;
+  for (int j = 0; j < 2; ++j) {
+    for (int i = 0; i < 2; ++i) {
+      const float wij = wx[i] * wy[j];
+      if (wij == 0.0f) continue;
+      const v4 t = load<v4>(src.pixel(ix[i], iy[j]));
+      s = first ? t * wij : s + t * wij;
+      first = false;
+    }
+  }
+  return s;
+}
+
+// convolve()'s sum of the samples sample(k), four lanes: r = s(0) w0, then r = r + s(k) w(k).
+template <class Sample>
+inline v4 convolve_samples_v4(const std::vector<float>& w, const Sample& sample) {
+  v4 r = sample(0) * w[0];
+  for (std::size_t i = 1; i < w.size(); ++i) {
+    r = r + sample(int(2 * i - 1)) * w[i];
+    r = r + sample(int(2 * i)) * w[i];
+  }
+  return r;
+}
+// The same for N weights known at compile time (unrolled).
+template <int N, class Sample>
+inline v4 convolve_samples_v4(const float (&w)[N], const Sample& sample) {
+  v4 r = sample(0) * w[0];
+#pragma GCC unroll 8
+  for (int i = 1; i < N; ++i) {
+    r = r + sample(2 * i - 1) * w[i];
+    r = r + sample(2 * i) * w[i];
+  }
+  return r;
+}
+
+inline void store_rgb(const v4& rv, float* d, int out_channels) {
+  d[0] = rv[0];
+  d[1] = rv[1];
+  d[2] = rv[2];
+  if (out_channels == 4) d[3] = 1.0f;
+}
+
 // blur_texel in f32, four lanes from each texel's address (the fourth, alpha or with RGB rows
 // the next texel's red, is never written): the same IEEE single
 // multiplications and additions in the same order per lane as the scalar path, so the same bits
@@ -128,39 +180,12 @@ void blur_texel_f32(const Src& src, bool horizontal, const AxisTap<float>* taps,
       return horizontal ? src.pixel(i, fixed) : src.pixel(fixed, i);
     });
   } else {
-    // It mixes two lines across the blur: sample_rgb's four terms in its order (the vertical
-    // axis outer), zero-weight terms left out.
-    auto bilinear = [&](const AxisTap<float>& tx, const AxisTap<float>& ty) {
-      const float wx[2] = {tx.w0, tx.w1};
-      const float wy[2] = {ty.w0, ty.w1};
-      const int ix[2] = {tx.i0, tx.i1};
-      const int iy[2] = {ty.i0, ty.i1};
-      v4 s = {0.0f, 0.0f, 0.0f, 0.0f};
-      bool first = true;
-      for (int j = 0; j < 2; ++j) {
-        for (int i = 0; i < 2; ++i) {
-          const float wij = wx[i] * wy[j];
-          if (wij == 0.0f) continue;
-          const v4 t = load<v4>(src.pixel(ix[i], iy[j]));
-          s = first ? t * wij : s + t * wij;
-          first = false;
-        }
-      }
-      return s;
-    };
-    auto sample = [&](int k) {
-      return horizontal ? bilinear(taps[k], other) : bilinear(other, taps[k]);
-    };
-    rv = sample(0) * w[0];
-    for (std::size_t i = 1; i < w.size(); ++i) {
-      rv = rv + sample(int(2 * i - 1)) * w[i];
-      rv = rv + sample(int(2 * i)) * w[i];
-    }
+    // It mixes two lines across the blur.
+    rv = convolve_samples_v4(w, [&](int k) {
+      return horizontal ? bilinear_v4(src, taps[k], other) : bilinear_v4(src, other, taps[k]);
+    });
   }
-  d[0] = rv[0];
-  d[1] = rv[1];
-  d[2] = rv[2];
-  if (out_channels == 4) d[3] = 1.0f;
+  store_rgb(rv, d, out_channels);
 }
 
 struct RowTable {
@@ -173,10 +198,75 @@ struct RowTable {
 
 namespace detail {
 
-void blur_texel_rows(const float* const* rows, int channels, bool horizontal,
-                     const AxisTap<float>* taps, const AxisTap<float>& other,
-                     const std::vector<float>& w, float* d, int out_channels) {
-  blur_texel_f32(RowTable{rows, channels}, horizontal, taps, other, w, d, out_channels);
+// The texels of lines whose lookup across the blur is off them: blur_texel_f32's sums, with
+// each tap whose kernel form is one texel at weight 1 (the tile kernel's `one`) read from a
+// line mixed once across the blur instead of mixed anew per tap and per texel.
+//
+// Why that is the same: such a tap's sample is bilinear_v4 of along-weights {1, 0} (or {0, 1} on
+// the next texel, which leaves out the same terms and multiplies by the same products), so it is
+// bilinear_v4(i, {i, i, 1, 0}) of its texel i along, whatever the output position; computed once
+// per line i, it is that sample's bits. Other taps (two texels along) take bilinear_v4 per texel as
+// blur_texel_f32 does, and both lookups (off one line, or on another line: across weights {1, 0})
+// are the same bilinear_v4 (convolve_v4's sample_pair on one fixed line is bilinear_v4 with
+// across weights {1, 0}: the same terms, each weight times exactly 1).
+void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
+                        const std::vector<float>& w, int a0, int a1, int b0, int b1,
+                        const std::uint8_t* active, int width, bool dst_zero_outside,
+                        int in_channels, int out_channels) {
+  if (a0 >= a1) return;
+  const RowTable src{in, in_channels};
+  const bool h = t.horizontal;
+  const int per = t.kernel_taps.per_position;
+  int lo = t.reach_lo[a0], hi = t.reach_hi[a0];
+  for (int a = a0; a < a1; ++a) {
+    lo = std::min(lo, t.reach_lo[a]);
+    hi = std::max(hi, t.reach_hi[a]);
+  }
+  std::vector<v4> mixed(std::size_t(hi - lo + 1));
+  for (auto it = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
+       it != t.inexact.end() && *it < b1; ++it) {
+    const int b = *it;
+    const AxisTap<float>& o = t.across[b];
+    if (o.w0 != 0.0f && o.w1 != 0.0f) {
+      // bilinear_v4's two terms, each weight times exactly 1, without its branches.
+      for (int i = lo; i <= hi; ++i) {
+        const float* p0 = h ? src.pixel(i, o.i0) : src.pixel(o.i0, i);
+        const float* p1 = h ? src.pixel(i, o.i1) : src.pixel(o.i1, i);
+        mixed[i - lo] = load<v4>(p0) * o.w0 + load<v4>(p1) * o.w1;
+      }
+    } else {
+      for (int i = lo; i <= hi; ++i) {
+        const AxisTap<float> one{i, i, 1.0f, 0.0f};
+        mixed[i - lo] = h ? bilinear_v4(src, one, o) : bilinear_v4(src, o, one);
+      }
+    }
+    for (int a = a0; a < a1; ++a) {
+      const int x = h ? a : b, y = h ? b : a;
+      float* d = out[y] + std::ptrdiff_t(x) * out_channels;
+      if (active && !active[std::size_t(y) * width + x]) {
+        if (!dst_zero_outside) fill_zero_texels(d, 1, out_channels);
+        continue;
+      }
+      const AxisTap<float>* kt = t.kernel_taps.at(a);
+      const AxisTap<float>* at = t.along.at(a);
+      const TapForm* forms = t.forms.data() + std::size_t(a) * per;
+      auto sample = [&](int k) {
+        if (forms[k] == TapForm::one) return mixed[kt[k].i0 - lo];
+        return h ? bilinear_v4(src, at[k], o) : bilinear_v4(src, o, at[k]);
+      };
+      v4 rv;
+      if (w.size() == 5) {  // discrete9: the sum unrolled
+        const float wk[5] = {w[0], w[1], w[2], w[3], w[4]};
+        if (t.plain[a])
+          rv = convolve_samples_v4<5>(wk, [&](int k) { return mixed[kt[k].i0 - lo]; });
+        else
+          rv = convolve_samples_v4<5>(wk, sample);
+      } else {
+        rv = convolve_samples_v4(w, sample);
+      }
+      store_rgb(rv, d, out_channels);
+    }
+  }
 }
 
 template <class T>

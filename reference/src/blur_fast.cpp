@@ -1,8 +1,9 @@
 // Stage blur.k, the fast way (stages.h: blur_pass_fast). Builds the pass's tap tables exactly as
 // blur_pass does, hands tiles to the instruction-set kernel (blur_tiles.inc), and recomputes with
-// blur_texel the few lines whose lookup across the blur is not exactly on one texel line (with
-// GL float coordinates, e.g. 85 of 2160 rows and 102 of 3840 columns), where the sample is a 2-D
-// bilinear mix of two lines and the kernel's one-line form does not apply.
+// blur_texel's bits (blur_inexact_lines, blur.cpp) the few lines whose lookup across the blur is
+// not exactly on one texel line (with GL float coordinates, e.g. 85 of 2160 rows and 102 of 3840
+// columns), where the sample is a 2-D bilinear mix of two lines and the kernel's one-line form
+// does not apply.
 #include <algorithm>
 #include <cstdint>
 #include <vector>
@@ -109,26 +110,6 @@ void set_tables(TileJob& job, const PassTables& t) {
   job.reach_lo = t.reach_lo.data();
   job.reach_hi = t.reach_hi.data();
   job.plain = t.plain.data();
-}
-
-void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
-                        const std::vector<float>& w, int a0, int a1, int b0, int b1,
-                        const std::uint8_t* active, int width, bool dst_zero_outside,
-                        int in_channels, int out_channels) {
-  for (auto it = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
-       it != t.inexact.end() && *it < b1; ++it) {
-    const int b = *it;
-    for (int a = a0; a < a1; ++a) {
-      const int x = t.horizontal ? a : b, y = t.horizontal ? b : a;
-      float* d = out[y] + std::ptrdiff_t(x) * out_channels;
-      if (active && !active[std::size_t(y) * width + x]) {
-        if (!dst_zero_outside) fill_zero_texels(d, 1, out_channels);
-      } else {
-        blur_texel_rows(in, in_channels, t.horizontal, t.along.at(a), t.across[b], w, d,
-                        out_channels);
-      }
-    }
-  }
 }
 
 }  // namespace detail

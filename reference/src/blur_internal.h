@@ -36,13 +36,6 @@ template <class T>
 void blur_texel(BasicView<const T> src, bool horizontal, const AxisTap<T>* taps,
                 const AxisTap<T>& other, const std::vector<T>& w, T* d);
 
-/// blur_texel in f32 on an image given by row pointers (image row y at rows[y], `channels`
-/// floats a texel, 3 or 4; a texel's 16 bytes are read, so a row of 3 needs a float after it):
-/// the same bits. Writes R, G, B to d[0..2], and d[3] = 1 when `out_channels` is 4.
-void blur_texel_rows(const float* const* rows, int channels, bool horizontal,
-                     const AxisTap<float>* taps, const AxisTap<float>& other,
-                     const std::vector<float>& w, float* d, int out_channels = 4);
-
 /// How the tile kernel forms a tap's term, in blur_texel's form (p0 w0 [+ p1 w1]) wk: `one` when
 /// w0 is exactly 1 and there is no second texel (x * 1 == x: no signalling NaN reaches the blur,
 /// stages.h), `scaled` when there is no second texel (kept as the reference's case; the tap
@@ -168,10 +161,12 @@ class TableMemo {
 /// Points `job`'s tap tables at `t`'s.
 void set_tables(TileJob& job, const PassTables& t);
 
-/// Recomputes, the reference way (blur_texel_rows), the texels (a, b) with a in [a0, a1) and
+/// Recomputes with blur_texel's bits the texels (a, b) with a in [a0, a1) and
 /// b an inexact line in [b0, b1), where the tile kernel's one-line form does not apply; texels
 /// outside `active` (optional width x height mask) are (0, 0, 0, 1), written unless
-/// `dst_zero_outside` says they already are.
+/// `dst_zero_outside` says they already are. Rows are given by pointers (image row y at in[y],
+/// `in_channels` floats a texel, 3 or 4; a texel's 16 bytes are read, so a row of 3 needs a
+/// float after it); R, G, B are written, and alpha 1 when `out_channels` is 4.
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
                         const std::uint8_t* active, int width, bool dst_zero_outside = false,
