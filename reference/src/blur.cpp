@@ -92,23 +92,37 @@ inline void convolve(const std::vector<T>& w, Sample sample, T out[3]) {
 using detail::load;
 using v4 = detail::v4f;
 
+// convolve()'s sum of the samples sample(k), four lanes: r = s(0) w0, then r = r + s(k) w(k).
+// With N > 0 the weight count is N, known at compile time, and the loop is unrolled.
+template <int N, class Sample>
+inline v4 sum_samples_v4(const float* w, int n, const Sample& sample) {
+  if constexpr (N > 0) n = N;
+  v4 r = sample(0) * w[0];
+#pragma GCC unroll 8
+  for (int i = 1; i < n; ++i) {
+    r = r + sample(2 * i - 1) * w[i];
+    r = r + sample(2 * i) * w[i];
+  }
+  return r;
+}
+template <class Sample>
+inline v4 convolve_samples_v4(const std::vector<float>& w, const Sample& sample) {
+  if (w.size() == 5) return sum_samples_v4<5>(w.data(), 5, sample);  // discrete9
+  return sum_samples_v4<0>(w.data(), int(w.size()), sample);
+}
+
 // convolve() with sample_pair(), four lanes at once.
 template <class Texel>
 inline v4 convolve_v4(const std::vector<float>& w, const AxisTap<float>* taps, Texel texel) {
-  auto sample = [&](const AxisTap<float>& t) {
+  return convolve_samples_v4(w, [&](int k) {
+    const AxisTap<float>& t = taps[k];
     if (t.w0 != 0.0f) {
       v4 s = load<v4>(texel(t, 0)) * t.w0;
       if (t.w1 != 0.0f) s = s + load<v4>(texel(t, 1)) * t.w1;
       return s;
     }
     return load<v4>(texel(t, 1)) * t.w1;
-  };
-  v4 r = sample(taps[0]) * w[0];
-  for (std::size_t i = 1; i < w.size(); ++i) {
-    r = r + sample(taps[2 * i - 1]) * w[i];
-    r = r + sample(taps[2 * i]) * w[i];
-  }
-  return r;
+  });
 }
 
 // sample_rgb's 2-D mix of the texels (tx.i0 | tx.i1, ty.i0 | ty.i1), four lanes from each
@@ -132,28 +146,6 @@ inline v4 bilinear_v4(const Src& src, const AxisTap<float>& tx, const AxisTap<fl
     }
   }
   return s;
-}
-
-// convolve()'s sum of the samples sample(k), four lanes: r = s(0) w0, then r = r + s(k) w(k).
-template <class Sample>
-inline v4 convolve_samples_v4(const std::vector<float>& w, const Sample& sample) {
-  v4 r = sample(0) * w[0];
-  for (std::size_t i = 1; i < w.size(); ++i) {
-    r = r + sample(int(2 * i - 1)) * w[i];
-    r = r + sample(int(2 * i)) * w[i];
-  }
-  return r;
-}
-// The same for N weights known at compile time (unrolled).
-template <int N, class Sample>
-inline v4 convolve_samples_v4(const float (&w)[N], const Sample& sample) {
-  v4 r = sample(0) * w[0];
-#pragma GCC unroll 8
-  for (int i = 1; i < N; ++i) {
-    r = r + sample(2 * i - 1) * w[i];
-    r = r + sample(2 * i) * w[i];
-  }
-  return r;
 }
 
 inline void store_rgb(const v4& rv, float* d, int out_channels) {
@@ -227,18 +219,9 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
        it != t.inexact.end() && *it < b1; ++it) {
     const int b = *it;
     const AxisTap<float>& o = t.across[b];
-    if (o.w0 != 0.0f && o.w1 != 0.0f) {
-      // bilinear_v4's two terms, each weight times exactly 1, without its branches.
-      for (int i = lo; i <= hi; ++i) {
-        const float* p0 = h ? src.pixel(i, o.i0) : src.pixel(o.i0, i);
-        const float* p1 = h ? src.pixel(i, o.i1) : src.pixel(o.i1, i);
-        mixed[i - lo] = load<v4>(p0) * o.w0 + load<v4>(p1) * o.w1;
-      }
-    } else {
-      for (int i = lo; i <= hi; ++i) {
-        const AxisTap<float> one{i, i, 1.0f, 0.0f};
-        mixed[i - lo] = h ? bilinear_v4(src, one, o) : bilinear_v4(src, o, one);
-      }
+    for (int i = lo; i <= hi; ++i) {
+      const AxisTap<float> one{i, i, 1.0f, 0.0f};
+      mixed[i - lo] = h ? bilinear_v4(src, one, o) : bilinear_v4(src, o, one);
     }
     for (int a = a0; a < a1; ++a) {
       const int x = h ? a : b, y = h ? b : a;
@@ -250,20 +233,10 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
       const AxisTap<float>* kt = t.kernel_taps.at(a);
       const AxisTap<float>* at = t.along.at(a);
       const TapForm* forms = t.forms.data() + std::size_t(a) * per;
-      auto sample = [&](int k) {
+      const v4 rv = convolve_samples_v4(w, [&](int k) {
         if (forms[k] == TapForm::one) return mixed[kt[k].i0 - lo];
         return h ? bilinear_v4(src, at[k], o) : bilinear_v4(src, o, at[k]);
-      };
-      v4 rv;
-      if (w.size() == 5) {  // discrete9: the sum unrolled
-        const float wk[5] = {w[0], w[1], w[2], w[3], w[4]};
-        if (t.plain[a])
-          rv = convolve_samples_v4<5>(wk, [&](int k) { return mixed[kt[k].i0 - lo]; });
-        else
-          rv = convolve_samples_v4<5>(wk, sample);
-      } else {
-        rv = convolve_samples_v4(w, sample);
-      }
+      });
       store_rgb(rv, d, out_channels);
     }
   }
