@@ -53,6 +53,11 @@ namespace detail {
 
 bool resolves_to_avx2(BlurIsa isa) { return resolve(isa) == BlurIsa::avx2; }
 
+float* resized(PixelBuffer<float>& buffer, std::size_t n) {
+  buffer.resize(n);
+  return buffer.data();
+}
+
 TileKernel tile_kernel_for(BlurIsa isa) {
   return resolve(isa) == BlurIsa::avx2 ? blur_tiles_avx2 : blur_tiles_generic;
 }

@@ -1,6 +1,8 @@
 // Stages composite, tonemap and output in f32, the fast way (stages.h: tonemap_fast,
 // encode_output_fast, finish_fast): rows handed to the instruction set's kernel
 // (finish_kernels.inc), which computes what stages.cpp computes, value by value.
+#include <vector>
+
 #include "blur_internal.h"
 #include "finish_internal.h"
 #include "bloomref/error.h"
@@ -23,10 +25,10 @@ void run_rows(BasicView<const float> scene, BasicView<const float> bloom, BasicV
 #endif
   const bool with_bloom = !bloom.empty();
   parallel_rows(scene.height, threads, [&](int y0, int y1) {
-    std::vector<float> line;
+    std::vector<float> line(detail::finish_line_floats(scene.width));
     for (int y = y0; y < y1; ++y)
       kernel(job, scene.row(y), with_bloom ? bloom.row(y) : nullptr, dst.row(y), scene.width,
-             line);
+             line.data());
   });
 }
 

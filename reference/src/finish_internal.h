@@ -2,7 +2,7 @@
 // stages_fast.cpp and the per-ISA row kernels (finish_kernels.inc).
 #pragma once
 
-#include <vector>
+#include <cstddef>
 
 namespace bloomref::detail {
 
@@ -16,14 +16,20 @@ struct FinishRow {
   float inv_gamma = 1.0f;  ///< 1 / gamma computed in float, as encode_output does
 };
 
-/// One row of `width` RGBA pixels: scene (+ strength * bloom when bloom is not null), tone
-/// mapped, encoded, into dst (which may be scene); alpha is the scene's. `line` is scratch.
-using FinishKernel = void (*)(const FinishRow& job, const float* scene, const float* bloom,
-                              float* dst, int width, std::vector<float>& line);
+/// Floats of the scratch line a row of `width` pixels needs: its RGB values padded to whole
+/// vectors of the widest kernel.
+inline std::size_t finish_line_floats(int width) {
+  return (static_cast<std::size_t>(width) * 3 + 7) / 8 * 8;
+}
 
-void finish_row_generic(const FinishRow&, const float*, const float*, float*, int,
-                        std::vector<float>&);
-void finish_row_avx2(const FinishRow&, const float*, const float*, float*, int,
-                     std::vector<float>&);
+/// One row of `width` RGBA pixels: scene (+ strength * bloom when bloom is not null), tone
+/// mapped, encoded, into dst (which may be scene); alpha is the scene's. `line` is scratch of
+/// finish_line_floats(width) floats (a raw buffer: the per-ISA kernels instantiate no
+/// std::vector member, see blur_internal.h, `resized`).
+using FinishKernel = void (*)(const FinishRow& job, const float* scene, const float* bloom,
+                              float* dst, int width, float* line);
+
+void finish_row_generic(const FinishRow&, const float*, const float*, float*, int, float*);
+void finish_row_avx2(const FinishRow&, const float*, const float*, float*, int, float*);
 
 }  // namespace bloomref::detail

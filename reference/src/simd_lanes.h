@@ -5,7 +5,15 @@
 #include <cstddef>
 #include <cstring>
 
+// Everything below is inline and compiled once per instruction set (the baseline files and the
+// -mavx2 kernels). A copy the compiler does not inline is a weak symbol, of which the linker
+// keeps one for the whole program, so AVX2 code could run where the CPU lacks it: each
+// instruction set gets its own inline namespace (the kernel files name it before including).
+#ifndef BLOOMREF_ISA_NAMESPACE
+#define BLOOMREF_ISA_NAMESPACE isa_baseline
+#endif
 namespace bloomref::detail {
+inline namespace BLOOMREF_ISA_NAMESPACE {
 
 typedef float v4f __attribute__((vector_size(16)));
 typedef int v4i __attribute__((vector_size(16)));
@@ -46,4 +54,5 @@ inline void fill_zero_texels(float* out, int n, int channels) {
   else std::memset(out, 0, std::size_t(n) * channels * sizeof(float));
 }
 
+}  // namespace BLOOMREF_ISA_NAMESPACE
 }  // namespace bloomref::detail
