@@ -10,6 +10,7 @@
 #include <random>
 #include <vector>
 
+#include "bloomref/error.h"
 #include "bloomref/stages.h"
 
 using namespace bloomref;
@@ -231,6 +232,50 @@ TEST_CASE("the fast tone map's eight-lane series and mixed vectors give the refe
     finish_fast(scene.cview(), bloom.cview(), f.view(), 0.04f, 1.0f, 2.2f, 2, isa);
     CHECK(same_bits(f, out));
   }
+}
+
+TEST_CASE("the finishing stages with the bloom's support read the bloom only inside it",
+          "[stages][oracle-math]") {
+  // Bloom +0 outside a few spans per row (as the adaptive plan leaves it); the scene hostile
+  // (-0, NaN, +-Inf, negatives). With the support the bits are those of the full composite;
+  // and a value planted outside the support is not read (the result is the same as without it,
+  // and differs from reading it).
+  const int w = 97, h = 6;
+  const Image scene = hostile(w, h, 123);
+  Image bloom = hostile(w, h, 321);
+  RowSpans support(h);
+  support[1] = {{0, 5}, {40, 41}, {90, 97}};
+  support[3] = {{10, 60}};
+  support[5] = {{0, 97}};
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      bool inside = false;
+      for (const Span& s : support[y]) inside = inside || (x >= s.x0 && x < s.x1);
+      if (!inside)
+        for (int c = 0; c < 3; ++c) bloom.view().pixel(x, y)[c] = 0.0f;
+    }
+  for (float strength : {1.0f, 0.04f, -0.5f}) {
+    INFO("strength " << strength);
+    Image full(w, h), spans(w, h);
+    finish_fast(scene.cview(), bloom.cview(), full.view(), strength, 1.0f, 2.2f, 1);
+    finish_fast(scene.cview(), bloom.cview(), spans.view(), strength, 1.0f, 2.2f, 2,
+                BlurIsa::best, &support);
+    CHECK(same_bits(full, spans));
+    Image planted = bloom;
+    planted.view().pixel(20, 1)[0] = 100.0f;  // row 1, between its spans
+    planted.view().pixel(3, 0)[2] = 50.0f;    // row 0, which has none
+    Image read(w, h), skipped(w, h);
+    finish_fast(scene.cview(), planted.cview(), read.view(), strength, 1.0f, 2.2f, 1);
+    finish_fast(scene.cview(), planted.cview(), skipped.view(), strength, 1.0f, 2.2f, 1,
+                BlurIsa::best, &support);
+    CHECK(same_bits(skipped, full));
+    CHECK_FALSE(same_bits(read, full));
+  }
+  RowSpans short_support(h - 1);
+  Image out(w, h);
+  CHECK_THROWS_AS(finish_fast(scene.cview(), bloom.cview(), out.view(), 1.0f, 1.0f, 2.2f, 1,
+                              BlurIsa::best, &short_support),
+                  ParamError);
 }
 
 TEST_CASE("the fast output stage gives the reference's bits for every kind of exponent",

@@ -306,9 +306,21 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         if (fuse_finish) {
           // composite, tonemap and output at once, in place into the scene (finish_fast: the
           // three stages' bits, tested); one timing for the three.
+          // Under the adaptive plan the bloom's R, G and B are +0 outside the last pass's
+          // support (or everywhere, when nothing was bright enough to blur): the composite
+          // does not read it there (most of its pages were never written).
+          const RowSpans* bloom_support = nullptr;
+          const RowSpans none_bright(p.plan == PlanMode::adaptive && p.method == Method::gaussian &&
+                                             p.passes > 0 && plan.facts.bright_pixels == 0
+                                         ? std::size_t(h)
+                                         : 0);
+          if (p.plan == PlanMode::adaptive && p.method == Method::gaussian) {
+            if (blurred && !blur_fused_done && support.started()) bloom_support = support.spans();
+            else if (!none_bright.empty()) bloom_support = &none_bright;
+          }
           if constexpr (std::is_same_v<T, float>)
             finish_fast(scene.cview(), bloom.cview(), scene.view(), p.strength, p.exposure,
-                        p.gamma, threads);
+                        p.gamma, threads, BlurIsa::best, bloom_support);
           mip_bloom = BasicImage<T>();
         } else if (p.method == Method::mip) {
           // before-tonemap: scene + strength * bloom; after-tonemap: mapped + strength * bloom.

@@ -4,6 +4,8 @@
 
 #include <cstddef>
 
+#include "bloomref/stages.h"
+
 namespace bloomref::detail {
 
 /// What one row goes through: composite when bloom is given, then the tone map and the output
@@ -22,14 +24,24 @@ inline std::size_t finish_line_floats(int width) {
   return (static_cast<std::size_t>(width) * 3 + 7) / 8 * 8;
 }
 
-/// One row of `width` RGBA pixels: scene (+ strength * bloom when bloom is not null), tone
-/// mapped, encoded, into dst (which may be scene); alpha is the scene's. `line` is scratch of
-/// finish_line_floats(width) floats (a raw buffer: the per-ISA kernels instantiate no
+/// The bloom of one row: its pixels, and with `in_spans`, the only places its R, G and B may
+/// differ from +0 (spans[0, span_count), sorted, disjoint; none: the row is +0): elsewhere the
+/// composite adds strength * +0 without reading it.
+struct BloomRow {
+  const float* pixels = nullptr;
+  bool in_spans = false;
+  const Span* spans = nullptr;
+  std::size_t span_count = 0;
+};
+
+/// One row of `width` RGBA pixels: scene (+ strength * bloom when bloom.pixels is not null),
+/// tone mapped, encoded, into dst (which may be scene); alpha is the scene's. `line` is scratch
+/// of finish_line_floats(width) floats (a raw buffer: the per-ISA kernels instantiate no
 /// std::vector member, see blur_internal.h, `resized`).
-using FinishKernel = void (*)(const FinishRow& job, const float* scene, const float* bloom,
+using FinishKernel = void (*)(const FinishRow& job, const float* scene, const BloomRow& bloom,
                               float* dst, int width, float* line);
 
-void finish_row_generic(const FinishRow&, const float*, const float*, float*, int, float*);
-void finish_row_avx2(const FinishRow&, const float*, const float*, float*, int, float*);
+void finish_row_generic(const FinishRow&, const float*, const BloomRow&, float*, int, float*);
+void finish_row_avx2(const FinishRow&, const float*, const BloomRow&, float*, int, float*);
 
 }  // namespace bloomref::detail

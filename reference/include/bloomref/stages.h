@@ -273,10 +273,13 @@ void encode_output_fast(BasicView<const float> mapped, BasicView<float> dst, flo
 /// Stages `composite`, `tonemap` and `output` in f32 at once, row by row (the image is read
 /// and written once instead of three times), with the three stages' bits (tested); `bloom`
 /// empty means no composite. `dst` may be `scene`. Nothing is rounded between the stages (f32
-/// storage).
+/// storage). `bloom_support`, where given (one span list per row), says where the bloom's R, G
+/// and B may differ from +0 (the adaptive plan's last blur support): elsewhere the composite
+/// adds strength * +0 without reading the bloom, the same bits, and the bloom's pages that no
+/// pass wrote are not touched.
 void finish_fast(BasicView<const float> scene, BasicView<const float> bloom,
                  BasicView<float> dst, float strength, float exposure, float gamma, int threads,
-                 BlurIsa isa = BlurIsa::best);
+                 BlurIsa isa = BlurIsa::best, const RowSpans* bloom_support = nullptr);
 
 /// Rounds every channel to the storage format in place. f32 storage is a no-op in either
 /// precision (the f64 truth is not narrowed to float); f16 storage rounds to binary16.
