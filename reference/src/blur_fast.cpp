@@ -24,14 +24,18 @@ constexpr int kTileAlong = 64;
 constexpr int kTileAcrossH = 32;
 constexpr int kTileAcrossV = 1024;
 constexpr int kTileAcrossVMasked = 128;
-// The tiles of passes that visit only the tiles their support's spans touch (the adaptive plan's
-// sparse passes): 8 along the blur, 16 rows (horizontal) or 32 columns (vertical) across. Against
-// 64 x 32 / 64 x 128, `bloomref run IN --threads 2 --repeat 9`, blur warm medians, three
-// alternated runs: StarField.exr 31-40 -> 6-19 ms, demo 3840x2160 18-24 -> 15-19, GoldenGate
-// 15-19 -> 16-20 (16 x 16 / 16 x 32: 19-21, 13-18, 14-17).
+// The tiles of passes that visit only the tiles their support's spans touch (the adaptive
+// plan's sparse passes), where the support is small: 8 along the blur, 16 rows (horizontal) or
+// 32 columns (vertical) across. Against 64 x 32 / 64 x 128, `bloomref run IN --threads 2
+// --repeat 9`, blur warm medians, three alternated runs: StarField.exr 31-40 -> 6-19 ms, demo
+// 3840x2160 18-24 -> 15-19, GoldenGate 15-19 -> 16-20 (16 x 16 / 16 x 32: 19-21, 13-18, 14-17).
 constexpr int kTileAlongListed = 8;
 constexpr int kTileAcrossHListed = 16;
 constexpr int kTileAcrossVListed = 32;
+// ... while the support is under 1/8 of the image: on larger ones (WideColorGamut.exr, 10-25%
+// bright) the small tiles' per-tile work cost more than they left out (adaptive-table, warm:
+// 1.18x -> 0.81x of the dense plan with small tiles at every size).
+constexpr std::size_t kSmallTilesBelow = 8;
 
 bool cpu_has_avx2() {
 #if defined(__x86_64__) && defined(BLOOMREF_HAVE_AVX2_KERNEL)
@@ -150,12 +154,18 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   // With the support's spans and nothing to write outside it, only the tiles the spans touch are
   // visited (below), and small tiles follow a sparse support more closely.
   const bool listing = opt.active && opt.active_spans && opt.dst_zero_outside;
-  job.tile_along = listing ? kTileAlongListed : kTileAlong;
+  std::size_t support = 0;
+  if (listing)
+    for (const std::vector<Span>& row : *opt.active_spans)
+      for (const Span& sp : row) support += std::size_t(sp.x1 - sp.x0);
+  const bool small_tiles =
+      listing && support * kSmallTilesBelow < std::size_t(src.width) * std::size_t(src.height);
+  job.tile_along = small_tiles ? kTileAlongListed : kTileAlong;
   // With a mask, narrower vertical tiles: more of them can be left out whole.
-  job.tile_across = horizontal ? (listing ? kTileAcrossHListed : kTileAcrossH)
-                    : listing  ? kTileAcrossVListed
-                    : opt.active ? kTileAcrossVMasked
-                                 : kTileAcrossV;
+  job.tile_across = horizontal   ? (small_tiles ? kTileAcrossHListed : kTileAcrossH)
+                    : small_tiles ? kTileAcrossVListed
+                    : opt.active  ? kTileAcrossVMasked
+                                  : kTileAcrossV;
   job.tiles_along = (n_along + job.tile_along - 1) / job.tile_along;
   detail::set_tables(job, tables);
   const std::vector<float>& w = opt.kernel->weights_f32;
