@@ -352,7 +352,7 @@ TEST_CASE("the adaptive plan's support tracker keeps its mask equal to its spans
 }
 
 TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][fused]") {
-  // Several column strips (512 wide) and row chunks (16), strips narrower than a pass's reach,
+  // Several column strips (512 wide) and row chunks (32), strips narrower than a pass's reach,
   // lookups that straddle two lines in both directions (1920, 1080, 131), pass counts from 1
   // to 11 and axis orders the plan does not make.
   const std::pair<int, int> sizes[] = {{1, 1},   {7, 1},      {1, 9},    {37, 23},  {513, 17},

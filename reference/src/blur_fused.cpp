@@ -27,9 +27,12 @@
 namespace bloomref {
 namespace {
 
-// Rows per chunk: the horizontal kernel's lanes run across rows, and its widest group is
-// 16 texels (AVX2: 8 vectors of 2 texels).
-constexpr int kChunk = 16;
+// Rows per chunk: the horizontal kernel's lanes run across rows (its widest group is 16
+// texels, AVX2: 8 vectors of 2 texels), so a chunk's height is the length of the horizontal
+// passes' lines, over which each line's tap setup is spread. 32 against 16: ten fused passes
+// at 3840x2160, min of 5, alternated (three runs): one thread 304-314 against 325-348 ms, two
+// 158-165 against 176-178; 64 no better than 32 (two runs).
+constexpr int kChunk = 32;
 constexpr int kTileAlongH = 64;     // as blur_pass_fast
 constexpr int kTileAcrossV = 1024;  // as blur_pass_fast
 // Columns per strip: a pass's ring of ~42 rows x (512 + reach) texels is ~0.3 MB.
