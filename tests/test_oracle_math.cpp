@@ -256,11 +256,14 @@ TEST_CASE("the finishing stages with the bloom's support read the bloom only ins
     }
   for (float strength : {1.0f, 0.04f, -0.5f}) {
     INFO("strength " << strength);
-    Image full(w, h), spans(w, h);
+    Image full(w, h);
     finish_fast(scene.cview(), bloom.cview(), full.view(), strength, 1.0f, 2.2f, 1);
-    finish_fast(scene.cview(), bloom.cview(), spans.view(), strength, 1.0f, 2.2f, 2,
-                BlurIsa::best, &support);
-    CHECK(same_bits(full, spans));
+    for (BlurIsa isa : isas()) {
+      Image spans(w, h);
+      finish_fast(scene.cview(), bloom.cview(), spans.view(), strength, 1.0f, 2.2f, 2, isa,
+                  &support);
+      CHECK(same_bits(full, spans));
+    }
     Image planted = bloom;
     planted.view().pixel(20, 1)[0] = 100.0f;  // row 1, between its spans
     planted.view().pixel(3, 0)[2] = 50.0f;    // row 0, which has none
@@ -276,6 +279,16 @@ TEST_CASE("the finishing stages with the bloom's support read the bloom only ins
   CHECK_THROWS_AS(finish_fast(scene.cview(), bloom.cview(), out.view(), 1.0f, 1.0f, 2.2f, 1,
                               BlurIsa::best, &short_support),
                   ParamError);
+  // Spans outside the row, empty, or overlapping are refused, not read past the row's end.
+  for (const std::vector<Span>& bad : {std::vector<Span>{{90, 98}}, std::vector<Span>{{-1, 3}},
+                                       std::vector<Span>{{5, 5}},
+                                       std::vector<Span>{{0, 10}, {9, 20}}}) {
+    RowSpans s(h);
+    s[2] = bad;
+    CHECK_THROWS_AS(finish_fast(scene.cview(), bloom.cview(), out.view(), 1.0f, 1.0f, 2.2f, 1,
+                                BlurIsa::best, &s),
+                    ParamError);
+  }
 }
 
 TEST_CASE("the fast output stage gives the reference's bits for every kind of exponent",

@@ -65,9 +65,15 @@ namespace detail {
 
 bool resolves_to_avx2(BlurIsa isa) { return resolve(isa) == BlurIsa::avx2; }
 
-float* resized(PixelBuffer<float>& buffer, std::size_t n) {
-  buffer.resize(n);
-  return buffer.data();
+TileScratch::TileScratch() = default;
+TileScratch::~TileScratch() = default;
+float* TileScratch::local(std::size_t n) {
+  local_.resize(n);
+  return local_.data();
+}
+float* TileScratch::tile(std::size_t n) {
+  tile_.resize(n);
+  return tile_.data();
 }
 
 TileKernel tile_kernel_for(BlurIsa isa) {

@@ -86,11 +86,25 @@ struct TileJob {
 void blur_tiles_generic(const TileJob& job, int t0, int t1);
 void blur_tiles_avx2(const TileJob& job, int t0, int t1);
 
-/// buffer.resize(n), then its data. Defined in a baseline-ISA file so that the per-ISA kernels
-/// instantiate no std::vector member of their own: an inline function compiled with -mavx2 is a
-/// weak symbol the linker may pick for the whole program, AVX2 code then running on CPUs without
-/// it (scripts/check-isa-symbols, a unit test, looks for such symbols).
-float* resized(PixelBuffer<float>& buffer, std::size_t n);
+/// The tile kernel's scratch buffers, made, grown and freed by functions defined in a
+/// baseline-ISA file, so that the per-ISA kernels instantiate no std::vector member of their
+/// own: an inline function compiled with -mavx2 and not inlined (at -O0, say) is a weak symbol
+/// the linker may pick for the whole program, AVX2 code then running on CPUs without it
+/// (scripts/check-isa-symbols, a unit test, looks for such symbols).
+class TileScratch {
+ public:
+  TileScratch();
+  ~TileScratch();
+  TileScratch(const TileScratch&) = delete;
+  TileScratch& operator=(const TileScratch&) = delete;
+  /// The horizontal pass's transposed input tile, resized to n floats.
+  float* local(std::size_t n);
+  /// The horizontal pass's output tile, or a converted line, resized to n floats.
+  float* tile(std::size_t n);
+
+ private:
+  PixelBuffer<float> local_, tile_;
+};
 
 /// Whether `isa` means the AVX2 kernels here (best: where this CPU and build have them); throws
 /// ParamError for AVX2 where they do not. Shared by every fast stage's dispatch.

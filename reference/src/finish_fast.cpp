@@ -23,6 +23,18 @@ void run_rows(BasicView<const float> scene, BasicView<const float> bloom, BasicV
     throw ParamError("finishing stages: the bloom's support has " +
                      std::to_string(bloom_support->size()) + " rows, the image " +
                      std::to_string(scene.height));
+  if (bloom_support)
+    for (std::size_t y = 0; y < bloom_support->size(); ++y) {
+      int end = 0;
+      for (const Span& s : (*bloom_support)[y]) {
+        if (s.x0 < end || s.x1 <= s.x0 || s.x1 > scene.width)
+          throw ParamError("finishing stages: the bloom's support has span [" +
+                           std::to_string(s.x0) + ", " + std::to_string(s.x1) + ") on row " +
+                           std::to_string(y) + ", not sorted, disjoint and inside [0, " +
+                           std::to_string(scene.width) + ")");
+        end = s.x1;
+      }
+    }
   detail::FinishKernel kernel = detail::finish_row_generic;
 #ifdef BLOOMREF_HAVE_AVX2_KERNEL
   if (detail::resolves_to_avx2(isa)) kernel = detail::finish_row_avx2;
