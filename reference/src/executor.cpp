@@ -310,13 +310,14 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           // support (or everywhere, when nothing was bright enough to blur): the composite
           // does not read it there (most of its pages were never written).
           const RowSpans* bloom_support = nullptr;
-          const RowSpans none_bright(p.plan == PlanMode::adaptive && p.method == Method::gaussian &&
-                                             p.passes > 0 && plan.facts.bright_pixels == 0
-                                         ? std::size_t(h)
-                                         : 0);
+          RowSpans none;  // no spans on any row
           if (p.plan == PlanMode::adaptive && p.method == Method::gaussian) {
-            if (blurred && !blur_fused_done && support.started()) bloom_support = support.spans();
-            else if (!none_bright.empty()) bloom_support = &none_bright;
+            if (plan.facts.bright_pixels == 0) {
+              none.resize(std::size_t(h));
+              bloom_support = &none;
+            } else if (blurred && !blur_fused_done && support.started()) {
+              bloom_support = support.spans();  // null once dense
+            }
           }
           if constexpr (std::is_same_v<T, float>)
             finish_fast(scene.cview(), bloom.cview(), scene.view(), p.strength, p.exposure,

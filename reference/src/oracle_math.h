@@ -28,13 +28,8 @@
 #include <cstdint>
 #include <cstring>
 
-// Everything below is inline and compiled once per instruction set (the baseline files and the
-// -mavx2 kernels). A copy the compiler does not inline is a weak symbol, of which the linker
-// keeps one for the whole program, so AVX2 code could run where the CPU lacks it: each
-// instruction set gets its own inline namespace (the kernel files name it before including).
-#ifndef BLOOMREF_ISA_NAMESPACE
-#define BLOOMREF_ISA_NAMESPACE isa_baseline
-#endif
+#include "isa_namespace.h"  // each instruction set its own symbols
+
 namespace bloomref::detail {
 inline namespace BLOOMREF_ISA_NAMESPACE {
 
@@ -170,8 +165,8 @@ struct PowF32 {
     y_odd_ = std::fabs(yd) < 0x1p24 && yd == std::trunc(yd) && std::fmod(yd, 2.0) != 0.0;
   }
 
-  // The evaluation in three steps, so that a caller can run each step over a block of values
-  // before the next (pow_block below): one value's steps form a dependency chain of ~150 cycles
+  // The evaluation in four steps, so that a caller can run each step over a block of values
+  // before the next (pow_blocks below): one value's steps form a dependency chain of ~150 cycles
   // that leaves most of a core's vector units idle, while a step run over a block of
   // independent values keeps them busy. Same operations on every value either way.
 

@@ -5,13 +5,8 @@
 #include <cstddef>
 #include <cstring>
 
-// Everything below is inline and compiled once per instruction set (the baseline files and the
-// -mavx2 kernels). A copy the compiler does not inline is a weak symbol, of which the linker
-// keeps one for the whole program, so AVX2 code could run where the CPU lacks it: each
-// instruction set gets its own inline namespace (the kernel files name it before including).
-#ifndef BLOOMREF_ISA_NAMESPACE
-#define BLOOMREF_ISA_NAMESPACE isa_baseline
-#endif
+#include "isa_namespace.h"  // each instruction set its own symbols
+
 namespace bloomref::detail {
 inline namespace BLOOMREF_ISA_NAMESPACE {
 
