@@ -92,6 +92,34 @@ TEMPLATE_TEST_CASE("extract_bright into a zeroed image writes only bright pixels
       for (int c = 0; c < 4; ++c) CHECK((d[c] == T(0) && !std::signbit(d[c])));
     }
   }
+  // Each case alone among dark pixels, at every position of rows of 1 to 13 pixels: the sweep
+  // into a zeroed image takes whole groups of pixels at once and the rest one by one, so a
+  // bright pixel must be found wherever it sits in a group or in the tail.
+  const T dark_value = T(0.25);  // luminance 0.25: not bright, written nowhere, nonzero 0
+  for (std::size_t ci = 0; ci < cases.size(); ++ci)
+    for (int width = 1; width <= 13; ++width)
+      for (int at = 0; at < width; ++at) {
+        BasicImage<T> row(width, 1, dark_value);
+        T* p = row.pixel(at, 0);
+        p[0] = cases[ci].r;
+        p[1] = cases[ci].g;
+        p[2] = cases[ci].b;
+        BasicImage<T> into = BasicImage<T>::zeroed(width, 1);
+        std::vector<std::uint8_t> mask(width, 7);
+        extract_bright(row.cview(), into.view(), T(1), 1, true, mask.data());
+        for (int x = 0; x < width; ++x) {
+          const bool is_case = x == at;
+          INFO("case " << ci << ", width " << width << ", at " << at << ", pixel " << x);
+          REQUIRE(int(mask[x]) == int(is_case && cases[ci].nonzero));
+          const T* d = into.pixel(x, 0);
+          if (is_case && cases[ci].bright) {
+            for (int c = 0; c < 3; ++c) REQUIRE(std::memcmp(&d[c], &p[c], sizeof(T)) == 0);
+            REQUIRE(d[3] == T(1));
+          } else {
+            for (int c = 0; c < 4; ++c) REQUIRE((d[c] == T(0) && !std::signbit(d[c])));
+          }
+        }
+      }
   // Below a negative threshold black is bright but writes +0: not in the nonzero mask; -0 is.
   BasicImage<T> dark(2, 1, T(0));
   dark.pixel(1, 0)[0] = T(-0.0);
