@@ -43,7 +43,7 @@ void run_rows(BasicView<const float> scene, BasicView<const float> bloom, BasicV
 #endif
   const bool with_bloom = !bloom.empty();
   parallel_rows(scene.height, threads, [&](int y0, int y1) {
-    std::vector<float> line(detail::finish_line_floats(scene.width));
+    std::vector<float> line(detail::finish_line_floats(scene.width) + detail::kFinishLineSlack);
     for (int y = y0; y < y1; ++y) {
       detail::BloomRow b;
       if (with_bloom) {

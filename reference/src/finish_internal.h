@@ -23,6 +23,9 @@ struct FinishRow {
 inline std::size_t finish_line_floats(int width) {
   return (static_cast<std::size_t>(width) * 3 + 7) / 8 * 8;
 }
+/// Floats the scratch line has after finish_line_floats(width): its two-pixel packing and
+/// unpacking store and load eight floats for six.
+constexpr std::size_t kFinishLineSlack = 8;
 
 /// The bloom of one row: its pixels, and with `in_spans`, the only places its R, G and B may
 /// differ from +0 (spans[0, span_count), sorted, disjoint; none: the row is +0): elsewhere the
@@ -36,7 +39,7 @@ struct BloomRow {
 
 /// One row of `width` RGBA pixels: scene (+ strength * bloom when bloom.pixels is not null),
 /// tone mapped, encoded, into dst (which may be scene); alpha is the scene's. `line` is scratch
-/// of finish_line_floats(width) floats (a raw buffer: the per-ISA kernels instantiate no
+/// of finish_line_floats(width) + kFinishLineSlack floats (a raw buffer: the per-ISA kernels instantiate no
 /// std::vector member, see blur_internal.h, `TileScratch`).
 using FinishKernel = void (*)(const FinishRow& job, const float* scene, const BloomRow& bloom,
                               float* dst, int width, float* line);
