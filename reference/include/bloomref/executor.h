@@ -46,4 +46,9 @@ StageTrace execute(const Plan& plan, ConstImageView scene, const ExecuteOptions&
 /// (peak memory of `run`: the scene, two blur buffers and the masks). `scene` is left empty.
 StageTrace execute(const Plan& plan, Image&& scene, const ExecuteOptions& opt = {});
 
+/// The adaptive plan keeps the two zeroed scratch images of its last sparse runs (at most two,
+/// each the size of the scene) so that the next run of that size does not zero or fault in a
+/// whole image again; this frees them.
+void release_scratch_images();
+
 }  // namespace bloomref
