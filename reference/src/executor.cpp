@@ -36,7 +36,7 @@ void prefault_image(BasicImage<T>& img, int threads) {
 // memset of its resident pages or a fault for every page a run touches (about 1.3 us a page on
 // this project's machine); the blur of a sparse support writes only its support (and its
 // tiles), so a kept image is zeroed again over that support alone: StarField.exr, 2 threads,
-// the runs after the first 20.8-24.2 -> 14.8-16.7 ms (README, stop 20). At most kKeep images
+// the runs after the first 20.1-22.6 -> 17.0-18.1 ms (README, stop 20). At most kKeep images
 // are kept (the oldest go first); release_scratch_images() frees them.
 // A kept image is +0 in R, G and B everywhere; its alpha may be 1 where a tile was computed
 // around the support (nothing reads the bright image's or the bloom's alpha).
@@ -86,7 +86,7 @@ ScratchPool& scratch_pool() {
 template <class T>
 BasicImage<T> take_zeroed(int w, int h) {
   if constexpr (std::is_same_v<T, float>) return scratch_pool().take(w, h);
-  return BasicImage<T>::zeroed(w, h);
+  else return BasicImage<T>::zeroed(w, h);
 }
 
 using Clock = std::chrono::steady_clock;

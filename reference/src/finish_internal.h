@@ -39,8 +39,8 @@ struct BloomRow {
 
 /// One row of `width` RGBA pixels: scene (+ strength * bloom when bloom.pixels is not null),
 /// tone mapped, encoded, into dst (which may be scene); alpha is the scene's. `line` is scratch
-/// of finish_line_floats(width) + kFinishLineSlack floats (a raw buffer: the per-ISA kernels instantiate no
-/// std::vector member, see blur_internal.h, `TileScratch`).
+/// of finish_line_floats(width) + kFinishLineSlack floats (a raw buffer: the per-ISA kernels
+/// instantiate no std::vector member, see blur_internal.h, `TileScratch`).
 using FinishKernel = void (*)(const FinishRow& job, const float* scene, const BloomRow& bloom,
                               float* dst, int width, float* line);
 

@@ -103,8 +103,8 @@ NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite pol
 }
 
 // Whether any of the four RGBA pixels at p has luminance > threshold: the pixels transposed into
-// R, G and B lanes, then luminance's operations in order on each lane (-ffp-contract=off: no
-// fused multiply-add), so each lane's value and comparison are luminance()'s.
+// R, G and B lanes, then luminance() on the lanes (-ffp-contract=off: no fused multiply-add), so
+// each lane's value and comparison are the scalar ones.
 namespace {
 inline bool any_bright4(const float* p, float threshold) {
   typedef float v4f __attribute__((vector_size(16)));
@@ -121,7 +121,7 @@ inline bool any_bright4(const float* p, float threshold) {
   const v4f r = __builtin_shuffle(rg01, rg23, v4i{0, 1, 4, 5});
   const v4f g = __builtin_shuffle(rg01, rg23, v4i{2, 3, 6, 7});
   const v4f bl = __builtin_shuffle(b01, b23, v4i{0, 1, 4, 5});
-  const v4f lum = r * float(0.2126) + g * float(0.7152) + bl * float(0.0722);
+  const v4f lum = luminance<v4f, float>(r, g, bl);
   const v4i bright = lum > threshold;
   return (bright[0] | bright[1] | bright[2] | bright[3]) != 0;
 }

@@ -47,9 +47,11 @@ struct NonFiniteCounts {
 constexpr double kRangeGuard = 1329227995784915872903807060280344576.0;  // 2^120
 
 /// Rec. 709 luminance, dot(rgb, (0.2126, 0.7152, 0.0722)) summed left to right (seed 000).
-template <class T>
+/// S is the scalar type of the weights: T itself, or T's lane type when T is a vector of values
+/// (the same operations in every lane).
+template <class T, class S = T>
 inline T luminance(T r, T g, T b) {
-  return r * T(0.2126) + g * T(0.7152) + b * T(0.0722);
+  return r * S(0.2126) + g * S(0.7152) + b * S(0.0722);
 }
 
 /// The largest value a stage stores: 65504 for f16, kRangeGuard (2^120) for f32; what
