@@ -3,12 +3,16 @@
 // awkward sizes, with and without the adaptive plan's masks, for every instruction set this CPU
 // has; and whole runs on every scene and corpus image with `--blur fast` and `--blur reference`.
 #include <catch2/catch.hpp>
+#include <sys/mman.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <optional>
 #include <random>
+#include <tuple>
 #include <vector>
 
 #include "bloomref/executor.h"
@@ -349,6 +353,77 @@ TEST_CASE("the adaptive plan's support tracker keeps its mask equal to its spans
     ++tracked;
   }
   CHECK(tracked == 10);  // this start stays sparse through all ten passes
+}
+
+TEST_CASE("with page ledgers, a sparse fast pass faults in every page it reads or writes first",
+          "[blur][fast]") {
+  // Two fresh anonymous mappings (no page exists yet) as the adaptive plan's ping-pong pair, a
+  // few bright texels, eight passes over the growing support. Before each pass mincore says which
+  // pages exist; afterwards every page that came into being (written, or read and so mapped to
+  // the zero page) must be one the ledgers marked. Bits: the same as the pass without ledgers
+  // into ordinary zeroed images. Sparse: at 1000x300 the ledgers hold under half the pages.
+  const std::size_t page = std::size_t(::sysconf(_SC_PAGESIZE));
+  for (auto [w, h, seed, first_axis] :
+       {std::tuple{1000, 300, 1u, 1}, {1000, 300, 2u, 0}, {1000, 300, 3u, 1}, {1000, 300, 4u, 0},
+        {1000, 300, 5u, 1}, {1000, 300, 6u, 0}, {257, 190, 7u, 1}, {257, 190, 8u, 0}}) {
+    const std::size_t bytes = std::size_t(w) * h * kChannels * sizeof(float);
+    const std::size_t mapped = (bytes + page - 1) / page * page;
+    float* buf[2];
+    for (float*& b : buf) {
+      void* m = ::mmap(nullptr, mapped, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+      REQUIRE(m != MAP_FAILED);
+      b = static_cast<float*>(m);
+    }
+    auto view = [&](int i) { return BasicView<float>{w, h, w, buf[i]}; };
+    Image plain[2] = {Image::zeroed(w, h), Image::zeroed(w, h)};
+    std::mt19937 rng{seed};
+    for (int k = 0; k < 5; ++k) {
+      const int x = int(rng() % unsigned(w)), y = int(rng() % unsigned(h));
+      for (int c = 0; c < 3; ++c) view(0).pixel(x, y)[c] = plain[0].view().pixel(x, y)[c] = 2.0f;
+    }
+    detail::PageLedger ledger[2] = {detail::PageLedger(buf[0], bytes),
+                                    detail::PageLedger(buf[1], bytes)};
+    std::vector<std::uint8_t> mask(std::size_t(w) * h), active(mask.size());
+    nonzero_support(plain[0].cview(), mask.data(), 1);
+    auto resident = [&](int i) {
+      std::vector<unsigned char> v(mapped / page);
+      REQUIRE(::mincore(buf[i], mapped, v.data()) == 0);
+      return v;
+    };
+    for (int pass = 1; pass <= 8; ++pass) {
+      const int from = (pass + 1) % 2, to = pass % 2;
+      BlurPassOptions o{(pass + first_axis) % 2 ? Axis::vertical : Axis::horizontal,
+                        &kernel_discrete9(), 0};
+      blur_support<float>(mask.data(), active.data(), w, h, o, 1);
+      RowSpans spans;
+      mask_spans(active.data(), w, h, spans, 1);
+      o.active = active.data();
+      o.active_spans = &spans;
+      o.dst_zero_outside = true;
+      blur_pass_fast(plain[from].cview(), plain[to].view(), o, 2);
+      const std::vector<unsigned char> before[2] = {resident(0), resident(1)};
+      o.src_pages = &ledger[from];
+      o.dst_pages = &ledger[to];
+      blur_pass_fast(BasicView<const float>{w, h, w, buf[from]}, view(to), o, 2);
+      INFO(w << "x" << h << " seed " << seed << " pass " << pass);
+      for (int i = 0; i < 2; ++i) {
+        const std::vector<unsigned char> after = resident(i);
+        std::size_t unmarked = 0;
+        for (std::size_t pg = 0; pg < after.size(); ++pg)
+          unmarked += (after[pg] & 1) && !(before[i][pg] & 1) &&
+                      !ledger[i].marked(reinterpret_cast<char*>(buf[i]) + pg * page);
+        CHECK(unmarked == 0);
+      }
+      CHECK(std::memcmp(buf[to], plain[to].data(), bytes) == 0);
+      mask = active;
+    }
+    for (int i = 0; i < 2; ++i) {
+      CHECK(ledger[i].populated() > 0);
+      // 257 texels a row is just over a page: there the support reaches most pages.
+      if (w == 1000) CHECK(ledger[i].populated() * 2 < mapped / page);
+    }
+    for (float* b : buf) ::munmap(b, mapped);
+  }
 }
 
 TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][fused]") {

@@ -135,6 +135,51 @@ void set_tables(TileJob& job, const PassTables& t) {
   job.plain = t.plain.data();
 }
 
+// Marks in the ledgers what the listed tiles read of src (along: the taps' reach; across: the
+// tile's lines and those the inexact lines' lookups also take) and write of dst,
+// and faults the pages marked for the first time in. A sparse adaptive blur into zeroed
+// buffers otherwise reads pages no pass wrote yet (the zero page) and writes them a pass later
+// (a copy-on-write fault and a TLB flush on every CPU): StarField.exr, first run of a process,
+// 2 threads, medians of 7 processes 41.5 -> 30.1 ms (README, stop 21).
+void populate_tile_pages(const TileJob& job, const PassTables& t, const std::vector<int>& listed,
+                         BasicView<const float> src, BasicView<float> dst,
+                         const BlurPassOptions& opt, int threads) {
+  // Texels [x0, x1) of rows [y0, y1).
+  auto mark = [](PageLedger* ledger, const float* row0, std::size_t stride, int x0, int x1,
+                 int y0, int y1) {
+    if (!ledger || x0 >= x1) return;
+    for (int y = y0; y < y1; ++y)
+      ledger->mark(row0 + std::size_t(y) * stride + std::size_t(x0) * kChannels,
+                   std::size_t(x1 - x0) * kChannels * sizeof(float));
+  };
+  const std::size_t ss = std::size_t(src.stride) * kChannels, ds = std::size_t(dst.stride) * kChannels;
+  for (int id : listed) {
+    const int a0 = (id % job.tiles_along) * job.tile_along;
+    const int a1 = std::min(a0 + job.tile_along, job.n_along);
+    const int b0 = (id / job.tiles_along) * job.tile_across;
+    const int b1 = std::min(b0 + job.tile_across, job.n_across);
+    int lo = t.reach_lo[a0], hi = t.reach_hi[a0];
+    for (int a = a0; a < a1; ++a) {
+      lo = std::min(lo, t.reach_lo[a]);
+      hi = std::max(hi, t.reach_hi[a]);
+    }
+    int across_lo = b0, across_hi = b1 - 1;
+    for (int b = b0; b < b1; ++b) {
+      across_lo = std::min(across_lo, t.across[b].i0);
+      across_hi = std::max(across_hi, t.across[b].i1);
+    }
+    if (job.horizontal) {
+      mark(opt.src_pages, src.data, ss, lo, hi + 1, across_lo, across_hi + 1);
+      mark(opt.dst_pages, dst.data, ds, a0, a1, b0, b1);
+    } else {
+      mark(opt.src_pages, src.data, ss, across_lo, across_hi + 1, lo, hi + 1);
+      mark(opt.dst_pages, dst.data, ds, b0, b1, a0, a1);
+    }
+  }
+  if (opt.src_pages) opt.src_pages->populate(threads);
+  if (opt.dst_pages) opt.dst_pages->populate(threads);
+}
+
 }  // namespace detail
 
 void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
@@ -203,6 +248,8 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
     for (std::size_t t = 0; t < touched.size(); ++t)
       if (touched[t]) listed.push_back(int(t));
     job.tile_ids = listed.data();
+    if (opt.src_pages || opt.dst_pages)
+      detail::populate_tile_pages(job, tables, listed, src, dst, opt, threads);
   }
   const int n_tiles = job.tile_ids ? int(listed.size()) : job.tiles_along * tiles_across;
 

@@ -40,23 +40,27 @@ void prefault_image(BasicImage<T>& img, int threads) {
 // are kept (the oldest go first); release_scratch_images() frees them.
 // A kept image is +0 in R, G and B everywhere; its alpha may be 1 where a tile was computed
 // around the support (nothing reads the bright image's or the bloom's alpha).
+// Each image is kept with the ledger of the pages the blur has faulted in (image.h: PageLedger).
 class ScratchPool {
  public:
-  Image take(int w, int h) {
+  Image take(int w, int h, detail::PageLedger& pages) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       for (auto it = kept_.begin(); it != kept_.end(); ++it)
-        if (it->width() == w && it->height() == h) {
-          Image img = std::move(*it);
+        if (it->image.width() == w && it->image.height() == h) {
+          Image img = std::move(it->image);
+          pages = std::move(it->pages);
           kept_.erase(it);
           return img;
         }
     }
-    return Image::zeroed(w, h);
+    Image img = Image::zeroed(w, h);
+    pages = detail::PageLedger(img.values().data(), img.values().size() * sizeof(float));
+    return img;
   }
   // `img` is +0 in R, G and B outside `dirty` (one row of spans per image row): zeroed there,
   // then kept.
-  void give(Image&& img, const RowSpans& dirty, int threads) {
+  void give(Image&& img, detail::PageLedger&& pages, const RowSpans& dirty, int threads) {
     if (img.empty() || dirty.size() != std::size_t(img.height())) return;
     parallel_rows(img.height(), threads, [&](int y0, int y1) {
       for (int y = y0; y < y1; ++y)
@@ -64,7 +68,7 @@ class ScratchPool {
           std::memset(img.pixel(s.x0, y), 0, std::size_t(s.x1 - s.x0) * kChannels * sizeof(float));
     });
     std::lock_guard<std::mutex> lock(mutex_);
-    kept_.push_back(std::move(img));
+    kept_.push_back({std::move(img), std::move(pages)});
     while (kept_.size() > kKeep) kept_.erase(kept_.begin());
   }
   void clear() {
@@ -74,8 +78,12 @@ class ScratchPool {
 
  private:
   static constexpr std::size_t kKeep = 2;  // a run's two: the bright image and the ping-pong one
+  struct Kept {
+    Image image;
+    detail::PageLedger pages;
+  };
   std::mutex mutex_;
-  std::vector<Image> kept_;
+  std::vector<Kept> kept_;
 };
 
 ScratchPool& scratch_pool() {
@@ -84,8 +92,8 @@ ScratchPool& scratch_pool() {
 }
 
 template <class T>
-BasicImage<T> take_zeroed(int w, int h) {
-  if constexpr (std::is_same_v<T, float>) return scratch_pool().take(w, h);
+BasicImage<T> take_zeroed(int w, int h, detail::PageLedger& pages) {
+  if constexpr (std::is_same_v<T, float>) return scratch_pool().take(w, h, pages);
   else return BasicImage<T>::zeroed(w, h);
 }
 
@@ -129,7 +137,9 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   const int bw = p.method == Method::gaussian ? w : 0, bh = p.method == Method::gaussian ? h : 0;
   const bool sparse_bright = p.plan == PlanMode::adaptive && !opt.keep_all &&
                              plan.facts.bright_pixels * 100 <= std::uint64_t(w) * std::uint64_t(h);
-  BasicImage<T> bright = sparse_bright ? take_zeroed<T>(bw, bh)
+  // The ledgers of the zeroed ones' pages (image.h), moved and swapped with them.
+  detail::PageLedger bright_pages, ping_pages, pong_pages;
+  BasicImage<T> bright = sparse_bright ? take_zeroed<T>(bw, bh, bright_pages)
                                        : BasicImage<T>::uninitialised(bw, bh);
   if (!sparse_bright) prefault_image(bright, threads);
   BasicImage<T> ping, pong;  // allocated by the first blur pass
@@ -256,7 +266,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         const bool first_pass = stage.pass == 1;
         if (pong.empty()) {
           if (leave_zeros && first_pass) {
-            pong = take_zeroed<T>(w, h);
+            pong = take_zeroed<T>(w, h, pong_pages);
           } else {
             pong = BasicImage<T>::uninitialised(w, h);
             prefault_image(pong, threads);  // written whole by this pass
@@ -274,6 +284,8 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           // Pass k > 1 writes the buffer pass k - 2 (pass 2: bright) left +0 outside a support
           // contained in this one (stages.h); pass 1 a zeroed one, or a new one it fills.
           o.dst_zero_outside = !first_pass || leave_zeros;
+          o.src_pages = first_pass ? &bright_pages : &ping_pages;
+          o.dst_pages = &pong_pages;
           trace.skipped_fraction.emplace_back(
               stage.name, 1.0 - double(support.count()) / (double(w) * h));
         }
@@ -311,9 +323,13 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         store(pong.view(), p.storage, rounding, threads);
         std::swap(ping, pong);
+        std::swap(ping_pages, pong_pages);
         // After the first pass the bright image is not read again: its buffer becomes the
         // other half of the ping-pong pair (three full-size images alive: scene, ping, pong).
-        if (first_pass && pong.empty()) pong = std::move(bright);
+        if (first_pass && pong.empty()) {
+          pong = std::move(bright);
+          pong_pages = std::move(bright_pages);
+        }
         record(stage.name, ping, ms_since(t0), false);
         break;
       }
@@ -401,8 +417,9 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         // the input stage wrote nonzero: the supports only grow from the bright pixels).
         if constexpr (std::is_same_v<T, float>) {
           if (leave_zeros && support.started() && support.spans())
-            for (BasicImage<T>* img : {&ping, &pong, &bright})
-              scratch_pool().give(std::move(*img), *support.spans(), threads);
+            for (auto [img, pages] : {std::pair{&ping, &ping_pages}, std::pair{&pong, &pong_pages},
+                                      std::pair{&bright, &bright_pages}})
+              scratch_pool().give(std::move(*img), std::move(*pages), *support.spans(), threads);
         }
         ping = BasicImage<T>();
         pong = BasicImage<T>();

@@ -1,9 +1,12 @@
 // bloomref — image buffers (image.h: CacheAlignedAllocator).
 #include "bloomref/image.h"
 
+#include "bloomref/parallel.h"
+
 #include <sys/mman.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -62,6 +65,55 @@ void zero_lazily(void* p, std::size_t bytes) noexcept {
     if (in_core || ::madvise(run, run_bytes, MADV_DONTNEED) != 0) std::memset(run, 0, run_bytes);
     i = j;
   }
+}
+
+PageLedger::PageLedger(const void* base, std::size_t bytes) {
+  static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const auto begin = reinterpret_cast<std::uintptr_t>(base);
+  first_ = begin / page * page;
+  end_ = (begin + bytes + page - 1) / page * page;
+  done_.assign((end_ - first_) / page, 0);
+}
+
+void PageLedger::mark(const void* p, std::size_t bytes) {
+  static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const auto begin = reinterpret_cast<std::uintptr_t>(p);
+  if (bytes == 0 || begin < first_ || begin + bytes > end_) return;
+  for (std::size_t i = (begin - first_) / page, last = (begin + bytes - 1 - first_) / page;
+       i <= last; ++i)
+    if (!done_[i]) {
+      done_[i] = 1;
+      fresh_.push_back(i);
+    }
+}
+
+bool PageLedger::marked(const void* p) const {
+  static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const auto at = reinterpret_cast<std::uintptr_t>(p);
+  return at >= first_ && at < end_ && done_[(at - first_) / page];
+}
+
+void PageLedger::populate(int threads) {
+#ifdef MADV_POPULATE_WRITE
+  static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+  if (fresh_.empty()) return;
+  std::sort(fresh_.begin(), fresh_.end());
+  // Runs of consecutive pages, one call each; the threads take equal numbers of pages.
+  const int n = static_cast<int>(fresh_.size());
+  parallel_rows(n, std::min(resolve_threads(threads), 1 + n / 64), [&](int i0, int i1) {
+    for (int i = i0; i < i1;) {
+      int j = i + 1;
+      while (j < i1 && fresh_[std::size_t(j)] == fresh_[std::size_t(j) - 1] + 1) ++j;
+      ::madvise(reinterpret_cast<void*>(first_ + fresh_[std::size_t(i)] * page),
+                std::size_t(j - i) * page, MADV_POPULATE_WRITE);
+      i = j;
+    }
+  });
+  populated_ += fresh_.size();
+#else
+  (void)threads;
+#endif
+  fresh_.clear();
 }
 
 }  // namespace bloomref::detail

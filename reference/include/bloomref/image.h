@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <new>
 #include <type_traits>
 #include <utility>
@@ -33,6 +34,34 @@ void prefault(void* p, std::size_t bytes) noexcept;
 /// zero, and a page is only materialised when written); resident pages and the partial pages at
 /// the ends are written. Falls back to memset where mincore or madvise refuses.
 void zero_lazily(void* p, std::size_t bytes) noexcept;
+
+/// The pages of one buffer that a sparse computation has made writable so far. A zeroed buffer's
+/// pages exist only where written (zero_lazily); reading one that was never written maps the
+/// kernel's shared zero page, and writing it afterwards is a copy-on-write fault that flushes
+/// every CPU's TLB (a cross-CPU interrupt, dear in a virtual machine). A computation that knows
+/// which parts it will read and write marks them here first; populate() then faults the pages
+/// marked for the first time in writable (madvise MADV_POPULATE_WRITE, Linux 5.14+; elsewhere
+/// nothing), shared out between threads, before anything reads them. A default ledger covers
+/// nothing and marks nothing.
+class PageLedger {
+ public:
+  PageLedger() = default;
+  PageLedger(const void* base, std::size_t bytes);
+  /// Marks the pages of [p, p + bytes); ranges outside the ledger's buffer are ignored.
+  void mark(const void* p, std::size_t bytes);
+  /// Faults in writable the pages marked since the last call that no earlier call did.
+  void populate(int threads);
+  /// Pages faulted in by populate so far.
+  std::size_t populated() const { return populated_; }
+  /// Whether the page holding byte p was marked.
+  bool marked(const void* p) const;
+
+ private:
+  std::uintptr_t first_ = 0, end_ = 0;  // the whole pages of the buffer: [first_, end_)
+  std::vector<std::uint8_t> done_;      // per page: marked by an earlier mark()
+  std::vector<std::size_t> fresh_;      // pages marked for the first time since populate()
+  std::size_t populated_ = 0;
+};
 }  // namespace detail
 
 /// The allocator of image buffers. Every buffer starts on a 64-byte (cache line) boundary, so

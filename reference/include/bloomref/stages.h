@@ -119,6 +119,11 @@ struct BlurPassOptions {
   /// blur_pass_fast then visits only the tiles these spans touch (found without reading the
   /// mask), shared out between threads by count, not by position in the image.
   const RowSpans* active_spans = nullptr;
+  /// Optional, with active_spans: ledgers of src's and dst's pages (image.h). blur_pass_fast
+  /// then marks what its tiles read and write there and faults the new pages in writable before
+  /// the pass, so that no page of a zeroed buffer is read before it exists.
+  detail::PageLedger* src_pages = nullptr;
+  detail::PageLedger* dst_pages = nullptr;
 };
 
 /// Stage `blur.k`: one single-direction pass of a separable kernel, through GL_LINEAR /
