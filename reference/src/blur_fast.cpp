@@ -176,8 +176,9 @@ void populate_tile_pages(const TileJob& job, const PassTables& t, const std::vec
       mark(opt.dst_pages, dst.data, ds, b0, b1, a0, a1);
     }
   }
-  if (opt.src_pages) opt.src_pages->populate(threads);
-  if (opt.dst_pages) opt.dst_pages->populate(threads);
+  const int page_threads = opt.page_threads ? opt.page_threads : threads;
+  if (opt.src_pages) opt.src_pages->populate(page_threads);
+  if (opt.dst_pages) opt.dst_pages->populate(page_threads);
 }
 
 }  // namespace detail

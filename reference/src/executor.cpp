@@ -286,6 +286,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           o.dst_zero_outside = !first_pass || leave_zeros;
           o.src_pages = first_pass ? &bright_pages : &ping_pages;
           o.dst_pages = &pong_pages;
+          o.page_threads = threads;
           trace.skipped_fraction.emplace_back(
               stage.name, 1.0 - double(support.count()) / (double(w) * h));
         }

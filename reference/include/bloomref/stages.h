@@ -124,6 +124,9 @@ struct BlurPassOptions {
   /// the pass, so that no page of a zeroed buffer is read before it exists.
   detail::PageLedger* src_pages = nullptr;
   detail::PageLedger* dst_pages = nullptr;
+  /// Threads that fault the ledgers' new pages in (0: the pass's own). The adaptive plan runs a
+  /// small support's pass on one thread but faults its pages in on all of them.
+  int page_threads = 0;
 };
 
 /// Stage `blur.k`: one single-direction pass of a separable kernel, through GL_LINEAR /
