@@ -70,21 +70,10 @@ void zero_lazily(void* p, std::size_t bytes) noexcept {
 PageLedger::PageLedger(const void* base, std::size_t bytes) {
   static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
   const auto begin = reinterpret_cast<std::uintptr_t>(base);
+  shift_ = __builtin_ctzl(page);  // a power of two
   first_ = begin / page * page;
   end_ = (begin + bytes + page - 1) / page * page;
   done_.assign((end_ - first_) / page, 0);
-}
-
-void PageLedger::mark(const void* p, std::size_t bytes) {
-  static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
-  const auto begin = reinterpret_cast<std::uintptr_t>(p);
-  if (bytes == 0 || begin < first_ || begin + bytes > end_) return;
-  for (std::size_t i = (begin - first_) / page, last = (begin + bytes - 1 - first_) / page;
-       i <= last; ++i)
-    if (!done_[i]) {
-      done_[i] = 1;
-      fresh_.push_back(i);
-    }
 }
 
 bool PageLedger::marked(const void* p) const {

@@ -47,8 +47,18 @@ class PageLedger {
  public:
   PageLedger() = default;
   PageLedger(const void* base, std::size_t bytes);
-  /// Marks the pages of [p, p + bytes); ranges outside the ledger's buffer are ignored.
-  void mark(const void* p, std::size_t bytes);
+  /// Marks the pages of [p, p + bytes); ranges outside the ledger's buffer are ignored. Inline:
+  /// a sparse pass marks each row of each tile it visits.
+  void mark(const void* p, std::size_t bytes) {
+    const auto begin = reinterpret_cast<std::uintptr_t>(p);
+    if (bytes == 0 || begin < first_ || begin + bytes > end_) return;
+    for (std::size_t i = (begin - first_) >> shift_, last = (begin + bytes - 1 - first_) >> shift_;
+         i <= last; ++i)
+      if (!done_[i]) {
+        done_[i] = 1;
+        fresh_.push_back(i);
+      }
+  }
   /// Faults in writable the pages marked since the last call that no earlier call did.
   void populate(int threads);
   /// Pages faulted in by populate so far.
@@ -58,6 +68,7 @@ class PageLedger {
 
  private:
   std::uintptr_t first_ = 0, end_ = 0;  // the whole pages of the buffer: [first_, end_)
+  int shift_ = 12;                       // log2 of the page size
   std::vector<std::uint8_t> done_;      // per page: marked by an earlier mark()
   std::vector<std::size_t> fresh_;      // pages marked for the first time since populate()
   std::size_t populated_ = 0;
