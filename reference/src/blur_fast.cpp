@@ -152,7 +152,8 @@ void populate_tile_pages(const TileJob& job, const PassTables& t, const std::vec
       ledger->mark(row0 + std::size_t(y) * stride + std::size_t(x0) * kChannels,
                    std::size_t(x1 - x0) * kChannels * sizeof(float));
   };
-  const std::size_t ss = std::size_t(src.stride) * kChannels, ds = std::size_t(dst.stride) * kChannels;
+  const std::size_t ss = std::size_t(src.stride) * kChannels,
+                    ds = std::size_t(dst.stride) * kChannels;
   for (int id : listed) {
     const int a0 = (id % job.tiles_along) * job.tile_along;
     const int a1 = std::min(a0 + job.tile_along, job.n_along);

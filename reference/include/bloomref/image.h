@@ -68,7 +68,7 @@ class PageLedger {
 
  private:
   std::uintptr_t first_ = 0, end_ = 0;  // the whole pages of the buffer: [first_, end_)
-  int shift_ = 12;                       // log2 of the page size
+  int shift_ = 12;                      // log2 of the page size
   std::vector<std::uint8_t> done_;      // per page: marked by an earlier mark()
   std::vector<std::size_t> fresh_;      // pages marked for the first time since populate()
   std::size_t populated_ = 0;
