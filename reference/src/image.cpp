@@ -82,6 +82,16 @@ bool PageLedger::marked(const void* p) const {
   return at >= first_ && at < end_ && done_[(at - first_) / page];
 }
 
+bool PageLedger::first_visit(const void* family, std::size_t i, std::size_t n) {
+  auto it = std::find_if(visits_.begin(), visits_.end(),
+                         [&](const Visits& v) { return v.family == family; });
+  if (it == visits_.end()) it = visits_.insert(visits_.end(), {family, {}});
+  if (it->seen.size() != n) it->seen.assign(n, 0);
+  if (i >= n || it->seen[i]) return false;
+  it->seen[i] = 1;
+  return true;
+}
+
 void PageLedger::populate(int threads) {
 #ifdef MADV_POPULATE_WRITE
   static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));

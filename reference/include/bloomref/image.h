@@ -65,6 +65,11 @@ class PageLedger {
   std::size_t populated() const { return populated_; }
   /// Whether the page holding byte p was marked.
   bool marked(const void* p) const;
+  /// Whether element i of a family of n regions (`family` names it: a pass's tile grid and
+  /// whether its tiles are read or written) is visited here for the first time. A caller that
+  /// marks the same regions run after run marks each once. Only a hint: a wrong answer costs
+  /// faults, never bits.
+  bool first_visit(const void* family, std::size_t i, std::size_t n);
 
  private:
   std::uintptr_t first_ = 0, end_ = 0;  // the whole pages of the buffer: [first_, end_)
@@ -72,6 +77,11 @@ class PageLedger {
   std::vector<std::uint8_t> done_;      // per page: marked by an earlier mark()
   std::vector<std::size_t> fresh_;      // pages marked for the first time since populate()
   std::size_t populated_ = 0;
+  struct Visits {
+    const void* family;
+    std::vector<std::uint8_t> seen;
+  };
+  std::vector<Visits> visits_;
 };
 }  // namespace detail
 
