@@ -135,16 +135,24 @@ void set_tables(TileJob& job, const PassTables& t) {
   job.plain = t.plain.data();
 }
 
+}  // namespace detail
+
+namespace {
+
 // Marks in the ledgers what the listed tiles read of src (along: the taps' reach; across: the
-// tile's lines and those the inexact lines' lookups also take) and write of dst,
-// and faults the pages marked for the first time in. A sparse adaptive blur into zeroed
+// tile's lines and the other lines the inexact lines' lookups weight) and write of dst, and
+// faults the pages marked for the first time in. A sparse adaptive blur into zeroed
 // buffers otherwise reads pages no pass wrote yet (the zero page) and writes them a pass later
 // (a copy-on-write fault and a TLB flush on every CPU): StarField.exr, first run of a process,
 // 2 threads, medians of 7 processes 41.5 -> 30.1 ms (README, stop 21).
-void populate_tile_pages(const TileJob& job, const PassTables& t, const std::vector<int>& listed,
+void populate_tile_pages(const detail::TileJob& job,
+                         const std::shared_ptr<const detail::PassTables>& tables,
+                         const std::vector<int>& listed,
                          BasicView<const float> src, BasicView<float> dst,
                          const BlurPassOptions& opt, int threads) {
   // Texels [x0, x1) of rows [y0, y1).
+  using detail::PageLedger;
+  const detail::PassTables& t = *tables;
   auto mark = [](PageLedger* ledger, const float* row0, std::size_t stride, int x0, int x1,
                  int y0, int y1) {
     if (!ledger || x0 >= x1) return;
@@ -156,15 +164,15 @@ void populate_tile_pages(const TileJob& job, const PassTables& t, const std::vec
                     ds = std::size_t(dst.stride) * kChannels;
   // A tile's reads and writes depend on the pass tables and the tile grid only: each ledger
   // marks them once per tile (later runs of the same scene mark nothing; StarField, ten passes:
-  // 0.4-0.65 ms a run without this). The families: the tables' address, read or written, and
-  // the grid's tile size (small or not).
+  // 0.4-0.65 ms a run without this). A family is the tables (held by the ledger, so their
+  // address is not reused), read or written, and the grid's tile size (small or not).
   const std::size_t grid = std::size_t(job.tiles_along) *
                            std::size_t((job.n_across + job.tile_across - 1) / job.tile_across);
-  const char* family = reinterpret_cast<const char*>(&t) + (job.tile_along == kTileAlongListed);
+  const int small = job.tile_along == kTileAlongListed;
   for (int id : listed) {
-    PageLedger* read = opt.src_pages && opt.src_pages->first_visit(family, id, grid)
+    PageLedger* read = opt.src_pages && opt.src_pages->first_visit(tables, small, id, grid)
                            ? opt.src_pages : nullptr;
-    PageLedger* written = opt.dst_pages && opt.dst_pages->first_visit(family + 2, id, grid)
+    PageLedger* written = opt.dst_pages && opt.dst_pages->first_visit(tables, 2 + small, id, grid)
                               ? opt.dst_pages : nullptr;
     if (!read && !written) continue;
     const int a0 = (id % job.tiles_along) * job.tile_along;
@@ -178,8 +186,9 @@ void populate_tile_pages(const TileJob& job, const PassTables& t, const std::vec
     }
     int across_lo = b0, across_hi = b1 - 1;
     for (int b = b0; b < b1; ++b) {
-      across_lo = std::min(across_lo, t.across[b].i0);
-      across_hi = std::max(across_hi, t.across[b].i1);
+      const AxisTap<float>& o = t.across[b];
+      if (o.w0 != 0.0f) across_lo = std::min(across_lo, o.i0);
+      if (o.w1 != 0.0f) across_hi = std::max(across_hi, o.i1);
     }
     if (job.horizontal) {
       mark(read, src.data, ss, lo, hi + 1, across_lo, across_hi + 1);
@@ -194,7 +203,7 @@ void populate_tile_pages(const TileJob& job, const PassTables& t, const std::vec
   if (opt.dst_pages) opt.dst_pages->populate(page_threads);
 }
 
-}  // namespace detail
+}  // namespace
 
 void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
                     int threads, BlurIsa isa) {
@@ -263,7 +272,7 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
       if (touched[t]) listed.push_back(int(t));
     job.tile_ids = listed.data();
     if (opt.src_pages || opt.dst_pages)
-      detail::populate_tile_pages(job, tables, listed, src, dst, opt, threads);
+      populate_tile_pages(job, kept, listed, src, dst, opt, threads);
   }
   const int n_tiles = job.tile_ids ? int(listed.size()) : job.tiles_along * tiles_across;
 

@@ -308,8 +308,10 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
             blur_passes_fused(src.cview(), pong.view(), axes, kernel_for(p.kernel),
                               p.subtexel_bits, threads);
             std::swap(ping, pong);
+            std::swap(ping_pages, pong_pages);
             pong = BasicImage<T>();
             bright = BasicImage<T>();  // not read again
+            pong_pages = bright_pages = detail::PageLedger();
             blur_fused_done = true;
             trace.timings.emplace_back("blur." + std::to_string(stage.pass) + "-" +
                                            std::to_string(stage.pass + int(axes.size()) - 1),

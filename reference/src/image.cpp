@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -82,10 +83,12 @@ bool PageLedger::marked(const void* p) const {
   return at >= first_ && at < end_ && done_[(at - first_) / page];
 }
 
-bool PageLedger::first_visit(const void* family, std::size_t i, std::size_t n) {
-  auto it = std::find_if(visits_.begin(), visits_.end(),
-                         [&](const Visits& v) { return v.family == family; });
-  if (it == visits_.end()) it = visits_.insert(visits_.end(), {family, {}});
+bool PageLedger::first_visit(const std::shared_ptr<const void>& family, int variant,
+                             std::size_t i, std::size_t n) {
+  auto it = std::find_if(visits_.begin(), visits_.end(), [&](const Visits& v) {
+    return v.family == family && v.variant == variant;
+  });
+  if (it == visits_.end()) it = visits_.insert(visits_.end(), {family, variant, {}});
   if (it->seen.size() != n) it->seen.assign(n, 0);
   if (i >= n || it->seen[i]) return false;
   it->seen[i] = 1;
@@ -97,18 +100,20 @@ void PageLedger::populate(int threads) {
   static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
   if (fresh_.empty()) return;
   std::sort(fresh_.begin(), fresh_.end());
-  // Runs of consecutive pages, one call each; the threads take equal numbers of pages.
+  // Runs of consecutive pages, one call each; the threads share the pages out (parallel_rows).
   const int n = static_cast<int>(fresh_.size());
+  std::atomic<std::size_t> accepted{0};
   parallel_rows(n, std::min(resolve_threads(threads), 1 + n / 64), [&](int i0, int i1) {
     for (int i = i0; i < i1;) {
       int j = i + 1;
       while (j < i1 && fresh_[std::size_t(j)] == fresh_[std::size_t(j) - 1] + 1) ++j;
-      ::madvise(reinterpret_cast<void*>(first_ + fresh_[std::size_t(i)] * page),
-                std::size_t(j - i) * page, MADV_POPULATE_WRITE);
+      if (::madvise(reinterpret_cast<void*>(first_ + fresh_[std::size_t(i)] * page),
+                    std::size_t(j - i) * page, MADV_POPULATE_WRITE) == 0)
+        accepted += std::size_t(j - i);
       i = j;
     }
   });
-  populated_ += fresh_.size();
+  populated_ += accepted;
 #else
   (void)threads;
 #endif

@@ -13,6 +13,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <new>
 #include <type_traits>
 #include <utility>
@@ -42,13 +43,13 @@ void zero_lazily(void* p, std::size_t bytes) noexcept;
 /// which parts it will read and write marks them here first; populate() then faults the pages
 /// marked for the first time in writable (madvise MADV_POPULATE_WRITE, Linux 5.14+; elsewhere
 /// nothing), shared out between threads, before anything reads them. A default ledger covers
-/// nothing and marks nothing.
+/// no page.
 class PageLedger {
  public:
   PageLedger() = default;
   PageLedger(const void* base, std::size_t bytes);
   /// Marks the pages of [p, p + bytes); ranges outside the ledger's buffer are ignored. Inline:
-  /// a sparse pass marks each row of each tile it visits.
+  /// a sparse pass marks each row of each tile it visits for the first time.
   void mark(const void* p, std::size_t bytes) {
     const auto begin = reinterpret_cast<std::uintptr_t>(p);
     if (bytes == 0 || begin < first_ || begin + bytes > end_) return;
@@ -61,24 +62,27 @@ class PageLedger {
   }
   /// Faults in writable the pages marked since the last call that no earlier call did.
   void populate(int threads);
-  /// Pages faulted in by populate so far.
+  /// Pages populate has faulted in so far (those of calls the kernel accepted).
   std::size_t populated() const { return populated_; }
   /// Whether the page holding byte p was marked.
   bool marked(const void* p) const;
-  /// Whether element i of a family of n regions (`family` names it: a pass's tile grid and
-  /// whether its tiles are read or written) is visited here for the first time. A caller that
+  /// Whether element i of a family of n regions is visited here for the first time. A family is
+  /// an object (held here, so its address names it as long as the ledger lives) and a variant
+  /// (a pass's tables, and whether its tiles are read or written, small or not). A caller that
   /// marks the same regions run after run marks each once. Only a hint: a wrong answer costs
   /// faults, never bits.
-  bool first_visit(const void* family, std::size_t i, std::size_t n);
+  bool first_visit(const std::shared_ptr<const void>& family, int variant, std::size_t i,
+                   std::size_t n);
 
  private:
-  std::uintptr_t first_ = 0, end_ = 0;  // the whole pages of the buffer: [first_, end_)
+  std::uintptr_t first_ = 0, end_ = 0;  // the pages the buffer touches: [first_, end_)
   int shift_ = 12;                      // log2 of the page size
   std::vector<std::uint8_t> done_;      // per page: marked by an earlier mark()
   std::vector<std::size_t> fresh_;      // pages marked for the first time since populate()
   std::size_t populated_ = 0;
   struct Visits {
-    const void* family;
+    std::shared_ptr<const void> family;
+    int variant;
     std::vector<std::uint8_t> seen;
   };
   std::vector<Visits> visits_;

@@ -119,9 +119,10 @@ struct BlurPassOptions {
   /// blur_pass_fast then visits only the tiles these spans touch (found without reading the
   /// mask), shared out between threads by count, not by position in the image.
   const RowSpans* active_spans = nullptr;
-  /// Optional, with active_spans: ledgers of src's and dst's pages (image.h). blur_pass_fast
-  /// then marks what its tiles read and write there and faults the new pages in writable before
-  /// the pass, so that no page of a zeroed buffer is read before it exists.
+  /// Optional: ledgers of src's and dst's pages (image.h). Where blur_pass_fast lists its tiles
+  /// (active, active_spans and dst_zero_outside all set) it marks what they read and write there
+  /// and faults the new pages in writable before the pass, so that no page of a zeroed buffer
+  /// is read before it exists. The other passes and blur_pass / blur_pass_approx ignore them.
   detail::PageLedger* src_pages = nullptr;
   detail::PageLedger* dst_pages = nullptr;
   /// Threads that fault the ledgers' new pages in (0: the pass's own). The adaptive plan runs a
