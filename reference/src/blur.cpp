@@ -209,11 +209,7 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
   const RowTable src{in, in_channels};
   const bool h = t.horizontal;
   const int per = t.kernel_taps.per_position;
-  int lo = t.reach_lo[a0], hi = t.reach_hi[a0];
-  for (int a = a0; a < a1; ++a) {
-    lo = std::min(lo, t.reach_lo[a]);
-    hi = std::max(hi, t.reach_hi[a]);
-  }
+  const auto [lo, hi] = t.reach(a0, a1);
   std::vector<v4> mixed(std::size_t(hi - lo + 1));
   for (auto it = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
        it != t.inexact.end() && *it < b1; ++it) {

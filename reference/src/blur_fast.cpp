@@ -147,12 +147,12 @@ namespace {
 // 2 threads, medians of 7 processes 41.5 -> 30.1 ms (README, stop 21).
 void populate_tile_pages(const detail::TileJob& job,
                          const std::shared_ptr<const detail::PassTables>& tables,
-                         const std::vector<int>& listed,
+                         const std::vector<int>& listed, std::size_t grid,
                          BasicView<const float> src, BasicView<float> dst,
                          const BlurPassOptions& opt, int threads) {
-  // Texels [x0, x1) of rows [y0, y1).
   using detail::PageLedger;
   const detail::PassTables& t = *tables;
+  // Texels [x0, x1) of rows [y0, y1).
   auto mark = [](PageLedger* ledger, const float* row0, std::size_t stride, int x0, int x1,
                  int y0, int y1) {
     if (!ledger || x0 >= x1) return;
@@ -165,9 +165,8 @@ void populate_tile_pages(const detail::TileJob& job,
   // A tile's reads and writes depend on the pass tables and the tile grid only: each ledger
   // marks them once per tile (later runs of the same scene mark nothing; StarField, ten passes:
   // 0.4-0.65 ms a run without this). A family is the tables (held by the ledger, so their
-  // address is not reused), read or written, and the grid's tile size (small or not).
-  const std::size_t grid = std::size_t(job.tiles_along) *
-                           std::size_t((job.n_across + job.tile_across - 1) / job.tile_across);
+  // address is not reused), read or written, and the grid's tile size (small or not); `grid`
+  // tiles in all.
   const int small = job.tile_along == kTileAlongListed;
   for (int id : listed) {
     PageLedger* read = opt.src_pages && opt.src_pages->first_visit(tables, small, id, grid)
@@ -179,11 +178,7 @@ void populate_tile_pages(const detail::TileJob& job,
     const int a1 = std::min(a0 + job.tile_along, job.n_along);
     const int b0 = (id / job.tiles_along) * job.tile_across;
     const int b1 = std::min(b0 + job.tile_across, job.n_across);
-    int lo = t.reach_lo[a0], hi = t.reach_hi[a0];
-    for (int a = a0; a < a1; ++a) {
-      lo = std::min(lo, t.reach_lo[a]);
-      hi = std::max(hi, t.reach_hi[a]);
-    }
+    const auto [lo, hi] = t.reach(a0, a1);
     int across_lo = b0, across_hi = b1 - 1;
     for (int b = b0; b < b1; ++b) {
       const AxisTap<float>& o = t.across[b];
@@ -272,7 +267,7 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
       if (touched[t]) listed.push_back(int(t));
     job.tile_ids = listed.data();
     if (opt.src_pages || opt.dst_pages)
-      populate_tile_pages(job, kept, listed, src, dst, opt, threads);
+      populate_tile_pages(job, kept, listed, touched.size(), src, dst, opt, threads);
   }
   const int n_tiles = job.tile_ids ? int(listed.size()) : job.tiles_along * tiles_across;
 

@@ -2,6 +2,7 @@
 // the per-pass tap tables, the reference texel, and the tile kernel's job description.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -125,6 +126,15 @@ struct PassTables {
   std::vector<TapForm> forms;
   std::vector<int> reach_lo, reach_hi;
   std::vector<std::uint8_t> plain;
+  /// The input lines [first, second] that the positions [a0, a1) along the blur reach.
+  std::pair<int, int> reach(int a0, int a1) const {
+    int lo = reach_lo[a0], hi = reach_hi[a0];
+    for (int a = a0; a < a1; ++a) {
+      lo = std::min(lo, reach_lo[a]);
+      hi = std::max(hi, reach_hi[a]);
+    }
+    return {lo, hi};
+  }
   std::vector<AxisTap<float>> across;  ///< the lookup across the blur, per line
   std::vector<int> inexact;  ///< lines whose lookup across the blur is not exactly on them
 };

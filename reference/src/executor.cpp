@@ -91,9 +91,10 @@ ScratchPool& scratch_pool() {
   return pool;
 }
 
+// A zeroed w x h image; in f32 from the pool, its ledger added to `ledgers`.
 template <class T>
-BasicImage<T> take_zeroed(int w, int h, detail::PageLedger& pages) {
-  if constexpr (std::is_same_v<T, float>) return scratch_pool().take(w, h, pages);
+BasicImage<T> take_zeroed(int w, int h, std::vector<detail::PageLedger>& ledgers) {
+  if constexpr (std::is_same_v<T, float>) return scratch_pool().take(w, h, ledgers.emplace_back());
   else return BasicImage<T>::zeroed(w, h);
 }
 
@@ -137,9 +138,15 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   const int bw = p.method == Method::gaussian ? w : 0, bh = p.method == Method::gaussian ? h : 0;
   const bool sparse_bright = p.plan == PlanMode::adaptive && !opt.keep_all &&
                              plan.facts.bright_pixels * 100 <= std::uint64_t(w) * std::uint64_t(h);
-  // The ledgers of the zeroed ones' pages (image.h), moved and swapped with them.
-  detail::PageLedger bright_pages, ping_pages, pong_pages;
-  BasicImage<T> bright = sparse_bright ? take_zeroed<T>(bw, bh, bright_pages)
+  // The ledgers of the pool's images (image.h), each found by the buffer it covers.
+  std::vector<detail::PageLedger> ledgers;
+  ledgers.reserve(2);  // the bright image and the first blur target
+  auto ledger_of = [&](const BasicImage<T>& img) -> detail::PageLedger* {
+    for (detail::PageLedger& l : ledgers)
+      if (!img.empty() && l.covers(img.data())) return &l;
+    return nullptr;
+  };
+  BasicImage<T> bright = sparse_bright ? take_zeroed<T>(bw, bh, ledgers)
                                        : BasicImage<T>::uninitialised(bw, bh);
   if (!sparse_bright) prefault_image(bright, threads);
   BasicImage<T> ping, pong;  // allocated by the first blur pass
@@ -266,7 +273,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         const bool first_pass = stage.pass == 1;
         if (pong.empty()) {
           if (leave_zeros && first_pass) {
-            pong = take_zeroed<T>(w, h, pong_pages);
+            pong = take_zeroed<T>(w, h, ledgers);
           } else {
             pong = BasicImage<T>::uninitialised(w, h);
             prefault_image(pong, threads);  // written whole by this pass
@@ -284,8 +291,8 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           // Pass k > 1 writes the buffer pass k - 2 (pass 2: bright) left +0 outside a support
           // contained in this one (stages.h); pass 1 a zeroed one, or a new one it fills.
           o.dst_zero_outside = !first_pass || leave_zeros;
-          o.src_pages = first_pass ? &bright_pages : &ping_pages;
-          o.dst_pages = &pong_pages;
+          o.src_pages = ledger_of(src);
+          o.dst_pages = ledger_of(pong);
           o.page_threads = threads;
           trace.skipped_fraction.emplace_back(
               stage.name, 1.0 - double(support.count()) / (double(w) * h));
@@ -308,10 +315,8 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
             blur_passes_fused(src.cview(), pong.view(), axes, kernel_for(p.kernel),
                               p.subtexel_bits, threads);
             std::swap(ping, pong);
-            std::swap(ping_pages, pong_pages);
             pong = BasicImage<T>();
             bright = BasicImage<T>();  // not read again
-            pong_pages = bright_pages = detail::PageLedger();
             blur_fused_done = true;
             trace.timings.emplace_back("blur." + std::to_string(stage.pass) + "-" +
                                            std::to_string(stage.pass + int(axes.size()) - 1),
@@ -326,13 +331,9 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         store(pong.view(), p.storage, rounding, threads);
         std::swap(ping, pong);
-        std::swap(ping_pages, pong_pages);
         // After the first pass the bright image is not read again: its buffer becomes the
         // other half of the ping-pong pair (three full-size images alive: scene, ping, pong).
-        if (first_pass && pong.empty()) {
-          pong = std::move(bright);
-          pong_pages = std::move(bright_pages);
-        }
+        if (first_pass && pong.empty()) pong = std::move(bright);
         record(stage.name, ping, ms_since(t0), false);
         break;
       }
@@ -420,9 +421,11 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         // the input stage wrote nonzero: the supports only grow from the bright pixels).
         if constexpr (std::is_same_v<T, float>) {
           if (leave_zeros && support.started() && support.spans())
-            for (auto [img, pages] : {std::pair{&ping, &ping_pages}, std::pair{&pong, &pong_pages},
-                                      std::pair{&bright, &bright_pages}})
-              scratch_pool().give(std::move(*img), std::move(*pages), *support.spans(), threads);
+            for (BasicImage<T>* img : {&ping, &pong, &bright}) {
+              detail::PageLedger* pages = ledger_of(*img);
+              scratch_pool().give(std::move(*img), pages ? std::move(*pages) : detail::PageLedger(),
+                                  *support.spans(), threads);
+            }
         }
         ping = BasicImage<T>();
         pong = BasicImage<T>();

@@ -78,9 +78,7 @@ PageLedger::PageLedger(const void* base, std::size_t bytes) {
 }
 
 bool PageLedger::marked(const void* p) const {
-  static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
-  const auto at = reinterpret_cast<std::uintptr_t>(p);
-  return at >= first_ && at < end_ && done_[(at - first_) / page];
+  return covers(p) && done_[(reinterpret_cast<std::uintptr_t>(p) - first_) >> shift_];
 }
 
 bool PageLedger::first_visit(const std::shared_ptr<const void>& family, int variant,
@@ -97,7 +95,7 @@ bool PageLedger::first_visit(const std::shared_ptr<const void>& family, int vari
 
 void PageLedger::populate(int threads) {
 #ifdef MADV_POPULATE_WRITE
-  static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const std::uintptr_t page = std::uintptr_t(1) << shift_;
   if (fresh_.empty()) return;
   std::sort(fresh_.begin(), fresh_.end());
   // Runs of consecutive pages, one call each; the threads share the pages out (parallel_rows).

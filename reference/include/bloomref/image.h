@@ -66,6 +66,11 @@ class PageLedger {
   std::size_t populated() const { return populated_; }
   /// Whether the page holding byte p was marked.
   bool marked(const void* p) const;
+  /// Whether byte p lies in a page of the ledger's buffer.
+  bool covers(const void* p) const {
+    const auto at = reinterpret_cast<std::uintptr_t>(p);
+    return at >= first_ && at < end_;
+  }
   /// Whether element i of a family of n regions is visited here for the first time. A family is
   /// an object (held here, so its address names it as long as the ledger lives) and a variant
   /// (a pass's tables, and whether its tiles are read or written, small or not). A caller that
