@@ -8,7 +8,10 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <tuple>
 #include <vector>
+
+#include <Imath/half.h>
 
 #include "bloomref/error.h"
 #include "bloomref/stages.h"
@@ -320,4 +323,127 @@ TEST_CASE("the fast finishing stages are not vacuous: one ulp off is caught",
   encode_output(scene.cview(), ref.view(), 2.2f, 1);
   encode_output_fast(scene.cview(), fast.view(), std::nextafter(2.2f, 3.0f), 1);
   CHECK_FALSE(same_bits(ref, fast));
+}
+
+namespace {
+
+/// Whether v is exactly a binary16 value other than NaN, by Imath's conversion (independent of
+/// the library's bit-level test): v survives the round trip through half bit for bit.
+bool is_binary16(float v) {
+  if (std::isnan(v)) return false;
+  const float back = static_cast<float>(Imath::half(v));
+  return bits(back) == bits(v);
+}
+
+}  // namespace
+
+TEST_CASE("the finishing stages take binary16 values outside the bloom's support from a table "
+          "with the staged reference's bits",
+          "[stages][oracle-math]") {
+  // 523 x 300 = 156,900 pixels, over 2^17 of them outside the support: the scene runs through
+  // every binary16 bit pattern in turn (NaN, +-Inf, +-0, subnormals included); a quarter of the
+  // pixels get one value that is not binary16 (one ulp above a binary16 value, or a float in
+  // (0, 1)); the support has a few spans on most rows (odd ends: the two-pixel vectors and the
+  // one-pixel tails), none on some, the whole row on one. Expected: the staged reference's
+  // bits, and exactly the pixels outside the support whose three values s + strength * +0 are
+  // binary16 values (Imath's round trip) finished from the table.
+  const int w = 523, h = 300;
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  Image scene(w, h), bloom(w, h);
+  std::uint32_t pattern = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      float* px = scene.view().pixel(x, y);
+      for (int c = 0; c < 3; ++c) {
+        Imath::half v;
+        v.setBits(static_cast<std::uint16_t>(pattern++ & 0xffffu));
+        px[c] = static_cast<float>(v);
+      }
+      px[3] = u(rng);
+      if (u(rng) < 0.25f) {
+        const int c = int(u(rng) * 3.0f) % 3;
+        px[c] = u(rng) < 0.5f ? std::nextafter(px[c], std::numeric_limits<float>::infinity())
+                              : u(rng);
+      }
+    }
+  REQUIRE(pattern > 65536 * 7);
+  // And on rows without spans, values at the edges of binary16: 2^e (1 + f) for every binade
+  // from below the smallest subnormal to above the largest normal, f from one float ulp to one
+  // binary16 ulp of a normal, both signs (binary16 or not depending on e and f).
+  std::vector<float> edges;
+  for (int e = -27; e <= 16; ++e)
+    for (float f : {0x1p-23f, 0x1p-13f, 0x1p-12f, 0x1p-11f, 0x1p-10f, 0.0f}) {
+      edges.push_back(std::ldexp(1.0f + f, e));
+      edges.push_back(-std::ldexp(1.0f + f, e));
+    }
+  for (std::size_t i = 0; i < edges.size(); ++i)
+    scene.view().pixel(int(i / 3) % w, 3 + 7 * int(i / 3 / w))[i % 3] = edges[i];
+  RowSpans support(h);
+  for (int y = 0; y < h; ++y) {
+    if (y % 7 == 3) continue;  // no span
+    if (y == 100) {
+      support[y] = {{0, w}};
+      continue;
+    }
+    int x = int(u(rng) * 40.0f);
+    while (x + 2 < w && support[y].size() < 4) {
+      const int len = 1 + int(u(rng) * 30.0f);
+      support[y].push_back({x, std::min(w, x + len)});
+      x += len + 1 + int(u(rng) * 150.0f);
+    }
+  }
+  for (int y = 0; y < h; ++y)
+    for (const Span& s : support[y])
+      for (int x = s.x0; x < s.x1; ++x)
+        for (int c = 0; c < 4; ++c) bloom.view().pixel(x, y)[c] = u(rng) * 3.0f;
+  for (auto [strength, exposure, gamma] : {std::tuple{1.0f, 1.0f, 2.2f},
+                                           std::tuple{-0.5f, 0.37f, 1.0f},
+                                           std::tuple{0.04f, 8.0f, 0.5f}}) {
+    const float t = strength * 0.0f;
+    std::size_t expected = 0, outside = 0;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        bool inside = false;
+        for (const Span& s : support[y]) inside = inside || (x >= s.x0 && x < s.x1);
+        if (inside) continue;
+        ++outside;
+        const float* px = scene.cview().pixel(x, y);
+        expected += is_binary16(px[0] + t) && is_binary16(px[1] + t) && is_binary16(px[2] + t);
+      }
+    REQUIRE(outside > (std::size_t(1) << 17));
+    REQUIRE(expected > outside / 2);
+    REQUIRE(expected < outside);
+    Image composed(w, h), ref(w, h);
+    composite(scene.cview(), bloom.cview(), composed.view(), strength, 1);
+    tonemap(composed.cview(), ref.view(), exposure, 1);
+    encode_output(ref.cview(), ref.view(), gamma, 1);
+    for (BlurIsa isa : isas()) {
+      INFO("strength " << strength << " exposure " << exposure << " gamma " << gamma << " "
+                       << blur_isa_name(isa));
+      Image out = scene;  // in place, as the executor runs it
+      const std::size_t from_table = finish_fast(out.cview(), bloom.cview(), out.view(),
+                                                 strength, exposure, gamma, 2, isa, &support);
+      CHECK(from_table == expected);
+      CHECK(same_bits(out, ref));
+    }
+  }
+  // No table where it would not pay: a float scene (no binary16 values to speak of), or too
+  // few pixels outside the support. The bits are the reference's either way.
+  Image floats = scene;
+  for (float& v : floats.values()) v = u(rng) * 4.0f;
+  RowSpans most(h, std::vector<Span>{{0, w - 300}});  // 300 x 300 = 90,000 < 2^17 outside
+  for (auto [img, spans] : {std::pair{&floats, &support}, std::pair{&scene, &most}}) {
+    Image bl(w, h);  // +0: every support holds the bloom
+    Image composed(w, h), ref(w, h);
+    composite(img->cview(), bl.cview(), composed.view(), 1.0f, 1);
+    tonemap(composed.cview(), ref.view(), 1.0f, 1);
+    encode_output(ref.cview(), ref.view(), 2.2f, 1);
+    for (BlurIsa isa : isas()) {
+      Image out(w, h);
+      CHECK(finish_fast(img->cview(), bl.cview(), out.view(), 1.0f, 1.0f, 2.2f, 2, isa,
+                        spans) == 0);
+      CHECK(same_bits(out, ref));
+    }
+  }
 }

@@ -40,7 +40,8 @@ constexpr std::size_t kSmallTilesBelow = 8;
 bool cpu_has_avx2() {
 #if defined(__x86_64__) && defined(BLOOMREF_HAVE_AVX2_KERNEL)
   __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+         __builtin_cpu_supports("f16c");
 #else
   return false;
 #endif
@@ -49,7 +50,7 @@ bool cpu_has_avx2() {
 BlurIsa resolve(BlurIsa isa) {
   if (isa == BlurIsa::best) return cpu_has_avx2() ? BlurIsa::avx2 : BlurIsa::generic;
   if (isa == BlurIsa::avx2 && !cpu_has_avx2())
-    throw ParamError("the AVX2 (+FMA) blur kernels are not available on this CPU or build");
+    throw ParamError("the AVX2 (+FMA, F16C) kernels are not available on this CPU or build");
   return isa;
 }
 

@@ -398,9 +398,14 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
               bloom_support = support.spans();  // null once dense
             }
           }
-          if constexpr (std::is_same_v<T, float>)
-            finish_fast(scene.cview(), bloom.cview(), scene.view(), p.strength, p.exposure,
-                        p.gamma, threads, BlurIsa::best, bloom_support);
+          if constexpr (std::is_same_v<T, float>) {
+            const std::size_t from_table =
+                finish_fast(scene.cview(), bloom.cview(), scene.view(), p.strength, p.exposure,
+                            p.gamma, threads, BlurIsa::best, bloom_support);
+            if (from_table)  // finished from the table of binary16 values, not computed
+              trace.skipped_fraction.emplace_back(
+                  "composite+tonemap+output", double(from_table) / (double(w) * h));
+          }
           mip_bloom = BasicImage<T>();
         } else if (p.method == Method::mip) {
           // before-tonemap: scene + strength * bloom; after-tonemap: mapped + strength * bloom.

@@ -1,11 +1,14 @@
 // Stages composite, tonemap and output in f32, the fast way (stages.h: tonemap_fast,
 // encode_output_fast, finish_fast): rows handed to the instruction set's kernel
 // (finish_kernels.inc), which computes what stages.cpp computes, value by value.
+#include <atomic>
+#include <cstdint>
 #include <string>
 #include <vector>
 
 #include "blur_internal.h"
 #include "finish_internal.h"
+#include "half_bits.h"
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
 #include "bloomref/stages.h"
@@ -13,9 +16,74 @@
 namespace bloomref {
 namespace {
 
-void run_rows(BasicView<const float> scene, BasicView<const float> bloom, BasicView<float> dst,
-              const detail::FinishRow& job, int threads, BlurIsa isa,
-              const RowSpans* bloom_support = nullptr) {
+// The table of finished values (FinishRow::table) pays where more pixels than this lie outside
+// the bloom's support: it costs the finishing of 65536 values, about 21,850 pixels' worth.
+constexpr std::size_t kTableMinPixels = std::size_t(1) << 17;
+
+detail::FinishKernel kernel_for(BlurIsa isa) {
+#ifdef BLOOMREF_HAVE_AVX2_KERNEL
+  if (detail::resolves_to_avx2(isa)) return detail::finish_row_avx2;
+#else
+  detail::resolves_to_avx2(isa);  // throws for avx2
+#endif
+  return detail::finish_row_generic;
+}
+
+// Whether a table of finished values pays for this scene: enough pixels outside the support,
+// and of 1024 pixels sampled evenly over the image at least half with three binary16 values
+// s + t (a scene read from a half-float file; a float scene has next to none).
+bool table_pays(BasicView<const float> scene, const RowSpans& support, float t) {
+  std::size_t outside = 0;
+  for (const std::vector<Span>& row : support) {
+    std::size_t inside = 0;
+    for (const Span& s : row) inside += static_cast<std::size_t>(s.x1 - s.x0);
+    outside += static_cast<std::size_t>(scene.width) - inside;
+  }
+  if (outside < kTableMinPixels) return false;
+  const std::size_t pixels = static_cast<std::size_t>(scene.width) * scene.height;
+  constexpr std::size_t kSamples = 1024;
+  std::size_t halves = 0;
+  for (std::size_t i = 0; i < kSamples; ++i) {
+    const std::size_t p = i * pixels / kSamples;
+    const float* px = scene.row(static_cast<int>(p / scene.width)) + 4 * (p % scene.width);
+    std::uint16_t h = 0;
+    bool all = true;
+    for (int c = 0; c < 3; ++c) all = detail::half_bits_of(px[c] + t, h) && all;
+    halves += all;
+  }
+  return 2 * halves >= kSamples;
+}
+
+// The finished value (job's tone map and output, no composite) of every binary16 value, by
+// `kernel` itself: the values laid out as the RGB of rows of pixels and finished as any row
+// is, so the table holds what the kernel computes for that float.
+std::vector<float> finished_half_table(detail::FinishKernel kernel, detail::FinishRow job,
+                                       int threads) {
+  job.table = nullptr;
+  constexpr int kRows = 16, kWidth = 1366;  // 16 * 1366 * 3 = 65568 values >= 65536
+  std::vector<float> table(65536);
+  parallel_rows(kRows, threads, [&](int r0, int r1) {
+    std::vector<float> px(std::size_t(4) * kWidth);
+    std::vector<float> line(detail::finish_line_floats(kWidth) + detail::kFinishLineSlack);
+    std::vector<detail::PackedRun> runs(kWidth);
+    for (int r = r0; r < r1; ++r) {
+      const std::size_t first = std::size_t(r) * kWidth * 3;
+      for (std::size_t i = 0; i < std::size_t(kWidth) * 3; ++i) {
+        const std::size_t j = first + i;
+        px[4 * (i / 3) + i % 3] = j < table.size() ? detail::half_value(std::uint16_t(j)) : 0.0f;
+      }
+      for (int x = 0; x < kWidth; ++x) px[4 * std::size_t(x) + 3] = 0.0f;
+      kernel(job, px.data(), detail::BloomRow{}, px.data(), kWidth, line.data(), runs.data());
+      for (std::size_t i = 0; i < std::size_t(kWidth) * 3 && first + i < table.size(); ++i)
+        table[first + i] = px[4 * (i / 3) + i % 3];
+    }
+  });
+  return table;
+}
+
+std::size_t run_rows(BasicView<const float> scene, BasicView<const float> bloom,
+                     BasicView<float> dst, detail::FinishRow job, int threads, BlurIsa isa,
+                     const RowSpans* bloom_support = nullptr) {
   if (dst.width != scene.width || dst.height != scene.height ||
       (!bloom.empty() && (bloom.width != scene.width || bloom.height != scene.height)))
     throw ParamError("finishing stages: images of different sizes");
@@ -35,15 +103,19 @@ void run_rows(BasicView<const float> scene, BasicView<const float> bloom, BasicV
         end = s.x1;
       }
     }
-  detail::FinishKernel kernel = detail::finish_row_generic;
-#ifdef BLOOMREF_HAVE_AVX2_KERNEL
-  if (detail::resolves_to_avx2(isa)) kernel = detail::finish_row_avx2;
-#else
-  detail::resolves_to_avx2(isa);  // throws for avx2
-#endif
+  const detail::FinishKernel kernel = kernel_for(isa);
   const bool with_bloom = !bloom.empty();
+  std::vector<float> table;
+  if (with_bloom && bloom_support && job.tonemap && job.encode &&
+      table_pays(scene, *bloom_support, job.strength * 0.0f)) {
+    table = finished_half_table(kernel, job, threads);
+    job.table = table.data();
+  }
+  std::atomic<std::size_t> looked_up{0};
   parallel_rows(scene.height, threads, [&](int y0, int y1) {
     std::vector<float> line(detail::finish_line_floats(scene.width) + detail::kFinishLineSlack);
+    std::vector<detail::PackedRun> runs(job.table ? static_cast<std::size_t>(scene.width) : 0);
+    std::size_t n = 0;
     for (int y = y0; y < y1; ++y) {
       detail::BloomRow b;
       if (with_bloom) {
@@ -55,9 +127,12 @@ void run_rows(BasicView<const float> scene, BasicView<const float> bloom, BasicV
           b.span_count = spans.size();
         }
       }
-      kernel(job, scene.row(y), b, dst.row(y), scene.width, line.data());
+      n += static_cast<std::size_t>(
+          kernel(job, scene.row(y), b, dst.row(y), scene.width, line.data(), runs.data()));
     }
+    looked_up += n;
   });
+  return looked_up;
 }
 
 }  // namespace
@@ -78,15 +153,15 @@ void encode_output_fast(BasicView<const float> mapped, BasicView<float> dst, flo
   run_rows(mapped, BasicView<const float>{}, dst, job, threads, isa);
 }
 
-void finish_fast(BasicView<const float> scene, BasicView<const float> bloom,
-                 BasicView<float> dst, float strength, float exposure, float gamma, int threads,
-                 BlurIsa isa, const RowSpans* bloom_support) {
+std::size_t finish_fast(BasicView<const float> scene, BasicView<const float> bloom,
+                        BasicView<float> dst, float strength, float exposure, float gamma,
+                        int threads, BlurIsa isa, const RowSpans* bloom_support) {
   detail::FinishRow job;
   job.strength = strength;
   job.tonemap = job.encode = true;
   job.exposure = exposure;
   job.inv_gamma = 1.0f / gamma;
-  run_rows(scene, bloom, dst, job, threads, isa, bloom_support);
+  return run_rows(scene, bloom, dst, job, threads, isa, bloom_support);
 }
 
 }  // namespace bloomref

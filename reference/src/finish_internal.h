@@ -16,6 +16,17 @@ struct FinishRow {
   float exposure = 1.0f;
   bool encode = false;
   float inv_gamma = 1.0f;  ///< 1 / gamma computed in float, as encode_output does
+  /// With tonemap and encode and a bloom given in spans: the finished value (tone map, output)
+  /// of every binary16 value, indexed by its bit pattern (65536 floats; finish_fast). Outside
+  /// the spans a pixel whose values s + strength * +0 are all binary16 values is finished from
+  /// it instead of computed.
+  const float* table = nullptr;
+};
+
+/// Pixels [x0, x1) of a row, packed into the scratch line from pixel k0 on.
+struct PackedRun {
+  int x0, x1;
+  std::size_t k0;
 };
 
 /// Floats of the scratch line a row of `width` pixels needs: its RGB values padded to whole
@@ -39,12 +50,15 @@ struct BloomRow {
 
 /// One row of `width` RGBA pixels: scene (+ strength * bloom when bloom.pixels is not null),
 /// tone mapped, encoded, into dst (which may be scene); alpha is the scene's. `line` is scratch
-/// of finish_line_floats(width) + kFinishLineSlack floats (a raw buffer: the per-ISA kernels
-/// instantiate no std::vector member, see blur_internal.h, `TileScratch`).
-using FinishKernel = void (*)(const FinishRow& job, const float* scene, const BloomRow& bloom,
-                              float* dst, int width, float* line);
+/// of finish_line_floats(width) + kFinishLineSlack floats, `runs` of `width` runs (raw
+/// buffers: the per-ISA kernels instantiate no std::vector member, see blur_internal.h,
+/// `TileScratch`). Returns the pixels finished from job.table.
+using FinishKernel = int (*)(const FinishRow& job, const float* scene, const BloomRow& bloom,
+                             float* dst, int width, float* line, PackedRun* runs);
 
-void finish_row_generic(const FinishRow&, const float*, const BloomRow&, float*, int, float*);
-void finish_row_avx2(const FinishRow&, const float*, const BloomRow&, float*, int, float*);
+int finish_row_generic(const FinishRow&, const float*, const BloomRow&, float*, int, float*,
+                       PackedRun*);
+int finish_row_avx2(const FinishRow&, const float*, const BloomRow&, float*, int, float*,
+                    PackedRun*);
 
 }  // namespace bloomref::detail

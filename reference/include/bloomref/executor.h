@@ -24,7 +24,9 @@ struct StageTrace {
   std::optional<ImageF64> output_f64;  ///< the output stage in double (f64 precision only)
   std::vector<std::pair<std::string, double>> timings;  ///< every stage that ran, in order
   /// Adaptive plan: per blur pass, the fraction of texels left out (outside the bright pixels'
-  /// dilated support, where the blur is exactly 0).
+  /// dilated support, where the blur is exactly 0); for composite+tonemap+output, where it
+  /// used one, the fraction of pixels finished from the table of binary16 values (stages.h:
+  /// finish_fast) instead of computed.
   std::vector<std::pair<std::string, double>> skipped_fraction;
 
   const Image& final_image() const { return stages.back().image; }
