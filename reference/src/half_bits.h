@@ -2,7 +2,6 @@
 // finishing stages' table of finished values, finish_kernels.inc and finish_fast.cpp).
 #pragma once
 
-#include <cmath>
 #include <cstdint>
 #include <cstring>
 
@@ -42,13 +41,18 @@ inline bool half_bits_of(float x, std::uint16_t& h) {
 
 /// The value of the binary16 bit pattern h, exactly (NaN patterns: a quiet NaN).
 inline float half_value(std::uint16_t h) {
-  const int exp = (h >> 10) & 0x1f;
-  const int frac = h & 0x3ff;
+  const std::uint32_t sign = std::uint32_t(h & 0x8000u) << 16;
+  const std::uint32_t exp = (h >> 10) & 0x1fu;
+  const std::uint32_t frac = h & 0x3ffu;
+  if (exp == 0) {  // +-frac 2^-24: exact in float
+    const float v = static_cast<float>(frac) * 0x1p-24f;
+    return sign ? -v : v;
+  }
+  const std::uint32_t u = exp == 31 ? sign | 0x7f800000u | (frac ? 0x400000u : 0u) | (frac << 13)
+                                    : sign | ((exp + 112) << 23) | (frac << 13);
   float v;
-  if (exp == 0) v = std::ldexp(static_cast<float>(frac), -24);
-  else if (exp == 31) v = frac == 0 ? __builtin_inff() : __builtin_nanf("");
-  else v = std::ldexp(static_cast<float>(1024 + frac), exp - 25);
-  return (h & 0x8000u) ? -v : v;
+  std::memcpy(&v, &u, sizeof v);
+  return v;
 }
 
 }  // namespace BLOOMREF_ISA_NAMESPACE
