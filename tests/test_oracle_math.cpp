@@ -399,6 +399,7 @@ TEST_CASE("the finishing stages take binary16 values outside the bloom's support
         for (int c = 0; c < 4; ++c) bloom.view().pixel(x, y)[c] = u(rng) * 3.0f;
   for (auto [strength, exposure, gamma] : {std::tuple{1.0f, 1.0f, 2.2f},
                                            std::tuple{-0.5f, 0.37f, 1.0f},
+                                           std::tuple{0.5f, 0.37f, 1.0f},  // -0 + +0 = +0
                                            std::tuple{0.04f, 8.0f, 0.5f}}) {
     const float t = strength * 0.0f;
     std::size_t expected = 0, outside = 0;
@@ -426,6 +427,10 @@ TEST_CASE("the finishing stages take binary16 values outside the bloom's support
                                                  strength, exposure, gamma, 2, isa, &support);
       CHECK(from_table == expected);
       CHECK(same_bits(out, ref));
+      Image apart(w, h);  // into another image: alpha is carried over from the scene
+      CHECK(finish_fast(scene.cview(), bloom.cview(), apart.view(), strength, exposure, gamma, 1,
+                        isa, &support) == expected);
+      CHECK(same_bits(apart, ref));
     }
   }
   // No table where it would not pay: a float scene (no binary16 values to speak of), or too

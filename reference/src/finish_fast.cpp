@@ -16,8 +16,8 @@
 namespace bloomref {
 namespace {
 
-// The table of finished values (FinishRow::table) pays where more pixels than this lie outside
-// the bloom's support: it costs the finishing of 65536 values, about 21,850 pixels' worth.
+// The table of finished values (FinishRow::table) pays where at least this many pixels lie
+// outside the bloom's support: it costs the finishing of 65536 values, about 21,850 pixels' worth.
 constexpr std::size_t kTableMinPixels = std::size_t(1) << 17;
 
 detail::FinishKernel kernel_for(BlurIsa isa) {

@@ -287,7 +287,7 @@ void encode_output_fast(BasicView<const float> mapped, BasicView<float> dst, flo
 /// storage). `bloom_support`, where given (one span list per row), says where the bloom's R, G
 /// and B may differ from +0 (the adaptive plan's last blur support): elsewhere the composite
 /// adds strength * +0 without reading the bloom, the same bits, and the bloom's pages that no
-/// pass wrote are not touched. There, where over 2^17 pixels lie outside the support and at
+/// pass wrote are not touched. There, where 2^17 or more pixels lie outside the support and at
 /// least half of 1024 pixels sampled over the scene have binary16 values (a half-float file),
 /// the finished value of every binary16 value is computed once (65536 values, by the same
 /// kernel) and a pixel outside the support whose values s + strength * +0 are binary16 values
