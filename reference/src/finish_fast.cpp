@@ -114,7 +114,7 @@ std::size_t run_rows(BasicView<const float> scene, BasicView<const float> bloom,
   std::atomic<std::size_t> looked_up{0};
   parallel_rows(scene.height, threads, [&](int y0, int y1) {
     std::vector<float> line(detail::finish_line_floats(scene.width) + detail::kFinishLineSlack);
-    std::vector<detail::PackedRun> runs(job.table ? static_cast<std::size_t>(scene.width) : 0);
+    std::vector<detail::PackedRun> runs(static_cast<std::size_t>(scene.width));
     std::size_t n = 0;
     for (int y = y0; y < y1; ++y) {
       detail::BloomRow b;
