@@ -204,22 +204,25 @@ namespace detail {
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
                         const std::uint8_t* active, int width, bool dst_zero_outside,
-                        int in_channels, int out_channels) {
+                        int in_channels, int out_channels, InexactGroupKernel group) {
   if (a0 >= a1) return;
   const RowTable src{in, in_channels};
   const bool h = t.horizontal;
   const int per = t.kernel_taps.per_position;
-  const auto [lo, hi] = t.reach(a0, a1);
-  std::vector<v4> mixed(std::size_t(hi - lo + 1));
-  for (auto it = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
-       it != t.inexact.end() && *it < b1; ++it) {
-    const int b = *it;
+  constexpr int L = PassTables::kGroupLanes;
+  std::vector<v4> mixed;
+  TileScratch scratch;
+  // Positions [p0, p1) of line b, texel by texel.
+  auto per_texel = [&](int b, int p0, int p1) {
+    if (p0 >= p1) return;
     const AxisTap<float>& o = t.across[b];
+    const auto [lo, hi] = t.reach(p0, p1);
+    mixed.resize(std::size_t(hi - lo + 1));
     for (int i = lo; i <= hi; ++i) {
       const AxisTap<float> one{i, i, 1.0f, 0.0f};
       mixed[i - lo] = h ? bilinear_v4(src, one, o) : bilinear_v4(src, o, one);
     }
-    for (int a = a0; a < a1; ++a) {
+    for (int a = p0; a < p1; ++a) {
       const int x = h ? a : b, y = h ? b : a;
       float* d = out[y] + std::ptrdiff_t(x) * out_channels;
       if (active && !active[std::size_t(y) * width + x]) {
@@ -235,6 +238,27 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
       });
       store_rgb(rv, d, out_channels);
     }
+  };
+  for (auto it = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
+       it != t.inexact.end() && *it < b1; ++it) {
+    const int b = *it;
+    const AxisTap<float>& o = t.across[b];
+    // The whole groups inside [a0, a1) go to the vector kernel where the lookup across mixes two
+    // lines (both weights nonzero, as its terms assume) and the group's taps fit its form.
+    const int g0 = (a0 + L - 1) / L, g1 = a1 / L;
+    if (!group || g0 >= g1 || o.w0 == 0.0f || o.w1 == 0.0f || t.group_ok.empty()) {
+      per_texel(b, a0, a1);
+      continue;
+    }
+    group(t, in, out, w.data(), b, g0, g1, active, width, dst_zero_outside, in_channels,
+          out_channels, scratch);
+    int p = a0;  // the first position not yet done
+    for (int g = g0; g < g1; ++g) {
+      if (!t.group_ok[g]) continue;
+      per_texel(b, p, g * L);
+      p = (g + 1) * L;
+    }
+    per_texel(b, p, a1);
   }
 }
 

@@ -81,6 +81,58 @@ TileKernel tile_kernel_for(BlurIsa isa) {
   return resolve(isa) == BlurIsa::avx2 ? blur_tiles_avx2 : blur_tiles_generic;
 }
 
+InexactGroupKernel inexact_kernel_for(BlurIsa isa) {
+  return resolve(isa) == BlurIsa::avx2 ? blur_inexact_group_avx2 : blur_inexact_group_generic;
+}
+
+namespace {
+
+// PassTables::group_taps and group_ok from the kernel's taps (one-texel form) and the reference
+// taps (two texels).
+void make_group_taps(PassTables& t) {
+  constexpr int L = PassTables::kGroupLanes;
+  const int per = t.kernel_taps.per_position;
+  const int groups = int(t.reach_lo.size()) / L;
+  t.group_taps.assign(std::size_t(groups) * per, {});
+  t.group_ok.assign(groups, 1);
+  for (int g = 0; g < groups; ++g) {
+    for (int k = 0; k < per; ++k) {
+      PassTables::GroupTap& q = t.group_taps[std::size_t(g) * per + k];
+      int d[L];
+      for (int l = 0; l < L; ++l) {
+        const int a = g * L + l;
+        const std::size_t at = std::size_t(a) * per + k;
+        const AxisTap<float>& kt = t.kernel_taps.taps[at];
+        const AxisTap<float>& rt = t.along.taps[at];
+        const TapForm f = t.forms[at];
+        q.w0[l] = q.w1[l] = 0.0f;
+        q.two[l] = 0;
+        if (f == TapForm::one) {
+          d[l] = kt.i0 - a;
+          q.kinds |= PassTables::some_one;
+        } else if (f == TapForm::two && rt.i1 == rt.i0 + 1 && rt.w0 != 0.0f && rt.w1 != 0.0f) {
+          d[l] = rt.i0 - a;
+          q.w0[l] = rt.w0;
+          q.w1[l] = rt.w1;
+          q.two[l] = -1;
+          q.kinds |= PassTables::some_two;
+        } else {
+          t.group_ok[g] = 0;  // `scaled`, or two texels clamped into one
+          d[l] = 0;
+        }
+      }
+      q.e = *std::min_element(d, d + L);
+      for (int l = 0; l < L; ++l) {
+        if (d[l] - q.e > 1) t.group_ok[g] = 0;  // clamp-to-edge repeats texels
+        q.sel[l] = d[l] == q.e ? 0 : -1;
+        if (q.sel[l]) q.kinds |= PassTables::some_sel;
+      }
+    }
+  }
+}
+
+}  // namespace
+
 PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits) {
   PassTables t;
   t.horizontal = axis == Axis::horizontal;
@@ -117,6 +169,7 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
     t.across[b] = centre_tap(b, n_across, bits, float());
     if (t.across[b].w1 != 0.0f || t.across[b].i0 != b) t.inexact.push_back(b);
   }
+  if (!t.inexact.empty()) make_group_taps(t);
   return t;
 }
 
@@ -204,6 +257,7 @@ void populate_tile_pages(const detail::TileJob& job,
 void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
                     int threads, BlurIsa isa) {
   const detail::TileKernel kernel = detail::tile_kernel_for(isa);
+  const detail::InexactGroupKernel inexact_kernel = detail::inexact_kernel_for(isa);
   const std::shared_ptr<const detail::PassTables> kept =
       detail::pass_tables(opt.axis, src.width, src.height, *opt.kernel, opt.subtexel_bits);
   const detail::PassTables& tables = *kept;
@@ -282,7 +336,7 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
       detail::blur_inexact_lines(tables, src_rows.data(), dst_rows.data(), w, a0,
                                  std::min(a0 + job.tile_along, n_along), b0,
                                  std::min(b0 + job.tile_across, n_across), opt.active, src.width,
-                                 job.dst_zero_outside);
+                                 job.dst_zero_outside, 4, 4, inexact_kernel);
     }
   });
 }

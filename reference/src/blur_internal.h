@@ -137,6 +137,26 @@ struct PassTables {
   }
   std::vector<AxisTap<float>> across;  ///< the lookup across the blur, per line
   std::vector<int> inexact;  ///< lines whose lookup across the blur is not exactly on them
+
+  /// The inexact lines' vector kernel (blur_inexact_group_*) computes kGroupLanes positions along
+  /// the blur at once, one lane each: group g is positions [kGroupLanes g, kGroupLanes (g + 1)).
+  /// Lane l's tap k reads texel 8g + l + e (+ 1 where `sel`) of a line: its one-texel form (the
+  /// sample mixed once across the blur) or, where `two`, that texel and the next at weights w0
+  /// and w1 (the 2-D bilinear mix). Built only when the pass has inexact lines.
+  static constexpr int kGroupLanes = 8;
+  struct GroupTap {
+    float w0[kGroupLanes], w1[kGroupLanes];  ///< along weights where `two` (0 elsewhere)
+    std::int32_t sel[kGroupLanes];           ///< -1: the lane's first texel is e + 1
+    std::int32_t two[kGroupLanes];           ///< -1: two texels (TapForm::two), 0: one
+    int e = 0;
+    std::uint8_t kinds = 0;  ///< GroupKind bits: which lanes occur, so a group skips the rest
+  };
+  enum GroupKind : std::uint8_t { some_one = 1, some_two = 2, some_sel = 4 };
+  std::vector<GroupTap> group_taps;  ///< (n_along / kGroupLanes) x per_position
+  /// Whether group g's lanes all fit that form: every tap `one` or `two` with i1 = i0 + 1 and
+  /// nonzero weights, each lane's first texel e or e + 1 after its position (not where
+  /// clamp-to-edge repeats a texel). Other positions take blur_texel's per-texel path.
+  std::vector<std::uint8_t> group_ok;
 };
 PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits);
 /// make_pass_tables, kept for the last few (axis, size, kernel offsets, bits) asked: the
@@ -197,10 +217,31 @@ void set_tables(TileJob& job, const PassTables& t);
 /// `dst_zero_outside` says they already are. Rows are given by pointers (image row y at in[y],
 /// `in_channels` floats a texel, 3 or 4; a texel's 16 bytes are read, so a row of 3 needs a
 /// float after it); R, G, B are written, and alpha 1 when `out_channels` is 4.
+/// `group` is the vector kernel for whole groups of positions (inexact_kernel_for; null: every
+/// texel the per-texel way).
+using InexactGroupKernel = void (*)(const PassTables& t, const float* const* in,
+                                    float* const* out, const float* w, int b, int g0, int g1,
+                                    const std::uint8_t* active, int width, bool dst_zero_outside,
+                                    int in_channels, int out_channels, TileScratch& scratch);
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
                         const std::uint8_t* active, int width, bool dst_zero_outside = false,
-                        int in_channels = 4, int out_channels = 4);
+                        int in_channels = 4, int out_channels = 4,
+                        InexactGroupKernel group = nullptr);
+
+/// Inexact line b's positions in the groups [g0, g1) whose group_ok is set, blur_texel's bits
+/// (the same operations on each lane as blur_inexact_lines's per-texel path), written as that
+/// path writes them. Compiled once per instruction set (blur_tiles.inc).
+void blur_inexact_group_generic(const PassTables& t, const float* const* in, float* const* out,
+                                const float* w, int b, int g0, int g1,
+                                const std::uint8_t* active, int width, bool dst_zero_outside,
+                                int in_channels, int out_channels, TileScratch& scratch);
+void blur_inexact_group_avx2(const PassTables& t, const float* const* in, float* const* out,
+                             const float* w, int b, int g0, int g1, const std::uint8_t* active,
+                             int width, bool dst_zero_outside, int in_channels, int out_channels,
+                             TileScratch& scratch);
+/// The group kernel for `isa` (as tile_kernel_for).
+InexactGroupKernel inexact_kernel_for(BlurIsa isa);
 
 }  // namespace bloomref::detail
 

@@ -2,4 +2,5 @@
 #define BLOOMREF_VEC_BYTES 16
 #define BLOOMREF_GROUP 8
 #define BLOOMREF_TILE_FN blur_tiles_generic
+#define BLOOMREF_INEXACT_FN blur_inexact_group_generic
 #include "blur_tiles.inc"
