@@ -204,7 +204,7 @@ namespace detail {
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
                         const std::uint8_t* active, int width, bool dst_zero_outside,
-                        int in_channels, int out_channels, InexactGroupKernel group) {
+                        int in_channels, int out_channels, InexactKernels kernels) {
   if (a0 >= a1) return;
   const RowTable src{in, in_channels};
   const bool h = t.horizontal;
@@ -239,8 +239,24 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
       store_rgb(rv, d, out_channels);
     }
   };
-  for (auto it = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
-       it != t.inexact.end() && *it < b1; ++it) {
+  const auto first = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
+  if (!h && kernels.columns) {
+    // The vertical pass: the columns whose lookup across mixes two (both weights nonzero) side
+    // by side in one kernel call, the others (and all of them where it declines) per texel.
+    std::vector<int> cols;
+    for (auto it = first; it != t.inexact.end() && *it < b1; ++it) {
+      const AxisTap<float>& o = t.across[*it];
+      if (o.w0 != 0.0f && o.w1 != 0.0f) cols.push_back(*it);
+      else per_texel(*it, a0, a1);
+    }
+    if (!cols.empty() &&
+        !kernels.columns(t, in, out, w.data(), a0, a1, cols.data(), int(cols.size()), active,
+                         width, dst_zero_outside, in_channels, out_channels, scratch))
+      for (int b : cols) per_texel(b, a0, a1);
+    return;
+  }
+  const InexactGroupKernel group = kernels.group;
+  for (auto it = first; it != t.inexact.end() && *it < b1; ++it) {
     const int b = *it;
     const AxisTap<float>& o = t.across[b];
     // The whole groups inside [a0, a1) go to the vector kernel where the lookup across mixes two

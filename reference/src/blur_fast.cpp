@@ -81,8 +81,9 @@ TileKernel tile_kernel_for(BlurIsa isa) {
   return resolve(isa) == BlurIsa::avx2 ? blur_tiles_avx2 : blur_tiles_generic;
 }
 
-InexactGroupKernel inexact_kernel_for(BlurIsa isa) {
-  return resolve(isa) == BlurIsa::avx2 ? blur_inexact_group_avx2 : blur_inexact_group_generic;
+InexactKernels inexact_kernels_for(BlurIsa isa) {
+  if (resolve(isa) == BlurIsa::avx2) return {blur_inexact_group_avx2, blur_inexact_columns_avx2};
+  return {blur_inexact_group_generic, blur_inexact_columns_generic};
 }
 
 namespace {
@@ -257,7 +258,7 @@ void populate_tile_pages(const detail::TileJob& job,
 void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
                     int threads, BlurIsa isa) {
   const detail::TileKernel kernel = detail::tile_kernel_for(isa);
-  const detail::InexactGroupKernel inexact_kernel = detail::inexact_kernel_for(isa);
+  const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
   const std::shared_ptr<const detail::PassTables> kept =
       detail::pass_tables(opt.axis, src.width, src.height, *opt.kernel, opt.subtexel_bits);
   const detail::PassTables& tables = *kept;
@@ -336,7 +337,7 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
       detail::blur_inexact_lines(tables, src_rows.data(), dst_rows.data(), w, a0,
                                  std::min(a0 + job.tile_along, n_along), b0,
                                  std::min(b0 + job.tile_across, n_across), opt.active, src.width,
-                                 job.dst_zero_outside, 4, 4, inexact_kernel);
+                                 job.dst_zero_outside, 4, 4, inexact_kernels);
     }
   });
 }

@@ -148,7 +148,7 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
   if (dst.width != w || dst.height != h)
     throw ParamError("blur_passes_fused: source and destination sizes differ");
   const detail::TileKernel tile_kernel = detail::tile_kernel_for(isa);
-  const detail::InexactGroupKernel inexact_kernel = detail::inexact_kernel_for(isa);
+  const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
   if (w == 0 || h == 0) return;  // nothing to write (and no strip width to divide by)
   std::vector<Pass> passes;
   passes.reserve(n);
@@ -222,7 +222,7 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
           const int t0 = (r0 / kChunk) * tiles_h;
           tile_kernel(job, t0 + x0 / kTileAlongH, t0 + (x1 + kTileAlongH - 1) / kTileAlongH);
           detail::blur_inexact_lines(t, in, out, weights, x0, x1, r0, r1, nullptr, w, false, cin,
-                                     cout, inexact_kernel);
+                                     cout, inexact_kernels);
         } else {
           // Along = rows, block r0 / kChunk; across = columns [x0, x1).
           job.n_along = h;
@@ -237,7 +237,7 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
             tile_kernel(job, tile, tile + 1);
           }
           detail::blur_inexact_lines(t, in, out, weights, r0, r1, x0, x1, nullptr, w, false, cin,
-                                     cout, inexact_kernel);
+                                     cout, inexact_kernels);
         }
       };
 

@@ -217,17 +217,26 @@ void set_tables(TileJob& job, const PassTables& t);
 /// `dst_zero_outside` says they already are. Rows are given by pointers (image row y at in[y],
 /// `in_channels` floats a texel, 3 or 4; a texel's 16 bytes are read, so a row of 3 needs a
 /// float after it); R, G, B are written, and alpha 1 when `out_channels` is 4.
-/// `group` is the vector kernel for whole groups of positions (inexact_kernel_for; null: every
-/// texel the per-texel way).
+/// `kernels` are the vector kernels (inexact_kernels_for; none: every texel the per-texel way):
+/// the horizontal pass's lines take `group` for whole groups of positions, the vertical pass's
+/// columns `columns` for all of [a0, a1) at once where it applies.
 using InexactGroupKernel = void (*)(const PassTables& t, const float* const* in,
                                     float* const* out, const float* w, int b, int g0, int g1,
                                     const std::uint8_t* active, int width, bool dst_zero_outside,
                                     int in_channels, int out_channels, TileScratch& scratch);
+using InexactColumnsKernel = bool (*)(const PassTables& t, const float* const* in,
+                                      float* const* out, const float* w, int a0, int a1,
+                                      const int* cols, int ncols, const std::uint8_t* active,
+                                      int width, bool dst_zero_outside, int in_channels,
+                                      int out_channels, TileScratch& scratch);
+struct InexactKernels {
+  InexactGroupKernel group = nullptr;
+  InexactColumnsKernel columns = nullptr;
+};
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
                         const std::uint8_t* active, int width, bool dst_zero_outside = false,
-                        int in_channels = 4, int out_channels = 4,
-                        InexactGroupKernel group = nullptr);
+                        int in_channels = 4, int out_channels = 4, InexactKernels kernels = {});
 
 /// Inexact line b's positions in the groups [g0, g1) whose group_ok is set, blur_texel's bits
 /// (the same operations on each lane as blur_inexact_lines's per-texel path), written as that
@@ -240,8 +249,21 @@ void blur_inexact_group_avx2(const PassTables& t, const float* const* in, float*
                              const float* w, int b, int g0, int g1, const std::uint8_t* active,
                              int width, bool dst_zero_outside, int in_channels, int out_channels,
                              TileScratch& scratch);
-/// The group kernel for `isa` (as tile_kernel_for).
-InexactGroupKernel inexact_kernel_for(BlurIsa isa);
+/// The vertical pass's inexact columns [cols, cols + ncols) (both across weights nonzero), rows
+/// [a0, a1), blur_texel's bits, written as blur_inexact_lines's per-texel path writes them: the
+/// columns side by side in vector lanes (R, G, B of each), so that every lane takes the row's
+/// taps in the same form. Returns false, having written nothing, where a tap of those rows is
+/// neither one texel nor two with nonzero weight products. Compiled once per instruction set.
+bool blur_inexact_columns_generic(const PassTables& t, const float* const* in, float* const* out,
+                                  const float* w, int a0, int a1, const int* cols, int ncols,
+                                  const std::uint8_t* active, int width, bool dst_zero_outside,
+                                  int in_channels, int out_channels, TileScratch& scratch);
+bool blur_inexact_columns_avx2(const PassTables& t, const float* const* in, float* const* out,
+                               const float* w, int a0, int a1, const int* cols, int ncols,
+                               const std::uint8_t* active, int width, bool dst_zero_outside,
+                               int in_channels, int out_channels, TileScratch& scratch);
+/// The inexact lines' kernels for `isa` (as tile_kernel_for).
+InexactKernels inexact_kernels_for(BlurIsa isa);
 
 }  // namespace bloomref::detail
 

@@ -5,4 +5,5 @@
 #define BLOOMREF_GROUP 4
 #define BLOOMREF_TILE_FN blur_tiles_avx2
 #define BLOOMREF_INEXACT_FN blur_inexact_group_avx2
+#define BLOOMREF_INEXACT_COLUMNS_FN blur_inexact_columns_avx2
 #include "blur_tiles.inc"
