@@ -457,9 +457,10 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
                                        {533, 19},  {1000, 61}};
   // 533 columns: column 511, the last of the first strip, reads column 512 across a vertical
   // pass (its lookup straddles two columns), which the pass before must compute for the strip.
-  // 1000x61: inexact lines both ways, with whole groups of 8 positions along them (the inexact
-  // lines' vector kernel: strips of 500 columns cut groups at 496 and 504, rows in chunks of 32).
-  // Its term orders, lane selects, form blends and first term each fail this test when altered.
+  // 1000x61: inexact lines both ways: rows with whole groups of 8 positions along them (the
+  // group kernel; strips of 500 columns cut groups at 496 and 504) and columns side by side in
+  // chunks of 32 rows (the columns kernel). The kernels' term orders, weight products, lane
+  // selects, form blends and first terms each fail this test when altered.
   const std::vector<std::vector<Axis>> orders = {
       {Axis::horizontal},
       {Axis::horizontal, Axis::vertical},

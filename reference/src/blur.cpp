@@ -240,13 +240,15 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
     }
   };
   const auto first = std::lower_bound(t.inexact.begin(), t.inexact.end(), b0);
-  if (!h && kernels.columns) {
+  const auto last = std::lower_bound(first, t.inexact.end(), b1);
+  if (!h) {
     // The vertical pass: the columns whose lookup across mixes two (both weights nonzero) side
-    // by side in one kernel call, the others (and all of them where it declines) per texel.
+    // by side in one call of the columns kernel, the others (and all where it declines) per
+    // texel.
     std::vector<int> cols;
-    for (auto it = first; it != t.inexact.end() && *it < b1; ++it) {
+    for (auto it = first; it != last; ++it) {
       const AxisTap<float>& o = t.across[*it];
-      if (o.w0 != 0.0f && o.w1 != 0.0f) cols.push_back(*it);
+      if (kernels.columns && o.w0 != 0.0f && o.w1 != 0.0f) cols.push_back(*it);
       else per_texel(*it, a0, a1);
     }
     if (!cols.empty() &&
@@ -255,19 +257,19 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
       for (int b : cols) per_texel(b, a0, a1);
     return;
   }
-  const InexactGroupKernel group = kernels.group;
-  for (auto it = first; it != t.inexact.end() && *it < b1; ++it) {
+  // The horizontal pass: the whole groups inside [a0, a1) go to the group kernel where the
+  // lookup across mixes two rows (both weights nonzero, as its terms assume) and the group's
+  // taps fit its form; the other positions per texel.
+  const int g0 = (a0 + L - 1) / L, g1 = a1 / L;
+  for (auto it = first; it != last; ++it) {
     const int b = *it;
     const AxisTap<float>& o = t.across[b];
-    // The whole groups inside [a0, a1) go to the vector kernel where the lookup across mixes two
-    // lines (both weights nonzero, as its terms assume) and the group's taps fit its form.
-    const int g0 = (a0 + L - 1) / L, g1 = a1 / L;
-    if (!group || g0 >= g1 || o.w0 == 0.0f || o.w1 == 0.0f || t.group_ok.empty()) {
+    if (!kernels.group || g0 >= g1 || o.w0 == 0.0f || o.w1 == 0.0f || t.group_ok.empty()) {
       per_texel(b, a0, a1);
       continue;
     }
-    group(t, in, out, w.data(), b, g0, g1, active, width, dst_zero_outside, in_channels,
-          out_channels, scratch);
+    kernels.group(t, in, out, w.data(), b, g0, g1, active, width, dst_zero_outside, in_channels,
+                  out_channels, scratch);
     int p = a0;  // the first position not yet done
     for (int g = g0; g < g1; ++g) {
       if (!t.group_ok[g]) continue;

@@ -170,7 +170,7 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
     t.across[b] = centre_tap(b, n_across, bits, float());
     if (t.across[b].w1 != 0.0f || t.across[b].i0 != b) t.inexact.push_back(b);
   }
-  if (!t.inexact.empty()) make_group_taps(t);
+  if (t.horizontal && !t.inexact.empty()) make_group_taps(t);  // the vertical pass: columns
   return t;
 }
 

@@ -138,11 +138,12 @@ struct PassTables {
   std::vector<AxisTap<float>> across;  ///< the lookup across the blur, per line
   std::vector<int> inexact;  ///< lines whose lookup across the blur is not exactly on them
 
-  /// The inexact lines' vector kernel (blur_inexact_group_*) computes kGroupLanes positions along
-  /// the blur at once, one lane each: group g is positions [kGroupLanes g, kGroupLanes (g + 1)).
-  /// Lane l's tap k reads texel 8g + l + e (+ 1 where `sel`) of a line: its one-texel form (the
-  /// sample mixed once across the blur) or, where `two`, that texel and the next at weights w0
-  /// and w1 (the 2-D bilinear mix). Built only when the pass has inexact lines.
+  /// The horizontal pass's inexact rows' vector kernel (blur_inexact_group_*) computes
+  /// kGroupLanes positions along the blur at once, one lane each: group g is positions
+  /// [kGroupLanes g, kGroupLanes (g + 1)). Lane l's tap k reads texel 8g + l + e (+ 1 where
+  /// `sel`) of a row: its one-texel form (the sample mixed once across the blur) or, where `two`,
+  /// that texel and the next at weights w0 and w1 (the 2-D bilinear mix). Built only for a
+  /// horizontal pass with inexact rows (the vertical pass's columns: blur_inexact_columns_*).
   static constexpr int kGroupLanes = 8;
   struct GroupTap {
     float w0[kGroupLanes], w1[kGroupLanes];  ///< along weights where `two` (0 elsewhere)
@@ -238,7 +239,8 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
                         const std::uint8_t* active, int width, bool dst_zero_outside = false,
                         int in_channels = 4, int out_channels = 4, InexactKernels kernels = {});
 
-/// Inexact line b's positions in the groups [g0, g1) whose group_ok is set, blur_texel's bits
+/// Inexact row b's positions (a horizontal pass) in the groups [g0, g1) whose group_ok is set,
+/// blur_texel's bits
 /// (the same operations on each lane as blur_inexact_lines's per-texel path), written as that
 /// path writes them. Compiled once per instruction set (blur_tiles.inc).
 void blur_inexact_group_generic(const PassTables& t, const float* const* in, float* const* out,
