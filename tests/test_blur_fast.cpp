@@ -29,6 +29,7 @@ namespace {
 std::vector<BlurIsa> isas() {
   std::vector<BlurIsa> v = {BlurIsa::generic};
   if (blur_isa_available(BlurIsa::avx2)) v.push_back(BlurIsa::avx2);
+  if (blur_isa_available(BlurIsa::avx512)) v.push_back(BlurIsa::avx512);
   return v;
 }
 
@@ -495,6 +496,29 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
           }
         }
       }
+    }
+  }
+}
+
+TEST_CASE("the fused blur's last pass stored past the cache gives the same bits",
+          "[blur][fast][fused]") {
+  // From 64 MB of output on, the last vertical pass stores its 32-byte-aligned pairs of texels
+  // with streaming stores (blur_fused.cpp, kStreamOutBytes). 2100 columns: every strip starts
+  // on a 32-byte boundary; 2101: strips of 351 columns and rows of 33616 bytes, aligned and not,
+  // so both the streamed and the plain stores write parts of the image.
+  for (int w : {2100, 2101}) {
+    const int h = 2048;
+    REQUIRE(std::size_t(w) * h * 16 >= std::size_t(64) << 20);
+    Image src = hostile_image(w, h, 77u + unsigned(w));
+    const std::vector<Axis> axes = {Axis::horizontal, Axis::vertical};
+    Image a(w, h), b(w, h);
+    blur_pass(src.cview(), a.view(), BlurPassOptions{axes[0], &kernel_discrete9(), 0}, 2);
+    blur_pass(a.cview(), b.view(), BlurPassOptions{axes[1], &kernel_discrete9(), 0}, 2);
+    for (BlurIsa isa : isas()) {
+      Image fused(w, h, 7.0f);
+      blur_passes_fused(src.cview(), fused.view(), axes, kernel_discrete9(), 0, 2, isa);
+      INFO(w << "x" << h << " isa " << blur_isa_name(isa));
+      CHECK(test::same_bits_nan_agnostic(b.cview(), fused.cview()));
     }
   }
 }

@@ -54,6 +54,7 @@ struct Agreement {
 std::vector<BlurIsa> isas() {
   std::vector<BlurIsa> v = {BlurIsa::generic};
   if (blur_isa_available(BlurIsa::avx2)) v.push_back(BlurIsa::avx2);
+  if (blur_isa_available(BlurIsa::avx512)) v.push_back(BlurIsa::avx512);
   return v;
 }
 

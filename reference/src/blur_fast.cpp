@@ -47,24 +47,51 @@ bool cpu_has_avx2() {
 #endif
 }
 
+// AVX-512F for the blur's tile kernels, and AVX2 (+FMA, F16C) for the other fast stages'.
+bool cpu_has_avx512() {
+#if defined(__x86_64__) && defined(BLOOMREF_HAVE_AVX2_KERNEL)
+  return cpu_has_avx2() && __builtin_cpu_supports("avx512f");
+#else
+  return false;
+#endif
+}
+
+bool available(BlurIsa isa) {
+  if (isa == BlurIsa::avx2) return cpu_has_avx2();
+  if (isa == BlurIsa::avx512) return cpu_has_avx512();
+  return true;
+}
+
 BlurIsa resolve(BlurIsa isa) {
-  if (isa == BlurIsa::best) return cpu_has_avx2() ? BlurIsa::avx2 : BlurIsa::generic;
-  if (isa == BlurIsa::avx2 && !cpu_has_avx2())
+  if (isa == BlurIsa::best) {
+    if (cpu_has_avx512()) return BlurIsa::avx512;
+    return cpu_has_avx2() ? BlurIsa::avx2 : BlurIsa::generic;
+  }
+  if (isa == BlurIsa::avx2 && !available(isa))
     throw ParamError("the AVX2 (+FMA, F16C) kernels are not available on this CPU or build");
+  if (isa == BlurIsa::avx512 && !available(isa))
+    throw ParamError("the AVX-512F kernels are not available on this CPU or build");
   return isa;
 }
 
 }  // namespace
 
-bool blur_isa_available(BlurIsa isa) { return isa != BlurIsa::avx2 || cpu_has_avx2(); }
+bool blur_isa_available(BlurIsa isa) { return available(isa); }
 
 std::string blur_isa_name(BlurIsa isa) {
-  return resolve(isa) == BlurIsa::avx2 ? "avx2" : "generic";
+  switch (resolve(isa)) {
+    case BlurIsa::avx512: return "avx512";
+    case BlurIsa::avx2: return "avx2";
+    default: return "generic";
+  }
 }
 
 namespace detail {
 
-bool resolves_to_avx2(BlurIsa isa) { return resolve(isa) == BlurIsa::avx2; }
+bool resolves_to_avx2(BlurIsa isa) {
+  const BlurIsa r = resolve(isa);
+  return r == BlurIsa::avx2 || r == BlurIsa::avx512;
+}
 
 TileScratch::TileScratch() = default;
 TileScratch::~TileScratch() = default;
@@ -78,11 +105,17 @@ float* TileScratch::tile(std::size_t n) {
 }
 
 TileKernel tile_kernel_for(BlurIsa isa) {
-  return resolve(isa) == BlurIsa::avx2 ? blur_tiles_avx2 : blur_tiles_generic;
+  switch (resolve(isa)) {
+    case BlurIsa::avx512: return blur_tiles_avx512;
+    case BlurIsa::avx2: return blur_tiles_avx2;
+    default: return blur_tiles_generic;
+  }
 }
 
 InexactKernels inexact_kernels_for(BlurIsa isa) {
-  if (resolve(isa) == BlurIsa::avx2) return {blur_inexact_group_avx2, blur_inexact_columns_avx2};
+  const BlurIsa r = resolve(isa);
+  if (r == BlurIsa::avx512) return {blur_inexact_group_avx512, blur_inexact_columns_avx512};
+  if (r == BlurIsa::avx2) return {blur_inexact_group_avx2, blur_inexact_columns_avx2};
   return {blur_inexact_group_generic, blur_inexact_columns_generic};
 }
 
@@ -360,8 +393,8 @@ void blur_pass_approx(BasicView<const float> src, BasicView<float> dst,
   job.weights = w.data();
   job.n_weights = static_cast<int>(w.size());
   job.active = opt.active;
-  const auto kernel =
-      isa == BlurIsa::avx2 ? detail::blur_approx_avx2_fma : detail::blur_approx_generic;
+  const auto kernel = detail::resolves_to_avx2(isa) ? detail::blur_approx_avx2_fma
+                                                    : detail::blur_approx_generic;
   parallel_rows(src.height, threads, [&](int y0, int y1) { kernel(job, y0, y1); });
 }
 

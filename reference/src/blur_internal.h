@@ -80,12 +80,18 @@ struct TileJob {
   /// time, so it needs 8 floats of slack after it). 3 only from the fused blur, which gives no
   /// mask (`active`).
   int src_channels = 4, dst_channels = 4;
+  /// Whether a vertical pass from rows of 3 to rows of 4 floats may store its output past the
+  /// cache (x86 streaming stores, where the destination row is 32-byte aligned): the fused
+  /// blur's last pass into an image larger than the last-level cache, which the next pass
+  /// could not have found there anyway (the stores then skip reading each line in first).
+  bool stream_dst = false;
 };
 
 /// Computes tiles [t0, t1) of `job`: every texel of a line whose lookup across the blur is
 /// exact is bit-identical to blur_texel. Compiled once per instruction set; the same IEEE operations in every lane.
 void blur_tiles_generic(const TileJob& job, int t0, int t1);
 void blur_tiles_avx2(const TileJob& job, int t0, int t1);
+void blur_tiles_avx512(const TileJob& job, int t0, int t1);  // 64-byte vectors
 
 /// The tile kernel's scratch buffers, made, grown and freed by functions defined in a
 /// baseline-ISA file, so that the per-ISA kernels instantiate no std::vector member of their
@@ -107,8 +113,9 @@ class TileScratch {
   PixelBuffer<float> local_, tile_;
 };
 
-/// Whether `isa` means the AVX2 kernels here (best: where this CPU and build have them); throws
-/// ParamError for AVX2 where they do not. Shared by every fast stage's dispatch.
+/// Whether `isa` means the AVX2 kernels here for the stages other than the blur's tiles (avx2
+/// and avx512; best: where this CPU and build have them); throws ParamError for AVX2 or AVX-512
+/// where they are not. Shared by every fast stage's dispatch.
 bool resolves_to_avx2(BlurIsa isa);
 
 using TileKernel = void (*)(const TileJob&, int, int);
@@ -264,6 +271,14 @@ bool blur_inexact_columns_avx2(const PassTables& t, const float* const* in, floa
                                const float* w, int a0, int a1, const int* cols, int ncols,
                                const std::uint8_t* active, int width, bool dst_zero_outside,
                                int in_channels, int out_channels, TileScratch& scratch);
+void blur_inexact_group_avx512(const PassTables& t, const float* const* in, float* const* out,
+                               const float* w, int b, int g0, int g1, const std::uint8_t* active,
+                               int width, bool dst_zero_outside, int in_channels,
+                               int out_channels, TileScratch& scratch);
+bool blur_inexact_columns_avx512(const PassTables& t, const float* const* in, float* const* out,
+                                 const float* w, int a0, int a1, const int* cols, int ncols,
+                                 const std::uint8_t* active, int width, bool dst_zero_outside,
+                                 int in_channels, int out_channels, TileScratch& scratch);
 /// The inexact lines' kernels for `isa` (as tile_kernel_for).
 InexactKernels inexact_kernels_for(BlurIsa isa);
 

@@ -137,11 +137,12 @@ struct BlurPassOptions {
 template <class T>
 void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& opt, int threads);
 
-/// Instruction sets of the fast blur's kernel. Every one gives blur_pass's bits.
-enum class BlurIsa { best, generic, avx2 };
+/// Instruction sets of the fast blur's kernel. Every one gives blur_pass's bits. avx512: the
+/// blur's tile kernels with 64-byte vectors (AVX-512F), the other fast stages' AVX2 kernels.
+enum class BlurIsa { best, generic, avx2, avx512 };
 /// Whether this CPU (and this build) can run `isa`; `best` and `generic` always can.
 bool blur_isa_available(BlurIsa isa);
-/// The instruction set `best` resolves to here ("avx2" or "generic").
+/// The instruction set `best` resolves to here ("avx512", "avx2" or "generic").
 std::string blur_isa_name(BlurIsa isa = BlurIsa::best);
 
 /// Stage `blur.k` in f32, fast and bit-identical to blur_pass (same IEEE operations in the same
