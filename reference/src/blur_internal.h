@@ -119,8 +119,8 @@ class TileScratch {
 bool resolves_to_avx2(BlurIsa isa);
 
 using TileKernel = void (*)(const TileJob&, int, int);
-/// The tile kernel for `isa` (best: AVX2 where this CPU and build have it); throws ParamError
-/// for AVX2 where they do not.
+/// The tile kernel for `isa` (best: the widest of AVX-512, AVX2 and generic this CPU and build
+/// have); throws ParamError for AVX2 or AVX-512 where they are not.
 TileKernel tile_kernel_for(BlurIsa isa);
 
 /// One f32 pass's tables, shared by blur_pass_fast and blur_passes_fused.
