@@ -67,10 +67,10 @@ BlurIsa resolve(BlurIsa isa) {
     if (cpu_has_avx512()) return BlurIsa::avx512;
     return cpu_has_avx2() ? BlurIsa::avx2 : BlurIsa::generic;
   }
-  if (isa == BlurIsa::avx2 && !available(isa))
-    throw ParamError("the AVX2 (+FMA, F16C) kernels are not available on this CPU or build");
-  if (isa == BlurIsa::avx512 && !available(isa))
-    throw ParamError("the AVX-512F kernels are not available on this CPU or build");
+  if (!available(isa))
+    throw ParamError(isa == BlurIsa::avx512
+                         ? "the AVX-512F kernels are not available on this CPU or build"
+                         : "the AVX2 (+FMA, F16C) kernels are not available on this CPU or build");
   return isa;
 }
 
@@ -88,7 +88,7 @@ std::string blur_isa_name(BlurIsa isa) {
 
 namespace detail {
 
-bool resolves_to_avx2(BlurIsa isa) {
+bool uses_avx2_stages(BlurIsa isa) {
   const BlurIsa r = resolve(isa);
   return r == BlurIsa::avx2 || r == BlurIsa::avx512;
 }
@@ -393,7 +393,7 @@ void blur_pass_approx(BasicView<const float> src, BasicView<float> dst,
   job.weights = w.data();
   job.n_weights = static_cast<int>(w.size());
   job.active = opt.active;
-  const auto kernel = detail::resolves_to_avx2(isa) ? detail::blur_approx_avx2_fma
+  const auto kernel = detail::uses_avx2_stages(isa) ? detail::blur_approx_avx2_fma
                                                     : detail::blur_approx_generic;
   parallel_rows(src.height, threads, [&](int y0, int y1) { kernel(job, y0, y1); });
 }

@@ -168,7 +168,8 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
     dst_rows[y] = dst.row(y);
   }
   const int tiles_h = (w + kTileAlongH - 1) / kTileAlongH;  // horizontal tiles per row block
-  const bool stream_out = std::size_t(w) * std::size_t(h) * kChannels * sizeof(float) >= kStreamOutBytes;
+  const bool stream_out =
+      std::size_t(w) * std::size_t(h) * kChannels * sizeof(float) >= kStreamOutBytes;
   const int chunks = (h + kChunk - 1) / kChunk;
 
   // Strips of equal width, a whole number per thread (3840 columns on two threads: 8 strips
@@ -210,7 +211,7 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
         detail::TileJob job;
         job.src_channels = cin;
         job.dst_channels = cout;
-        job.stream_dst = k + 1 == n && stream_out;
+        job.stream_dst = k + 1 == n && !t.horizontal && stream_out;
         job.src_rows = in;
         job.dst_rows = out;
         job.horizontal = t.horizontal;

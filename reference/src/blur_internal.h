@@ -116,7 +116,7 @@ class TileScratch {
 /// Whether `isa` means the AVX2 kernels here for the stages other than the blur's tiles (avx2
 /// and avx512; best: where this CPU and build have them); throws ParamError for AVX2 or AVX-512
 /// where they are not. Shared by every fast stage's dispatch.
-bool resolves_to_avx2(BlurIsa isa);
+bool uses_avx2_stages(BlurIsa isa);
 
 using TileKernel = void (*)(const TileJob&, int, int);
 /// The tile kernel for `isa` (best: the widest of AVX-512, AVX2 and generic this CPU and build

@@ -22,9 +22,9 @@ constexpr std::size_t kTableMinPixels = std::size_t(1) << 17;
 
 detail::FinishKernel kernel_for(BlurIsa isa) {
 #ifdef BLOOMREF_HAVE_AVX2_KERNEL
-  if (detail::resolves_to_avx2(isa)) return detail::finish_row_avx2;
+  if (detail::uses_avx2_stages(isa)) return detail::finish_row_avx2;
 #else
-  detail::resolves_to_avx2(isa);  // throws for avx2
+  detail::uses_avx2_stages(isa);  // throws for avx2 and avx512
 #endif
   return detail::finish_row_generic;
 }
