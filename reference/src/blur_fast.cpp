@@ -88,6 +88,8 @@ std::string blur_isa_name(BlurIsa isa) {
 
 namespace detail {
 
+BlurIsa resolve_isa(BlurIsa isa) { return resolve(isa); }
+
 bool uses_avx2_stages(BlurIsa isa) {
   const BlurIsa r = resolve(isa);
   return r == BlurIsa::avx2 || r == BlurIsa::avx512;

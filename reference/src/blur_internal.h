@@ -117,6 +117,9 @@ class TileScratch {
 /// and avx512; best: where this CPU and build have them); throws ParamError for AVX2 or AVX-512
 /// where they are not. Shared by every fast stage's dispatch.
 bool uses_avx2_stages(BlurIsa isa);
+/// `isa` as it runs here: best becomes the widest of avx512, avx2 and generic this CPU and build
+/// have; throws ParamError for AVX2 or AVX-512 where they are not.
+BlurIsa resolve_isa(BlurIsa isa);
 
 using TileKernel = void (*)(const TileJob&, int, int);
 /// The tile kernel for `isa` (best: the widest of AVX-512, AVX2 and generic this CPU and build

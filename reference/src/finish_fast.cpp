@@ -21,12 +21,13 @@ namespace {
 constexpr std::size_t kTableMinPixels = std::size_t(1) << 17;
 
 detail::FinishKernel kernel_for(BlurIsa isa) {
+  switch (detail::resolve_isa(isa)) {  // throws for avx2 and avx512 where they are not
 #ifdef BLOOMREF_HAVE_AVX2_KERNEL
-  if (detail::uses_avx2_stages(isa)) return detail::finish_row_avx2;
-#else
-  detail::uses_avx2_stages(isa);  // throws for avx2 and avx512
+    case BlurIsa::avx512: return detail::finish_row_avx512;
+    case BlurIsa::avx2: return detail::finish_row_avx2;
 #endif
-  return detail::finish_row_generic;
+    default: return detail::finish_row_generic;
+  }
 }
 
 // Whether a table of finished values pays for this scene: enough pixels outside the support,

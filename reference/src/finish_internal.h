@@ -60,5 +60,7 @@ int finish_row_generic(const FinishRow&, const float*, const BloomRow&, float*, 
                        PackedRun*);
 int finish_row_avx2(const FinishRow&, const float*, const BloomRow&, float*, int, float*,
                     PackedRun*);
+int finish_row_avx512(const FinishRow&, const float*, const BloomRow&, float*, int, float*,
+                      PackedRun*);
 
 }  // namespace bloomref::detail

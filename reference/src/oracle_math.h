@@ -63,6 +63,7 @@ struct Lanes;
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wpsabi"
 BLOOMREF_LANES(4)
+BLOOMREF_LANES(8)
 #pragma GCC diagnostic pop
 #undef BLOOMREF_LANES
 template <>
