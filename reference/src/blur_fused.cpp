@@ -135,22 +135,22 @@ Columns strip_columns(const std::vector<Pass>& passes, int sx0, int sx1) {
   return c;
 }
 
-// A pointer that reaches `p` at column x0 of a ring row: row tables index rows by absolute
-// column.
-float* shifted(float* p, int x0) {
+// A pointer that reaches `p` at column x0 of a row of `channels` floats a texel: row tables
+// index rows by absolute column.
+float* shifted(float* p, int x0, int channels = kRingChannels) {
   return reinterpret_cast<float*>(reinterpret_cast<std::uintptr_t>(p) -
-                                  std::uintptr_t(x0) * kRingChannels * sizeof(float));
+                                  std::uintptr_t(x0) * std::uintptr_t(channels) * sizeof(float));
 }
 
-}  // namespace
-
-void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
-                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                       int threads, BlurIsa isa) {
+// Both entry points: the last pass writes into dst, or (sink given) into a block of kChunk rows
+// of the strip handed to the sink as each is done.
+void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink* sink,
+           const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits, int threads,
+           BlurIsa isa) {
   const int w = src.width, h = src.height;
   const int n = static_cast<int>(axes.size());
   if (n == 0) throw ParamError("blur_passes_fused: no passes");
-  if (dst.width != w || dst.height != h)
+  if (!sink && (dst.width != w || dst.height != h))
     throw ParamError("blur_passes_fused: source and destination sizes differ");
   const detail::TileKernel tile_kernel = detail::tile_kernel_for(isa);
   const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
@@ -162,14 +162,15 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
   const std::vector<float>& weights = kernel.weights_f32;
 
   std::vector<const float*> src_rows(h);
-  std::vector<float*> dst_rows(h);
+  std::vector<float*> dst_rows(sink ? 0 : h);
   for (int y = 0; y < h; ++y) {
     src_rows[y] = src.row(y);
-    dst_rows[y] = dst.row(y);
+    if (!sink) dst_rows[y] = dst.row(y);
   }
   const int tiles_h = (w + kTileAlongH - 1) / kTileAlongH;  // horizontal tiles per row block
-  const bool stream_out =
-      std::size_t(w) * std::size_t(h) * kChannels * sizeof(float) >= kStreamOutBytes;
+  // (A sink's block stays in cache for it: never streamed.)
+  const bool stream_out = !sink && std::size_t(w) * std::size_t(h) * kChannels * sizeof(float) >=
+                                       kStreamOutBytes;
   const int chunks = (h + kChunk - 1) / kChunk;
 
   // Strips of equal width, a whole number per thread (3840 columns on two threads: 8 strips
@@ -199,13 +200,28 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
         for (int r = 0; r < h; ++r)
           out_rows[k][r] = shifted(rings[k].data() + (r % ring[k]) * row_floats, strip.x0[k]);
       }
+      // With a sink, the last pass's rows: a block of kChunk rows of the strip (RGBA), row r
+      // in slot r mod kChunk (the last pass computes whole blocks from a multiple of kChunk).
+      PixelBuffer<float> block;
+      std::vector<float*> block_rows;
+      std::vector<const float*> handed(sink ? kChunk : 0);
+      if (sink) {
+        const std::size_t row_floats = std::size_t(sx1 - sx0) * kChannels;
+        block = PixelBuffer<float>(std::size_t(kChunk) * row_floats + kRingPad);
+        block_rows.resize(h);
+        for (int r = 0; r < h; ++r)
+          block_rows[r] = shifted(block.data() + (r % kChunk) * row_floats, sx0, kChannels);
+        for (int i = 0; i < kChunk; ++i) handed[i] = block.data() + i * row_floats;
+      }
       std::vector<int> produced(n, 0);
 
       auto compute_chunk = [&](int k, int r0, int r1) {
         const detail::PassTables& t = *passes[k].t;
         const int x0 = strip.x0[k], x1 = strip.x1[k];
         const float* const* in = k == 0 ? src_rows.data() : out_rows[k - 1].data();
-        float* const* out = k + 1 == n ? dst_rows.data() : out_rows[k].data();
+        float* const* out = k + 1 < n ? out_rows[k].data()
+                            : sink  ? block_rows.data()
+                                    : dst_rows.data();
         const int cin = k == 0 ? kChannels : kRingChannels;
         const int cout = k + 1 == n ? kChannels : kRingChannels;
         detail::TileJob job;
@@ -255,12 +271,28 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
           const int r0 = produced[k], r1 = std::min(r0 + kChunk, h);
           if (k > 0) ensure(k - 1, input_rows(passes[k], r0, r1).hi);
           compute_chunk(k, r0, r1);
+          if (sink && k + 1 == n) (*sink)(sx0, sx1, r0, r1, handed.data());
           produced[k] = r1;
         }
       };
       ensure(n - 1, h);
     }
   });
+}
+
+}  // namespace
+
+void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
+                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
+                       int threads, BlurIsa isa) {
+  fused(src, dst, nullptr, axes, kernel, subtexel_bits, threads, isa);
+}
+
+void blur_passes_fused(BasicView<const float> src, const FusedBlurSink& sink,
+                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
+                       int threads, BlurIsa isa) {
+  if (!sink) throw ParamError("blur_passes_fused: no sink");
+  fused(src, BasicView<float>{}, &sink, axes, kernel, subtexel_bits, threads, isa);
 }
 
 }  // namespace bloomref

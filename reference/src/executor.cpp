@@ -138,12 +138,12 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   const int bw = p.method == Method::gaussian ? w : 0, bh = p.method == Method::gaussian ? h : 0;
   const bool sparse_bright = p.plan == PlanMode::adaptive && !opt.keep_all &&
                              plan.facts.bright_pixels * 100 <= std::uint64_t(w) * std::uint64_t(h);
-  // The ledgers of the pool's images (image.h), each found by the buffer it covers.
+  // The ledgers of the pool's images (image.h), each found by the buffer it was made for.
   std::vector<detail::PageLedger> ledgers;
   ledgers.reserve(2);  // the bright image and the first blur target
   auto ledger_of = [&](const BasicImage<T>& img) -> detail::PageLedger* {
     for (detail::PageLedger& l : ledgers)
-      if (!img.empty() && l.covers(img.data())) return &l;
+      if (!img.empty() && l.of(img.data())) return &l;
     return nullptr;
   };
   BasicImage<T> bright = sparse_bright ? take_zeroed<T>(bw, bh, ledgers)
@@ -165,6 +165,11 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   const bool fuse_finish = fast_finish && !opt.keep_all &&
                            !(p.method == Method::mip &&
                              p.composite == CompositeOrder::after_tonemap);
+  // Where the gaussian blur's last passes run fused, the finishing stages run inside it, on
+  // each block of the last pass (blur_passes_fused's sink): the composite stage then has
+  // nothing left to do.
+  const bool finish_in_blur = fuse_finish && p.method == Method::gaussian;
+  bool finished_in_blur = false;
   auto tonemap_as = [&](const BasicImage<T>& src, BasicImage<T>& dst) {
     if constexpr (std::is_same_v<T, float>)
       if (fast_finish) return tonemap_fast(src.cview(), dst.view(), p.exposure, threads);
@@ -271,14 +276,6 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
         const bool first_pass = stage.pass == 1;
-        if (pong.empty()) {
-          if (leave_zeros && first_pass) {
-            pong = take_zeroed<T>(w, h, ledgers);
-          } else {
-            pong = BasicImage<T>::uninitialised(w, h);
-            prefault_image(pong, threads);  // written whole by this pass
-          }
-        }
         int pass_threads = threads;
         if (p.plan == PlanMode::adaptive) {
           // Blur only the bright pixels' support (started by the input stage), dilated pass by
@@ -291,20 +288,32 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           // Pass k > 1 writes the buffer pass k - 2 (pass 2: bright) left +0 outside a support
           // contained in this one (stages.h); pass 1 a zeroed one, or a new one it fills.
           o.dst_zero_outside = !first_pass || leave_zeros;
-          o.src_pages = ledger_of(src);
-          o.dst_pages = ledger_of(pong);
-          o.page_threads = threads;
           trace.skipped_fraction.emplace_back(
               stage.name, 1.0 - double(support.count()) / (double(w) * h));
         }
+        // Dense from here on (the full plan, or the adaptive plan once its support covers half
+        // the image), nothing rounded or kept between passes: the rest of the passes run fused.
+        const bool fused_rest = std::is_same_v<T, float> && o.active == nullptr &&
+                                p.blur == BlurImpl::fast && p.storage == Storage::f32 &&
+                                !opt.keep_all;
+        if (pong.empty() && !(fused_rest && finish_in_blur)) {
+          if (leave_zeros && first_pass) {
+            pong = take_zeroed<T>(w, h, ledgers);
+          } else {
+            pong = BasicImage<T>::uninitialised(w, h);
+            prefault_image(pong, threads);  // written whole by this pass
+          }
+        }
+        if (p.plan == PlanMode::adaptive) {
+          o.src_pages = ledger_of(src);
+          o.dst_pages = ledger_of(pong);
+          o.page_threads = threads;
+        }
         if constexpr (std::is_same_v<T, float>) {
-          // Dense from here on (the full plan, or the adaptive plan once its support covers
-          // half the image), nothing rounded or kept between passes: this pass and the rest at
-          // once, fused (the same bits as pass by pass, tested; the image is read and written
-          // once). The adaptive plan stops tracking its support once dense, so the rest are
-          // recorded as not skipping anything.
-          if (o.active == nullptr && p.blur == BlurImpl::fast && p.storage == Storage::f32 &&
-              !opt.keep_all) {
+          // This pass and the rest at once, fused (the same bits as pass by pass, tested; the
+          // image is read and written once). The adaptive plan stops tracking its support once
+          // dense, so the rest are recorded as not skipping anything.
+          if (fused_rest) {
             std::vector<Axis> axes;
             for (const StageSpec& s : plan.stages)
               if (s.kind == StageKind::blur && s.pass >= stage.pass) {
@@ -312,15 +321,33 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
                 if (p.plan == PlanMode::adaptive && s.pass > stage.pass)
                   trace.skipped_fraction.emplace_back(s.name, 0.0);
               }
-            blur_passes_fused(src.cview(), pong.view(), axes, kernel_for(p.kernel),
-                              p.subtexel_bits, threads);
-            std::swap(ping, pong);
+            std::string name = "blur." + std::to_string(stage.pass) + "-" +
+                               std::to_string(stage.pass + int(axes.size()) - 1);
+            if (finish_in_blur) {
+              // Composite, tone map and output on each block of the last pass while it is in
+              // cache, in place into the scene (finish_fast_rows: finish_fast's bits, value by
+              // value): no bloom image is allocated, written or read back.
+              BasicView<float> out = scene.view();
+              const FusedBlurSink sink = [&](int x0, int x1, int y0, int y1,
+                                             const float* const* rows) {
+                std::vector<float*> dst(std::size_t(y1 - y0));
+                for (int y = y0; y < y1; ++y) dst[std::size_t(y - y0)] = out.row(y) + 4 * x0;
+                finish_fast_rows(dst.data(), rows, dst.data(), y1 - y0, x1 - x0, p.strength,
+                                 p.exposure, p.gamma);
+              };
+              blur_passes_fused(src.cview(), sink, axes, kernel_for(p.kernel), p.subtexel_bits,
+                                threads);
+              finished_in_blur = true;
+              name += "+composite+tonemap+output";
+            } else {
+              blur_passes_fused(src.cview(), pong.view(), axes, kernel_for(p.kernel),
+                                p.subtexel_bits, threads);
+              std::swap(ping, pong);
+            }
             pong = BasicImage<T>();
             bright = BasicImage<T>();  // not read again
             blur_fused_done = true;
-            trace.timings.emplace_back("blur." + std::to_string(stage.pass) + "-" +
-                                           std::to_string(stage.pass + int(axes.size()) - 1),
-                                       ms_since(t0));
+            trace.timings.emplace_back(name, ms_since(t0));
             break;
           }
           if (p.blur == BlurImpl::fast) blur_pass_fast(src.cview(), pong.view(), o, pass_threads);
@@ -377,6 +404,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         break;
       }
       case StageKind::composite: {
+        if (finished_in_blur) break;  // in the fused blur's sink, timed with it
         // What is added: the mip chain's bloom, the last blur pass, or (no pass ran) bright.
         const bool blurred = p.method == Method::gaussian && p.passes > 0 &&
                              !plan.stages[1 + p.passes].skipped;

@@ -165,4 +165,23 @@ std::size_t finish_fast(BasicView<const float> scene, BasicView<const float> blo
   return run_rows(scene, bloom, dst, job, threads, isa, bloom_support);
 }
 
+void finish_fast_rows(const float* const* scene_rows, const float* const* bloom_rows,
+                      float* const* dst_rows, int rows, int width, float strength,
+                      float exposure, float gamma, BlurIsa isa) {
+  if (rows <= 0 || width <= 0) return;
+  detail::FinishRow job;
+  job.strength = strength;
+  job.tonemap = job.encode = true;
+  job.exposure = exposure;
+  job.inv_gamma = 1.0f / gamma;
+  const detail::FinishKernel kernel = kernel_for(isa);
+  std::vector<float> line(detail::finish_line_floats(width) + detail::kFinishLineSlack);
+  std::vector<detail::PackedRun> runs(static_cast<std::size_t>(width));
+  for (int i = 0; i < rows; ++i) {
+    detail::BloomRow b;
+    b.pixels = bloom_rows[i];
+    kernel(job, scene_rows[i], b, dst_rows[i], width, line.data(), runs.data());
+  }
+}
+
 }  // namespace bloomref

@@ -12,6 +12,7 @@
 #include <cstring>
 #include <memory>
 #include <new>
+#include <utility>
 
 namespace bloomref::detail {
 
@@ -71,10 +72,27 @@ void zero_lazily(void* p, std::size_t bytes) noexcept {
 PageLedger::PageLedger(const void* base, std::size_t bytes) {
   static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
   const auto begin = reinterpret_cast<std::uintptr_t>(base);
+  base_ = begin;
   shift_ = __builtin_ctzl(page);  // a power of two
   first_ = begin / page * page;
   end_ = (begin + bytes + page - 1) / page * page;
   done_.assign((end_ - first_) / page, 0);
+}
+
+PageLedger& PageLedger::operator=(PageLedger&& o) noexcept {
+  if (this == &o) return *this;
+  base_ = std::exchange(o.base_, 0);
+  first_ = std::exchange(o.first_, 0);
+  end_ = std::exchange(o.end_, 0);
+  shift_ = o.shift_;
+  done_ = std::move(o.done_);
+  fresh_ = std::move(o.fresh_);
+  populated_ = std::exchange(o.populated_, 0);
+  visits_ = std::move(o.visits_);
+  o.done_.clear();
+  o.fresh_.clear();
+  o.visits_.clear();
+  return *this;
 }
 
 bool PageLedger::marked(const void* p) const {

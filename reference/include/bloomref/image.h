@@ -48,6 +48,17 @@ class PageLedger {
  public:
   PageLedger() = default;
   PageLedger(const void* base, std::size_t bytes);
+  /// A moved-from ledger covers no page (it would otherwise keep its range with no page marks,
+  /// and a buffer sharing a page with the old one could find it).
+  PageLedger(PageLedger&& o) noexcept { *this = std::move(o); }
+  PageLedger& operator=(PageLedger&& o) noexcept;
+  PageLedger(const PageLedger&) = delete;
+  PageLedger& operator=(const PageLedger&) = delete;
+  /// Whether this is the ledger of the buffer that starts at `base`: covers() is not enough, two
+  /// buffers can share a page (small images come from the heap, one after another).
+  bool of(const void* base) const {
+    return base_ != 0 && reinterpret_cast<std::uintptr_t>(base) == base_;
+  }
   /// Marks the pages of [p, p + bytes); ranges outside the ledger's buffer are ignored. Inline:
   /// a sparse pass marks each row of each tile it visits for the first time.
   void mark(const void* p, std::size_t bytes) {
@@ -80,6 +91,7 @@ class PageLedger {
                    std::size_t n);
 
  private:
+  std::uintptr_t base_ = 0;              // the buffer's first byte
   std::uintptr_t first_ = 0, end_ = 0;  // the pages the buffer touches: [first_, end_)
   int shift_ = 12;                      // log2 of the page size
   std::vector<std::uint8_t> done_;      // per page: marked by an earlier mark()

@@ -15,6 +15,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -166,6 +167,20 @@ void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
                        const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
                        int threads, BlurIsa isa = BlurIsa::best);
 
+/// What blur_passes_fused can hand its output to instead of an image: rows [y0, y1) of columns
+/// [x0, x1) of the last pass (RGBA, alpha 1), row y0 + i at rows[i], texel x0 first. Called
+/// from the thread of the strip [x0, x1) as each block of rows is done (rows in order within a
+/// strip, strips in any order, two strips at once on two threads); every texel of the image is
+/// handed over exactly once. The rows are scratch, valid during the call.
+using FusedBlurSink =
+    std::function<void(int x0, int x1, int y0, int y1, const float* const* rows)>;
+/// blur_passes_fused with its output handed to `sink` block by block while it is still in
+/// cache (the same bits), instead of written into an image: the executor finishes it there
+/// (finish_fast_rows), so the dense plan neither allocates the bloom image nor reads it back.
+void blur_passes_fused(BasicView<const float> src, const FusedBlurSink& sink,
+                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
+                       int threads, BlurIsa isa = BlurIsa::best);
+
 /// Stage `blur.k`, fast and approximate: not GL's sampling but the 9-tap stencil both kernels
 /// sample exactly (taps on texels x +- i, clamped to the edge, the discrete9 weights rounded to
 /// float), pairs summed first, multiply-adds fused with AVX2+FMA. Its error against the f64
@@ -298,6 +313,14 @@ std::size_t finish_fast(BasicView<const float> scene, BasicView<const float> blo
                         BasicView<float> dst, float strength, float exposure, float gamma,
                         int threads, BlurIsa isa = BlurIsa::best,
                         const RowSpans* bloom_support = nullptr);
+
+/// finish_fast's composite, tone map and output over `rows` row segments of `width` RGBA
+/// pixels (scene_rows[i], bloom_rows[i], dst_rows[i]; dst may be the scene), on the calling
+/// thread, with finish_fast's bits: every value is finished on its own, so a row cut into
+/// segments gives what the whole row gives. For the fused blur's sink.
+void finish_fast_rows(const float* const* scene_rows, const float* const* bloom_rows,
+                      float* const* dst_rows, int rows, int width, float strength,
+                      float exposure, float gamma, BlurIsa isa = BlurIsa::best);
 
 /// Rounds every channel to the storage format in place. f32 storage is a no-op in either
 /// precision (the f64 truth is not narrowed to float); f16 storage rounds to binary16.
