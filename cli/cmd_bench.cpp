@@ -58,7 +58,9 @@ std::vector<std::pair<int, int>> parse_sizes(const std::string& s) {
   return out;
 }
 
-// Time spent in the blur (gaussian passes, or the mip chain and its full-size bloom).
+// Time spent in the blur (gaussian passes, or the mip chain and its full-size bloom). Where the
+// dense f32 plan runs the finishing stages inside the fused blur (one timing,
+// `blur.1-10+composite+tonemap+output`), they are counted with it: they cannot be timed apart.
 double blur_ms(const StageTrace& t) {
   double b = 0;
   for (const auto& [n, ms] : t.timings)
