@@ -224,9 +224,9 @@ TEST_CASE("the fast finishing stages give the staged reference's bits", "[stages
   }
 }
 
-TEST_CASE("the fast tone map's eight-lane series and mixed vectors give the reference's bits",
+TEST_CASE("the fast tone map's 8- and 16-lane series and mixed vectors give the reference's bits",
           "[stages][oracle-math]") {
-  // Mostly dark values (|h| < 0.5: the series, eight lanes at a time where all take it) with a
+  // Mostly dark values (|h| < 0.5: the series, 8 or 16 lanes at a time where all take it) with a
   // bright, negative or non-finite value now and then (that vector's halves go through exp's
   // lanes), on rows whose RGB values are not a whole number of vectors (641 * 3 = 1923).
   std::mt19937 rng(11);

@@ -32,7 +32,7 @@ struct PackedRun {
 /// Floats of the scratch line a row of `width` pixels needs: its RGB values padded to whole
 /// vectors of the widest kernel.
 inline std::size_t finish_line_floats(int width) {
-  return (static_cast<std::size_t>(width) * 3 + 7) / 8 * 8;
+  return (static_cast<std::size_t>(width) * 3 + 15) / 16 * 16;
 }
 /// Floats the scratch line has after finish_line_floats(width): its two-pixel packing and
 /// unpacking store and load eight floats for six.

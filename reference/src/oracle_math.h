@@ -27,6 +27,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 #include "isa_namespace.h"  // each instruction set its own symbols
 
@@ -82,6 +85,24 @@ struct Lanes<1> {
 inline bool all_lanes(bool m) { return m; }
 template <class M>
 inline bool all_lanes(const M& m) {
+  // One sign-bit mask instruction where the vector is a whole register (a lane is all ones or
+  // all zeros, so its sign bit says which); the loop below extracts lane by lane.
+#ifdef __AVX512F__
+  if constexpr (sizeof(M) == 64 && sizeof(m[0]) == 4) {
+    const __m512i x = reinterpret_cast<__m512i>(m);
+    return _mm512_test_epi32_mask(x, x) == 0xffff;
+  }
+#endif
+#ifdef __AVX__
+  if constexpr (sizeof(M) == 32 && sizeof(m[0]) == 4)
+    return _mm256_movemask_ps(reinterpret_cast<__m256>(m)) == 0xff;
+  if constexpr (sizeof(M) == 32 && sizeof(m[0]) == 8)
+    return _mm256_movemask_pd(reinterpret_cast<__m256d>(m)) == 0xf;
+#endif
+#ifdef __SSE2__
+  if constexpr (sizeof(M) == 16 && sizeof(m[0]) == 4)
+    return _mm_movemask_ps(reinterpret_cast<__m128>(m)) == 0xf;
+#endif
   constexpr int n = int(sizeof(M) / sizeof(m[0]));
   auto all = m[0];
   for (int i = 1; i < n; ++i) all &= m[i];
