@@ -90,10 +90,7 @@ namespace detail {
 
 BlurIsa resolve_isa(BlurIsa isa) { return resolve(isa); }
 
-bool uses_avx2_stages(BlurIsa isa) {
-  const BlurIsa r = resolve(isa);
-  return r == BlurIsa::avx2 || r == BlurIsa::avx512;
-}
+bool uses_avx2_stages(BlurIsa isa) { return resolve(isa) != BlurIsa::generic; }
 
 TileScratch::TileScratch() = default;
 TileScratch::~TileScratch() = default;

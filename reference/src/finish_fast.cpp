@@ -30,6 +30,17 @@ detail::FinishKernel kernel_for(BlurIsa isa) {
   }
 }
 
+// The three finishing stages at once: composite, tone map, output (finish_fast's job, and
+// finish_fast_rows').
+detail::FinishRow finish_job(float strength, float exposure, float gamma) {
+  detail::FinishRow job;
+  job.strength = strength;
+  job.tonemap = job.encode = true;
+  job.exposure = exposure;
+  job.inv_gamma = 1.0f / gamma;
+  return job;
+}
+
 // Whether a table of finished values pays for this scene: enough pixels outside the support,
 // and of 1024 pixels sampled evenly over the image at least half with three binary16 values
 // s + t (a scene read from a half-float file; a float scene has next to none).
@@ -157,23 +168,15 @@ void encode_output_fast(BasicView<const float> mapped, BasicView<float> dst, flo
 std::size_t finish_fast(BasicView<const float> scene, BasicView<const float> bloom,
                         BasicView<float> dst, float strength, float exposure, float gamma,
                         int threads, BlurIsa isa, const RowSpans* bloom_support) {
-  detail::FinishRow job;
-  job.strength = strength;
-  job.tonemap = job.encode = true;
-  job.exposure = exposure;
-  job.inv_gamma = 1.0f / gamma;
-  return run_rows(scene, bloom, dst, job, threads, isa, bloom_support);
+  return run_rows(scene, bloom, dst, finish_job(strength, exposure, gamma), threads, isa,
+                  bloom_support);
 }
 
 void finish_fast_rows(const float* const* scene_rows, const float* const* bloom_rows,
                       float* const* dst_rows, int rows, int width, float strength,
                       float exposure, float gamma, BlurIsa isa) {
   if (rows <= 0 || width <= 0) return;
-  detail::FinishRow job;
-  job.strength = strength;
-  job.tonemap = job.encode = true;
-  job.exposure = exposure;
-  job.inv_gamma = 1.0f / gamma;
+  const detail::FinishRow job = finish_job(strength, exposure, gamma);
   const detail::FinishKernel kernel = kernel_for(isa);
   std::vector<float> line(detail::finish_line_floats(width) + detail::kFinishLineSlack);
   std::vector<detail::PackedRun> runs(static_cast<std::size_t>(width));

@@ -85,13 +85,10 @@ PageLedger& PageLedger::operator=(PageLedger&& o) noexcept {
   first_ = std::exchange(o.first_, 0);
   end_ = std::exchange(o.end_, 0);
   shift_ = o.shift_;
-  done_ = std::move(o.done_);
-  fresh_ = std::move(o.fresh_);
+  done_ = std::exchange(o.done_, {});
+  fresh_ = std::exchange(o.fresh_, {});
   populated_ = std::exchange(o.populated_, 0);
-  visits_ = std::move(o.visits_);
-  o.done_.clear();
-  o.fresh_.clear();
-  o.visits_.clear();
+  visits_ = std::exchange(o.visits_, {});
   return *this;
 }
 

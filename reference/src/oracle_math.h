@@ -85,8 +85,9 @@ struct Lanes<1> {
 inline bool all_lanes(bool m) { return m; }
 template <class M>
 inline bool all_lanes(const M& m) {
-  // One sign-bit mask instruction where the vector is a whole register (a lane is all ones or
-  // all zeros, so its sign bit says which); the loop below extracts lane by lane.
+  // One sign-bit mask instruction where the vector is a whole register of 32-bit lanes (the
+  // only masks the callers make: float comparisons; a lane is all ones or all zeros, so its sign
+  // bit says which); the loop below extracts lane by lane.
 #ifdef __AVX512F__
   if constexpr (sizeof(M) == 64 && sizeof(m[0]) == 4) {
     const __m512i x = reinterpret_cast<__m512i>(m);
@@ -96,8 +97,6 @@ inline bool all_lanes(const M& m) {
 #ifdef __AVX__
   if constexpr (sizeof(M) == 32 && sizeof(m[0]) == 4)
     return _mm256_movemask_ps(reinterpret_cast<__m256>(m)) == 0xff;
-  if constexpr (sizeof(M) == 32 && sizeof(m[0]) == 8)
-    return _mm256_movemask_pd(reinterpret_cast<__m256d>(m)) == 0xf;
 #endif
 #ifdef __SSE2__
   if constexpr (sizeof(M) == 16 && sizeof(m[0]) == 4)
