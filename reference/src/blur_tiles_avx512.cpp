@@ -3,7 +3,8 @@
 // (blur_fast.cpp checks at run time).
 #define BLOOMREF_ISA_NAMESPACE isa_avx512
 #define BLOOMREF_VEC_BYTES 64
-#define BLOOMREF_GROUP 4
+// 6: a fused horizontal pass line (32 rows x 3 floats = 96) is six 16-float vectors, one group.
+#define BLOOMREF_GROUP 6
 #define BLOOMREF_TILE_FN blur_tiles_avx512
 #define BLOOMREF_INEXACT_FN blur_inexact_group_avx512
 #define BLOOMREF_INEXACT_COLUMNS_FN blur_inexact_columns_avx512
