@@ -203,6 +203,17 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
     if (t.across[b].w1 != 0.0f || t.across[b].i0 != b) t.inexact.push_back(b);
   }
   if (t.horizontal && !t.inexact.empty()) make_group_taps(t);  // the vertical pass: columns
+  t.column_terms.assign(std::size_t(width) + 1, 0);
+  for (int x = 0; x < width; ++x) {
+    std::int64_t terms = 0;
+    if (t.horizontal) {
+      for (int i = 0; i < per; ++i)
+        terms += t.forms[std::size_t(x) * per + i] == TapForm::two ? 2 : 1;
+    } else {
+      terms = t.across[x].w1 != 0.0f ? 2 * per : per;
+    }
+    t.column_terms[x + 1] = t.column_terms[x] + terms;
+  }
   return t;
 }
 

@@ -17,8 +17,8 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
-#include <numeric>
 #include <functional>
+#include <numeric>
 #include <vector>
 
 #include "blur_internal.h"
@@ -138,26 +138,15 @@ Columns strip_columns(const std::vector<Pass>& passes, int sx0, int sx1) {
   return c;
 }
 
-// A strip's work, roughly: the terms its passes add (a tap of one texel 1, of two texels 2) over
-// the columns each pass computes, doubled on the vertical passes' inexact columns (each term a
-// mix across). Only the order of strips comes from it (the most expensive first, taken from a
-// shared queue): strips differ by ~25% at 3840 columns (columns below 2048 have twice the
-// two-texel taps of those above, their coordinates' float rounding being finer), and two
-// threads each taking a contiguous half left one of them ~20% more to do.
-double strip_cost(const std::vector<Pass>& passes, const Columns& c) {
-  double cost = 0;
-  for (std::size_t k = 0; k < passes.size(); ++k) {
-    const detail::PassTables& t = *passes[k].t;
-    const int per = t.along.per_position;
-    for (int x = c.x0[k]; x < c.x1[k]; ++x) {
-      if (t.horizontal) {
-        for (int i = 0; i < per; ++i)
-          cost += t.forms[std::size_t(x) * per + i] == detail::TapForm::two ? 2 : 1;
-      } else {
-        cost += t.across[x].w1 != 0.0f ? 2 * per : per;
-      }
-    }
-  }
+// A strip's work, roughly (PassTables::column_terms over the columns each pass computes). Only
+// the order of strips comes from it (the most expensive first, taken from a shared queue):
+// strips differ by ~25% at 3840 columns (columns below 2048 have twice the two-texel taps of
+// those above, their coordinates' float rounding being finer), and two threads each taking a
+// contiguous half left one of them ~20% more to do.
+std::int64_t strip_cost(const std::vector<Pass>& passes, const Columns& c) {
+  std::int64_t cost = 0;
+  for (std::size_t k = 0; k < passes.size(); ++k)
+    cost += passes[k].t->column_terms[c.x1[k]] - passes[k].t->column_terms[c.x0[k]];
   return cost;
 }
 
@@ -211,7 +200,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
   const int strip_width = (w + nstrips - 1) / nstrips;
   nstrips = (w + strip_width - 1) / strip_width;
   std::vector<Columns> strips(nstrips);
-  std::vector<double> cost(nstrips);
+  std::vector<std::int64_t> cost(nstrips);
   for (int si = 0; si < nstrips; ++si) {
     strips[si] = strip_columns(passes, si * strip_width, std::min(w, (si + 1) * strip_width));
     cost[si] = strip_cost(passes, strips[si]);
@@ -235,8 +224,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
         // one and never straddle two. Ten fused one-thread vertical passes at 3840x2160, 8-bit
         // weights (harness, medians of 5 alternated rounds): 103.8 -> 90.1 ms.
         const std::size_t row_floats =
-            (std::size_t(strip.x1[k] - strip.x0[k]) * kRingChannels + kRowAlign - 1) / kRowAlign *
-            kRowAlign;
+            detail::round_up(std::size_t(strip.x1[k] - strip.x0[k]) * kRingChannels, kRowAlign);
         rings[k] = PixelBuffer<float>(std::size_t(ring[k]) * row_floats + kRingPad);
         out_rows[k].resize(h);
         for (int r = 0; r < h; ++r)

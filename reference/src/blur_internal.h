@@ -126,6 +126,9 @@ using TileKernel = void (*)(const TileJob&, int, int);
 /// have); throws ParamError for AVX2 or AVX-512 where they are not.
 TileKernel tile_kernel_for(BlurIsa isa);
 
+/// n rounded up to a multiple of m.
+constexpr std::size_t round_up(std::size_t n, std::size_t m) { return (n + m - 1) / m * m; }
+
 /// One f32 pass's tables, shared by blur_pass_fast and blur_passes_fused.
 struct PassTables {
   bool horizontal = true;
@@ -147,6 +150,11 @@ struct PassTables {
   }
   std::vector<AxisTap<float>> across;  ///< the lookup across the blur, per line
   std::vector<int> inexact;  ///< lines whose lookup across the blur is not exactly on them
+  /// The pass's work per image column, roughly, as prefix sums (column_terms[x1] -
+  /// column_terms[x0]: columns [x0, x1)): the terms its texels add, a two-texel tap counted
+  /// twice, and every tap of a column whose lookup across mixes two (a vertical pass's inexact
+  /// column) twice. The fused blur orders its strips by it.
+  std::vector<std::int64_t> column_terms;
 
   /// The horizontal pass's inexact rows' vector kernel (blur_inexact_group_*) computes
   /// kGroupLanes positions along the blur at once, one lane each: group g is positions
