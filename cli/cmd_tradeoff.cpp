@@ -100,12 +100,13 @@ std::function<int()> add_tradeoff(CLI::App& app) {
       tp.plan = PlanMode::full;
       const Plan truth_plan = make_plan(tp, scene.cview());
       const StageTrace truth = execute(truth_plan, scene.cview(), {true});
-      auto run = [&](bool keep) {
-        if (!c.gl) return execute(plan, scene.cview(), {keep});
+      auto run = [&](bool keep) {  // each run makes its plan again (its scan is timed, "plan")
+        const Plan fresh = make_plan(c.params, scene.cview());
+        if (!c.gl) return execute(fresh, scene.cview(), {keep});
         gpu::GlOptions go;
         go.shaders = c.shaders;
         go.keep_all = keep;
-        return gpu::execute_gl(*ctx, plan, scene.cview(), go);
+        return gpu::execute_gl(*ctx, fresh, scene.cview(), go);
       };
       run(false);  // warm-up
       std::vector<double> t;

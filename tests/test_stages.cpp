@@ -141,6 +141,95 @@ TEST_CASE("the threshold-tie scene: exactly one band of three is bright", "[stag
   }
 }
 
+namespace {
+// What the plan's scan must find, read value by value from the policy's definition (DESIGN.md:
+// the input stage), written out here without the library's functions: NaN -> 0 unless
+// propagated; +-Inf -> 0 (zero), +-the storage's largest value (clamp: 65504 for f16, 2^120 for
+// f32) or itself (propagate); finite beyond 2^120 -> +-2^120 under every policy; bright when
+// 0.2126 r + 0.7152 g + 0.0722 b, summed left to right in T, is above the threshold.
+template <class T>
+SceneFacts facts_by_hand(const Image& img, const BloomParams& p) {
+  SceneFacts f;
+  const double guard = std::ldexp(1.0, 120);
+  const double largest = p.storage == Storage::f16 ? 65504.0 : guard;
+  for (int y = 0; y < img.height(); ++y)
+    for (int x = 0; x < img.width(); ++x) {
+      const float* px = img.pixel(x, y);
+      T v[3];
+      for (int c = 0; c < 4; ++c) {
+        const double d = px[c];
+        double s = d;
+        if (d != d) {
+          ++f.nonfinite.nan;
+          s = p.nonfinite == NonFinite::propagate ? d : 0.0;
+        } else if (d == INFINITY || d == -INFINITY) {
+          ++(d > 0 ? f.nonfinite.pos_inf : f.nonfinite.neg_inf);
+          s = p.nonfinite == NonFinite::zero ? 0.0
+              : p.nonfinite == NonFinite::clamp ? (d > 0 ? largest : -largest) : d;
+        } else if (std::fabs(d) > guard) {
+          ++f.nonfinite.out_of_range;
+          s = d > 0 ? guard : -guard;
+        }
+        if (c < 3) v[c] = static_cast<T>(s);
+      }
+      T lum = v[0] * T(0.2126);
+      lum = lum + v[1] * T(0.7152);
+      lum = lum + v[2] * T(0.0722);
+      f.bright_pixels += lum > static_cast<T>(p.threshold);
+    }
+  return f;
+}
+}  // namespace
+
+TEST_CASE("the plan's scan finds what a value-by-value reading of the policy finds", "[stages][plan]") {
+  // Beside the scenes and the corpus (NaN and Inf in BrightRingsNanInf.exr, values beyond 2^120
+  // in scale.hdr and WideFloatRange.exr): 4k+1..4k+3 wide rows (the vector loop's tail), clean
+  // rows beside rows with one non-finite value, and values within an ulp of the threshold.
+  std::vector<std::pair<std::string, Image>> extra;
+  for (int w : {1, 3, 5, 7, 8, 13}) {
+    Image img(w, 9);
+    std::uint32_t state = 12345u + std::uint32_t(w);
+    auto next = [&] { state = state * 1664525u + 1013904223u; return state >> 8; };
+    for (int y = 0; y < img.height(); ++y)
+      for (int x = 0; x < w; ++x) {
+        float* px = img.pixel(x, y);
+        for (int c = 0; c < 3; ++c) {
+          float v = 1.0f;  // luminance of grey 1 is within rounding of the threshold 1
+          for (std::uint32_t k = next() % 5; k-- > 0;)
+            v = std::nextafter(v, next() % 2 ? 2.0f : 0.0f);
+          px[c] = v;
+        }
+        px[3] = 1;
+      }
+    const float specials[] = {NAN, INFINITY, -INFINITY, 3e38f, -3e38f, 70000.0f};
+    for (int y = 1; y < img.height(); y += 2)
+      img.pixel(int(next() % std::uint32_t(w)), y)[next() % 4] = specials[(y / 2) % 6];
+    extra.emplace_back("grey ties, width " + std::to_string(w), std::move(img));
+  }
+  for (auto& [name, img] : test::scenes_and_corpus(std::move(extra))) {
+    for (NonFinite policy : {NonFinite::zero, NonFinite::clamp, NonFinite::propagate})
+      for (Storage storage : {Storage::f32, Storage::f16})
+        for (Precision prec : {Precision::f32, Precision::f64}) {
+          BloomParams p;
+          p.nonfinite = policy;
+          p.storage = storage;
+          p.precision = prec;
+          p.threads = 2;
+          const SceneFacts want = prec == Precision::f64 ? facts_by_hand<double>(img, p)
+                                                         : facts_by_hand<float>(img, p);
+          const SceneFacts got = make_plan(p, img.cview()).facts;
+          INFO(name << ", " << to_string(policy) << ", " << to_string(storage) << ", "
+                    << to_string(prec));
+          CHECK(got.bright_pixels == want.bright_pixels);
+          CHECK(got.nonfinite.nan == want.nonfinite.nan);
+          CHECK(got.nonfinite.pos_inf == want.nonfinite.pos_inf);
+          CHECK(got.nonfinite.neg_inf == want.nonfinite.neg_inf);
+          CHECK(got.nonfinite.out_of_range == want.nonfinite.out_of_range);
+          CHECK(got.scan_ms >= 0);
+        }
+  }
+}
+
 TEST_CASE("tone map against 1 - exp(-x) closed forms", "[stages]") {
   ImageF64 h = one_pixel<double>(1.0, 2.0, 1e-10), m(1, 1);
   tonemap(h.cview(), m.view(), 1.0, 1);

@@ -362,6 +362,8 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
         break;
     }
   }
+  // The plan's scan of the scene (on the CPU) is part of the run, as in the CPU executor.
+  trace.timings.insert(trace.timings.begin(), {"plan", plan.facts.scan_ms});
   for (const auto& [name, ms] : trace.timings) trace.total_ms += ms;  // readbacks excluded
   return trace;
 }

@@ -506,6 +506,14 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   return trace;
 }
 
+// The plan's scan of the scene is part of the run it was made for: its first timing, "plan", and
+// part of the total.
+StageTrace with_scan(const Plan& plan, StageTrace trace) {
+  trace.timings.insert(trace.timings.begin(), {"plan", plan.facts.scan_ms});
+  trace.total_ms += plan.facts.scan_ms;
+  return trace;
+}
+
 }  // namespace
 
 void release_scratch_images() { scratch_pool().clear(); }
@@ -521,8 +529,9 @@ StageTrace execute(const Plan& plan, ConstImageView scene, const ExecuteOptions&
     throw ParamError("the plan was made for a " + std::to_string(plan.facts.width) + "x" +
                      std::to_string(plan.facts.height) + " scene, not " +
                      std::to_string(scene.width) + "x" + std::to_string(scene.height));
-  return plan.params.precision == Precision::f64 ? run<double>(plan, scene, opt, nullptr)
-                                                 : run<float>(plan, scene, opt, nullptr);
+  return with_scan(plan, plan.params.precision == Precision::f64
+                               ? run<double>(plan, scene, opt, nullptr)
+                               : run<float>(plan, scene, opt, nullptr));
 }
 
 StageTrace execute(const Plan& plan, Image&& scene, const ExecuteOptions& opt) {
@@ -530,7 +539,7 @@ StageTrace execute(const Plan& plan, Image&& scene, const ExecuteOptions& opt) {
   if (scene.width() != plan.facts.width || scene.height() != plan.facts.height)
     return execute(plan, scene.cview(), opt);  // reports the mismatch
   const ConstImageView view = scene.cview();
-  return run<float>(plan, view, opt, &scene);
+  return with_scan(plan, run<float>(plan, view, opt, &scene));
 }
 
 }  // namespace bloomref

@@ -1,6 +1,10 @@
 #include "bloomref/plan.h"
 
+#include <chrono>
+#include <cmath>
+#include <cstring>
 #include <mutex>
+#include <type_traits>
 
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
@@ -8,28 +12,74 @@
 namespace bloomref {
 namespace {
 
-// Pixels whose sanitised luminance is above the threshold (decided before storage, as the MRT
-// pass does): the same per-value functions the input stage applies, in the plan's precision.
+// How many values of a row are non-finite or beyond kRangeGuard, and how many pixels are bright
+// (sanitised luminance > threshold, decided before storage, as the MRT pass does), in one scan.
+// A row without such values (most rows: one branch-free test per value first, which the
+// compiler vectorises; NaN fails it too) is its own sanitised self, and its luminance is
+// computed four pixels at a time in vector lanes with the scalar operations (-ffp-contract=off:
+// no fused multiply-add), so each lane's comparison is the scalar one. Other rows take every
+// value through the per-value functions the input stage applies.
 template <class T>
-std::uint64_t count_bright(ConstImageView scene, const BloomParams& p) {
-  std::uint64_t total = 0;
-  std::mutex m;
-  const T threshold = static_cast<T>(p.threshold);
-  parallel_rows(scene.height, p.threads, [&](int y0, int y1) {
-    std::uint64_t n = 0;
-    for (int y = y0; y < y1; ++y) {
-      for (int x = 0; x < scene.width; ++x) {
-        const float* s = scene.pixel(x, y);
-        T v[3];
-        for (int c = 0; c < 3; ++c)
-          v[c] = sanitize_value(static_cast<T>(s[c]), p.nonfinite, p.storage);
-        n += luminance(v[0], v[1], v[2]) > threshold;
-      }
+void scan_row(const float* s, int width, const BloomParams& p, NonFiniteCounts& c,
+              std::uint64_t& bright) {
+  const int n = width * kChannels;
+  int outside = 0;
+  for (int i = 0; i < n; ++i) outside |= !(std::fabs(s[i]) <= float(kRangeGuard));
+  if (outside) {
+    for (int i = 0; i < n; ++i) {
+      if (std::isnan(s[i])) ++c.nan;
+      else if (std::isinf(s[i])) ++(s[i] > 0 ? c.pos_inf : c.neg_inf);
+      else if (std::fabs(s[i]) > float(kRangeGuard)) ++c.out_of_range;
     }
+    const T threshold = static_cast<T>(p.threshold);
+    for (int x = 0; x < width; ++x, s += kChannels) {
+      T v[3];
+      for (int k = 0; k < 3; ++k) v[k] = sanitize_value(static_cast<T>(s[k]), p.nonfinite, p.storage);
+      bright += luminance(v[0], v[1], v[2]) > threshold;
+    }
+    return;
+  }
+  int x = 0;
+  if constexpr (std::is_same_v<T, float>) {
+    typedef float v4f __attribute__((vector_size(16)));
+    typedef int v4i __attribute__((vector_size(16)));
+    const v4f threshold = v4f{} + p.threshold;
+    v4i count{};
+    for (; x + 4 <= width; x += 4, s += 4 * kChannels) {
+      v4f a, b, c4, d;
+      std::memcpy(&a, s, 16);
+      std::memcpy(&b, s + 4, 16);
+      std::memcpy(&c4, s + 8, 16);
+      std::memcpy(&d, s + 12, 16);
+      const v4f rg01 = __builtin_shuffle(a, b, v4i{0, 4, 1, 5});  // r0 r1 g0 g1
+      const v4f rg23 = __builtin_shuffle(c4, d, v4i{0, 4, 1, 5});
+      const v4f b01 = __builtin_shuffle(a, b, v4i{2, 6, 3, 7});  // b0 b1 a0 a1
+      const v4f b23 = __builtin_shuffle(c4, d, v4i{2, 6, 3, 7});
+      const v4f r = __builtin_shuffle(rg01, rg23, v4i{0, 1, 4, 5});
+      const v4f g = __builtin_shuffle(rg01, rg23, v4i{2, 3, 6, 7});
+      const v4f bl = __builtin_shuffle(b01, b23, v4i{0, 1, 4, 5});
+      count -= luminance<v4f, float>(r, g, bl) > threshold;  // -1 in a bright lane
+    }
+    bright += std::uint64_t(count[0]) + std::uint64_t(count[1]) + std::uint64_t(count[2]) +
+              std::uint64_t(count[3]);
+  }
+  const T threshold = static_cast<T>(p.threshold);
+  for (; x < width; ++x, s += kChannels)
+    bright += luminance(static_cast<T>(s[0]), static_cast<T>(s[1]), static_cast<T>(s[2])) > threshold;
+}
+
+// The scene's facts in one parallel scan (scan_row per row).
+template <class T>
+void scan_scene(ConstImageView scene, const BloomParams& p, SceneFacts& facts) {
+  std::mutex m;
+  parallel_rows(scene.height, p.threads, [&](int y0, int y1) {
+    NonFiniteCounts c;
+    std::uint64_t bright = 0;
+    for (int y = y0; y < y1; ++y) scan_row<T>(scene.row(y), scene.width, p, c, bright);
     std::lock_guard<std::mutex> lock(m);
-    total += n;
+    facts.nonfinite += c;
+    facts.bright_pixels += bright;
   });
-  return total;
 }
 
 std::string describe(const NonFiniteCounts& c) {
@@ -89,14 +139,14 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
   plan.params = params;
   plan.facts.width = scene.width;
   plan.facts.height = scene.height;
-  plan.facts.nonfinite = count_nonfinite(scene, params.threads);
+  const auto t0 = std::chrono::steady_clock::now();
+  if (params.precision == Precision::f64) scan_scene<double>(scene, params, plan.facts);
+  else scan_scene<float>(scene, params, plan.facts);
+  plan.facts.scan_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (params.nonfinite == NonFinite::error && plan.facts.nonfinite.total() > 0)
     throw InputError(source, "holds " + describe(plan.facts.nonfinite) +
                                  " and --nonfinite error refuses them (use zero, clamp or "
                                  "propagate)");
-  plan.facts.bright_pixels = params.precision == Precision::f64
-                                 ? count_bright<double>(scene, params)
-                                 : count_bright<float>(scene, params);
 
   const bool adaptive = params.plan == PlanMode::adaptive;
   if (params.method == Method::mip) {

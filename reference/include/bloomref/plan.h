@@ -34,6 +34,9 @@ struct SceneFacts {
   int width = 0, height = 0;
   NonFiniteCounts nonfinite;
   std::uint64_t bright_pixels = 0;  ///< luminance > threshold after the policy
+  /// How long the scan took: the executors report it as the first timing, "plan", and count
+  /// it in their total (a plan is made for one run: what it learned is the scene's).
+  double scan_ms = 0;
 };
 
 struct Plan {
