@@ -132,6 +132,46 @@ TEMPLATE_TEST_CASE("extract_bright into a zeroed image writes only bright pixels
   CHECK(std::signbit(out.pixel(1, 0)[0]));
 }
 
+TEST_CASE("extract_bright and mask_spans leave alone the rows the plan's scan found dark",
+          "[stages][plan]") {
+  // Rows 1 and 4 of six hold bright pixels (luminance 2.126 > 1); the others are dim. The scan
+  // must flag exactly those rows; given the flags, the sweep into a zeroed image must give what
+  // it gives without them, and a row flagged dark is not read (a bright pixel planted there
+  // after the scan is not written: what the flag promises is the caller's, the plan's).
+  Image src(9, 6, 0.25f);
+  for (int x : {0, 4, 8}) src.pixel(x, 1)[0] = 10.0f;
+  src.pixel(5, 4)[0] = 10.0f;
+  BloomParams p;
+  p.threads = 2;
+  const SceneFacts facts = make_plan(p, src.cview()).facts;
+  REQUIRE(facts.bright_rows == std::vector<std::uint8_t>{0, 1, 0, 0, 1, 0});
+  Image plain = Image::zeroed(9, 6), hinted = Image::zeroed(9, 6);
+  std::vector<std::uint8_t> m_plain(9 * 6, 0), m_hinted(9 * 6, 0);
+  extract_bright(src.cview(), plain.view(), 1.0f, 2, true, m_plain.data());
+  extract_bright(src.cview(), hinted.view(), 1.0f, 2, true, m_hinted.data(), facts.bright_rows.data());
+  CHECK(test::bit_identical(plain.cview(), hinted.cview()));
+  CHECK(m_plain == m_hinted);
+  CHECK(std::count(m_hinted.begin(), m_hinted.end(), 1) == 4);
+  RowSpans a, b;
+  CHECK(mask_spans(m_plain.data(), 9, 6, a, 2) == 4);
+  CHECK(mask_spans(m_hinted.data(), 9, 6, b, 2, facts.bright_rows.data()) == 4);
+  for (int y = 0; y < 6; ++y) {
+    REQUIRE(a[y].size() == b[y].size());
+    for (std::size_t i = 0; i < a[y].size(); ++i)
+      CHECK((a[y][i].x0 == b[y][i].x0 && a[y][i].x1 == b[y][i].x1));
+  }
+  src.pixel(3, 2)[1] = 10.0f;  // row 2 is flagged dark: left alone
+  Image after = Image::zeroed(9, 6);
+  std::vector<std::uint8_t> m_after(9 * 6, 0);
+  extract_bright(src.cview(), after.view(), 1.0f, 2, true, m_after.data(), facts.bright_rows.data());
+  CHECK(after.pixel(3, 2)[1] == 0.0f);
+  CHECK(m_after == m_hinted);
+  RowSpans c;
+  m_after[2 * 9 + 3] = 1;  // and mask_spans takes a row flagged dark as empty
+  CHECK(mask_spans(m_after.data(), 9, 6, c, 2, facts.bright_rows.data()) == 4);
+  CHECK(c[2].empty());
+}
+
 TEST_CASE("the threshold-tie scene: exactly one band of three is bright", "[stages]") {
   const Image tie = make_scene("threshold-tie");  // 96x32; band 1 is x in [32, 64)
   BloomParams p;

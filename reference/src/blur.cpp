@@ -523,7 +523,7 @@ std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, i
 }
 
 std::size_t mask_spans(const std::uint8_t* mask, int width, int height, RowSpans& out,
-                       int threads) {
+                       int threads, const std::uint8_t* rows) {
   out.resize(height);
   std::vector<std::size_t> counts(height, 0);
   const std::size_t w = static_cast<std::size_t>(width);
@@ -531,6 +531,7 @@ std::size_t mask_spans(const std::uint8_t* mask, int width, int height, RowSpans
     for (int y = y0; y < y1; ++y) {
       std::vector<Span>& row = out[y];
       row.clear();
+      if (rows && !rows[y]) continue;
       const std::uint8_t* m = mask + std::size_t(y) * w;
       std::size_t x = 0, n = 0;
       // Masks hold 0 or 1: a span starts at the next 1 and ends at the next 0 after it.
@@ -630,9 +631,10 @@ void BlurSupportTracker::start(BasicView<const T> bright, int threads) {
   count_ = mask_spans(mask_.data(), width_, height_, spans_, threads);
 }
 
-void BlurSupportTracker::start(std::vector<std::uint8_t>&& support, int threads) {
+void BlurSupportTracker::start(std::vector<std::uint8_t>&& support, int threads,
+                               const std::uint8_t* rows) {
   mask_ = std::move(support);
-  count_ = mask_spans(mask_.data(), width_, height_, spans_, threads);
+  count_ = mask_spans(mask_.data(), width_, height_, spans_, threads, rows);
 }
 
 template <class T>

@@ -252,9 +252,15 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
             return s.kind == StageKind::blur && !s.skipped;
           });
           if (p.plan == PlanMode::adaptive && blurs) nonzero.resize(std::size_t(w) * h);
+          // Into a zeroed image the rows without a bright pixel (the plan's scan found them)
+          // have nothing to write and a zero support: not read at all.
+          const std::uint8_t* rows =
+              sparse_bright && plan.facts.bright_rows.size() == std::size_t(h)
+                  ? plan.facts.bright_rows.data() : nullptr;
           extract_bright(scene.cview(), bright.view(), static_cast<T>(p.threshold), threads,
-                         /*dst_zeroed=*/sparse_bright, nonzero.empty() ? nullptr : nonzero.data());
-          if (!nonzero.empty()) support.start(std::move(nonzero), threads);
+                         /*dst_zeroed=*/sparse_bright, nonzero.empty() ? nullptr : nonzero.data(),
+                         rows);
+          if (!nonzero.empty()) support.start(std::move(nonzero), threads, rows);
         }
         store(scene.view(), p.storage, rounding, threads);
         record(stage.name, scene, ms_since(t0), false);

@@ -72,10 +72,15 @@ void scan_row(const float* s, int width, const BloomParams& p, NonFiniteCounts& 
 template <class T>
 void scan_scene(ConstImageView scene, const BloomParams& p, SceneFacts& facts) {
   std::mutex m;
+  facts.bright_rows.assign(std::size_t(scene.height), 0);
   parallel_rows(scene.height, p.threads, [&](int y0, int y1) {
     NonFiniteCounts c;
     std::uint64_t bright = 0;
-    for (int y = y0; y < y1; ++y) scan_row<T>(scene.row(y), scene.width, p, c, bright);
+    for (int y = y0; y < y1; ++y) {
+      const std::uint64_t before = bright;
+      scan_row<T>(scene.row(y), scene.width, p, c, bright);
+      facts.bright_rows[std::size_t(y)] = bright != before;
+    }
     std::lock_guard<std::mutex> lock(m);
     facts.nonfinite += c;
     facts.bright_pixels += bright;

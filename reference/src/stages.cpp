@@ -129,9 +129,10 @@ inline bool any_bright4(const float* p, float threshold) {
 
 template <class T>
 void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
-                    bool dst_zeroed, std::uint8_t* nonzero) {
+                    bool dst_zeroed, std::uint8_t* nonzero, const std::uint8_t* bright_rows) {
   parallel_rows(src.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
+      if (dst_zeroed && bright_rows && !bright_rows[y]) continue;  // nothing to write
       if (!dst_zeroed && !nonzero) {  // the dense sweep, kept branch-free
         for (int x = 0; x < src.width; ++x) {
           const T* s = src.pixel(x, y);
@@ -265,7 +266,7 @@ std::uint8_t quantize_8bit(float x) {
   template NonFiniteCounts sanitize<T>(BasicView<const T>, BasicView<T>, NonFinite, Storage,     \
                                        int);                                                      \
   template void extract_bright<T>(BasicView<const T>, BasicView<T>, T, int, bool,              \
-                                  std::uint8_t*);                                                 \
+                                  std::uint8_t*, const std::uint8_t*);                            \
   template void composite<T>(BasicView<const T>, BasicView<const T>, BasicView<T>, T, int);      \
   template void tonemap<T>(BasicView<const T>, BasicView<T>, T, int);                            \
   template void encode_output<T>(BasicView<const T>, BasicView<T>, T, int);                      \

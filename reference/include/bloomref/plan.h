@@ -34,6 +34,9 @@ struct SceneFacts {
   int width = 0, height = 0;
   NonFiniteCounts nonfinite;
   std::uint64_t bright_pixels = 0;  ///< luminance > threshold after the policy
+  /// Per row: 1 where the row holds a bright pixel, else 0 (the input stage of the adaptive
+  /// plan reads only those rows of a sparse scene).
+  std::vector<std::uint8_t> bright_rows;
   /// How long the scan took: the executors report it as the first timing, "plan", and count
   /// it in their total (a plan is made for one run: what it learned is the scene's).
   double scan_ms = 0;

@@ -84,10 +84,13 @@ NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite pol
 /// BasicImage::zeroed gives) only the bright pixels are written: the others keep (0, 0, 0, 0),
 /// for a caller that reads no alpha of the bright image (the executor when no stage is kept).
 /// With `nonzero` (width x height), also what nonzero_support(dst) would give, without reading
-/// dst again.
+/// dst again. With dst_zeroed and `bright_rows` (one entry a row, SceneFacts::bright_rows), a
+/// row whose entry is 0 holds no bright pixel and is not read: its `nonzero` row must then be 0
+/// already.
 template <class T>
 void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
-                    bool dst_zeroed = false, std::uint8_t* nonzero = nullptr);
+                    bool dst_zeroed = false, std::uint8_t* nonzero = nullptr,
+                    const std::uint8_t* bright_rows = nullptr);
 
 enum class Axis { horizontal, vertical };
 
@@ -211,8 +214,9 @@ std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, i
                          const BlurPassOptions& opt, int threads);
 
 /// The set texels of a width x height mask (0 or 1 per texel) as spans per row. Returns how many.
+/// With `rows` (one entry a row), a row whose entry is 0 is taken as empty without reading it.
 std::size_t mask_spans(const std::uint8_t* mask, int width, int height, RowSpans& out,
-                       int threads);
+                       int threads, const std::uint8_t* rows = nullptr);
 
 /// blur_support on spans: the same set (tested), in time proportional to the spans. Each pass's
 /// lookups read a contiguous range of positions along the blur whose ends never decrease with
@@ -236,8 +240,10 @@ class BlurSupportTracker {
   /// Pass 1's input, the bright image (read once, on the first advance).
   template <class T>
   void start(BasicView<const T> bright, int threads);
-  /// Pass 1's input support given directly as a mask (extract_bright's `nonzero`).
-  void start(std::vector<std::uint8_t>&& support, int threads);
+  /// Pass 1's input support given directly as a mask (extract_bright's `nonzero`); rows whose
+  /// entry in `rows` (optional) is 0 are empty.
+  void start(std::vector<std::uint8_t>&& support, int threads,
+             const std::uint8_t* rows = nullptr);
   bool started() const { return !mask_.empty(); }
   /// This pass's output support, width x height, row-major; nullptr once dense. T chooses the
   /// tap tables (f32: the shader's coordinates; f64: exact taps).
