@@ -92,7 +92,6 @@ std::function<int()> add_tradeoff(CLI::App& app) {
 
     std::vector<Point> points;
     for (const Config& c : configs) {
-      const Plan plan = make_plan(c.params, scene.cview());
       BloomParams tp = c.params;
       tp.precision = Precision::f64;
       tp.storage = Storage::f32;
@@ -100,13 +99,14 @@ std::function<int()> add_tradeoff(CLI::App& app) {
       tp.plan = PlanMode::full;
       const Plan truth_plan = make_plan(tp, scene.cview());
       const StageTrace truth = execute(truth_plan, scene.cview(), {true});
-      auto run = [&](bool keep) {  // each run makes its plan again (its scan is timed, "plan")
-        const Plan fresh = make_plan(c.params, scene.cview());
-        if (!c.gl) return execute(fresh, scene.cview(), {keep});
+      Plan plan;  // each run makes its plan again (its scan is timed, "plan")
+      auto run = [&](bool keep) {
+        plan = make_plan(c.params, scene.cview());
+        if (!c.gl) return execute(plan, scene.cview(), {keep});
         gpu::GlOptions go;
         go.shaders = c.shaders;
         go.keep_all = keep;
-        return gpu::execute_gl(*ctx, fresh, scene.cview(), go);
+        return gpu::execute_gl(*ctx, plan, scene.cview(), go);
       };
       run(false);  // warm-up
       std::vector<double> t;

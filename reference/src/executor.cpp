@@ -486,7 +486,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         store(scene.view(), p.storage, rounding, threads);
         record(stage.name, scene, ms_since(t0), false);
         break;
-      case StageKind::output:
+      case StageKind::output: {
         if constexpr (std::is_same_v<T, float>) {
           if (fuse_finish) {  // done with the composite; the buffer is handed over
             trace.total_ms = ms_since(t_total);
@@ -496,17 +496,21 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         encode_output_as(scene, scene);
         store(scene.view(), p.storage, rounding, threads);
+        // The stage's clock is read before the run's: the stages' times add up to at most the
+        // total.
+        const double output_ms = ms_since(t0);
         trace.total_ms = ms_since(t_total);
         if constexpr (std::is_same_v<T, double>) trace.output_f64 = scene;
         if constexpr (std::is_same_v<T, float>) {
           if (!opt.keep_all) {  // hand the buffer over instead of copying it
-            trace.timings.emplace_back(stage.name, ms_since(t0));
-            trace.stages.push_back({stage.name, std::move(scene), ms_since(t0), false});
+            trace.timings.emplace_back(stage.name, output_ms);
+            trace.stages.push_back({stage.name, std::move(scene), output_ms, false});
             break;
           }
         }
-        record(stage.name, scene, ms_since(t0), false);
+        record(stage.name, scene, output_ms, false);
         break;
+      }
     }
   }
   return trace;

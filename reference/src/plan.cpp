@@ -1,36 +1,25 @@
 #include "bloomref/plan.h"
 
 #include <chrono>
-#include <cmath>
-#include <cstring>
 #include <mutex>
 #include <type_traits>
 
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
+#include "simd_lanes.h"
 
 namespace bloomref {
 namespace {
 
-// How many values of a row are non-finite or beyond kRangeGuard, and how many pixels are bright
-// (sanitised luminance > threshold, decided before storage, as the MRT pass does), in one scan.
-// A row without such values (most rows: one branch-free test per value first, which the
-// compiler vectorises; NaN fails it too) is its own sanitised self, and its luminance is
-// computed four pixels at a time in vector lanes with the scalar operations (-ffp-contract=off:
-// no fused multiply-add), so each lane's comparison is the scalar one. Other rows take every
-// value through the per-value functions the input stage applies.
+// How many values of a row are non-finite or beyond kRangeGuard (count_nonfinite_values), and
+// how many pixels are bright (sanitised luminance > threshold, decided before storage, as the
+// MRT pass does), in one scan. A row without such values is its own sanitised self: its
+// luminance four pixels at a time (luminance4, each lane's comparison the scalar one). Other
+// rows take every value through the per-value functions the input stage applies.
 template <class T>
 void scan_row(const float* s, int width, const BloomParams& p, NonFiniteCounts& c,
               std::uint64_t& bright) {
-  const int n = width * kChannels;
-  int outside = 0;
-  for (int i = 0; i < n; ++i) outside |= !(std::fabs(s[i]) <= float(kRangeGuard));
-  if (outside) {
-    for (int i = 0; i < n; ++i) {
-      if (std::isnan(s[i])) ++c.nan;
-      else if (std::isinf(s[i])) ++(s[i] > 0 ? c.pos_inf : c.neg_inf);
-      else if (std::fabs(s[i]) > float(kRangeGuard)) ++c.out_of_range;
-    }
+  if (count_nonfinite_values(s, width * kChannels, c)) {
     const T threshold = static_cast<T>(p.threshold);
     for (int x = 0; x < width; ++x, s += kChannels) {
       T v[3];
@@ -41,25 +30,9 @@ void scan_row(const float* s, int width, const BloomParams& p, NonFiniteCounts& 
   }
   int x = 0;
   if constexpr (std::is_same_v<T, float>) {
-    typedef float v4f __attribute__((vector_size(16)));
-    typedef int v4i __attribute__((vector_size(16)));
-    const v4f threshold = v4f{} + p.threshold;
-    v4i count{};
-    for (; x + 4 <= width; x += 4, s += 4 * kChannels) {
-      v4f a, b, c4, d;
-      std::memcpy(&a, s, 16);
-      std::memcpy(&b, s + 4, 16);
-      std::memcpy(&c4, s + 8, 16);
-      std::memcpy(&d, s + 12, 16);
-      const v4f rg01 = __builtin_shuffle(a, b, v4i{0, 4, 1, 5});  // r0 r1 g0 g1
-      const v4f rg23 = __builtin_shuffle(c4, d, v4i{0, 4, 1, 5});
-      const v4f b01 = __builtin_shuffle(a, b, v4i{2, 6, 3, 7});  // b0 b1 a0 a1
-      const v4f b23 = __builtin_shuffle(c4, d, v4i{2, 6, 3, 7});
-      const v4f r = __builtin_shuffle(rg01, rg23, v4i{0, 1, 4, 5});
-      const v4f g = __builtin_shuffle(rg01, rg23, v4i{2, 3, 6, 7});
-      const v4f bl = __builtin_shuffle(b01, b23, v4i{0, 1, 4, 5});
-      count -= luminance<v4f, float>(r, g, bl) > threshold;  // -1 in a bright lane
-    }
+    detail::v4i count{};
+    for (; x + 4 <= width; x += 4, s += 4 * kChannels)
+      count -= detail::luminance4(s) > p.threshold;  // -1 in a bright lane
     bright += std::uint64_t(count[0]) + std::uint64_t(count[1]) + std::uint64_t(count[2]) +
               std::uint64_t(count[3]);
   }

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstring>
 
+#include "bloomref/stages.h"
 #include "isa_namespace.h"  // each instruction set its own symbols
 
 namespace bloomref::detail {
@@ -19,6 +20,20 @@ inline V load(const float* p) {
   V v;
   std::memcpy(&v, p, sizeof v);
   return v;
+}
+
+/// The luminance of the four RGBA pixels at p, one a lane: the pixels transposed into R, G and
+/// B lanes, then luminance() on the lanes (built with -ffp-contract=off: no fused multiply-add),
+/// so each lane's value, and any comparison of it, is the scalar one.
+inline v4f luminance4(const float* p) {
+  const v4f a = load<v4f>(p), b = load<v4f>(p + 4), c = load<v4f>(p + 8), d = load<v4f>(p + 12);
+  const v4f rg01 = __builtin_shuffle(a, b, v4i{0, 4, 1, 5});  // r0 r1 g0 g1
+  const v4f rg23 = __builtin_shuffle(c, d, v4i{0, 4, 1, 5});
+  const v4f b01 = __builtin_shuffle(a, b, v4i{2, 6, 3, 7});  // b0 b1 a0 a1
+  const v4f b23 = __builtin_shuffle(c, d, v4i{2, 6, 3, 7});
+  return luminance<v4f, float>(__builtin_shuffle(rg01, rg23, v4i{0, 1, 4, 5}),
+                               __builtin_shuffle(rg01, rg23, v4i{2, 3, 6, 7}),
+                               __builtin_shuffle(b01, b23, v4i{0, 1, 4, 5}));
 }
 
 /// RGB kept, alpha set to exactly 1 (what every blur writes); I is V's integer twin.

@@ -10,6 +10,7 @@
 #include "bloomref/parallel.h"
 #include "bloomref/sampler.h"
 #include "oracle_math.h"
+#include "simd_lanes.h"
 
 namespace bloomref {
 
@@ -68,20 +69,7 @@ NonFiniteCounts count_nonfinite(BasicView<const T> src, int threads) {
   std::mutex m;
   parallel_rows(src.height, threads, [&](int y0, int y1) {
     NonFiniteCounts c;
-    for (int y = y0; y < y1; ++y) {
-      const T* p = src.row(y);
-      const int n = src.width * kChannels;
-      // Most rows hold nothing to count: one branch-free test per value first (NaN fails it
-      // too), which the compiler vectorises; the counting loop only for the rows that fail.
-      int outside = 0;
-      for (int i = 0; i < n; ++i) outside |= !(std::fabs(p[i]) <= T(kRangeGuard));
-      if (!outside) continue;
-      for (int i = 0; i < n; ++i) {
-        if (std::isnan(p[i])) ++c.nan;
-        else if (std::isinf(p[i])) ++(p[i] > 0 ? c.pos_inf : c.neg_inf);
-        else if (std::fabs(p[i]) > T(kRangeGuard)) ++c.out_of_range;
-      }
-    }
+    for (int y = y0; y < y1; ++y) count_nonfinite_values(src.row(y), src.width * kChannels, c);
     std::lock_guard<std::mutex> lock(m);
     total += c;
   });
@@ -102,27 +90,11 @@ NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite pol
   return found;
 }
 
-// Whether any of the four RGBA pixels at p has luminance > threshold: the pixels transposed into
-// R, G and B lanes, then luminance() on the lanes (-ffp-contract=off: no fused multiply-add), so
-// each lane's value and comparison are the scalar ones.
+// Whether any of the four RGBA pixels at p has luminance > threshold (luminance4: each lane's
+// comparison is the scalar one).
 namespace {
 inline bool any_bright4(const float* p, float threshold) {
-  typedef float v4f __attribute__((vector_size(16)));
-  typedef int v4i __attribute__((vector_size(16)));
-  v4f a, b, c, d;
-  std::memcpy(&a, p, 16);
-  std::memcpy(&b, p + 4, 16);
-  std::memcpy(&c, p + 8, 16);
-  std::memcpy(&d, p + 12, 16);
-  const v4f rg01 = __builtin_shuffle(a, b, v4i{0, 4, 1, 5});  // r0 r1 g0 g1
-  const v4f rg23 = __builtin_shuffle(c, d, v4i{0, 4, 1, 5});
-  const v4f b01 = __builtin_shuffle(a, b, v4i{2, 6, 3, 7});   // b0 b1 a0 a1
-  const v4f b23 = __builtin_shuffle(c, d, v4i{2, 6, 3, 7});
-  const v4f r = __builtin_shuffle(rg01, rg23, v4i{0, 1, 4, 5});
-  const v4f g = __builtin_shuffle(rg01, rg23, v4i{2, 3, 6, 7});
-  const v4f bl = __builtin_shuffle(b01, b23, v4i{0, 1, 4, 5});
-  const v4f lum = luminance<v4f, float>(r, g, bl);
-  const v4i bright = lum > threshold;
+  const detail::v4i bright = detail::luminance4(p) > threshold;
   return (bright[0] | bright[1] | bright[2] | bright[3]) != 0;
 }
 }  // namespace

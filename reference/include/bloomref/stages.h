@@ -70,6 +70,22 @@ inline T sanitize_value(T v, NonFinite policy, Storage storage) {
   return v > 0 ? m : -m;
 }
 
+/// Adds to `c` the NaN, +Inf, -Inf and finite values beyond kRangeGuard among p[0..n); returns
+/// whether there was any. Most rows hold none: one branch-free test per value first (NaN fails
+/// it too), which the compiler vectorises; the counting loop only for the rows that fail it.
+template <class T>
+inline bool count_nonfinite_values(const T* p, int n, NonFiniteCounts& c) {
+  int outside = 0;
+  for (int i = 0; i < n; ++i) outside |= !(std::fabs(p[i]) <= T(kRangeGuard));
+  if (!outside) return false;
+  for (int i = 0; i < n; ++i) {
+    if (std::isnan(p[i])) ++c.nan;
+    else if (std::isinf(p[i])) ++(p[i] > 0 ? c.pos_inf : c.neg_inf);
+    else if (std::fabs(p[i]) > T(kRangeGuard)) ++c.out_of_range;
+  }
+  return true;
+}
+
 /// Counts NaN, +Inf, -Inf and finite values beyond kRangeGuard over all four channels.
 template <class T>
 NonFiniteCounts count_nonfinite(BasicView<const T> src, int threads);
