@@ -557,6 +557,75 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
   }
 }
 
+TEST_CASE("blur_bright_fused gives extract_bright then the pass-by-pass blur's bits, its sink "
+          "writing the scene in place", "[blur][fast][fused]") {
+  // The dense plan's bright stage inside the fused blur. The sink here overwrites every texel of
+  // the scene it is handed with NaN, as the executor overwrites it with the output: a strip that
+  // read its neighbours' columns from the scene after their sinks ran would take NaN for their
+  // bright values (the test's 1100x37 and 1920x21 have several strips; 9x1080 one; the columns
+  // beside a strip are the passes' reach, 5 a horizontal pass).
+  const std::pair<int, int> sizes[] = {{1, 1}, {7, 3}, {37, 23}, {1100, 37}, {1920, 21},
+                                       {9, 1080}, {533, 19}};
+  const std::vector<std::vector<Axis>> orders = {
+      {Axis::horizontal},
+      {Axis::vertical, Axis::horizontal},
+      {Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical, Axis::horizontal,
+       Axis::vertical, Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical}};
+  unsigned seed = 90;
+  for (auto [w, h] : sizes) {
+    const Image scene = hostile_image(w, h, seed++);
+    // Thresholds: everything positive bright, the default, and a tie (a texel's own luminance:
+    // not bright, strictly greater is).
+    std::vector<float> thresholds = {0.0f, 1.0f};
+    for (int i = 0; i < w * h; ++i) {
+      const float* s = scene.cview().pixel(i % w, i / w);
+      const float l = luminance(s[0], s[1], s[2]);
+      if (l > 0.0f && std::isfinite(l)) {
+        thresholds.push_back(l);
+        break;
+      }
+    }
+    for (float threshold : thresholds) {
+      Image a(w, h), b(w, h);
+      extract_bright(scene.cview(), a.view(), threshold, 1);
+      for (const std::vector<Axis>& axes : orders) {
+        Image x = a;
+        for (Axis axis : axes) {
+          blur_pass(x.cview(), b.view(), BlurPassOptions{axis, &kernel_discrete9(), 0}, 2);
+          std::swap(x, b);
+        }
+        for (BlurIsa isa : isas()) {
+          for (int threads : {1, 2}) {
+            Image in_place = scene, sunk(w, h, 7.0f);
+            std::vector<int> times(std::size_t(w) * h, 0);
+            std::mutex m;
+            BasicView<float> target = in_place.view();
+            const FusedBlurSink sink = [&](int x0, int x1, int y0, int y1,
+                                           const float* const* rows) {
+              std::lock_guard<std::mutex> lock(m);
+              for (int y = y0; y < y1; ++y) {
+                std::memcpy(sunk.view().row(y) + 4 * x0, rows[y - y0],
+                            std::size_t(x1 - x0) * 16);
+                for (int xx = x0; xx < x1; ++xx) {
+                  ++times[std::size_t(y) * w + xx];
+                  for (int c = 0; c < 4; ++c)
+                    target.pixel(xx, y)[c] = std::numeric_limits<float>::quiet_NaN();
+                }
+              }
+            };
+            blur_bright_fused(in_place.cview(), threshold, sink, axes, kernel_discrete9(), 0,
+                              threads, isa);
+            INFO(w << "x" << h << " threshold " << threshold << " passes " << axes.size()
+                   << " isa " << blur_isa_name(isa) << " threads " << threads);
+            CHECK(std::all_of(times.begin(), times.end(), [](int t) { return t == 1; }));
+            CHECK(test::same_bits_nan_agnostic(x.cview(), sunk.cview()));
+          }
+        }
+      }
+    }
+  }
+}
+
 TEST_CASE("the fused blur's last pass stored past the cache gives the same bits",
           "[blur][fast][fused]") {
   // From 64 MB of output on, the last vertical pass stores its 32-byte-aligned pairs of texels

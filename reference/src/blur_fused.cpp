@@ -14,6 +14,14 @@
 // blur_pass_fast's (tests/test_blur_fast.cpp). A strip also computes, in its earlier passes, the
 // columns beside it that its later passes read (the horizontal taps' reach, 5 texels per pass),
 // a few percent of the work.
+//
+// blur_bright_fused puts stage bright in front, as pass 0 of every strip: its ring holds
+// extract_bright's RGB of the scene (bright_rgb_row, the same sweep), so the dense plan writes
+// no bright image at all (it was a 133 MB image faulted in and written by every run at
+// 3840x2160, then read once by the blur). Its sink writes the output into the scene in place,
+// over the strip's own columns; the columns beside a strip that its bright pass reads belong to
+// its neighbours, whose sinks may have overwritten them already, so their bright values are
+// taken from the scene before any strip starts (a few percent of the image).
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
@@ -51,11 +59,19 @@ constexpr std::size_t kRowAlign = 16;  // floats: a ring row's stride is a multi
 // (133 MB), one thread, AVX-512, medians of 6 alternated: see README "The fused blur".
 constexpr std::size_t kStreamOutBytes = std::size_t(64) << 20;
 
-// One pass's tables (blur_pass_fast's) and, per output row, the input rows it reads.
+// One pass's tables (blur_pass_fast's) and, per output row, the input rows it reads. The bright
+// pass has no tables (t null): its row y reads the scene's row y.
 struct Pass {
   std::shared_ptr<const detail::PassTables> t;  // kept between runs (detail::pass_tables)
   std::vector<int> need_lo, need_hi;
 };
+
+Pass bright_pass(int h) {
+  Pass p{nullptr, std::vector<int>(h), {}};
+  std::iota(p.need_lo.begin(), p.need_lo.end(), 0);
+  p.need_hi = p.need_lo;
+  return p;
+}
 
 Pass make_pass(Axis axis, int w, int h, const Kernel& kernel, int bits) {
   Pass p{detail::pass_tables(axis, w, h, kernel, bits), {}, {}};
@@ -146,7 +162,8 @@ Columns strip_columns(const std::vector<Pass>& passes, int sx0, int sx1) {
 std::int64_t strip_cost(const std::vector<Pass>& passes, const Columns& c) {
   std::int64_t cost = 0;
   for (std::size_t k = 0; k < passes.size(); ++k)
-    cost += passes[k].t->column_terms[c.x1[k]] - passes[k].t->column_terms[c.x0[k]];
+    if (passes[k].t)
+      cost += passes[k].t->column_terms[c.x1[k]] - passes[k].t->column_terms[c.x0[k]];
   return cost;
 }
 
@@ -157,14 +174,16 @@ float* shifted(float* p, int x0, int channels = kRingChannels) {
                                   std::uintptr_t(x0) * std::uintptr_t(channels) * sizeof(float));
 }
 
-// Both entry points: the last pass writes into dst, or (sink given) into a block of kChunk rows
-// of the strip handed to the sink as each is done.
+// The entry points: the last pass writes into dst, or (sink given) into a block of kChunk rows
+// of the strip handed to the sink as each is done; with `threshold`, src is the scene and pass 0
+// is stage bright of it (blur_bright_fused).
 void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink* sink,
            const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits, int threads,
-           BlurIsa isa) {
+           BlurIsa isa, const float* threshold = nullptr) {
   const int w = src.width, h = src.height;
-  const int n = static_cast<int>(axes.size());
-  if (n == 0) throw ParamError("blur_passes_fused: no passes");
+  const bool bright = threshold != nullptr;
+  const int n = static_cast<int>(axes.size()) + (bright ? 1 : 0);
+  if (axes.empty()) throw ParamError("blur_passes_fused: no passes");
   if (!sink && (dst.width != w || dst.height != h))
     throw ParamError("blur_passes_fused: source and destination sizes differ");
   const detail::TileKernel tile_kernel = detail::tile_kernel_for(isa);
@@ -172,6 +191,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
   if (w == 0 || h == 0) return;  // nothing to write (and no strip width to divide by)
   std::vector<Pass> passes;
   passes.reserve(n);
+  if (bright) passes.push_back(bright_pass(h));
   for (Axis a : axes) passes.push_back(make_pass(a, w, h, kernel, subtexel_bits));
   const std::vector<int> ring = ring_rows(passes, h);
   const std::vector<float>& weights = kernel.weights_f32;
@@ -205,6 +225,29 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
     strips[si] = strip_columns(passes, si * strip_width, std::min(w, (si + 1) * strip_width));
     cost[si] = strip_cost(passes, strips[si]);
   }
+  // The bright values of the columns beside each strip that its bright pass reads, taken before
+  // any sink writes the scene: strip si's left ones, then its right ones, row by row.
+  std::vector<PixelBuffer<float>> beside(bright ? nstrips : 0);
+  std::vector<int> beside_width(bright ? nstrips : 0);
+  if (bright) {
+    parallel_rows(nstrips, threads, [&](int s0, int s1) {
+      for (int si = s0; si < s1; ++si) {
+        const int sx0 = si * strip_width, sx1 = std::min(w, sx0 + strip_width);
+        const int left = sx0 - strips[si].x0[0], right = strips[si].x1[0] - sx1;
+        const int bw = left + right;
+        beside_width[si] = bw;
+        if (bw == 0) continue;
+        beside[si] = PixelBuffer<float>(std::size_t(h) * bw * kRingChannels);
+        for (int y = 0; y < h; ++y) {
+          float* d = beside[si].data() + std::size_t(y) * bw * kRingChannels;
+          detail::bright_rgb_row(src.row(y) + std::size_t(strips[si].x0[0]) * kChannels, d, left,
+                                 *threshold);
+          detail::bright_rgb_row(src.row(y) + std::size_t(sx1) * kChannels,
+                                 d + std::size_t(left) * kRingChannels, right, *threshold);
+        }
+      }
+    });
+  }
   std::vector<int> order(nstrips);
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return cost[a] > cost[b]; });
@@ -218,7 +261,10 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
       // Pass k's output rows: a ring for the intermediate passes (row r in slot r mod ring[k],
       // columns x0[k] ... x1[k] - 1), dst for the last.
       std::vector<PixelBuffer<float>> rings(n);
+      std::vector<std::size_t> ring_stride(n);
       std::vector<std::vector<float*>> out_rows(n);
+      // Row r of pass k's ring, from column x0[k] on.
+      auto ring_row = [&](int k, int r) { return rings[k].data() + (r % ring[k]) * ring_stride[k]; };
       for (int k = 0; k + 1 < n; ++k) {
         // Rows whole 64-byte cache lines apart: the vertical passes' loads of a row start on
         // one and never straddle two. Ten fused one-thread vertical passes at 3840x2160, 8-bit
@@ -226,6 +272,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
         const std::size_t row_floats =
             detail::round_up(std::size_t(strip.x1[k] - strip.x0[k]) * kRingChannels, kRowAlign);
         rings[k] = PixelBuffer<float>(std::size_t(ring[k]) * row_floats + kRingPad);
+        ring_stride[k] = row_floats;
         out_rows[k].resize(h);
         for (int r = 0; r < h; ++r)
           out_rows[k][r] = shifted(rings[k].data() + (r % ring[k]) * row_floats, strip.x0[k]);
@@ -246,13 +293,30 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
       std::vector<int> produced(n, 0);
 
       auto compute_chunk = [&](int k, int r0, int r1) {
-        const detail::PassTables& t = *passes[k].t;
         const int x0 = strip.x0[k], x1 = strip.x1[k];
-        const float* const* in = k == 0 ? src_rows.data() : out_rows[k - 1].data();
+        if (bright && k == 0) {
+          // Stage bright of rows [r0, r1): the strip's own columns from the scene (its sink
+          // writes them only after this pass has read them: a block of the last pass is
+          // computed from rows of this one at and below it), the others from `beside`.
+          const int left = sx0 - x0, bw = beside_width[si];
+          for (int r = r0; r < r1; ++r) {
+            float* d = ring_row(0, r);
+            const float* b = beside[si].data() + std::size_t(r) * bw * kRingChannels;
+            std::copy(b, b + std::size_t(left) * kRingChannels, d);
+            detail::bright_rgb_row(src.row(r) + std::size_t(sx0) * kChannels,
+                                   d + std::size_t(left) * kRingChannels, sx1 - sx0, *threshold);
+            std::copy(b + std::size_t(left) * kRingChannels, b + std::size_t(bw) * kRingChannels,
+                      d + std::size_t(left + sx1 - sx0) * kRingChannels);
+          }
+          return;
+        }
+        const detail::PassTables& t = *passes[k].t;
+        const bool reads_src = k == 0;
+        const float* const* in = reads_src ? src_rows.data() : out_rows[k - 1].data();
         float* const* out = k + 1 < n ? out_rows[k].data()
                             : sink  ? block_rows.data()
                                     : dst_rows.data();
-        const int cin = k == 0 ? kChannels : kRingChannels;
+        const int cin = reads_src ? kChannels : kRingChannels;
         const int cout = k + 1 == n ? kChannels : kRingChannels;
         detail::TileJob job;
         job.src_channels = cin;
@@ -323,6 +387,13 @@ void blur_passes_fused(BasicView<const float> src, const FusedBlurSink& sink,
                        int threads, BlurIsa isa) {
   if (!sink) throw ParamError("blur_passes_fused: no sink");
   fused(src, BasicView<float>{}, &sink, axes, kernel, subtexel_bits, threads, isa);
+}
+
+void blur_bright_fused(BasicView<const float> scene, float threshold, const FusedBlurSink& sink,
+                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
+                       int threads, BlurIsa isa) {
+  if (!sink) throw ParamError("blur_bright_fused: no sink");
+  fused(scene, BasicView<float>{}, &sink, axes, kernel, subtexel_bits, threads, isa, &threshold);
 }
 
 }  // namespace bloomref

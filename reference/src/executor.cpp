@@ -135,7 +135,29 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   // for every page never written (StarField.exr, full plan: +7-10 ms); the corpus's images are
   // either sparse (0.03-0.6% bright: StarField, GoldenGate, CandleGlass, the demo) or not
   // (10-25%: WideColorGamut, BrightRingsNanInf, StageEnvLatLong, WideFloatRange, comp_dwab_v2).
-  const int bw = p.method == Method::gaussian ? w : 0, bh = p.method == Method::gaussian ? h : 0;
+  // The finishing stages: the fast f32 ones unless the staged reference was asked for (--blur
+  // reference) or values are rounded to f16 between stages; and all three in one sweep
+  // (finish_fast) where no intermediate is kept and the composite comes before the tone map.
+  const bool fast_finish = std::is_same_v<T, float> && p.blur != BlurImpl::reference &&
+                           p.storage == Storage::f32;
+  const bool fuse_finish = fast_finish && !opt.keep_all &&
+                           !(p.method == Method::mip &&
+                             p.composite == CompositeOrder::after_tonemap);
+  // Where the gaussian blur's last passes run fused, the finishing stages run inside it, on
+  // each block of the last pass (blur_passes_fused's sink): the composite stage then has
+  // nothing left to do.
+  const bool finish_in_blur = fuse_finish && p.method == Method::gaussian;
+  bool finished_in_blur = false;
+  // The full plan's fast f32 blur runs every pass fused from pass 1, and then stage bright with
+  // them (blur_bright_fused): no bright image is made. It was one more full-size image, faulted
+  // in by every run (mmap'd anew: 133 MB at 3840x2160), written and read once.
+  const bool bright_in_blur =
+      finish_in_blur && p.plan == PlanMode::full && p.blur == BlurImpl::fast &&
+      std::any_of(plan.stages.begin(), plan.stages.end(), [](const StageSpec& s) {
+        return s.kind == StageKind::blur && s.pass == 1 && !s.skipped;
+      });
+  const int bw = p.method == Method::gaussian && !bright_in_blur ? w : 0;
+  const int bh = p.method == Method::gaussian && !bright_in_blur ? h : 0;
   const bool sparse_bright = p.plan == PlanMode::adaptive && !opt.keep_all &&
                              plan.facts.bright_pixels * 100 <= std::uint64_t(w) * std::uint64_t(h);
   // The ledgers of the pool's images (image.h), each found by the buffer it was made for.
@@ -157,19 +179,6 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   const bool leave_zeros = p.plan == PlanMode::adaptive && p.blur == BlurImpl::fast &&
                            std::is_same_v<T, float> && !opt.keep_all;
   bool blur_fused_done = false;  // the remaining blur passes ran fused (blur_passes_fused)
-  // The finishing stages: the fast f32 ones unless the staged reference was asked for (--blur
-  // reference) or values are rounded to f16 between stages; and all three in one sweep
-  // (finish_fast) where no intermediate is kept and the composite comes before the tone map.
-  const bool fast_finish = std::is_same_v<T, float> && p.blur != BlurImpl::reference &&
-                           p.storage == Storage::f32;
-  const bool fuse_finish = fast_finish && !opt.keep_all &&
-                           !(p.method == Method::mip &&
-                             p.composite == CompositeOrder::after_tonemap);
-  // Where the gaussian blur's last passes run fused, the finishing stages run inside it, on
-  // each block of the last pass (blur_passes_fused's sink): the composite stage then has
-  // nothing left to do.
-  const bool finish_in_blur = fuse_finish && p.method == Method::gaussian;
-  bool finished_in_blur = false;
   auto tonemap_as = [&](const BasicImage<T>& src, BasicImage<T>& dst) {
     if constexpr (std::is_same_v<T, float>)
       if (fast_finish) return tonemap_fast(src.cview(), dst.view(), p.exposure, threads);
@@ -243,7 +252,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
           trace.nonfinite = sanitize(scene.cview(), scene.view(), p.nonfinite, p.storage, threads);
         // The seeds' MRT pass writes the scene and the bright colour in one draw: bright is
         // decided on the sanitised value before either is stored (rounded to f16).
-        if (p.method == Method::gaussian) {
+        if (p.method == Method::gaussian && !bright_in_blur) {
           // The adaptive plan's first support comes out of the same sweep (the bright image's
           // nonzero texels): no second read of the bright image, most of whose pages are
           // never written (zeroed).
@@ -267,6 +276,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         break;
       }
       case StageKind::bright: {
+        if (bright_in_blur) break;  // in the fused blur, timed with it
         const auto t1 = Clock::now();
         store(bright.view(), p.storage, rounding, threads);
         record(stage.name, bright, ms_since(t1), false);
@@ -341,8 +351,14 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
                 finish_fast_rows(dst.data(), rows, dst.data(), y1 - y0, x1 - x0, p.strength,
                                  p.exposure, p.gamma);
               };
-              blur_passes_fused(src.cview(), sink, axes, kernel_for(p.kernel), p.subtexel_bits,
-                                threads);
+              if (bright_in_blur) {
+                blur_bright_fused(scene.cview(), static_cast<float>(p.threshold), sink, axes,
+                                  kernel_for(p.kernel), p.subtexel_bits, threads);
+                name = "bright+" + name;
+              } else {
+                blur_passes_fused(src.cview(), sink, axes, kernel_for(p.kernel), p.subtexel_bits,
+                                  threads);
+              }
               finished_in_blur = true;
               name += "+composite+tonemap+output";
             } else {

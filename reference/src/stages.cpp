@@ -145,6 +145,31 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
   });
 }
 
+namespace detail {
+void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold) {
+  int x = 0;
+  // Four pixels at a time: each lane's luminance and test are the scalar ones (luminance4); a
+  // pixel's RGB kept or zeroed by its lane's mask, then packed into three vectors of RGB.
+  for (; x + 4 <= n; x += 4) {
+    const float* s = rgba + std::size_t(x) * kChannels;
+    const v4i bright = luminance4(s) > threshold;
+    const v4i a = reinterpret_cast<v4i>(load<v4f>(s)) & __builtin_shuffle(bright, v4i{0, 0, 0, 0});
+    const v4i b = reinterpret_cast<v4i>(load<v4f>(s + 4)) & __builtin_shuffle(bright, v4i{1, 1, 1, 1});
+    const v4i c = reinterpret_cast<v4i>(load<v4f>(s + 8)) & __builtin_shuffle(bright, v4i{2, 2, 2, 2});
+    const v4i d = reinterpret_cast<v4i>(load<v4f>(s + 12)) & __builtin_shuffle(bright, v4i{3, 3, 3, 3});
+    const v4i out[3] = {__builtin_shuffle(a, b, v4i{0, 1, 2, 4}),   // r0 g0 b0 r1
+                        __builtin_shuffle(b, c, v4i{1, 2, 4, 5}),   // g1 b1 r2 g2
+                        __builtin_shuffle(c, d, v4i{2, 4, 5, 6})};  // b2 r3 g3 b3
+    std::memcpy(rgb + std::size_t(x) * 3, out, sizeof out);
+  }
+  for (; x < n; ++x) {
+    const float* s = rgba + std::size_t(x) * kChannels;
+    const bool bright = luminance(s[0], s[1], s[2]) > threshold;
+    for (int c = 0; c < 3; ++c) rgb[std::size_t(x) * 3 + c] = bright ? s[c] : 0.0f;
+  }
+}
+}  // namespace detail
+
 template <class T>
 void composite(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> dst, T strength,
                int threads) {

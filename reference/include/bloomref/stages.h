@@ -108,6 +108,12 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
                     bool dst_zeroed = false, std::uint8_t* nonzero = nullptr,
                     const std::uint8_t* bright_rows = nullptr);
 
+namespace detail {
+/// Stage bright's RGB of n RGBA texels of one row, packed as RGB (extract_bright's test and
+/// values: its bits): what blur_bright_fused's first pass stores.
+void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold);
+}  // namespace detail
+
 enum class Axis { horizontal, vertical };
 
 /// A run of set texels on one row: x in [x0, x1).
@@ -197,6 +203,15 @@ using FusedBlurSink =
 /// cache (the same bits), instead of written into an image: the executor finishes it there
 /// (finish_fast_rows), so the dense plan neither allocates the bloom image nor reads it back.
 void blur_passes_fused(BasicView<const float> src, const FusedBlurSink& sink,
+                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
+                       int threads, BlurIsa isa = BlurIsa::best);
+
+/// Stages bright and blur.1 ... blur.n at once, for the dense plan: blur_passes_fused of
+/// extract_bright(scene) (the same bits), the bright image never made whole (each strip makes
+/// its rows as its first pass reads them). The sink may write the texels it is handed into
+/// `scene` itself (in place: the executor's finishing stages do); nothing else may change the
+/// scene during the call.
+void blur_bright_fused(BasicView<const float> scene, float threshold, const FusedBlurSink& sink,
                        const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
                        int threads, BlurIsa isa = BlurIsa::best);
 
