@@ -59,12 +59,14 @@ std::vector<std::pair<int, int>> parse_sizes(const std::string& s) {
 }
 
 // Time spent in the blur (gaussian passes, or the mip chain and its full-size bloom). Where the
-// dense f32 plan runs the finishing stages inside the fused blur (one timing,
-// `blur.1-10+composite+tonemap+output`), they are counted with it: they cannot be timed apart.
+// dense f32 plan runs the bright stage and the finishing stages inside the fused blur (one
+// timing, `bright+blur.1-10+composite+tonemap+output`), they are counted with it: they cannot
+// be timed apart.
 double blur_ms(const StageTrace& t) {
   double b = 0;
   for (const auto& [n, ms] : t.timings)
-    if (n.rfind("blur.", 0) == 0 || n.rfind("down.", 0) == 0 || n.rfind("up.", 0) == 0 || n == "bloom")
+    if (n.rfind("blur.", 0) == 0 || n.rfind("bright+blur.", 0) == 0 || n.rfind("down.", 0) == 0 ||
+        n.rfind("up.", 0) == 0 || n == "bloom")
       b += ms;
   return b;
 }
