@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <random>
 #include <vector>
 
 #include "bloomref/executor.h"
@@ -377,6 +378,60 @@ TEST_CASE("non-finite policies zero, clamp (per storage), propagate, and their c
   CHECK(std::isnan(dst.data()[0]));
   CHECK(dst.data()[1] == INFINITY);
   CHECK(dst.data()[4] == -2.0f);
+}
+
+TEST_CASE("sanitize over clean and dirty rows, in place and not: every value and count",
+          "[stages]") {
+  // sanitize leaves a row without NaN, Inf or a value beyond 2^120 as it is (in place it writes
+  // nothing there). Rows here: clean (with -0, denormals and 2^120 itself), or one special
+  // anywhere in them, first or last value included; the expected values are the policy read
+  // value by value, the counts a classification written here.
+  const int w = 13, h = 29;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-4.0f, 4.0f);
+  const float specials[] = {NAN, INFINITY, -INFINITY, 1.7e38f, -3e37f};
+  const float clean[] = {-0.0f, 1e-45f, 0x1p120f, -0x1p120f};
+  Image src(w, h);
+  for (int y = 0; y < h; ++y) {
+    float* r = src.view().row(y);
+    for (int i = 0; i < 4 * w; ++i) r[i] = u(rng);
+    r[(y * 7) % (4 * w)] = clean[y % 4];
+    if (y % 3 == 1) r[y % 2 ? 0 : 4 * w - 1] = specials[y % 5];
+    if (y % 3 == 2) r[(y * 11) % (4 * w)] = specials[(y + 2) % 5];
+  }
+  NonFiniteCounts want;
+  for (float v : src.values()) {
+    if (std::isnan(v)) ++want.nan;
+    else if (std::isinf(v)) ++(v > 0 ? want.pos_inf : want.neg_inf);
+    else if (std::fabs(v) > 0x1p120f) ++want.out_of_range;
+  }
+  REQUIRE(want.total() + want.out_of_range > 10u);
+  for (NonFinite policy : {NonFinite::zero, NonFinite::clamp, NonFinite::propagate})
+    for (Storage storage : {Storage::f32, Storage::f16})
+      for (bool in_place : {true, false})
+        for (int threads : {1, 2}) {
+          Image dst = in_place ? src : Image(w, h, 7.0f);
+          const NonFiniteCounts c =
+              sanitize(in_place ? dst.cview() : src.cview(), dst.view(), policy, storage, threads);
+          INFO("policy " << int(policy) << " storage " << int(storage) << " in place " << in_place
+                         << " threads " << threads);
+          CHECK((c.nan == want.nan && c.pos_inf == want.pos_inf && c.neg_inf == want.neg_inf &&
+                 c.out_of_range == want.out_of_range));
+          bool same = true;
+          for (std::size_t i = 0; i < src.values().size(); ++i) {
+            const float v = src.values()[i], got = dst.values()[i];
+            float expect = v;
+            if (std::isnan(v)) expect = policy == NonFinite::propagate ? v : 0.0f;
+            else if (std::isinf(v))
+              expect = policy == NonFinite::propagate ? v
+                       : policy == NonFinite::zero    ? 0.0f
+                       : std::copysign(storage == Storage::f16 ? 65504.0f : 0x1p120f, v);
+            else if (std::fabs(v) > 0x1p120f) expect = std::copysign(0x1p120f, v);
+            same = same && (std::isnan(expect) ? std::isnan(got)
+                                               : std::memcmp(&expect, &got, 4) == 0);
+          }
+          CHECK(same);
+        }
 }
 
 TEST_CASE("finite values beyond 2^120 are clamped to it and counted, under every policy",
