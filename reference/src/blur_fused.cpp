@@ -264,7 +264,9 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
       std::vector<std::size_t> ring_stride(n);
       std::vector<std::vector<float*>> out_rows(n);
       // Row r of pass k's ring, from column x0[k] on.
-      auto ring_row = [&](int k, int r) { return rings[k].data() + (r % ring[k]) * ring_stride[k]; };
+      auto ring_row = [&](int k, int r) {
+        return rings[k].data() + (r % ring[k]) * ring_stride[k];
+      };
       for (int k = 0; k + 1 < n; ++k) {
         // Rows whole 64-byte cache lines apart: the vertical passes' loads of a row start on
         // one and never straddle two. Ten fused one-thread vertical passes at 3840x2160, 8-bit

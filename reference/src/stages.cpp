@@ -166,10 +166,11 @@ void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold) {
   for (; x + 4 <= n; x += 4) {
     const float* s = rgba + std::size_t(x) * kChannels;
     const v4i bright = luminance4(s) > threshold;
-    const v4i a = reinterpret_cast<v4i>(load<v4f>(s)) & __builtin_shuffle(bright, v4i{0, 0, 0, 0});
-    const v4i b = reinterpret_cast<v4i>(load<v4f>(s + 4)) & __builtin_shuffle(bright, v4i{1, 1, 1, 1});
-    const v4i c = reinterpret_cast<v4i>(load<v4f>(s + 8)) & __builtin_shuffle(bright, v4i{2, 2, 2, 2});
-    const v4i d = reinterpret_cast<v4i>(load<v4f>(s + 12)) & __builtin_shuffle(bright, v4i{3, 3, 3, 3});
+    const auto kept = [&](int i) {  // pixel i's RGBA, all bits kept or all cleared
+      return reinterpret_cast<v4i>(load<v4f>(s + 4 * i)) &
+             __builtin_shuffle(bright, v4i{i, i, i, i});
+    };
+    const v4i a = kept(0), b = kept(1), c = kept(2), d = kept(3);
     const v4i out[3] = {__builtin_shuffle(a, b, v4i{0, 1, 2, 4}),   // r0 g0 b0 r1
                         __builtin_shuffle(b, c, v4i{1, 2, 4, 5}),   // g1 b1 r2 g2
                         __builtin_shuffle(c, d, v4i{2, 4, 5, 6})};  // b2 r3 g3 b3
