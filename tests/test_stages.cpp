@@ -291,6 +291,57 @@ TEST_CASE("the plan's scan is a run's first timing and part of its total", "[sta
   }
 }
 
+TEST_CASE("a dense scene: at least 10% of the pixels bright, on at least half the rows",
+          "[stages][plan]") {
+  SceneFacts f;
+  f.width = 20;
+  f.height = 10;
+  auto rows = [&](int n) {
+    f.bright_rows.assign(10, 0);
+    for (int y = 0; y < n; ++y) f.bright_rows[std::size_t(2 * y % 10 + (2 * y >= 10))] = 1;
+  };
+  rows(5);
+  f.bright_pixels = 20;  // 10% of 200
+  CHECK(dense_scene(f));
+  f.bright_pixels = 19;
+  CHECK_FALSE(dense_scene(f));
+  f.bright_pixels = 200;
+  rows(4);
+  CHECK_FALSE(dense_scene(f));
+  rows(10);
+  CHECK(dense_scene(f));
+  f.bright_rows.clear();  // no row facts (as for no scan): not dense
+  CHECK_FALSE(dense_scene(f));
+
+  // From the scan: the demo with a low threshold is dense, at the default one it is not; the
+  // full plan never marks it (it tracks nothing).
+  const Image demo = make_scene("demo", 320, 180);
+  BloomParams p;
+  p.plan = PlanMode::adaptive;
+  CHECK_FALSE(make_plan(p, demo.cview()).dense_scene);
+  p.threshold = 0.05;
+  const Plan dense = make_plan(p, demo.cview());
+  CHECK(dense.dense_scene);
+  p.plan = PlanMode::full;
+  CHECK_FALSE(make_plan(p, demo.cview()).dense_scene);
+
+  // The adaptive plan then blurs it as the full plan does: the bright stage inside the fused
+  // blur, nothing skipped; on the sparse scene it tracks the support.
+  auto has = [](const StageTrace& t, const std::string& name) {
+    return std::any_of(t.timings.begin(), t.timings.end(),
+                       [&](const auto& kv) { return kv.first == name; });
+  };
+  const StageTrace td = execute(dense, demo.cview());
+  CHECK(has(td, "bright+blur.1-10+composite+tonemap+output"));
+  REQUIRE(td.skipped_fraction.size() == 10u);
+  for (const auto& [name, fraction] : td.skipped_fraction) CHECK(fraction == 0.0);
+  p.plan = PlanMode::adaptive;
+  p.threshold = 1.0;
+  const StageTrace ts = execute(make_plan(p, demo.cview()), demo.cview());
+  CHECK_FALSE(has(ts, "bright+blur.1-10+composite+tonemap+output"));
+  CHECK(has(ts, "blur.1"));
+}
+
 TEST_CASE("tone map against 1 - exp(-x) closed forms", "[stages]") {
   ImageF64 h = one_pixel<double>(1.0, 2.0, 1e-10), m(1, 1);
   tonemap(h.cview(), m.view(), 1.0, 1);

@@ -150,9 +150,11 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   bool finished_in_blur = false;
   // The full plan's fast f32 blur runs every pass fused from pass 1, and then stage bright with
   // them (blur_bright_fused): no bright image is made. It was one more full-size image, faulted
-  // in by every run (mmap'd anew: 133 MB at 3840x2160), written and read once.
+  // in by every run (mmap'd anew: 133 MB at 3840x2160), written and read once. So does the
+  // adaptive plan on a dense scene (Plan::dense_scene), tracking no support.
   const bool bright_in_blur =
-      finish_in_blur && p.plan == PlanMode::full && p.blur == BlurImpl::fast &&
+      finish_in_blur && (p.plan == PlanMode::full || plan.dense_scene) &&
+      p.blur == BlurImpl::fast &&
       std::any_of(plan.stages.begin(), plan.stages.end(), [](const StageSpec& s) {
         return s.kind == StageKind::blur && s.pass == 1 && !s.skipped;
       });
@@ -293,7 +295,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
         const bool first_pass = stage.pass == 1;
         int pass_threads = threads;
-        if (p.plan == PlanMode::adaptive) {
+        if (p.plan == PlanMode::adaptive && !bright_in_blur) {
           // Blur only the bright pixels' support (started by the input stage), dilated pass by
           // pass by the taps' reach.
           // A small support is blurred on one thread: waking the others for its three loops
@@ -320,7 +322,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
             prefault_image(pong, threads);  // written whole by this pass
           }
         }
-        if (p.plan == PlanMode::adaptive) {
+        if (p.plan == PlanMode::adaptive && !bright_in_blur) {
           o.src_pages = ledger_of(src);
           o.dst_pages = ledger_of(pong);
           o.page_threads = threads;
@@ -334,7 +336,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
             for (const StageSpec& s : plan.stages)
               if (s.kind == StageKind::blur && s.pass >= stage.pass) {
                 axes.push_back(s.axis);
-                if (p.plan == PlanMode::adaptive && s.pass > stage.pass)
+                if (p.plan == PlanMode::adaptive && (s.pass > stage.pass || bright_in_blur))
                   trace.skipped_fraction.emplace_back(s.name, 0.0);
               }
             std::string name = "blur." + std::to_string(stage.pass) + "-" +

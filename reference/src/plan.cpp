@@ -1,3 +1,4 @@
+#include <algorithm>
 #include "bloomref/plan.h"
 
 #include <chrono>
@@ -110,6 +111,14 @@ std::vector<std::string> stage_names(const BloomParams& p, int width, int height
   return names;
 }
 
+bool dense_scene(const SceneFacts& facts) {
+  const std::uint64_t pixels = std::uint64_t(facts.width) * std::uint64_t(facts.height);
+  if (pixels == 0 || facts.bright_rows.size() != std::size_t(facts.height)) return false;
+  const auto rows = std::uint64_t(
+      std::count(facts.bright_rows.begin(), facts.bright_rows.end(), std::uint8_t(1)));
+  return facts.bright_pixels * 10 >= pixels && rows * 2 >= std::uint64_t(facts.height);
+}
+
 Plan make_plan(const BloomParams& params, ConstImageView scene, const std::string& source) {
   validate(params);
   if (scene.empty()) throw InputError(source, "the image has no pixels");
@@ -135,6 +144,7 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
   }
   plan.sanitize = !adaptive || plan.facts.nonfinite.any();
   const bool skip_blur = adaptive && plan.facts.bright_pixels == 0;
+  plan.dense_scene = adaptive && dense_scene(plan.facts);
 
   plan.stages.push_back({"input", StageKind::input});
   plan.stages.push_back({"bright", StageKind::bright});
