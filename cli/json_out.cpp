@@ -61,6 +61,8 @@ nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace) {
            }()},
           {"nonfinite", counts_json(plan.facts.nonfinite)},
           {"bright_pixels", plan.facts.bright_pixels},
+          // The adaptive plan's verdict on the scene: blurred whole, no support tracked.
+          {"dense_scene", plan.dense_scene},
           {"mip_levels_used", plan.levels.size()},
           {"peak_rss_bytes", [] {
              rusage u{};

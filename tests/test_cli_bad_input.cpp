@@ -200,6 +200,20 @@ TEST_CASE("bloomref run writes EXR, PNG and JSON", "[cli]") {
   CHECK(j.contains("skipped"));
 }
 
+TEST_CASE("bloomref run --json says whether the adaptive plan took the scene as dense", "[cli]") {
+  TempDir dir;
+  for (const auto& [threshold, dense] : {std::pair{"1", false}, std::pair{"0.05", true}}) {
+    const std::string json = std::string("t") + threshold + ".json";
+    const CliResult r = run_cli(dir, std::string("run --size 320x180 -q -o out.exr --threshold ") +
+                                         threshold + " --json " + json);
+    REQUIRE(r.code == 0);
+    const auto j = nlohmann::json::parse(bloomref::test::read_bytes(dir / json));
+    INFO("threshold " << threshold);
+    CHECK(j["dense_scene"].get<bool>() == dense);
+    CHECK(j["timings_ms"].contains("bright+blur.1-10+composite+tonemap+output") == dense);
+  }
+}
+
 TEST_CASE("bloomref run --repeat times later runs in the same process, same bits", "[cli]") {
   TempDir dir;
   // 64x48 with a bright block: the blur runs (the adaptive plan's masked passes).
