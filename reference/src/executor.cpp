@@ -128,13 +128,6 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
 
   const auto t_total = Clock::now();
   BasicImage<T> scene;
-  // Written by the input stage (extract_bright): whole, or under the adaptive plan when no
-  // stage is kept and at most 1% of the pixels are bright, only its bright pixels into a zeroed
-  // image (its pages exist where written; no stage after it reads its alpha, left 0 elsewhere).
-  // A blur that reads all of it (the full plan's, or the adaptive one once dense) pays a fault
-  // for every page never written (StarField.exr, full plan: +7-10 ms); the corpus's images are
-  // either sparse (0.03-0.6% bright: StarField, GoldenGate, CandleGlass, the demo) or not
-  // (10-25%: WideColorGamut, BrightRingsNanInf, StageEnvLatLong, WideFloatRange, comp_dwab_v2).
   // The finishing stages: the fast f32 ones unless the staged reference was asked for (--blur
   // reference) or values are rounded to f16 between stages; and all three in one sweep
   // (finish_fast) where no intermediate is kept and the composite comes before the tone map.
@@ -158,6 +151,13 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
       std::any_of(plan.stages.begin(), plan.stages.end(), [](const StageSpec& s) {
         return s.kind == StageKind::blur && s.pass == 1 && !s.skipped;
       });
+  // Written by the input stage (extract_bright): whole, or under the adaptive plan when no
+  // stage is kept and at most 1% of the pixels are bright, only its bright pixels into a zeroed
+  // image (its pages exist where written; no stage after it reads its alpha, left 0 elsewhere).
+  // A blur that reads all of it (the adaptive one once dense) pays a fault for every page never
+  // written; none where the bright stage runs inside the fused blur. The corpus's images are
+  // either sparse (0.03-0.6% bright: StarField, GoldenGate, CandleGlass, the demo) or not
+  // (10-25%: WideColorGamut, BrightRingsNanInf, StageEnvLatLong, WideFloatRange, comp_dwab_v2).
   const int bw = p.method == Method::gaussian && !bright_in_blur ? w : 0;
   const int bh = p.method == Method::gaussian && !bright_in_blur ? h : 0;
   const bool sparse_bright = p.plan == PlanMode::adaptive && !opt.keep_all &&
