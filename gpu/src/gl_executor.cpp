@@ -239,7 +239,9 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
   // The adaptive plan's texel support, as on the CPU, turned into rectangles of 64x64 tiles:
   // scissor rectangles for fragment shaders, one dispatch each for compute shaders. Faults run
   // whole.
-  const bool scissor = p.plan == PlanMode::adaptive && !mip && opt.fault == Fault::none;
+  // Not for a dense scene (Plan::dense_scene): its support reaches most tiles at once.
+  const bool scissor =
+      p.plan == PlanMode::adaptive && !mip && opt.fault == Fault::none && !plan.dense_scene;
   constexpr int kScissorTile = 64;
   // Above half the image the readback, support and many draws cost more than the texels
   // saved (BrightRingsNanInf: 148 ms unscissored, 186 ms scissored on llvmpipe).
