@@ -27,6 +27,7 @@
 #include <cstdint>
 #include <functional>
 #include <numeric>
+#include <optional>
 #include <vector>
 
 #include "blur_internal.h"
@@ -179,9 +180,9 @@ float* shifted(float* p, int x0, int channels = kRingChannels) {
 // is stage bright of it (blur_bright_fused).
 void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink* sink,
            const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits, int threads,
-           BlurIsa isa, const float* threshold = nullptr) {
+           BlurIsa isa, std::optional<float> threshold = std::nullopt) {
   const int w = src.width, h = src.height;
-  const bool bright = threshold != nullptr;
+  const bool bright = threshold.has_value();
   const int n = static_cast<int>(axes.size()) + (bright ? 1 : 0);
   if (axes.empty()) throw ParamError("blur_passes_fused: no passes");
   if (!sink && (dst.width != w || dst.height != h))
@@ -261,12 +262,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
       // Pass k's output rows: a ring for the intermediate passes (row r in slot r mod ring[k],
       // columns x0[k] ... x1[k] - 1), dst for the last.
       std::vector<PixelBuffer<float>> rings(n);
-      std::vector<std::size_t> ring_stride(n);
       std::vector<std::vector<float*>> out_rows(n);
-      // Row r of pass k's ring, from column x0[k] on.
-      auto ring_row = [&](int k, int r) {
-        return rings[k].data() + (r % ring[k]) * ring_stride[k];
-      };
       for (int k = 0; k + 1 < n; ++k) {
         // Rows whole 64-byte cache lines apart: the vertical passes' loads of a row start on
         // one and never straddle two. Ten fused one-thread vertical passes at 3840x2160, 8-bit
@@ -274,7 +270,6 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
         const std::size_t row_floats =
             detail::round_up(std::size_t(strip.x1[k] - strip.x0[k]) * kRingChannels, kRowAlign);
         rings[k] = PixelBuffer<float>(std::size_t(ring[k]) * row_floats + kRingPad);
-        ring_stride[k] = row_floats;
         out_rows[k].resize(h);
         for (int r = 0; r < h; ++r)
           out_rows[k][r] = shifted(rings[k].data() + (r % ring[k]) * row_floats, strip.x0[k]);
@@ -302,7 +297,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
           // computed from rows of this one at and below it), the others from `beside`.
           const int left = sx0 - x0, bw = beside_width[si];
           for (int r = r0; r < r1; ++r) {
-            float* d = ring_row(0, r);
+            float* d = out_rows[0][r] + std::size_t(x0) * kRingChannels;  // column x0
             const float* b = beside[si].data() + std::size_t(r) * bw * kRingChannels;
             std::copy(b, b + std::size_t(left) * kRingChannels, d);
             detail::bright_rgb_row(src.row(r) + std::size_t(sx0) * kChannels,
@@ -313,7 +308,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
           return;
         }
         const detail::PassTables& t = *passes[k].t;
-        const bool reads_src = k == 0;
+        const bool reads_src = k == 0 && !bright;
         const float* const* in = reads_src ? src_rows.data() : out_rows[k - 1].data();
         float* const* out = k + 1 < n ? out_rows[k].data()
                             : sink  ? block_rows.data()
@@ -395,7 +390,7 @@ void blur_bright_fused(BasicView<const float> scene, float threshold, const Fuse
                        const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
                        int threads, BlurIsa isa) {
   if (!sink) throw ParamError("blur_bright_fused: no sink");
-  fused(scene, BasicView<float>{}, &sink, axes, kernel, subtexel_bits, threads, isa, &threshold);
+  fused(scene, BasicView<float>{}, &sink, axes, kernel, subtexel_bits, threads, isa, threshold);
 }
 
 }  // namespace bloomref

@@ -141,16 +141,21 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   // nothing left to do.
   const bool finish_in_blur = fuse_finish && p.method == Method::gaussian;
   bool finished_in_blur = false;
-  // The full plan's fast f32 blur runs every pass fused from pass 1, and then stage bright with
-  // them (blur_bright_fused): no bright image is made. It was one more full-size image, faulted
-  // in by every run (mmap'd anew: 133 MB at 3840x2160), written and read once. So does the
+  // Whether dense blur passes run fused (blur_passes_fused): the fast f32 blur, nothing rounded
+  // or kept between passes. The blur stage runs the rest fused from the first dense pass.
+  const bool fusable = std::is_same_v<T, float> && p.blur == BlurImpl::fast &&
+                       p.storage == Storage::f32 && !opt.keep_all;
+  // The full plan then runs every pass fused from pass 1, and stage bright with them
+  // (blur_bright_fused): no bright image is made. It was one more full-size image, faulted in
+  // by every run (mmap'd anew: 133 MB at 3840x2160), written and read once. So does the
   // adaptive plan on a dense scene (Plan::dense_scene), tracking no support.
   const bool bright_in_blur =
-      finish_in_blur && (p.plan == PlanMode::full || plan.dense_scene) &&
-      p.blur == BlurImpl::fast &&
+      fusable && finish_in_blur && (p.plan == PlanMode::full || plan.dense_scene) &&
       std::any_of(plan.stages.begin(), plan.stages.end(), [](const StageSpec& s) {
         return s.kind == StageKind::blur && s.pass == 1 && !s.skipped;
       });
+  // The adaptive plan's blur follows the bright pixels' support pass by pass.
+  const bool track_support = p.plan == PlanMode::adaptive && !bright_in_blur;
   // Written by the input stage (extract_bright): whole, or under the adaptive plan when no
   // stage is kept and at most 1% of the pixels are bright, only its bright pixels into a zeroed
   // image (its pages exist where written; no stage after it reads its alpha, left 0 elsewhere).
@@ -295,7 +300,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
         const bool first_pass = stage.pass == 1;
         int pass_threads = threads;
-        if (p.plan == PlanMode::adaptive && !bright_in_blur) {
+        if (track_support) {
           // Blur only the bright pixels' support (started by the input stage), dilated pass by
           // pass by the taps' reach.
           // A small support is blurred on one thread: waking the others for its three loops
@@ -310,10 +315,9 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
               stage.name, 1.0 - double(support.count()) / (double(w) * h));
         }
         // Dense from here on (the full plan, or the adaptive plan once its support covers half
-        // the image), nothing rounded or kept between passes: the rest of the passes run fused.
-        const bool fused_rest = std::is_same_v<T, float> && o.active == nullptr &&
-                                p.blur == BlurImpl::fast && p.storage == Storage::f32 &&
-                                !opt.keep_all;
+        // the image): the rest of the passes run fused. (Always with the bright stage inside:
+        // bright_in_blur implies fusable and tracks nothing.)
+        const bool fused_rest = fusable && o.active == nullptr;
         if (pong.empty() && !(fused_rest && finish_in_blur)) {
           if (leave_zeros && first_pass) {
             pong = take_zeroed<T>(w, h, ledgers);
@@ -322,7 +326,7 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
             prefault_image(pong, threads);  // written whole by this pass
           }
         }
-        if (p.plan == PlanMode::adaptive && !bright_in_blur) {
+        if (track_support) {
           o.src_pages = ledger_of(src);
           o.dst_pages = ledger_of(pong);
           o.page_threads = threads;

@@ -1,6 +1,6 @@
-#include <algorithm>
 #include "bloomref/plan.h"
 
+#include <algorithm>
 #include <chrono>
 #include <mutex>
 #include <type_traits>
@@ -20,11 +20,12 @@ namespace {
 template <class T>
 void scan_row(const float* s, int width, const BloomParams& p, NonFiniteCounts& c,
               std::uint64_t& bright) {
+  const T threshold = static_cast<T>(p.threshold);
   if (count_nonfinite_values(s, width * kChannels, c)) {
-    const T threshold = static_cast<T>(p.threshold);
     for (int x = 0; x < width; ++x, s += kChannels) {
       T v[3];
-      for (int k = 0; k < 3; ++k) v[k] = sanitize_value(static_cast<T>(s[k]), p.nonfinite, p.storage);
+      for (int k = 0; k < 3; ++k)
+        v[k] = sanitize_value(static_cast<T>(s[k]), p.nonfinite, p.storage);
       bright += luminance(v[0], v[1], v[2]) > threshold;
     }
     return;
@@ -33,13 +34,13 @@ void scan_row(const float* s, int width, const BloomParams& p, NonFiniteCounts& 
   if constexpr (std::is_same_v<T, float>) {
     detail::v4i count{};
     for (; x + 4 <= width; x += 4, s += 4 * kChannels)
-      count -= detail::luminance4(s) > p.threshold;  // -1 in a bright lane
+      count -= detail::luminance4(s) > threshold;  // -1 in a bright lane
     bright += std::uint64_t(count[0]) + std::uint64_t(count[1]) + std::uint64_t(count[2]) +
               std::uint64_t(count[3]);
   }
-  const T threshold = static_cast<T>(p.threshold);
   for (; x < width; ++x, s += kChannels)
-    bright += luminance(static_cast<T>(s[0]), static_cast<T>(s[1]), static_cast<T>(s[2])) > threshold;
+    bright += luminance(static_cast<T>(s[0]), static_cast<T>(s[1]), static_cast<T>(s[2])) >
+              threshold;
 }
 
 // The scene's facts in one parallel scan (scan_row per row).
@@ -129,7 +130,8 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
   const auto t0 = std::chrono::steady_clock::now();
   if (params.precision == Precision::f64) scan_scene<double>(scene, params, plan.facts);
   else scan_scene<float>(scene, params, plan.facts);
-  plan.facts.scan_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  plan.facts.scan_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (params.nonfinite == NonFinite::error && plan.facts.nonfinite.total() > 0)
     throw InputError(source, "holds " + describe(plan.facts.nonfinite) +
                                  " and --nonfinite error refuses them (use zero, clamp or "
