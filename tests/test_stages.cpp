@@ -194,6 +194,7 @@ SceneFacts facts_by_hand(const Image& img, const BloomParams& p) {
   SceneFacts f;
   const double guard = std::ldexp(1.0, 120);
   const double largest = p.storage == Storage::f16 ? 65504.0 : guard;
+  f.bright_rows.assign(std::size_t(img.height()), 0);
   for (int y = 0; y < img.height(); ++y)
     for (int x = 0; x < img.width(); ++x) {
       const float* px = img.pixel(x, y);
@@ -217,7 +218,10 @@ SceneFacts facts_by_hand(const Image& img, const BloomParams& p) {
       T lum = v[0] * T(0.2126);
       lum = lum + v[1] * T(0.7152);
       lum = lum + v[2] * T(0.0722);
-      f.bright_pixels += lum > static_cast<T>(p.threshold);
+      if (lum > static_cast<T>(p.threshold)) {
+        ++f.bright_pixels;
+        f.bright_rows[std::size_t(y)] = 1;
+      }
     }
   return f;
 }
@@ -225,10 +229,12 @@ SceneFacts facts_by_hand(const Image& img, const BloomParams& p) {
 
 TEST_CASE("the plan's scan finds what a value-by-value reading of the policy finds", "[stages][plan]") {
   // Beside the scenes and the corpus (NaN and Inf in BrightRingsNanInf.exr, values beyond 2^120
-  // in scale.hdr and WideFloatRange.exr): 4k+1..4k+3 wide rows (the vector loop's tail), clean
-  // rows beside rows with one non-finite value, and values within an ulp of the threshold.
+  // in scale.hdr and WideFloatRange.exr): rows of every width up to 4 vectors of the widest
+  // row kernel and a tail (the kernels take 1, 2 or 4 pixels a vector), clean rows beside rows
+  // with one non-finite value (in any channel, alpha too), and values within an ulp of the
+  // threshold. Every instruction set's row kernel (scan_scene), and make_plan's.
   std::vector<std::pair<std::string, Image>> extra;
-  for (int w : {1, 3, 5, 7, 8, 13}) {
+  for (int w : {1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 13, 15, 16, 17, 19}) {
     Image img(w, 9);
     std::uint32_t state = 12345u + std::uint32_t(w);
     auto next = [&] { state = state * 1664525u + 1013904223u; return state >> 8; };
@@ -259,14 +265,21 @@ TEST_CASE("the plan's scan finds what a value-by-value reading of the policy fin
           p.threads = 2;
           const SceneFacts want = prec == Precision::f64 ? facts_by_hand<double>(img, p)
                                                          : facts_by_hand<float>(img, p);
-          const SceneFacts got = make_plan(p, img.cview()).facts;
-          INFO(name << ", " << to_string(policy) << ", " << to_string(storage) << ", "
-                    << to_string(prec));
-          CHECK(got.bright_pixels == want.bright_pixels);
-          CHECK(got.nonfinite.nan == want.nonfinite.nan);
-          CHECK(got.nonfinite.pos_inf == want.nonfinite.pos_inf);
-          CHECK(got.nonfinite.neg_inf == want.nonfinite.neg_inf);
-          CHECK(got.nonfinite.out_of_range == want.nonfinite.out_of_range);
+          std::vector<std::pair<std::string, SceneFacts>> found = {
+              {"make_plan", make_plan(p, img.cview()).facts}};
+          for (BlurIsa isa : {BlurIsa::generic, BlurIsa::avx2, BlurIsa::avx512})
+            if (blur_isa_available(isa))
+              found.emplace_back(blur_isa_name(isa), scan_scene(img.cview(), p, isa));
+          for (const auto& [how, got] : found) {
+            INFO(name << ", " << to_string(policy) << ", " << to_string(storage) << ", "
+                      << to_string(prec) << ", " << how);
+            CHECK(got.bright_pixels == want.bright_pixels);
+            CHECK(got.bright_rows == want.bright_rows);
+            CHECK(got.nonfinite.nan == want.nonfinite.nan);
+            CHECK(got.nonfinite.pos_inf == want.nonfinite.pos_inf);
+            CHECK(got.nonfinite.neg_inf == want.nonfinite.neg_inf);
+            CHECK(got.nonfinite.out_of_range == want.nonfinite.out_of_range);
+          }
         }
   }
 }

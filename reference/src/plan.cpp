@@ -7,45 +7,39 @@
 
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
-#include "simd_lanes.h"
+#include "blur_internal.h"
+#include "scan_internal.h"
 
 namespace bloomref {
 namespace {
 
 // How many values of a row are non-finite or beyond kRangeGuard (count_nonfinite_values), and
 // how many pixels are bright (sanitised luminance > threshold, decided before storage, as the
-// MRT pass does), in one scan. A row without such values is its own sanitised self: its
-// luminance four pixels at a time (luminance4, each lane's comparison the scalar one). Other
-// rows take every value through the per-value functions the input stage applies.
+// MRT pass does), in one scan. In f32 a row without such values is its own sanitised self: the
+// instruction set's row kernel (scan_kernels.inc) reads it once, testing the values and
+// counting the bright pixels in the same sweep, each luminance and comparison the scalar ones.
+// Other rows (and every row in f64) take every value through the per-value functions the input
+// stage applies.
 template <class T>
-void scan_row(const float* s, int width, const BloomParams& p, NonFiniteCounts& c,
-              std::uint64_t& bright) {
+void scan_row(const float* s, int width, const BloomParams& p, detail::ScanKernel kernel,
+              NonFiniteCounts& c, std::uint64_t& bright) {
+  if constexpr (std::is_same_v<T, float>)
+    if (kernel(s, width, static_cast<float>(p.threshold), bright)) return;
   const T threshold = static_cast<T>(p.threshold);
-  if (count_nonfinite_values(s, width * kChannels, c)) {
-    for (int x = 0; x < width; ++x, s += kChannels) {
-      T v[3];
-      for (int k = 0; k < 3; ++k)
-        v[k] = sanitize_value(static_cast<T>(s[k]), p.nonfinite, p.storage);
-      bright += luminance(v[0], v[1], v[2]) > threshold;
-    }
-    return;
+  const bool any = count_nonfinite_values(s, width * kChannels, c);
+  for (int x = 0; x < width; ++x, s += kChannels) {
+    T v[3];
+    for (int k = 0; k < 3; ++k)
+      v[k] = any ? sanitize_value(static_cast<T>(s[k]), p.nonfinite, p.storage)
+                 : static_cast<T>(s[k]);
+    bright += luminance(v[0], v[1], v[2]) > threshold;
   }
-  int x = 0;
-  if constexpr (std::is_same_v<T, float>) {
-    detail::v4i count{};
-    for (; x + 4 <= width; x += 4, s += 4 * kChannels)
-      count -= detail::luminance4(s) > threshold;  // -1 in a bright lane
-    bright += std::uint64_t(count[0]) + std::uint64_t(count[1]) + std::uint64_t(count[2]) +
-              std::uint64_t(count[3]);
-  }
-  for (; x < width; ++x, s += kChannels)
-    bright += luminance(static_cast<T>(s[0]), static_cast<T>(s[1]), static_cast<T>(s[2])) >
-              threshold;
 }
 
 // The scene's facts in one parallel scan (scan_row per row).
 template <class T>
-void scan_scene(ConstImageView scene, const BloomParams& p, SceneFacts& facts) {
+void scan_rows(ConstImageView scene, const BloomParams& p, BlurIsa isa, SceneFacts& facts) {
+  const detail::ScanKernel kernel = detail::scan_kernel_for(isa);
   std::mutex m;
   facts.bright_rows.assign(std::size_t(scene.height), 0);
   parallel_rows(scene.height, p.threads, [&](int y0, int y1) {
@@ -53,7 +47,7 @@ void scan_scene(ConstImageView scene, const BloomParams& p, SceneFacts& facts) {
     std::uint64_t bright = 0;
     for (int y = y0; y < y1; ++y) {
       const std::uint64_t before = bright;
-      scan_row<T>(scene.row(y), scene.width, p, c, bright);
+      scan_row<T>(scene.row(y), scene.width, p, kernel, c, bright);
       facts.bright_rows[std::size_t(y)] = bright != before;
     }
     std::lock_guard<std::mutex> lock(m);
@@ -112,6 +106,18 @@ std::vector<std::string> stage_names(const BloomParams& p, int width, int height
   return names;
 }
 
+SceneFacts scan_scene(ConstImageView scene, const BloomParams& params, BlurIsa isa) {
+  SceneFacts facts;
+  facts.width = scene.width;
+  facts.height = scene.height;
+  const auto t0 = std::chrono::steady_clock::now();
+  if (params.precision == Precision::f64) scan_rows<double>(scene, params, isa, facts);
+  else scan_rows<float>(scene, params, isa, facts);
+  facts.scan_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return facts;
+}
+
 bool dense_scene(const SceneFacts& facts) {
   const std::uint64_t pixels = std::uint64_t(facts.width) * std::uint64_t(facts.height);
   if (pixels == 0 || facts.bright_rows.size() != std::size_t(facts.height)) return false;
@@ -125,13 +131,7 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
   if (scene.empty()) throw InputError(source, "the image has no pixels");
   Plan plan;
   plan.params = params;
-  plan.facts.width = scene.width;
-  plan.facts.height = scene.height;
-  const auto t0 = std::chrono::steady_clock::now();
-  if (params.precision == Precision::f64) scan_scene<double>(scene, params, plan.facts);
-  else scan_scene<float>(scene, params, plan.facts);
-  plan.facts.scan_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  plan.facts = scan_scene(scene, params);
   if (params.nonfinite == NonFinite::error && plan.facts.nonfinite.total() > 0)
     throw InputError(source, "holds " + describe(plan.facts.nonfinite) +
                                  " and --nonfinite error refuses them (use zero, clamp or "
@@ -161,4 +161,17 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
   return plan;
 }
 
+namespace detail {
+
+ScanKernel scan_kernel_for(BlurIsa isa) {
+  switch (resolve_isa(isa)) {  // throws for avx2 and avx512 where they are not
+#ifdef BLOOMREF_HAVE_AVX2_KERNEL
+    case BlurIsa::avx512: return scan_row_avx512;
+    case BlurIsa::avx2: return scan_row_avx2;
+#endif
+    default: return scan_row_generic;
+  }
+}
+
+}  // namespace detail
 }  // namespace bloomref

@@ -59,6 +59,10 @@ struct Plan {
 /// NaN or Inf, or the scene is empty.
 Plan make_plan(const BloomParams& params, ConstImageView scene, const std::string& source = "");
 
+/// The plan's scan of the scene alone (make_plan's first step), its row kernel `isa`'s
+/// (BlurIsa::best: the widest this CPU has; ParamError for one it lacks): the same facts from
+/// every kernel.
+SceneFacts scan_scene(ConstImageView scene, const BloomParams& params, BlurIsa isa = BlurIsa::best);
 /// Whether the bright pixels are so many and so spread that tracking the blur's support costs
 /// more than it saves: at least 10% of the pixels bright, on at least half the rows. Measured on
 /// the corpus (README, stop 28): the scenes this takes (10.5-21% bright on 50-95% of the rows)
