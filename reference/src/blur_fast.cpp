@@ -347,6 +347,8 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   // listed in tile order, without reading the mask (the demo scene at 3840x2160 touches a few
   // percent of them), and shared out between the threads by count.
   std::vector<int> listed;
+  std::vector<const Span*> span_rows;
+  std::vector<int> span_counts;
   if (listing) {
     std::vector<std::uint8_t> touched(std::size_t(job.tiles_along) * tiles_across);
     for (int y = 0; y < src.height; ++y) {
@@ -365,6 +367,17 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
     for (std::size_t t = 0; t < touched.size(); ++t)
       if (touched[t]) listed.push_back(int(t));
     job.tile_ids = listed.data();
+    if (!horizontal) {
+      // The vertical pass's lines are image rows: each computes only its spans.
+      span_rows.resize(std::size_t(src.height));
+      span_counts.resize(std::size_t(src.height));
+      for (int y = 0; y < src.height; ++y) {
+        span_rows[std::size_t(y)] = (*opt.active_spans)[std::size_t(y)].data();
+        span_counts[std::size_t(y)] = int((*opt.active_spans)[std::size_t(y)].size());
+      }
+      job.row_spans = span_rows.data();
+      job.row_span_counts = span_counts.data();
+    }
     if (opt.src_pages || opt.dst_pages)
       populate_tile_pages(job, kept, listed, touched.size(), src, dst, opt, threads);
   }

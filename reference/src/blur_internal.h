@@ -74,6 +74,11 @@ struct TileJob {
   /// [t0, t1) of this list (the adaptive plan's touched tiles), the others left alone.
   const int* tile_ids = nullptr;
   bool dst_zero_outside = false;  ///< tiles without an active texel are left alone (stages.h)
+  /// Optional, with dst_zero_outside and listed tiles, the vertical pass with RGBA rows only: per
+  /// output row, the support's spans (sorted, disjoint; row_span_counts of them). Only those
+  /// texels of a tile's lines are computed: the others are +0 in the destination already.
+  const Span* const* row_spans = nullptr;
+  const int* row_span_counts = nullptr;
   int width = 0;
   /// Floats a texel of the source and destination rows: 4 (RGBA; the destination's alpha is
   /// written 1) or 3 (RGB: the fused blur's intermediate rows; a row of 3 is read 8 floats at a
