@@ -107,9 +107,6 @@ double ms_since(Clock::time_point t0) {
 Image to_float_image(const Image& img) { return img; }
 Image to_float_image(const ImageF64& img) { return convert_image<float>(img.cview()); }
 
-// Adaptive blur passes whose support has fewer texels than this run on one thread.
-constexpr std::size_t kSerialSupport = std::size_t(1) << 15;
-
 // Runs the plan in precision T. The scene, bright image and the latest blur result are the only
 // full-size images alive at once (plus the kept intermediates when asked).
 template <class T>
@@ -299,14 +296,12 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
         }
         BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
         const bool first_pass = stage.pass == 1;
-        int pass_threads = threads;
         if (track_support) {
           // Blur only the bright pixels' support (started by the input stage), dilated pass by
-          // pass by the taps' reach.
-          // A small support is blurred on one thread: waking the others for its three loops
-          // cost more than they saved (the demo at 256x256: two threads 0.79x one, bench).
-          if (support.count() < kSerialSupport) pass_threads = 1;
-          o.active = support.advance<T>(o, pass_threads);
+          // pass by the taps' reach. Every pass on all the run's threads: a small support on
+          // one thread (under 2^15 texels, when waking the others cost more than they saved
+          // before the kept arenas, parallel.cpp) measured slower since (README, stop 29).
+          o.active = support.advance<T>(o, threads);
           o.active_spans = support.spans();
           // Pass k > 1 writes the buffer pass k - 2 (pass 2: bright) left +0 outside a support
           // contained in this one (stages.h); pass 1 a zeroed one, or a new one it fills.
@@ -378,11 +373,11 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
             trace.timings.emplace_back(name, ms_since(t0));
             break;
           }
-          if (p.blur == BlurImpl::fast) blur_pass_fast(src.cview(), pong.view(), o, pass_threads);
-          else if (p.blur == BlurImpl::approx) blur_pass_approx(src.cview(), pong.view(), o, pass_threads);
-          else blur_pass(src.cview(), pong.view(), o, pass_threads);
+          if (p.blur == BlurImpl::fast) blur_pass_fast(src.cview(), pong.view(), o, threads);
+          else if (p.blur == BlurImpl::approx) blur_pass_approx(src.cview(), pong.view(), o, threads);
+          else blur_pass(src.cview(), pong.view(), o, threads);
         } else {
-          blur_pass(src.cview(), pong.view(), o, pass_threads);
+          blur_pass(src.cview(), pong.view(), o, threads);
         }
         store(pong.view(), p.storage, rounding, threads);
         std::swap(ping, pong);
