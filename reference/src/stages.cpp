@@ -63,19 +63,6 @@ double storage_max(Storage s) {
   return s == Storage::f16 ? kHalfMax : kRangeGuard;
 }
 
-template <class T>
-NonFiniteCounts count_nonfinite(BasicView<const T> src, int threads) {
-  NonFiniteCounts total;
-  std::mutex m;
-  parallel_rows(src.height, threads, [&](int y0, int y1) {
-    NonFiniteCounts c;
-    for (int y = y0; y < y1; ++y) count_nonfinite_values(src.row(y), src.width * kChannels, c);
-    std::lock_guard<std::mutex> lock(m);
-    total += c;
-  });
-  return total;
-}
-
 // One sweep: each row counted, then rewritten while it is in cache. A row with nothing to count
 // holds only finite values within kRangeGuard, which sanitize_value returns as they are (bit for
 // bit, -0 too): in place there is nothing to write (the dense plan's input stage: 133 MB read
@@ -273,7 +260,6 @@ std::uint8_t quantize_8bit(float x) {
 }
 
 #define BLOOMREF_INSTANTIATE(T)                                                                  \
-  template NonFiniteCounts count_nonfinite<T>(BasicView<const T>, int);                          \
   template NonFiniteCounts sanitize<T>(BasicView<const T>, BasicView<T>, NonFinite, Storage,     \
                                        int);                                                      \
   template void extract_bright<T>(BasicView<const T>, BasicView<T>, T, int, bool,              \

@@ -86,9 +86,6 @@ inline bool count_nonfinite_values(const T* p, int n, NonFiniteCounts& c) {
   return true;
 }
 
-/// Counts NaN, +Inf, -Inf and finite values beyond kRangeGuard over all four channels.
-template <class T>
-NonFiniteCounts count_nonfinite(BasicView<const T> src, int threads);
 
 /// Stage `input`: applies the non-finite policy to every channel; returns what it found.
 template <class T>
