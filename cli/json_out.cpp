@@ -36,7 +36,7 @@ std::string cpu_renderer(const BloomParams& p) {
   std::string blur = "reference blur";
   if (f32 && p.blur == BlurImpl::fast) blur = "fast blur, " + blur_isa_name();
   if (f32 && p.blur == BlurImpl::approx)
-    blur = "approximate blur, " + std::string(blur_isa_name() != "generic" ? "avx2+fma" : "generic");
+    blur = "approximate blur, " + (blur_isa_name() != "generic" ? blur_isa_name() + "+fma" : "generic");
   return "cpu: bloomref " + to_string(p.precision) + " (" + blur + "), " +
          std::to_string(resolve_threads(p.threads)) + " threads";
 }

@@ -626,6 +626,113 @@ TEST_CASE("blur_bright_fused gives extract_bright then the pass-by-pass blur's b
   }
 }
 
+TEST_CASE("the approximate blur fused gives its pass-by-pass bits", "[blur][approx][fused]") {
+  // blur_passes_fused with BlurImpl::approx against blur_pass_approx pass by pass (each
+  // instruction set against itself: the generic build does not fuse its multiply-adds). Sizes
+  // under the stencil's reach (1, 5, 7: every texel clamped), several strips (1100, 1920: the
+  // strips' columns beside them), vertical passes over more than one block of columns (a strip
+  // of 550 texels: 1650 floats, blocks of 768) and rows not a whole number of chunks; the rings
+  // of 3 floats a texel from the source's 4 and back, and into a sink.
+  const std::pair<int, int> sizes[] = {{1, 1},    {7, 1},    {1, 9},     {5, 3},
+                                       {37, 23},  {513, 17}, {1100, 37}, {1920, 21},
+                                       {9, 1080}, {533, 19}, {1000, 61}};
+  const std::vector<std::vector<Axis>> orders = {
+      {Axis::horizontal},
+      {Axis::vertical},
+      {Axis::horizontal, Axis::vertical},
+      {Axis::vertical, Axis::vertical, Axis::horizontal},
+      {Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical, Axis::horizontal,
+       Axis::vertical, Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical,
+       Axis::horizontal}};
+  unsigned seed = 140;
+  for (auto [w, h] : sizes) {
+    const Image src = hostile_image(w, h, seed++);
+    for (const std::vector<Axis>& axes : orders) {
+      for (BlurIsa isa : isas()) {
+        Image a = src, b(w, h);
+        for (Axis axis : axes) {
+          blur_pass_approx(a.cview(), b.view(), BlurPassOptions{axis, &kernel_discrete9(), 0}, 2,
+                           isa);
+          std::swap(a, b);
+        }
+        for (int threads : {1, 2}) {
+          INFO(w << "x" << h << " passes " << axes.size() << " isa " << blur_isa_name(isa)
+                 << " threads " << threads);
+          Image fused(w, h, 7.0f);
+          blur_passes_fused(src.cview(), fused.view(), axes, kernel_discrete9(), 0, threads, isa,
+                            BlurImpl::approx);
+          CHECK(test::same_bits_nan_agnostic(a.cview(), fused.cview()));
+          Image sunk(w, h, 7.0f);
+          std::vector<int> times(std::size_t(w) * h, 0);
+          std::mutex m;
+          const FusedBlurSink sink = [&](int x0, int x1, int y0, int y1,
+                                         const float* const* rows) {
+            std::lock_guard<std::mutex> lock(m);
+            for (int y = y0; y < y1; ++y) {
+              std::memcpy(sunk.view().row(y) + 4 * x0, rows[y - y0], std::size_t(x1 - x0) * 16);
+              for (int x = x0; x < x1; ++x) ++times[std::size_t(y) * w + x];
+            }
+          };
+          blur_passes_fused(src.cview(), sink, axes, kernel_discrete9(), 0, threads, isa,
+                            BlurImpl::approx);
+          CHECK(std::all_of(times.begin(), times.end(), [](int t) { return t == 1; }));
+          CHECK(test::same_bits_nan_agnostic(a.cview(), sunk.cview()));
+        }
+      }
+    }
+    // Stage bright inside: extract_bright, then the passes.
+    const std::vector<Axis> hv = {Axis::horizontal, Axis::vertical, Axis::horizontal,
+                                  Axis::vertical};
+    for (BlurIsa isa : isas()) {
+      Image a(w, h), b(w, h);
+      extract_bright(src.cview(), a.view(), 1.0f, 1);
+      for (Axis axis : hv) {
+        blur_pass_approx(a.cview(), b.view(), BlurPassOptions{axis, &kernel_discrete9(), 0}, 1,
+                         isa);
+        std::swap(a, b);
+      }
+      Image sunk(w, h, 7.0f);
+      const FusedBlurSink sink = [&](int x0, int x1, int y0, int y1, const float* const* rows) {
+        for (int y = y0; y < y1; ++y)
+          std::memcpy(sunk.view().row(y) + 4 * x0, rows[y - y0], std::size_t(x1 - x0) * 16);
+      };
+      blur_bright_fused(src.cview(), 1.0f, sink, hv, kernel_discrete9(), 0, 1, isa,
+                        BlurImpl::approx);
+      INFO(w << "x" << h << " bright, isa " << blur_isa_name(isa));
+      CHECK(test::same_bits_nan_agnostic(a.cview(), sunk.cview()));
+    }
+  }
+}
+
+TEST_CASE("the approximate blur's fused multiply-adds give the same bits at every width",
+          "[blur][approx]") {
+  // The 32- and 64-byte builds both fuse each multiply-add (intrinsics, not contraction), so
+  // they agree bit for bit; the generic build rounds twice and must differ somewhere (else the
+  // comparison could not tell them apart).
+  if (!blur_isa_available(BlurIsa::avx2)) {
+    WARN("no AVX2 on this CPU: nothing to compare");
+    return;
+  }
+  const int w = 301, h = 67;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.0f, 100.0f);
+  Image src(w, h);
+  for (float& v : src.values()) v = u(rng);
+  auto passes = [&](BlurIsa isa) {
+    Image a = src, b(w, h);
+    for (Axis axis : {Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical}) {
+      blur_pass_approx(a.cview(), b.view(), BlurPassOptions{axis, &kernel_discrete9(), 0}, 1,
+                       isa);
+      std::swap(a, b);
+    }
+    return a;
+  };
+  const Image avx2 = passes(BlurIsa::avx2);
+  CHECK_FALSE(test::same_bits_nan_agnostic(avx2.cview(), passes(BlurIsa::generic).cview()));
+  if (blur_isa_available(BlurIsa::avx512))
+    CHECK(test::same_bits_nan_agnostic(avx2.cview(), passes(BlurIsa::avx512).cview()));
+}
+
 TEST_CASE("the fused blur's last pass stored past the cache gives the same bits",
           "[blur][fast][fused]") {
   // From 64 MB of output on, the last vertical pass stores its 32-byte-aligned pairs of texels
@@ -645,6 +752,15 @@ TEST_CASE("the fused blur's last pass stored past the cache gives the same bits"
       blur_passes_fused(src.cview(), fused.view(), axes, kernel_discrete9(), 0, 2, isa);
       INFO(w << "x" << h << " isa " << blur_isa_name(isa));
       CHECK(test::same_bits_nan_agnostic(b.cview(), fused.cview()));
+      // The approximate passes stream their last pass's texels too (ApproxRowsJob::stream_dst).
+      Image pa(w, h), pb(w, h);
+      blur_pass_approx(src.cview(), pa.view(), BlurPassOptions{axes[0], &kernel_discrete9(), 0},
+                       2, isa);
+      blur_pass_approx(pa.cview(), pb.view(), BlurPassOptions{axes[1], &kernel_discrete9(), 0},
+                       2, isa);
+      blur_passes_fused(src.cview(), fused.view(), axes, kernel_discrete9(), 0, 2, isa,
+                        BlurImpl::approx);
+      CHECK(test::same_bits_nan_agnostic(pb.cview(), fused.cview()));
     }
   }
 }
@@ -706,6 +822,28 @@ TEST_CASE("the fast and the reference blur give the same bits on scenes and corp
                   << to_string(mode));
         CHECK(test::same_bits_nan_agnostic(ref.cview(), test::run_output(scene, p).cview()));
       }
+    }
+  }
+}
+
+TEST_CASE("whole runs with the approximate blur give the same bits fused and stage by stage",
+          "[blur][approx][fused][determinism]") {
+  // Kept stages (ExecuteOptions::keep_all) make the executor run blur_pass_approx pass by pass
+  // and each finishing stage on its own; without them the dense passes run fused, stage bright
+  // and the finishing stages inside (blur_bright_fused's sink).
+  const auto scenes = test::scenes_and_corpus({{"demo 1920x1080", make_scene("demo", 1920, 1080)}});
+  for (const auto& [name, scene] : scenes) {
+    for (PlanMode mode : {PlanMode::full, PlanMode::adaptive}) {
+      BloomParams p;
+      p.plan = mode;
+      p.blur = BlurImpl::approx;
+      p.nonfinite = NonFinite::propagate;
+      const Plan plan = make_plan(p, scene.cview());
+      ExecuteOptions keep;
+      keep.keep_all = true;
+      const Image staged = execute(plan, scene.cview(), keep).final_image();
+      INFO(name << " plan " << to_string(mode));
+      CHECK(test::same_bits_nan_agnostic(staged.cview(), test::run_output(scene, p).cview()));
     }
   }
 }

@@ -398,13 +398,30 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   });
 }
 
+namespace detail {
+
+const std::vector<float>& approx_weights() {
+  // Both kernels' exact sampling is this stencil (tests: "linear5 equals discrete9 with exact
+  // sampling"); the exact rational weights rounded once to float.
+  static const std::vector<float> w(kernel_discrete9().weights_f64.begin(),
+                                    kernel_discrete9().weights_f64.end());
+  return w;
+}
+
+ApproxRowsKernel approx_rows_kernel_for(BlurIsa isa) {
+  switch (resolve(isa)) {
+    case BlurIsa::avx512: return blur_approx_rows_avx512;
+    case BlurIsa::avx2: return blur_approx_rows_avx2_fma;
+    default: return blur_approx_rows_generic;
+  }
+}
+
+}  // namespace detail
+
 void blur_pass_approx(BasicView<const float> src, BasicView<float> dst,
                       const BlurPassOptions& opt, int threads, BlurIsa isa) {
   isa = resolve(isa);
-  // Both kernels' exact sampling is this stencil (tests: "linear5 equals discrete9 with exact
-  // sampling"); the exact rational weights rounded once to float.
-  const Kernel& k = kernel_discrete9();
-  std::vector<float> w(k.weights_f64.begin(), k.weights_f64.end());
+  const std::vector<float>& w = detail::approx_weights();
   detail::ApproxJob job;
   job.src = src.data;
   job.src_stride = src.stride * kChannels;
@@ -416,8 +433,9 @@ void blur_pass_approx(BasicView<const float> src, BasicView<float> dst,
   job.weights = w.data();
   job.n_weights = static_cast<int>(w.size());
   job.active = opt.active;
-  const auto kernel = detail::uses_avx2_stages(isa) ? detail::blur_approx_avx2_fma
-                                                    : detail::blur_approx_generic;
+  const auto kernel = isa == BlurIsa::avx512 ? detail::blur_approx_avx512
+                      : isa == BlurIsa::avx2  ? detail::blur_approx_avx2_fma
+                                              : detail::blur_approx_generic;
   parallel_rows(src.height, threads, [&](int y0, int y1) { kernel(job, y0, y1); });
 }
 

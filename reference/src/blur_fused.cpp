@@ -74,12 +74,19 @@ Pass bright_pass(int h) {
   return p;
 }
 
-Pass make_pass(Axis axis, int w, int h, const Kernel& kernel, int bits) {
+// `approx_reach`: the approximate blur's taps, texels +- approx_reach of each (clamped to the
+// edge), 0 for the exact blur. The exact tables still give the strips and rings their shape:
+// the reach is added to theirs.
+Pass make_pass(Axis axis, int w, int h, const Kernel& kernel, int bits, int approx_reach) {
   Pass p{detail::pass_tables(axis, w, h, kernel, bits), {}, {}};
   p.need_lo.resize(h);
   p.need_hi.resize(h);
   for (int y = 0; y < h; ++y) {
     int lo = y, hi = y;
+    if (!p.t->horizontal) {
+      lo = std::max(y - approx_reach, 0);
+      hi = std::min(y + approx_reach, h - 1);
+    }
     if (p.t->horizontal) {
       lo = std::min(lo, p.t->across[y].i0);
       hi = std::max(hi, p.t->across[y].i1);
@@ -132,12 +139,17 @@ struct Columns {
   std::vector<int> x0, x1;
 };
 
-Columns strip_columns(const std::vector<Pass>& passes, int sx0, int sx1) {
+Columns strip_columns(const std::vector<Pass>& passes, int sx0, int sx1, int w,
+                      int approx_reach) {
   const int n = static_cast<int>(passes.size());
   Columns c{std::vector<int>(n, sx0), std::vector<int>(n, sx1)};
   for (int k = n - 1; k > 0; --k) {
     const detail::PassTables& t = *passes[k].t;
     int lo = c.x0[k], hi = c.x1[k] - 1;
+    if (t.horizontal) {
+      lo = std::max(lo - approx_reach, 0);
+      hi = std::min(hi + approx_reach, w - 1);
+    }
     for (int x = c.x0[k]; x < c.x1[k]; ++x) {
       if (t.horizontal) {
         for (int i = 0; i < t.along.per_position; ++i) {
@@ -180,7 +192,7 @@ float* shifted(float* p, int x0, int channels = kRingChannels) {
 // is stage bright of it (blur_bright_fused).
 void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink* sink,
            const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits, int threads,
-           BlurIsa isa, std::optional<float> threshold = std::nullopt) {
+           BlurIsa isa, BlurImpl impl, std::optional<float> threshold = std::nullopt) {
   const int w = src.width, h = src.height;
   const bool bright = threshold.has_value();
   const int n = static_cast<int>(axes.size()) + (bright ? 1 : 0);
@@ -189,11 +201,16 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
     throw ParamError("blur_passes_fused: source and destination sizes differ");
   const detail::TileKernel tile_kernel = detail::tile_kernel_for(isa);
   const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
+  // The approximate blur (blur_pass_approx's stencil) in the same strips and rings.
+  const bool approx = impl == BlurImpl::approx;
+  const detail::ApproxRowsKernel approx_kernel = detail::approx_rows_kernel_for(isa);
+  const std::vector<float>& approx_weights = detail::approx_weights();
+  const int approx_reach = approx ? static_cast<int>(approx_weights.size()) - 1 : 0;
   if (w == 0 || h == 0) return;  // nothing to write (and no strip width to divide by)
   std::vector<Pass> passes;
   passes.reserve(n);
   if (bright) passes.push_back(bright_pass(h));
-  for (Axis a : axes) passes.push_back(make_pass(a, w, h, kernel, subtexel_bits));
+  for (Axis a : axes) passes.push_back(make_pass(a, w, h, kernel, subtexel_bits, approx_reach));
   const std::vector<int> ring = ring_rows(passes, h);
   const std::vector<float>& weights = kernel.weights_f32;
 
@@ -223,7 +240,8 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
   std::vector<Columns> strips(nstrips);
   std::vector<std::int64_t> cost(nstrips);
   for (int si = 0; si < nstrips; ++si) {
-    strips[si] = strip_columns(passes, si * strip_width, std::min(w, (si + 1) * strip_width));
+    strips[si] = strip_columns(passes, si * strip_width, std::min(w, (si + 1) * strip_width), w,
+                               approx_reach);
     cost[si] = strip_cost(passes, strips[si]);
   }
   // The bright values of the columns beside each strip that its bright pass reads, taken before
@@ -267,12 +285,17 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
         // Rows whole 64-byte cache lines apart: the vertical passes' loads of a row start on
         // one and never straddle two. Ten fused one-thread vertical passes at 3840x2160, 8-bit
         // weights (harness, medians of 5 alternated rounds): 103.8 -> 90.1 ms.
+        // The approximate passes' rings all start at pass 0's first column (the widest), so
+        // that a column sits at the same place in every ring's 64-byte lines: a vertical pass
+        // then reads and writes whole lines (ApproxRowsJob::whole_lines).
+        const int first = approx ? strip.x0[0] : strip.x0[k];
+        const int last = approx ? strip.x1[0] : strip.x1[k];
         const std::size_t row_floats =
-            detail::round_up(std::size_t(strip.x1[k] - strip.x0[k]) * kRingChannels, kRowAlign);
+            detail::round_up(std::size_t(last - first) * kRingChannels, kRowAlign);
         rings[k] = PixelBuffer<float>(std::size_t(ring[k]) * row_floats + kRingPad);
         out_rows[k].resize(h);
         for (int r = 0; r < h; ++r)
-          out_rows[k][r] = shifted(rings[k].data() + (r % ring[k]) * row_floats, strip.x0[k]);
+          out_rows[k][r] = shifted(rings[k].data() + (r % ring[k]) * row_floats, first);
       }
       // With a sink, the last pass's rows: a block of kChunk rows of the strip (RGBA), row r
       // in slot r mod kChunk (the last pass computes whole blocks from a multiple of kChunk).
@@ -288,6 +311,10 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
         for (int i = 0; i < kChunk; ++i) handed[i] = block.data() + i * row_floats;
       }
       std::vector<int> produced(n, 0);
+      // The approximate kernel's row before it is converted (ApproxRowsJob::scratch): pass 0
+      // computes the most columns.
+      PixelBuffer<float> approx_scratch(
+          approx ? std::size_t(strip.x1[0] - strip.x0[0]) * kChannels : 0);
 
       auto compute_chunk = [&](int k, int r0, int r1) {
         const int x0 = strip.x0[k], x1 = strip.x1[k];
@@ -315,6 +342,25 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
                                     : dst_rows.data();
         const int cin = reads_src ? kChannels : kRingChannels;
         const int cout = k + 1 == n ? kChannels : kRingChannels;
+        if (approx) {
+          detail::ApproxRowsJob job;
+          job.src_rows = in;
+          job.dst_rows = out;
+          job.src_channels = cin;
+          job.dst_channels = cout;
+          job.horizontal = t.horizontal;
+          job.width = w;
+          job.height = h;
+          job.x0 = x0;
+          job.x1 = x1;
+          job.weights = approx_weights.data();
+          job.n_weights = static_cast<int>(approx_weights.size());
+          job.scratch = approx_scratch.data();
+          job.whole_lines = k > 0 && k + 1 < n;  // ring to ring
+          job.stream_dst = k + 1 == n && stream_out;
+          approx_kernel(job, r0, r1);
+          return;
+        }
         detail::TileJob job;
         job.src_channels = cin;
         job.dst_channels = cout;
@@ -375,22 +421,23 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
 
 void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
                        const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                       int threads, BlurIsa isa) {
-  fused(src, dst, nullptr, axes, kernel, subtexel_bits, threads, isa);
+                       int threads, BlurIsa isa, BlurImpl impl) {
+  fused(src, dst, nullptr, axes, kernel, subtexel_bits, threads, isa, impl);
 }
 
 void blur_passes_fused(BasicView<const float> src, const FusedBlurSink& sink,
                        const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                       int threads, BlurIsa isa) {
+                       int threads, BlurIsa isa, BlurImpl impl) {
   if (!sink) throw ParamError("blur_passes_fused: no sink");
-  fused(src, BasicView<float>{}, &sink, axes, kernel, subtexel_bits, threads, isa);
+  fused(src, BasicView<float>{}, &sink, axes, kernel, subtexel_bits, threads, isa, impl);
 }
 
 void blur_bright_fused(BasicView<const float> scene, float threshold, const FusedBlurSink& sink,
                        const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                       int threads, BlurIsa isa) {
+                       int threads, BlurIsa isa, BlurImpl impl) {
   if (!sink) throw ParamError("blur_bright_fused: no sink");
-  fused(scene, BasicView<float>{}, &sink, axes, kernel, subtexel_bits, threads, isa, threshold);
+  fused(scene, BasicView<float>{}, &sink, axes, kernel, subtexel_bits, threads, isa, impl,
+        threshold);
 }
 
 }  // namespace bloomref

@@ -319,5 +319,41 @@ struct ApproxJob {
 
 void blur_approx_generic(const ApproxJob& job, int y0, int y1);
 void blur_approx_avx2_fma(const ApproxJob& job, int y0, int y1);
+void blur_approx_avx512(const ApproxJob& job, int y0, int y1);
+
+/// One pass of the fast approximate blur for the fused blur (blur_fused.cpp): output columns
+/// [x0, x1) of rows [r0, r1), rows reached through tables (image row y at src_rows[y], texel x
+/// at src_rows[y] + x * src_channels, as TileJob's). Every float is ApproxJob's stencil with its
+/// operations (so blur_approx_*'s bits in R, G, B); alpha, where the destination has it, is 1.
+struct ApproxRowsJob {
+  const float* const* src_rows = nullptr;
+  float* const* dst_rows = nullptr;
+  int src_channels = 4, dst_channels = 4;  ///< 3 (the fused blur's rings) or 4 (RGBA)
+  bool horizontal = true;
+  int width = 0, height = 0;
+  int x0 = 0, x1 = 0;
+  const float* weights = nullptr;  ///< as ApproxJob's
+  int n_weights = 0;
+  /// At least (x1 - x0) * 4 floats: a row's output before it is converted, where the source
+  /// and destination texels differ in size (or both are RGBA: alpha is then set to 1).
+  float* scratch = nullptr;
+  /// Whether the source and destination rows sit alike in 64-byte lines (column x at the same
+  /// offset in a line of both), RGB both, each row's line holding column x0 and its line holding
+  /// column x1 - 1 theirs to read and write whole: the vertical pass then computes whole lines
+  /// (a few floats either side of the columns asked for, from whatever the source holds there,
+  /// never read back), its loads and stores never straddling two lines.
+  bool whole_lines = false;
+  /// Whether a destination of RGBA rows may be stored past the cache (TileJob::stream_dst's
+  /// case: the fused blur's last pass into an image larger than the last-level cache).
+  bool stream_dst = false;
+};
+void blur_approx_rows_generic(const ApproxRowsJob& job, int r0, int r1);
+void blur_approx_rows_avx2_fma(const ApproxRowsJob& job, int r0, int r1);
+void blur_approx_rows_avx512(const ApproxRowsJob& job, int r0, int r1);
+using ApproxRowsKernel = void (*)(const ApproxRowsJob&, int, int);
+/// The rows kernel for `isa` (as blur_pass_approx picks its kernel).
+ApproxRowsKernel approx_rows_kernel_for(BlurIsa isa);
+/// The approximate blur's weights: discrete9's exact ones rounded once to float, centre first.
+const std::vector<float>& approx_weights();
 
 }  // namespace bloomref::detail

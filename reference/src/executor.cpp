@@ -138,9 +138,10 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   // nothing left to do.
   const bool finish_in_blur = fuse_finish && p.method == Method::gaussian;
   bool finished_in_blur = false;
-  // Whether dense blur passes run fused (blur_passes_fused): the fast f32 blur, nothing rounded
-  // or kept between passes. The blur stage runs the rest fused from the first dense pass.
-  const bool fusable = std::is_same_v<T, float> && p.blur == BlurImpl::fast &&
+  // Whether dense blur passes run fused (blur_passes_fused): the fast f32 blur or the
+  // approximate one, nothing rounded or kept between passes. The blur stage runs the rest fused
+  // from the first dense pass.
+  const bool fusable = std::is_same_v<T, float> && p.blur != BlurImpl::reference &&
                        p.storage == Storage::f32 && !opt.keep_all;
   // The full plan then runs every pass fused from pass 1, and stage bright with them
   // (blur_bright_fused): no bright image is made. It was one more full-size image, faulted in
@@ -354,17 +355,18 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
               };
               if (bright_in_blur) {
                 blur_bright_fused(scene.cview(), static_cast<float>(p.threshold), sink, axes,
-                                  kernel_for(p.kernel), p.subtexel_bits, threads);
+                                  kernel_for(p.kernel), p.subtexel_bits, threads, BlurIsa::best,
+                                  p.blur);
                 name = "bright+" + name;
               } else {
                 blur_passes_fused(src.cview(), sink, axes, kernel_for(p.kernel), p.subtexel_bits,
-                                  threads);
+                                  threads, BlurIsa::best, p.blur);
               }
               finished_in_blur = true;
               name += "+composite+tonemap+output";
             } else {
               blur_passes_fused(src.cview(), pong.view(), axes, kernel_for(p.kernel),
-                                p.subtexel_bits, threads);
+                                p.subtexel_bits, threads, BlurIsa::best, p.blur);
               std::swap(ping, pong);
             }
             pong = BasicImage<T>();

@@ -184,10 +184,13 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
 /// column strips, and each strip streams through all n passes keeping per pass only the rows
 /// the next pass still reads (a ring of about 2 x (16 + 5) rows of the strip), so the image is
 /// read and written once instead of n times (blur_fused.cpp). Nothing is rounded between passes
-/// (f32 storage).
+/// (f32 storage). With `impl` approx, every pass is blur_pass_approx's instead, with its bits
+/// (tested; `kernel` and `subtexel_bits` then only shape the strips); `reference` is `fast`
+/// (the same bits).
 void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
                        const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                       int threads, BlurIsa isa = BlurIsa::best);
+                       int threads, BlurIsa isa = BlurIsa::best,
+                       BlurImpl impl = BlurImpl::fast);
 
 /// What blur_passes_fused can hand its output to instead of an image: rows [y0, y1) of columns
 /// [x0, x1) of the last pass (RGBA, alpha 1), row y0 + i at rows[i], texel x0 first. Called
@@ -201,7 +204,8 @@ using FusedBlurSink =
 /// (finish_fast_rows), so the dense plan neither allocates the bloom image nor reads it back.
 void blur_passes_fused(BasicView<const float> src, const FusedBlurSink& sink,
                        const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                       int threads, BlurIsa isa = BlurIsa::best);
+                       int threads, BlurIsa isa = BlurIsa::best,
+                       BlurImpl impl = BlurImpl::fast);
 
 /// Stages bright and blur.1 ... blur.n at once, for the dense plan: blur_passes_fused of
 /// extract_bright(scene) (the same bits), the bright image never made whole (each strip makes
@@ -210,7 +214,8 @@ void blur_passes_fused(BasicView<const float> src, const FusedBlurSink& sink,
 /// scene during the call.
 void blur_bright_fused(BasicView<const float> scene, float threshold, const FusedBlurSink& sink,
                        const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                       int threads, BlurIsa isa = BlurIsa::best);
+                       int threads, BlurIsa isa = BlurIsa::best,
+                       BlurImpl impl = BlurImpl::fast);
 
 /// Stage `blur.k`, fast and approximate: not GL's sampling but the 9-tap stencil both kernels
 /// sample exactly (taps on texels x +- i, clamped to the edge, the discrete9 weights rounded to
