@@ -184,7 +184,8 @@ int main(int argc, char** argv) {
   }
 
   // bloomref's exact f32 blur (GL sampling semantics): the fast path, checked bit for bit
-  // against the reference loop in this run; the approximate blur; and the naive loop.
+  // against the reference loop in this run; the approximate blur, pass by pass and fused (the
+  // two checked bit for bit against each other); and the naive loop.
   Image ping(w, h), pong(w, h), reference_out;
   double ours_best = 1e30, approx_best = 1e30;
   enum class Impl { reference, fast, approx };
@@ -228,8 +229,19 @@ int main(int argc, char** argv) {
            threads, ms, rel_error(pong.data(), truth), 1e-4);
     ours_best = std::min(ours_best, time_fused(0, threads, "bloomref exact f32 blur (fused), 10 passes"));
     const double approx_ms = median_ms(runs, [&] { ten_passes(Impl::approx, threads); });
-    approx_best = std::min(approx_best, approx_ms);
-    report("bloomref approximate blur, 10 passes", threads, approx_ms, rel_error(pong.data(), truth), 1e-5);
+    report("bloomref approx blur (passes), 10 passes", threads, approx_ms,
+           rel_error(pong.data(), truth), 1e-5);
+    // The same passes fused (what `--blur approx` runs), checked bit for bit against them.
+    const double approx_fused_ms = median_ms(runs, [&] {
+      blur_passes_fused(bright.cview(), ping.view(), axes, kernel_discrete9(), 0, threads,
+                        BlurIsa::best, BlurImpl::approx);
+    });
+    approx_best = std::min(approx_best, approx_fused_ms);
+    const bool approx_same = same_bits(pong, ping);
+    ok &= approx_same;
+    report(approx_same ? "bloomref approx blur (fused), 10 passes"
+                       : "bloomref approx blur (fused) DIFFERS from its passes",
+           threads, approx_fused_ms, rel_error(ping.data(), truth), 1e-5);
     const double naive = median_ms(runs, [&] {
       const Image* s = &bright;
       for (int p = 0; p < passes; ++p) {
@@ -315,7 +327,7 @@ int main(int argc, char** argv) {
   char summary[420];
   std::snprintf(summary, sizeof summary,
                 "ratios (same run): exact blur / OpenCV best = %.2f (target <= 0.7; head to "
-                "head %.2f; with 8-bit weights %.2f), approximate blur / OpenCV best = %.2f; "
+                "head %.2f; with 8-bit weights %.2f), approximate blur (fused) / OpenCV best = %.2f; "
                 "pipeline full / "
                 "OpenCV blur = %.2f, adaptive / OpenCV blur = %.2f (target <= 1); adaptive plan %s",
                 ours_best / cv_best, pair_ratio, hw_best / cv_best, approx_best / cv_best, pipe[0] / cv_best, pipe[1] / cv_best,

@@ -72,7 +72,11 @@ std::function<int()> add_tradeoff(CLI::App& app) {
     });
     add("cpu f32 discrete9 full (fast exact)", [](BloomParams& p) { p.plan = PlanMode::full; });
     add("cpu f32 discrete9 adaptive (fast exact)", [](BloomParams&) {});
-    add("cpu f32 approx (fast approximate)", [](BloomParams& p) { p.blur = BlurImpl::approx; });
+    add("cpu f32 approx full (fast approximate, fused)", [](BloomParams& p) {
+      p.plan = PlanMode::full;
+      p.blur = BlurImpl::approx;
+    });
+    add("cpu f32 approx adaptive (fast approximate)", [](BloomParams& p) { p.blur = BlurImpl::approx; });
     add("cpu f32 linear5", [](BloomParams& p) { p.kernel = KernelName::linear5; });
     add("cpu f32 discrete9 f16", [](BloomParams& p) { p.storage = Storage::f16; });
     add("cpu f64 discrete9 (truth)", [](BloomParams& p) { p.precision = Precision::f64; });

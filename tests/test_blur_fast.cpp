@@ -829,8 +829,9 @@ TEST_CASE("the fast and the reference blur give the same bits on scenes and corp
 TEST_CASE("whole runs with the approximate blur give the same bits fused and stage by stage",
           "[blur][approx][fused][determinism]") {
   // Kept stages (ExecuteOptions::keep_all) make the executor run blur_pass_approx pass by pass
-  // and each finishing stage on its own; without them the dense passes run fused, stage bright
-  // and the finishing stages inside (blur_bright_fused's sink).
+  // (under the adaptive plan over its support) and each finishing stage on its own; without
+  // them the passes run fused, stage bright and the finishing stages inside (blur_bright_fused's
+  // sink), under both plans. So the adaptive plan's output is the full plan's too.
   const auto scenes = test::scenes_and_corpus({{"demo 1920x1080", make_scene("demo", 1920, 1080)}});
   for (const auto& [name, scene] : scenes) {
     for (PlanMode mode : {PlanMode::full, PlanMode::adaptive}) {

@@ -147,8 +147,13 @@ StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& 
   // (blur_bright_fused): no bright image is made. It was one more full-size image, faulted in
   // by every run (mmap'd anew: 133 MB at 3840x2160), written and read once. So does the
   // adaptive plan on a dense scene (Plan::dense_scene), tracking no support.
+  // The approximate blur takes that path under the adaptive plan too, whenever something is
+  // bright: following a support, it runs pass by pass over whole images, skipping only rows
+  // (stages.h: blur_pass_approx), and measured slower than all of it fused (stop 31, --repeat 5
+  // warm medians, 2 threads: StarField 28.6 against 14.9 ms, CandleGlass 23.1 against 10.3).
   const bool bright_in_blur =
-      fusable && finish_in_blur && (p.plan == PlanMode::full || plan.dense_scene) &&
+      fusable && finish_in_blur &&
+      (p.plan == PlanMode::full || plan.dense_scene || p.blur == BlurImpl::approx) &&
       std::any_of(plan.stages.begin(), plan.stages.end(), [](const StageSpec& s) {
         return s.kind == StageKind::blur && s.pass == 1 && !s.skipped;
       });
