@@ -761,6 +761,10 @@ TEST_CASE("the fused blur's last pass stored past the cache gives the same bits"
       blur_passes_fused(src.cview(), fused.view(), axes, kernel_discrete9(), 0, 2, isa,
                         BlurImpl::approx);
       CHECK(test::same_bits_nan_agnostic(pb.cview(), fused.cview()));
+      // A horizontal last pass streams its texels from the horizontal branch.
+      blur_passes_fused(src.cview(), fused.view(), {Axis::horizontal}, kernel_discrete9(), 0, 2,
+                        isa, BlurImpl::approx);
+      CHECK(test::same_bits_nan_agnostic(pa.cview(), fused.cview()));
     }
   }
 }
