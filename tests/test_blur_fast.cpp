@@ -67,6 +67,44 @@ Image hostile_image(int w, int h, unsigned seed) {
   return img;
 }
 
+// Axis orders for the fused blurs: one pass each way, the plan's alternation, two passes
+// along the same axis, and more passes than the plan makes.
+std::vector<std::vector<Axis>> fused_orders() {
+  const Axis H = Axis::horizontal, V = Axis::vertical;
+  return {{H}, {V}, {H, V}, {V, V, H}, {H, V, H, V, H, V, H, V, H, V, H}};
+}
+
+// What a FusedBlurSink is handed, copied into `image`, with the times each texel was handed,
+// whether every block lay inside the image and whether each strip's rows came in order.
+struct SinkCapture {
+  Image image;
+  std::vector<int> times;
+  std::vector<std::pair<int, int>> next_row;  // per strip: (x0, next y0)
+  bool in_order = true, inside = true;
+  std::mutex m;
+  SinkCapture(int w, int h) : image(w, h, 7.0f), times(std::size_t(w) * h, 0) {}
+  FusedBlurSink sink() {
+    return [this](int x0, int x1, int y0, int y1, const float* const* rows) {
+      std::lock_guard<std::mutex> lock(m);
+      const int w = image.width(), h = image.height();
+      inside = inside && 0 <= x0 && x0 < x1 && x1 <= w && 0 <= y0 && y0 < y1 && y1 <= h;
+      if (!inside) return;
+      auto it = std::find_if(next_row.begin(), next_row.end(),
+                             [&](const auto& s) { return s.first == x0; });
+      if (it == next_row.end()) it = next_row.insert(next_row.end(), {x0, 0});
+      in_order = in_order && it->second == y0;
+      it->second = y1;
+      for (int y = y0; y < y1; ++y) {
+        std::memcpy(image.view().row(y) + 4 * x0, rows[y - y0], std::size_t(x1 - x0) * 16);
+        for (int x = x0; x < x1; ++x) ++times[std::size_t(y) * w + x];
+      }
+    };
+  }
+  bool each_once() const {
+    return std::all_of(times.begin(), times.end(), [](int t) { return t == 1; });
+  }
+};
+
 }  // namespace
 
 TEST_CASE("blur_pass_fast gives blur_pass's bits on hostile values and awkward sizes",
@@ -491,13 +529,7 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
   // group kernel; strips of 500 columns cut groups at 496 and 504) and columns side by side in
   // chunks of 32 rows (the columns kernel). The kernels' term orders, weight products, lane
   // selects, form blends and first terms each fail this test when altered.
-  const std::vector<std::vector<Axis>> orders = {
-      {Axis::horizontal},
-      {Axis::horizontal, Axis::vertical},
-      {Axis::vertical, Axis::vertical, Axis::horizontal},
-      {Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical, Axis::horizontal,
-       Axis::vertical, Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical,
-       Axis::horizontal}};
+  const std::vector<std::vector<Axis>> orders = fused_orders();
   unsigned seed = 40;
   for (auto [w, h] : sizes) {
     Image src = hostile_image(w, h, seed++);
@@ -523,32 +555,12 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
               CHECK(test::same_bits_nan_agnostic(a.cview(), fused.cview()));
               // The same passes handed to a sink: every texel exactly once, rows in order
               // within a strip, the same bits.
-              Image sunk(w, h, 7.0f);
-              std::vector<int> times(std::size_t(w) * h, 0);
-              std::vector<std::pair<int, int>> next_row;  // per strip: (x0, next y0)
-              bool in_order = true, inside = true;
-              std::mutex m;
-              const FusedBlurSink sink = [&](int x0, int x1, int y0, int y1,
-                                             const float* const* rows) {
-                std::lock_guard<std::mutex> lock(m);
-                inside = inside && 0 <= x0 && x0 < x1 && x1 <= w && 0 <= y0 && y0 < y1 && y1 <= h;
-                if (!inside) return;
-                auto it = std::find_if(next_row.begin(), next_row.end(),
-                                       [&](const auto& s) { return s.first == x0; });
-                if (it == next_row.end()) it = next_row.insert(next_row.end(), {x0, 0});
-                in_order = in_order && it->second == y0;
-                it->second = y1;
-                for (int y = y0; y < y1; ++y) {
-                  std::memcpy(sunk.view().row(y) + 4 * x0, rows[y - y0],
-                              std::size_t(x1 - x0) * 16);
-                  for (int x = x0; x < x1; ++x) ++times[std::size_t(y) * w + x];
-                }
-              };
-              blur_passes_fused(src.cview(), sink, axes, *k, bits, threads, isa);
-              CHECK(inside);
-              CHECK(in_order);
-              CHECK(std::all_of(times.begin(), times.end(), [](int t) { return t == 1; }));
-              CHECK(test::same_bits_nan_agnostic(a.cview(), sunk.cview()));
+              SinkCapture sunk(w, h);
+              blur_passes_fused(src.cview(), sunk.sink(), axes, *k, bits, threads, isa);
+              CHECK(sunk.inside);
+              CHECK(sunk.in_order);
+              CHECK(sunk.each_once());
+              CHECK(test::same_bits_nan_agnostic(a.cview(), sunk.image.cview()));
             }
           }
         }
@@ -636,14 +648,7 @@ TEST_CASE("the approximate blur fused gives its pass-by-pass bits", "[blur][appr
   const std::pair<int, int> sizes[] = {{1, 1},    {7, 1},    {1, 9},     {5, 3},
                                        {37, 23},  {513, 17}, {1100, 37}, {1920, 21},
                                        {9, 1080}, {533, 19}, {1000, 61}};
-  const std::vector<std::vector<Axis>> orders = {
-      {Axis::horizontal},
-      {Axis::vertical},
-      {Axis::horizontal, Axis::vertical},
-      {Axis::vertical, Axis::vertical, Axis::horizontal},
-      {Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical, Axis::horizontal,
-       Axis::vertical, Axis::horizontal, Axis::vertical, Axis::horizontal, Axis::vertical,
-       Axis::horizontal}};
+  const std::vector<std::vector<Axis>> orders = fused_orders();
   unsigned seed = 140;
   for (auto [w, h] : sizes) {
     const Image src = hostile_image(w, h, seed++);
@@ -662,21 +667,13 @@ TEST_CASE("the approximate blur fused gives its pass-by-pass bits", "[blur][appr
           blur_passes_fused(src.cview(), fused.view(), axes, kernel_discrete9(), 0, threads, isa,
                             BlurImpl::approx);
           CHECK(test::same_bits_nan_agnostic(a.cview(), fused.cview()));
-          Image sunk(w, h, 7.0f);
-          std::vector<int> times(std::size_t(w) * h, 0);
-          std::mutex m;
-          const FusedBlurSink sink = [&](int x0, int x1, int y0, int y1,
-                                         const float* const* rows) {
-            std::lock_guard<std::mutex> lock(m);
-            for (int y = y0; y < y1; ++y) {
-              std::memcpy(sunk.view().row(y) + 4 * x0, rows[y - y0], std::size_t(x1 - x0) * 16);
-              for (int x = x0; x < x1; ++x) ++times[std::size_t(y) * w + x];
-            }
-          };
-          blur_passes_fused(src.cview(), sink, axes, kernel_discrete9(), 0, threads, isa,
+          SinkCapture sunk(w, h);
+          blur_passes_fused(src.cview(), sunk.sink(), axes, kernel_discrete9(), 0, threads, isa,
                             BlurImpl::approx);
-          CHECK(std::all_of(times.begin(), times.end(), [](int t) { return t == 1; }));
-          CHECK(test::same_bits_nan_agnostic(a.cview(), sunk.cview()));
+          CHECK(sunk.inside);
+          CHECK(sunk.in_order);
+          CHECK(sunk.each_once());
+          CHECK(test::same_bits_nan_agnostic(a.cview(), sunk.image.cview()));
         }
       }
     }
@@ -691,15 +688,12 @@ TEST_CASE("the approximate blur fused gives its pass-by-pass bits", "[blur][appr
                          isa);
         std::swap(a, b);
       }
-      Image sunk(w, h, 7.0f);
-      const FusedBlurSink sink = [&](int x0, int x1, int y0, int y1, const float* const* rows) {
-        for (int y = y0; y < y1; ++y)
-          std::memcpy(sunk.view().row(y) + 4 * x0, rows[y - y0], std::size_t(x1 - x0) * 16);
-      };
-      blur_bright_fused(src.cview(), 1.0f, sink, hv, kernel_discrete9(), 0, 1, isa,
+      SinkCapture sunk(w, h);
+      blur_bright_fused(src.cview(), 1.0f, sunk.sink(), hv, kernel_discrete9(), 0, 1, isa,
                         BlurImpl::approx);
       INFO(w << "x" << h << " bright, isa " << blur_isa_name(isa));
-      CHECK(test::same_bits_nan_agnostic(a.cview(), sunk.cview()));
+      CHECK(sunk.each_once());
+      CHECK(test::same_bits_nan_agnostic(a.cview(), sunk.image.cview()));
     }
   }
 }

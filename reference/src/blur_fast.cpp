@@ -408,11 +408,11 @@ const std::vector<float>& approx_weights() {
   return w;
 }
 
-ApproxRowsKernel approx_rows_kernel_for(BlurIsa isa) {
+ApproxKernels approx_kernels_for(BlurIsa isa) {
   switch (resolve(isa)) {
-    case BlurIsa::avx512: return blur_approx_rows_avx512;
-    case BlurIsa::avx2: return blur_approx_rows_avx2_fma;
-    default: return blur_approx_rows_generic;
+    case BlurIsa::avx512: return {blur_approx_avx512, blur_approx_rows_avx512};
+    case BlurIsa::avx2: return {blur_approx_avx2_fma, blur_approx_rows_avx2_fma};
+    default: return {blur_approx_generic, blur_approx_rows_generic};
   }
 }
 
@@ -420,7 +420,7 @@ ApproxRowsKernel approx_rows_kernel_for(BlurIsa isa) {
 
 void blur_pass_approx(BasicView<const float> src, BasicView<float> dst,
                       const BlurPassOptions& opt, int threads, BlurIsa isa) {
-  isa = resolve(isa);
+  const auto kernel = detail::approx_kernels_for(isa).pass;
   const std::vector<float>& w = detail::approx_weights();
   detail::ApproxJob job;
   job.src = src.data;
@@ -433,9 +433,6 @@ void blur_pass_approx(BasicView<const float> src, BasicView<float> dst,
   job.weights = w.data();
   job.n_weights = static_cast<int>(w.size());
   job.active = opt.active;
-  const auto kernel = isa == BlurIsa::avx512 ? detail::blur_approx_avx512
-                      : isa == BlurIsa::avx2  ? detail::blur_approx_avx2_fma
-                                              : detail::blur_approx_generic;
   parallel_rows(src.height, threads, [&](int y0, int y1) { kernel(job, y0, y1); });
 }
 

@@ -83,14 +83,12 @@ Pass make_pass(Axis axis, int w, int h, const Kernel& kernel, int bits, int appr
   p.need_hi.resize(h);
   for (int y = 0; y < h; ++y) {
     int lo = y, hi = y;
-    if (!p.t->horizontal) {
-      lo = std::max(y - approx_reach, 0);
-      hi = std::min(y + approx_reach, h - 1);
-    }
     if (p.t->horizontal) {
       lo = std::min(lo, p.t->across[y].i0);
       hi = std::max(hi, p.t->across[y].i1);
     } else {
+      lo = std::max(y - approx_reach, 0);
+      hi = std::min(y + approx_reach, h - 1);
       for (int k = 0; k < p.t->along.per_position; ++k) {
         lo = std::min(lo, p.t->along.at(y)[k].i0);
         hi = std::max(hi, p.t->along.at(y)[k].i1);
@@ -203,7 +201,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
   const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
   // The approximate blur (blur_pass_approx's stencil) in the same strips and rings.
   const bool approx = impl == BlurImpl::approx;
-  const detail::ApproxRowsKernel approx_kernel = detail::approx_rows_kernel_for(isa);
+  const auto approx_kernel = detail::approx_kernels_for(isa).rows;
   const std::vector<float>& approx_weights = detail::approx_weights();
   const int approx_reach = approx ? static_cast<int>(approx_weights.size()) - 1 : 0;
   if (w == 0 || h == 0) return;  // nothing to write (and no strip width to divide by)

@@ -350,9 +350,13 @@ struct ApproxRowsJob {
 void blur_approx_rows_generic(const ApproxRowsJob& job, int r0, int r1);
 void blur_approx_rows_avx2_fma(const ApproxRowsJob& job, int r0, int r1);
 void blur_approx_rows_avx512(const ApproxRowsJob& job, int r0, int r1);
-using ApproxRowsKernel = void (*)(const ApproxRowsJob&, int, int);
-/// The rows kernel for `isa` (as blur_pass_approx picks its kernel).
-ApproxRowsKernel approx_rows_kernel_for(BlurIsa isa);
+/// The approximate blur's kernels for `isa` (best: the widest this CPU and build have); throws
+/// ParamError for AVX2 or AVX-512 where they are not.
+struct ApproxKernels {
+  void (*pass)(const ApproxJob&, int, int);      ///< blur_pass_approx's
+  void (*rows)(const ApproxRowsJob&, int, int);  ///< the fused blur's
+};
+ApproxKernels approx_kernels_for(BlurIsa isa);
 /// The approximate blur's weights: discrete9's exact ones rounded once to float, centre first.
 const std::vector<float>& approx_weights();
 
