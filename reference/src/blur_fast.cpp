@@ -166,6 +166,55 @@ void make_group_taps(PassTables& t) {
 
 }  // namespace
 
+RowTaps make_row_taps(const PassTables& t, int width) {
+  constexpr int L = RowTaps::kLanes, K = RowTaps::kTaps;
+  static constexpr int kOffset[K] = {0, 1, -1, 2, -2, 3, -3, 4, -4};
+  RowTaps r;
+  r.vectors = int((std::size_t(width) * 3 + L - 1) / L);
+  r.ok.assign(r.vectors, 0);
+  r.w.assign(std::size_t(r.vectors) * K * 2 * L, 0.0f);
+  r.masks.assign(std::size_t(r.vectors) * K, 0);
+  if (t.kernel_taps.per_position != K) return r;
+  for (int v = 0; v < r.vectors; ++v) {
+    bool ok = true;
+    for (int l = 0; l < L && ok; ++l) {
+      const int a = (v * L + l) / 3;
+      if (a < 5 || a > width - 6) {  // a tap reads a texel past an edge
+        ok = false;
+        break;
+      }
+      for (int k = 0; k < K; ++k) {
+        const std::size_t at = std::size_t(a) * K + k;
+        const AxisTap<float>& kt = t.kernel_taps.taps[at];
+        const AxisTap<float>& rt = t.along.taps[at];
+        float* w0 = r.w.data() + (std::size_t(v) * K + k) * 2 * L;
+        std::uint32_t& m = r.masks[std::size_t(v) * K + k];
+        int d = 0;
+        if (t.forms[at] == TapForm::one) {
+          d = kt.i0 - (a + kOffset[k]);
+          w0[l] = 1.0f;
+        } else if (t.forms[at] == TapForm::two && rt.i1 == rt.i0 + 1 && rt.w0 != 0.0f &&
+                   rt.w1 != 0.0f) {
+          d = rt.i0 - (a + kOffset[k]);
+          w0[l] = rt.w0;
+          w0[L + l] = rt.w1;
+          m |= std::uint32_t(1) << (16 + l);
+        } else {
+          ok = false;
+          break;
+        }
+        if (d != 0 && d != -1) {
+          ok = false;
+          break;
+        }
+        if (d == 0) m |= std::uint32_t(1) << l;
+      }
+    }
+    r.ok[v] = ok;
+  }
+  return r;
+}
+
 PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits) {
   PassTables t;
   t.horizontal = axis == Axis::horizontal;
@@ -203,6 +252,7 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
     if (t.across[b].w1 != 0.0f || t.across[b].i0 != b) t.inexact.push_back(b);
   }
   if (t.horizontal && !t.inexact.empty()) make_group_taps(t);  // the vertical pass: columns
+  if (t.horizontal) t.row_taps = std::make_shared<const RowTaps>(make_row_taps(t, width));
   t.column_terms.assign(std::size_t(width) + 1, 0);
   for (int x = 0; x < width; ++x) {
     std::int64_t terms = 0;

@@ -198,6 +198,9 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
   if (!sink && (dst.width != w || dst.height != h))
     throw ParamError("blur_passes_fused: source and destination sizes differ");
   const detail::TileKernel tile_kernel = detail::tile_kernel_for(isa);
+  // The exact horizontal passes between rings along their rows (blur_rows_exact_avx512), where
+  // the CPU has AVX-512F; the tile kernel does the rest, and everything elsewhere.
+  const bool rows_exact = detail::resolve_isa(isa) == BlurIsa::avx512;
   const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
   // The approximate blur (blur_pass_approx's stencil) in the same strips and rings.
   const bool approx = impl == BlurImpl::approx;
@@ -283,10 +286,12 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
         // Rows whole 64-byte cache lines apart: the vertical passes' loads of a row start on
         // one and never straddle two. Ten fused one-thread vertical passes at 3840x2160, 8-bit
         // weights (harness, medians of 5 alternated rounds): 103.8 -> 90.1 ms.
+        // The exact passes' rings start at a column that is a multiple of 16, so that float 0
+        // of a row (3 floats a texel) starts a line: the row kernel's vectors are whole lines.
         // The approximate passes' rings all start at pass 0's first column (the widest), so
         // that a column sits at the same place in every ring's 64-byte lines: a vertical pass
         // then reads and writes whole lines (ApproxRowsJob::whole_lines).
-        const int first = approx ? strip.x0[0] : strip.x0[k];
+        const int first = approx ? strip.x0[0] : strip.x0[k] / 16 * 16;
         const int last = approx ? strip.x1[0] : strip.x1[k];
         const std::size_t row_floats =
             detail::round_up(std::size_t(last - first) * kRingChannels, kRowAlign);
@@ -379,7 +384,46 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
           job.along_lo = x0;
           job.along_hi = x1;
           const int t0 = (r0 / kChunk) * tiles_h;
-          tile_kernel(job, t0 + x0 / kTileAlongH, t0 + (x1 + kTileAlongH - 1) / kTileAlongH);
+          auto tiles = [&](int a0, int a1) {
+            if (a0 >= a1) return;
+            job.along_lo = a0;
+            job.along_hi = a1;
+            tile_kernel(job, t0 + a0 / kTileAlongH, t0 + (a1 + kTileAlongH - 1) / kTileAlongH);
+          };
+          if (rows_exact && cin == 3 && cout == 3 && t.row_taps) {
+            // Along the rows where the row kernel's vectors fit (their lanes' reads inside the
+            // input columns, their stores inside the output ones), the tile kernel elsewhere,
+            // after it (its whole texels over the vectors' part texels).
+            constexpr int L = detail::RowTaps::kLanes;
+            const detail::RowTaps& rt = *t.row_taps;
+            const int xi0 = strip.x0[k - 1], xi1 = strip.x1[k - 1];
+            const int va = std::max((3 * x0 + L - 1) / L, (3 * (xi0 + 5) + L - 1) / L);
+            const int vb = std::min((3 * x1) / L, (3 * xi1 - 15) / L);
+            detail::RowsExactJob rj;
+            rj.src_rows = in;
+            rj.dst_rows = out;
+            rj.taps = &rt;
+            rj.weights = weights.data();
+            int done = x0;  // texels before it are computed or given to the tile kernel
+            for (int v = va; v < vb;) {
+              if (!rt.ok[v]) {
+                ++v;
+                continue;
+              }
+              int e = v;
+              while (e < vb && rt.ok[e]) ++e;
+              rj.v0 = v;
+              rj.v1 = e;
+              detail::blur_rows_exact_avx512(rj, r0, r1);
+              const int c0 = (L * v + 2) / 3, c1 = (L * e) / 3;  // whole texels covered
+              tiles(done, c0);
+              done = std::max(done, c1);
+              v = e;
+            }
+            tiles(done, x1);
+          } else {
+            tiles(x0, x1);
+          }
           detail::blur_inexact_lines(t, in, out, weights, x0, x1, r0, r1, nullptr, w, false, cin,
                                      cout, inexact_kernels);
         } else {

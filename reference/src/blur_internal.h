@@ -134,6 +134,8 @@ TileKernel tile_kernel_for(BlurIsa isa);
 /// n rounded up to a multiple of m.
 constexpr std::size_t round_up(std::size_t n, std::size_t m) { return (n + m - 1) / m * m; }
 
+struct RowTaps;
+
 /// One f32 pass's tables, shared by blur_pass_fast and blur_passes_fused.
 struct PassTables {
   bool horizontal = true;
@@ -183,7 +185,37 @@ struct PassTables {
   /// nonzero weights, each lane's first texel e or e + 1 after its position (not where
   /// clamp-to-edge repeats a texel). Other positions take blur_texel's per-texel path.
   std::vector<std::uint8_t> group_ok;
+  /// The horizontal pass's taps for blur_rows_exact_* (discrete9 only; empty otherwise).
+  std::shared_ptr<const RowTaps> row_taps;
 };
+/// The exact horizontal pass along its rows (blur_rows_exact_*): lanes along a row of R, G, B
+/// (3 floats a texel), one 16-float vector of it at a time, so that no tile is transposed. Lane
+/// l of vector v is float 16 v + l of the row, channel (16 v + l) % 3 of texel (16 v + l) / 3 =
+/// a. Its tap k, at offset o = 0, +1, -1, ..., +4, -4 in the shader's order, reads texel
+/// a + o - 1 + s (s: bit l of `sel`) at weight w0 and, where bit l of `two` is set, the next
+/// texel at weight w1: (p0 w0 + p1 w1) wk, blur_texel's sample_pair; elsewhere w0 is exactly 1
+/// and the second product is left out (-0 is added, which changes no value: x 1 + -0 = x), so
+/// the term is p0 wk, the tile kernel's `one`. Only vectors whose lanes all fit that form are
+/// `ok` (not those whose taps clamp at an edge).
+struct RowTaps {
+  static constexpr int kLanes = 16;
+  static constexpr int kTaps = 9;
+  int vectors = 0;
+  std::vector<std::uint8_t> ok;      ///< per vector
+  PixelBuffer<float> w;  ///< per vector and tap: w0[16], then w1[16] (64-byte aligned)
+  std::vector<std::uint32_t> masks;  ///< per vector and tap: sel | two << 16
+};
+RowTaps make_row_taps(const PassTables& t, int width);
+
+struct RowsExactJob {
+  const float* const* src_rows = nullptr;  ///< image row y at src_rows[y], texel x at 3 x
+  float* const* dst_rows = nullptr;
+  const RowTaps* taps = nullptr;
+  const float* weights = nullptr;  ///< the kernel's, centre first (5)
+  int v0 = 0, v1 = 0;              ///< vectors [v0, v1), every one ok
+};
+void blur_rows_exact_avx512(const RowsExactJob& job, int r0, int r1);
+
 PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits);
 /// make_pass_tables, kept for the last few (axis, size, kernel offsets, bits) asked: the
 /// adaptive plan's passes ask for the same two, and building them (about 0.3 ms at 3840x2160)
