@@ -6,6 +6,7 @@
 // does not apply.
 #include <algorithm>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "blur_internal.h"
@@ -120,6 +121,23 @@ InexactKernels inexact_kernels_for(BlurIsa isa) {
 
 namespace {
 
+// Tap k of position a as one lane of the kernels that take a position a lane (the inexact rows'
+// group kernel, the row kernel): one texel (i0, kernel form `one`), or two, i0 and i0 + 1, at
+// nonzero weights w0, w1; nothing where it is neither (`scaled`, or two texels clamped into one).
+struct LaneTap {
+  int i0;
+  bool two;
+  float w0, w1;
+};
+std::optional<LaneTap> lane_tap(const PassTables& t, int a, int k) {
+  const std::size_t at = std::size_t(a) * t.kernel_taps.per_position + k;
+  if (t.forms[at] == TapForm::one) return LaneTap{t.kernel_taps.taps[at].i0, false, 1.0f, 0.0f};
+  const AxisTap<float>& rt = t.along.taps[at];
+  if (t.forms[at] == TapForm::two && rt.i1 == rt.i0 + 1 && rt.w0 != 0.0f && rt.w1 != 0.0f)
+    return LaneTap{rt.i0, true, rt.w0, rt.w1};
+  return std::nullopt;
+}
+
 // PassTables::group_taps and group_ok from the kernel's taps (one-texel form) and the reference
 // taps (two texels).
 void make_group_taps(PassTables& t) {
@@ -134,24 +152,19 @@ void make_group_taps(PassTables& t) {
       int d[L];
       for (int l = 0; l < L; ++l) {
         const int a = g * L + l;
-        const std::size_t at = std::size_t(a) * per + k;
-        const AxisTap<float>& kt = t.kernel_taps.taps[at];
-        const AxisTap<float>& rt = t.along.taps[at];
-        const TapForm f = t.forms[at];
+        const std::optional<LaneTap> lt = lane_tap(t, a, k);
         q.w0[l] = q.w1[l] = 0.0f;
         q.two[l] = 0;
-        if (f == TapForm::one) {
-          d[l] = kt.i0 - a;
+        d[l] = lt ? lt->i0 - a : 0;
+        if (!lt) {
+          t.group_ok[g] = 0;
+        } else if (!lt->two) {
           q.kinds |= PassTables::some_one;
-        } else if (f == TapForm::two && rt.i1 == rt.i0 + 1 && rt.w0 != 0.0f && rt.w1 != 0.0f) {
-          d[l] = rt.i0 - a;
-          q.w0[l] = rt.w0;
-          q.w1[l] = rt.w1;
+        } else {
+          q.w0[l] = lt->w0;
+          q.w1[l] = lt->w1;
           q.two[l] = -1;
           q.kinds |= PassTables::some_two;
-        } else {
-          t.group_ok[g] = 0;  // `scaled`, or two texels clamped into one
-          d[l] = 0;
         }
       }
       q.e = *std::min_element(d, d + L);
@@ -164,52 +177,38 @@ void make_group_taps(PassTables& t) {
   }
 }
 
+// Whether lane l of vector v fits the row kernel (RowTaps), its weights and mask bits set.
+bool fill_row_lane(const PassTables& t, int width, int v, int l, RowTaps& r) {
+  constexpr int L = RowTaps::kLanes, K = RowTaps::kTaps;
+  static constexpr int kOffset[K] = {0, 1, -1, 2, -2, 3, -3, 4, -4};  // the shader's order
+  const int a = (v * L + l) / 3;
+  if (a < 5 || a > width - 6) return false;  // a tap reads a texel past an edge
+  for (int k = 0; k < K; ++k) {
+    const std::optional<LaneTap> lt = lane_tap(t, a, k);
+    const int d = lt ? lt->i0 - (a + kOffset[k]) : 1;
+    if (d != 0 && d != -1) return false;
+    float* w = r.w.data() + (std::size_t(v) * K + k) * 2 * L;
+    std::uint32_t& m = r.masks[std::size_t(v) * K + k];
+    w[l] = lt->w0;
+    w[L + l] = lt->w1;
+    if (lt->two) m |= std::uint32_t(1) << (16 + l);
+    if (d == 0) m |= std::uint32_t(1) << l;
+  }
+  return true;
+}
+
 }  // namespace
 
 RowTaps make_row_taps(const PassTables& t, int width) {
   constexpr int L = RowTaps::kLanes, K = RowTaps::kTaps;
-  static constexpr int kOffset[K] = {0, 1, -1, 2, -2, 3, -3, 4, -4};
+  const std::size_t vectors = (std::size_t(width) * 3 + L - 1) / L;
   RowTaps r;
-  r.vectors = int((std::size_t(width) * 3 + L - 1) / L);
-  r.ok.assign(r.vectors, 0);
-  r.w.assign(std::size_t(r.vectors) * K * 2 * L, 0.0f);
-  r.masks.assign(std::size_t(r.vectors) * K, 0);
-  if (t.kernel_taps.per_position != K) return r;
-  for (int v = 0; v < r.vectors; ++v) {
+  r.ok.assign(vectors, 0);
+  r.w.assign(vectors * K * 2 * L, 0.0f);
+  r.masks.assign(vectors * K, 0);
+  for (int v = 0; v < int(vectors); ++v) {
     bool ok = true;
-    for (int l = 0; l < L && ok; ++l) {
-      const int a = (v * L + l) / 3;
-      if (a < 5 || a > width - 6) {  // a tap reads a texel past an edge
-        ok = false;
-        break;
-      }
-      for (int k = 0; k < K; ++k) {
-        const std::size_t at = std::size_t(a) * K + k;
-        const AxisTap<float>& kt = t.kernel_taps.taps[at];
-        const AxisTap<float>& rt = t.along.taps[at];
-        float* w0 = r.w.data() + (std::size_t(v) * K + k) * 2 * L;
-        std::uint32_t& m = r.masks[std::size_t(v) * K + k];
-        int d = 0;
-        if (t.forms[at] == TapForm::one) {
-          d = kt.i0 - (a + kOffset[k]);
-          w0[l] = 1.0f;
-        } else if (t.forms[at] == TapForm::two && rt.i1 == rt.i0 + 1 && rt.w0 != 0.0f &&
-                   rt.w1 != 0.0f) {
-          d = rt.i0 - (a + kOffset[k]);
-          w0[l] = rt.w0;
-          w0[L + l] = rt.w1;
-          m |= std::uint32_t(1) << (16 + l);
-        } else {
-          ok = false;
-          break;
-        }
-        if (d != 0 && d != -1) {
-          ok = false;
-          break;
-        }
-        if (d == 0) m |= std::uint32_t(1) << l;
-      }
-    }
+    for (int l = 0; l < L && ok; ++l) ok = fill_row_lane(t, width, v, l, r);
     r.ok[v] = ok;
   }
   return r;
@@ -252,7 +251,8 @@ PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, i
     if (t.across[b].w1 != 0.0f || t.across[b].i0 != b) t.inexact.push_back(b);
   }
   if (t.horizontal && !t.inexact.empty()) make_group_taps(t);  // the vertical pass: columns
-  if (t.horizontal) t.row_taps = std::make_shared<const RowTaps>(make_row_taps(t, width));
+  if (t.horizontal && per == RowTaps::kTaps)
+    t.row_taps = std::make_shared<const RowTaps>(make_row_taps(t, width));
   t.column_terms.assign(std::size_t(width) + 1, 0);
   for (int x = 0; x < width; ++x) {
     std::int64_t terms = 0;

@@ -199,8 +199,7 @@ struct PassTables {
 /// `ok` (not those whose taps clamp at an edge).
 struct RowTaps {
   static constexpr int kLanes = 16;
-  static constexpr int kTaps = 9;
-  int vectors = 0;
+  static constexpr int kTaps = 9;  ///< discrete9's (other kernels have no row taps)
   std::vector<std::uint8_t> ok;      ///< per vector
   PixelBuffer<float> w;  ///< per vector and tap: w0[16], then w1[16] (64-byte aligned)
   std::vector<std::uint32_t> masks;  ///< per vector and tap: sel | two << 16

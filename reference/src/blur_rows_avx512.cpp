@@ -17,22 +17,23 @@ namespace {
 constexpr int L = RowTaps::kLanes;
 
 // s[j + 5]: the row's floats [f + 3 j, f + 3 j + 16), j = -5 ... 5, from the vectors at f - 16,
-// f and f + 16 (whole 64-byte lines where the row's float 0 starts one).
+// f and f + 16 (whole 64-byte lines where the row's float 0 starts one). The zero-masked form
+// with every lane kept is valignd itself (GCC 12's plain one warns of an undefined operand).
 inline void shifted(const float* p, __m512i* s) {
   const __m512i a = _mm512_castps_si512(_mm512_loadu_ps(p - L));
   const __m512i b = _mm512_castps_si512(_mm512_loadu_ps(p));
   const __m512i c = _mm512_castps_si512(_mm512_loadu_ps(p + L));
-  s[0] = _mm512_alignr_epi32(b, a, 1);
-  s[1] = _mm512_alignr_epi32(b, a, 4);
-  s[2] = _mm512_alignr_epi32(b, a, 7);
-  s[3] = _mm512_alignr_epi32(b, a, 10);
-  s[4] = _mm512_alignr_epi32(b, a, 13);
+  s[0] = _mm512_maskz_alignr_epi32(0xffff, b, a, 1);
+  s[1] = _mm512_maskz_alignr_epi32(0xffff, b, a, 4);
+  s[2] = _mm512_maskz_alignr_epi32(0xffff, b, a, 7);
+  s[3] = _mm512_maskz_alignr_epi32(0xffff, b, a, 10);
+  s[4] = _mm512_maskz_alignr_epi32(0xffff, b, a, 13);
   s[5] = b;
-  s[6] = _mm512_alignr_epi32(c, b, 3);
-  s[7] = _mm512_alignr_epi32(c, b, 6);
-  s[8] = _mm512_alignr_epi32(c, b, 9);
-  s[9] = _mm512_alignr_epi32(c, b, 12);
-  s[10] = _mm512_alignr_epi32(c, b, 15);
+  s[6] = _mm512_maskz_alignr_epi32(0xffff, c, b, 3);
+  s[7] = _mm512_maskz_alignr_epi32(0xffff, c, b, 6);
+  s[8] = _mm512_maskz_alignr_epi32(0xffff, c, b, 9);
+  s[9] = _mm512_maskz_alignr_epi32(0xffff, c, b, 12);
+  s[10] = _mm512_maskz_alignr_epi32(0xffff, c, b, 15);
 }
 
 // r = term (K = 0) or r + term: tap K at offset O (shader order) of the vector whose shifted
