@@ -191,7 +191,10 @@ bool fill_row_lane(const PassTables& t, int width, int v, int l, RowTaps& r) {
     std::uint32_t& m = r.masks[std::size_t(v) * K + k];
     w[l] = lt->w0;
     w[L + l] = lt->w1;
-    if (lt->two) m |= std::uint32_t(1) << (16 + l);
+    if (lt->two) {
+      m |= std::uint32_t(1) << (16 + l);
+      r.min_weight = std::min({r.min_weight, lt->w0, lt->w1});
+    }
     if (d == 0) m |= std::uint32_t(1) << l;
   }
   return true;

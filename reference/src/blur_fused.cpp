@@ -314,6 +314,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
         for (int i = 0; i < kChunk; ++i) handed[i] = block.data() + i * row_floats;
       }
       std::vector<int> produced(n, 0);
+      std::vector<std::pair<int, int>> segments, gaps;  // the row kernel's, per chunk
       // The approximate kernel's row before it is converted (ApproxRowsJob::scratch): pass 0
       // computes the most columns.
       PixelBuffer<float> approx_scratch(
@@ -404,6 +405,10 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
             rj.dst_rows = out;
             rj.taps = &rt;
             rj.weights = weights.data();
+            // The runs of ok vectors, and the texels between them (whole texels: a vector's
+            // part texels at either end are the tile kernel's).
+            segments.clear();
+            gaps.clear();
             int done = x0;  // texels before it are computed or given to the tile kernel
             for (int v = va; v < vb;) {
               if (!rt.ok[v]) {
@@ -412,18 +417,53 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
               }
               int e = v;
               while (e < vb && rt.ok[e]) ++e;
-              rj.v0 = v;
-              rj.v1 = e;
-              detail::blur_rows_exact_avx512(rj, r0, r1);
+              segments.push_back({v, e});
               const int c0 = (L * v + 2) / 3, c1 = (L * e) / 3;  // whole texels covered
-              tiles(done, c0);
+              if (done < c0) gaps.push_back({done, c0});
               done = std::max(done, c1);
               v = e;
             }
-            tiles(done, x1);
-          } else {
-            tiles(x0, x1);
+            if (done < x1) gaps.push_back({done, x1});
+            for (const auto& [v, e] : segments) {
+              rj.v0 = v;
+              rj.v1 = e;
+              detail::blur_rows_exact_avx512(rj, r0, r1);
+            }
+            for (const auto& [a0, a1] : gaps) tiles(a0, a1);
+            // The inexact rows (the kernels above computed them as if exact) along their rows
+            // too (blur_row_inexact_avx512), where every 2-D weight is nonzero as its terms
+            // assume (weights are >= 0: the least across weight times the least along one),
+            // their gaps then per texel; the others all per texel. At 3840x2160 (85 such rows
+            // of 2160) the group kernel made them ~18% of ten fused passes (README, stop 33).
+            const auto first = std::lower_bound(t.inexact.begin(), t.inexact.end(), r0);
+            for (auto it = first; it != t.inexact.end() && *it < r1; ++it) {
+              const int b = *it;
+              const AxisTap<float>& o = t.across[b];
+              if (std::min(o.w0, o.w1) * rt.min_weight == 0.0f) {
+                detail::blur_inexact_lines(t, in, out, weights, x0, x1, b, b + 1, nullptr, w,
+                                           false, cin, cout, inexact_kernels);
+                continue;
+              }
+              detail::RowInexactJob ij;
+              ij.a = in[o.i0];
+              ij.b = in[o.i1];
+              ij.dst = out[b];
+              ij.wa = o.w0;
+              ij.wb = o.w1;
+              ij.taps = &rt;
+              ij.weights = weights.data();
+              for (const auto& [v, e] : segments) {
+                ij.v0 = v;
+                ij.v1 = e;
+                detail::blur_row_inexact_avx512(ij);
+              }
+              for (const auto& [a0, a1] : gaps)
+                detail::blur_inexact_lines(t, in, out, weights, a0, a1, b, b + 1, nullptr, w,
+                                           false, cin, cout, inexact_kernels);
+            }
+            return;
           }
+          tiles(x0, x1);
           detail::blur_inexact_lines(t, in, out, weights, x0, x1, r0, r1, nullptr, w, false, cin,
                                      cout, inexact_kernels);
         } else {

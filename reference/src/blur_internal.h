@@ -203,6 +203,10 @@ struct RowTaps {
   std::vector<std::uint8_t> ok;      ///< per vector
   PixelBuffer<float> w;  ///< per vector and tap: w0[16], then w1[16] (64-byte aligned)
   std::vector<std::uint32_t> masks;  ///< per vector and tap: sel | two << 16
+  /// The least weight of a two-texel lane (1 where there is none): a lookup across the blur at
+  /// weights at least m with m * min_weight > 0 makes every 2-D weight nonzero (rounding is
+  /// monotonic), as the inexact rows' kernel assumes (blur_row_inexact_avx512).
+  float min_weight = 1.0f;
 };
 RowTaps make_row_taps(const PassTables& t, int width);
 
@@ -214,6 +218,25 @@ struct RowsExactJob {
   int v0 = 0, v1 = 0;              ///< vectors [v0, v1), every one ok
 };
 void blur_rows_exact_avx512(const RowsExactJob& job, int r0, int r1);
+
+/// One inexact row of the horizontal pass (its lookup across the blur mixes rows a and b at
+/// weights wa, wb, both nonzero) along the row, like blur_rows_exact_avx512: per lane
+/// blur_inexact_lines's sums. A one-texel lane's sample is the row mixed across, p_a wa + p_b wb
+/// (bilinear_v4 of {i, i, 1, 0}: weights 1 wa and 1 wb); a two-texel lane's, bilinear_v4's four
+/// terms in its order ((a0 w0 wa + a1 w1 wa) + b0 w0 wb) + b1 w1 wb. A one-texel lane takes the
+/// two-texel form with w0 = 1 and its second texel's products replaced by -0, which changes no
+/// value, so both take one sequence of operations. Vectors [v0, v1), every one ok; every 2-D
+/// weight must be nonzero (RowTaps::min_weight).
+struct RowInexactJob {
+  const float* a = nullptr;  ///< row o.i0, texel x at 3 x (a row table's entry)
+  const float* b = nullptr;  ///< row o.i1
+  float* dst = nullptr;
+  float wa = 0, wb = 0;  ///< o.w0, o.w1
+  const RowTaps* taps = nullptr;
+  const float* weights = nullptr;  ///< the kernel's, centre first (5)
+  int v0 = 0, v1 = 0;
+};
+void blur_row_inexact_avx512(const RowInexactJob& job);
 
 PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits);
 /// make_pass_tables, kept for the last few (axis, size, kernel offsets, bits) asked: the

@@ -60,7 +60,62 @@ inline void tap(const __m512i* s, const float* w, const std::uint32_t* m, __m512
   r = K == 0 ? q : _mm512_add_ps(r, q);
 }
 
+// r = term (K = 0) or r + term: tap K at offset O of an inexact row, rows a and b mixed at
+// weights wa and wb (blur_row_inexact_avx512).
+template <int K, int O>
+inline void tap2(const __m512i* sa, const __m512i* sb, const float* w, const std::uint32_t* m,
+                 __m512 wa, __m512 wb, __m512 wk, __m512& r) {
+  const __mmask16 sel = __mmask16(m[K]), two = __mmask16(m[K] >> 16);
+  __m512 a0 = _mm512_castsi512_ps(sa[O + 5]), b0 = _mm512_castsi512_ps(sb[O + 5]);
+  __m512 s;
+  if (sel == 0xffff && two == 0) {
+    // Every lane one texel at its offset: p_a (1 wa) + p_b (1 wb).
+    s = _mm512_add_ps(_mm512_mul_ps(a0, wa), _mm512_mul_ps(b0, wb));
+  } else {
+    __m512 a1 = _mm512_castsi512_ps(sa[O + 6]), b1 = _mm512_castsi512_ps(sb[O + 6]);
+    if (sel != 0xffff) {
+      a0 = _mm512_mask_blend_ps(sel, _mm512_castsi512_ps(sa[O + 4]), a0);
+      b0 = _mm512_mask_blend_ps(sel, _mm512_castsi512_ps(sb[O + 4]), b0);
+      a1 = _mm512_mask_blend_ps(sel, _mm512_castsi512_ps(sa[O + 5]), a1);
+      b1 = _mm512_mask_blend_ps(sel, _mm512_castsi512_ps(sb[O + 5]), b1);
+    }
+    const __m512 w0 = _mm512_load_ps(w + 2 * L * K), w1 = _mm512_load_ps(w + 2 * L * K + L);
+    const __m512 nz = _mm512_set1_ps(-0.0f);
+    s = _mm512_mul_ps(a0, _mm512_mul_ps(w0, wa));
+    s = _mm512_add_ps(s, _mm512_mask_mul_ps(nz, two, a1, _mm512_mul_ps(w1, wa)));
+    s = _mm512_add_ps(s, _mm512_mul_ps(b0, _mm512_mul_ps(w0, wb)));
+    s = _mm512_add_ps(s, _mm512_mask_mul_ps(nz, two, b1, _mm512_mul_ps(w1, wb)));
+  }
+  const __m512 q = _mm512_mul_ps(s, wk);
+  r = K == 0 ? q : _mm512_add_ps(r, q);
+}
+
 }  // namespace
+
+void blur_row_inexact_avx512(const RowInexactJob& job) {
+  __m512 wk[5];
+  for (int i = 0; i < 5; ++i) wk[i] = _mm512_set1_ps(job.weights[i]);
+  const __m512 wa = _mm512_set1_ps(job.wa), wb = _mm512_set1_ps(job.wb);
+  for (int v = job.v0; v < job.v1; ++v) {
+    const float* w = job.taps->w.data() + std::size_t(v) * RowTaps::kTaps * 2 * L;
+    const std::uint32_t* m = job.taps->masks.data() + std::size_t(v) * RowTaps::kTaps;
+    const std::ptrdiff_t f = std::ptrdiff_t(v) * L;
+    __m512i sa[11], sb[11];
+    shifted(job.a + f, sa);
+    shifted(job.b + f, sb);
+    __m512 r;
+    tap2<0, 0>(sa, sb, w, m, wa, wb, wk[0], r);
+    tap2<1, 1>(sa, sb, w, m, wa, wb, wk[1], r);
+    tap2<2, -1>(sa, sb, w, m, wa, wb, wk[1], r);
+    tap2<3, 2>(sa, sb, w, m, wa, wb, wk[2], r);
+    tap2<4, -2>(sa, sb, w, m, wa, wb, wk[2], r);
+    tap2<5, 3>(sa, sb, w, m, wa, wb, wk[3], r);
+    tap2<6, -3>(sa, sb, w, m, wa, wb, wk[3], r);
+    tap2<7, 4>(sa, sb, w, m, wa, wb, wk[4], r);
+    tap2<8, -4>(sa, sb, w, m, wa, wb, wk[4], r);
+    _mm512_storeu_ps(job.dst + f, r);
+  }
+}
 
 void blur_rows_exact_avx512(const RowsExactJob& job, int r0, int r1) {
   __m512 wk[5];
