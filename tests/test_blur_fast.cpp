@@ -535,7 +535,10 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
   // dropped, or its first term taken as 0 + term each fail 24-48 of these assertions. Its inexact
   // rows go along their rows too (blur_row_inexact_avx512): there the one-texel lanes' second
   // products masked to +0, the across weights swapped, the texel selects dropped, the 2-D terms
-  // regrouped or a weight product reordered each fail 20-46.
+  // regrouped or a weight product reordered each fail 20-46. The first pass, when horizontal,
+  // packs R, G, B vectors from the RGBA source in registers: a wrong packing index, the wrong
+  // neighbouring vector or its inexact rows read as rows of 3 floats fail 49-115 (and the bound
+  // of its loads past the row's end, loosened, fails under AddressSanitizer).
   const std::vector<std::vector<Axis>> orders = fused_orders();
   unsigned seed = 40;
   for (auto [w, h] : sizes) {

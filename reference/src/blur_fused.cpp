@@ -391,16 +391,21 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
             job.along_hi = a1;
             tile_kernel(job, t0 + a0 / kTileAlongH, t0 + (a1 + kTileAlongH - 1) / kTileAlongH);
           };
-          if (rows_exact && cin == 3 && cout == 3 && t.row_taps) {
+          if (rows_exact && cout == 3 && t.row_taps) {
             // Along the rows where the row kernel's vectors fit (their lanes' reads inside the
             // input columns, their stores inside the output ones), the tile kernel elsewhere,
-            // after it (its whole texels over the vectors' part texels).
+            // after it (its whole texels over the vectors' part texels). The first pass reads
+            // the source's RGBA rows, all of whose columns it may read, as far as the kernel's
+            // packing loads stay inside them (RowsExactJob).
             constexpr int L = detail::RowTaps::kLanes;
             const detail::RowTaps& rt = *t.row_taps;
-            const int xi0 = strip.x0[k - 1], xi1 = strip.x1[k - 1];
+            const int xi0 = cin == 3 ? strip.x0[k - 1] : 0, xi1 = cin == 3 ? strip.x1[k - 1] : w;
             const int va = std::max((3 * x0 + L - 1) / L, (3 * (xi0 + 5) + L - 1) / L);
-            const int vb = std::min((3 * x1) / L, (3 * xi1 - 15) / L);
+            int vb = std::min((3 * x1) / L, (3 * xi1 - 15) / L);
+            if (cin == 4)
+              while (vb > va && L * (vb + vb / 3 + 2) > 4 * w) --vb;
             detail::RowsExactJob rj;
+            rj.src_channels = cin;
             rj.src_rows = in;
             rj.dst_rows = out;
             rj.taps = &rt;
@@ -445,6 +450,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
                 continue;
               }
               detail::RowInexactJob ij;
+              ij.src_channels = cin;
               ij.a = in[o.i0];
               ij.b = in[o.i1];
               ij.dst = out[b];

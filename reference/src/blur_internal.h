@@ -211,7 +211,11 @@ struct RowTaps {
 RowTaps make_row_taps(const PassTables& t, int width);
 
 struct RowsExactJob {
-  const float* const* src_rows = nullptr;  ///< image row y at src_rows[y], texel x at 3 x
+  /// Image row y at src_rows[y], texel x at 3 x (a ring) or, with src_channels 4, at 4 x (RGBA:
+  /// the vectors of R, G, B are packed from it in registers; the caller keeps every load, 16
+  /// floats from float 16 (v + v / 3 - 1) to 16 (v + v / 3 + 3) of a vector v, inside the row).
+  const float* const* src_rows = nullptr;
+  int src_channels = 3;
   float* const* dst_rows = nullptr;
   const RowTaps* taps = nullptr;
   const float* weights = nullptr;  ///< the kernel's, centre first (5)
@@ -228,8 +232,9 @@ void blur_rows_exact_avx512(const RowsExactJob& job, int r0, int r1);
 /// value, so both take one sequence of operations. Vectors [v0, v1), every one ok; every 2-D
 /// weight must be nonzero (RowTaps::min_weight).
 struct RowInexactJob {
-  const float* a = nullptr;  ///< row o.i0, texel x at 3 x (a row table's entry)
+  const float* a = nullptr;  ///< row o.i0, texel x at 3 x (a row table's entry), or 4 x
   const float* b = nullptr;  ///< row o.i1
+  int src_channels = 3;      ///< as RowsExactJob's
   float* dst = nullptr;
   float wa = 0, wb = 0;  ///< o.w0, o.w1
   const RowTaps* taps = nullptr;
