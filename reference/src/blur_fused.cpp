@@ -53,6 +53,13 @@ constexpr int kMinStripWidth = 64;
 // of 3 eight floats at a time, TileJob).
 constexpr int kRingChannels = 3;
 constexpr int kRingPad = 8;
+// Floats of readable slack before and after a pass's ring: the row kernel's vectors at a strip's
+// ends read up to 31 floats before the first column of their row that they store (its vectors
+// at f - 16, f, f + 16, f a multiple of 16) and after the last, of which at least 12 (4 texels:
+// the taps' reach, or the image's edge, where no vector is ok) are the row's own. 64: whole
+// cache lines, so the rows stay 64-byte aligned.
+constexpr int kRingFront = 64;
+constexpr int kRingBack = 64;
 constexpr std::size_t kRowAlign = 16;  // floats: a ring row's stride is a multiple of 64 bytes
 
 // The last pass stores its rows past the cache (TileJob::stream_dst) from this output size on:
@@ -295,10 +302,11 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
         const int last = approx ? strip.x1[0] : strip.x1[k];
         const std::size_t row_floats =
             detail::round_up(std::size_t(last - first) * kRingChannels, kRowAlign);
-        rings[k] = PixelBuffer<float>(std::size_t(ring[k]) * row_floats + kRingPad);
+        rings[k] = PixelBuffer<float>(kRingFront + std::size_t(ring[k]) * row_floats +
+                                      std::max(kRingPad, kRingBack));
         out_rows[k].resize(h);
         for (int r = 0; r < h; ++r)
-          out_rows[k][r] = shifted(rings[k].data() + (r % ring[k]) * row_floats, first);
+          out_rows[k][r] = shifted(rings[k].data() + kRingFront + (r % ring[k]) * row_floats, first);
       }
       // With a sink, the last pass's rows: a block of kChunk rows of the strip (RGBA), row r
       // in slot r mod kChunk (the last pass computes whole blocks from a multiple of kChunk).
@@ -392,16 +400,18 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
             tile_kernel(job, t0 + a0 / kTileAlongH, t0 + (a1 + kTileAlongH - 1) / kTileAlongH);
           };
           if (rows_exact && cout == 3 && t.row_taps) {
-            // Along the rows where the row kernel's vectors fit (their lanes' reads inside the
-            // input columns, their stores inside the output ones), the tile kernel elsewhere,
-            // after it (its whole texels over the vectors' part texels). The first pass reads
-            // the source's RGBA rows, all of whose columns it may read, as far as the kernel's
-            // packing loads stay inside them (RowsExactJob).
+            // Along the rows where the row kernel's vectors fit (every one that holds a float
+            // of the strip's columns [x0, x1) and is ok: away from the image's edges), storing
+            // only the floats of those columns; the tile kernel elsewhere, after it (its whole
+            // texels over the vectors' part texels). A stored lane reads only the input columns
+            // the pass needs (strip_columns); the others read whatever lies beside them, inside
+            // the ring's row or its neighbours' or the pads around the ring (kRingFront,
+            // kRingBack). The first pass reads the source's RGBA rows, all of whose columns it
+            // may read, as far as the kernel's packing loads stay inside them (RowsExactJob).
             constexpr int L = detail::RowTaps::kLanes;
             const detail::RowTaps& rt = *t.row_taps;
-            const int xi0 = cin == 3 ? strip.x0[k - 1] : 0, xi1 = cin == 3 ? strip.x1[k - 1] : w;
-            const int va = std::max((3 * x0 + L - 1) / L, (3 * (xi0 + 5) + L - 1) / L);
-            int vb = std::min((3 * x1) / L, (3 * xi1 - 15) / L);
+            const int va = std::max(3 * x0 / L, cin == 4 ? 1 : 0);
+            int vb = (3 * x1 + L - 1) / L;
             if (cin == 4)
               while (vb > va && L * (vb + vb / 3 + 2) > 4 * w) --vb;
             detail::RowsExactJob rj;
@@ -410,6 +420,8 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
             rj.dst_rows = out;
             rj.taps = &rt;
             rj.weights = weights.data();
+            rj.f0 = 3 * x0;
+            rj.f1 = 3 * x1;
             // The runs of ok vectors, and the texels between them (whole texels: a vector's
             // part texels at either end are the tile kernel's).
             segments.clear();
@@ -423,7 +435,8 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
               int e = v;
               while (e < vb && rt.ok[e]) ++e;
               segments.push_back({v, e});
-              const int c0 = (L * v + 2) / 3, c1 = (L * e) / 3;  // whole texels covered
+              // The whole texels covered.
+              const int c0 = std::max(x0, (L * v + 2) / 3), c1 = std::min(x1, (L * e) / 3);
               if (done < c0) gaps.push_back({done, c0});
               done = std::max(done, c1);
               v = e;
@@ -458,6 +471,8 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
               ij.wb = o.w1;
               ij.taps = &rt;
               ij.weights = weights.data();
+              ij.f0 = rj.f0;
+              ij.f1 = rj.f1;
               for (const auto& [v, e] : segments) {
                 ij.v0 = v;
                 ij.v1 = e;

@@ -220,6 +220,11 @@ struct RowsExactJob {
   const RowTaps* taps = nullptr;
   const float* weights = nullptr;  ///< the kernel's, centre first (5)
   int v0 = 0, v1 = 0;              ///< vectors [v0, v1), every one ok
+  /// Only the floats [f0, f1) of a row are stored (the strip's columns; lanes outside them are
+  /// computed from whatever their loads find, which must be readable memory, and not stored:
+  /// the fused blur's rings have room for whole vectors there, and no pass reads those columns,
+  /// so this keeps the rule local rather than being needed today).
+  int f0 = 0, f1 = 1 << 30;
 };
 void blur_rows_exact_avx512(const RowsExactJob& job, int r0, int r1);
 
@@ -240,6 +245,7 @@ struct RowInexactJob {
   const RowTaps* taps = nullptr;
   const float* weights = nullptr;  ///< the kernel's, centre first (5)
   int v0 = 0, v1 = 0;
+  int f0 = 0, f1 = 1 << 30;  ///< as RowsExactJob's
 };
 void blur_row_inexact_avx512(const RowInexactJob& job);
 

@@ -9,6 +9,8 @@
 #define BLOOMREF_ISA_NAMESPACE isa_avx512
 #include <immintrin.h>
 
+#include <algorithm>
+
 #include "blur_internal.h"
 
 namespace bloomref::detail {
@@ -125,6 +127,16 @@ inline void tap2(const __m512i* sa, const __m512i* sb, const float* w, const std
   r = K == 0 ? q : _mm512_add_ps(r, q);
 }
 
+// The lanes of vector v whose floats 16 v + l lie in [f0, f1).
+inline __mmask16 kept_lanes(int v, int f0, int f1) {
+  const int lo = std::clamp(f0 - L * v, 0, L), hi = std::clamp(f1 - L * v, 0, L);
+  return __mmask16(((1u << hi) - 1) & ~((1u << lo) - 1));
+}
+inline void store(float* p, __mmask16 keep, __m512 r) {
+  if (keep == 0xffff) _mm512_storeu_ps(p, r);
+  else _mm512_mask_storeu_ps(p, keep, r);
+}
+
 template <int C>
 void row_inexact(const RowInexactJob& job) {
   const RgbaPacking pk;
@@ -148,7 +160,7 @@ void row_inexact(const RowInexactJob& job) {
     tap2<6, -3>(sa, sb, w, m, wa, wb, wk[3], r);
     tap2<7, 4>(sa, sb, w, m, wa, wb, wk[4], r);
     tap2<8, -4>(sa, sb, w, m, wa, wb, wk[4], r);
-    _mm512_storeu_ps(job.dst + f, r);
+    store(job.dst + f, kept_lanes(v, job.f0, job.f1), r);
   }
 }
 
@@ -161,6 +173,7 @@ void rows_exact(const RowsExactJob& job, int r0, int r1) {
     const float* w = job.taps->w.data() + std::size_t(v) * RowTaps::kTaps * 2 * L;
     const std::uint32_t* m = job.taps->masks.data() + std::size_t(v) * RowTaps::kTaps;
     const std::ptrdiff_t f = std::ptrdiff_t(v) * L;
+    const __mmask16 keep = kept_lanes(v, job.f0, job.f1);
     for (int y = r0; y < r1; ++y) {
       __m512i s[11];
       shifted_at<C>(job.src_rows[y], v, pk, s);
@@ -183,7 +196,7 @@ void rows_exact(const RowsExactJob& job, int r0, int r1) {
       tap<6, -3>(s, w, m, wk[3], r);
       tap<7, 4>(s, w, m, wk[4], r);
       tap<8, -4>(s, w, m, wk[4], r);
-      _mm512_storeu_ps(job.dst_rows[y] + f, r);
+      store(job.dst_rows[y] + f, keep, r);
     }
   }
 }
