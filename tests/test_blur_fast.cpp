@@ -529,7 +529,7 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
   // group kernel; strips of 500 columns cut groups at 496 and 504) and columns side by side in
   // chunks of 32 rows (the columns kernel). The kernels' term orders, weight products, lane
   // selects, form blends and first terms each fail this test when altered. Where the CPU has
-  // AVX-512F, the horizontal passes between rings run along their rows (blur_rows_exact_avx512;
+  // AVX-512F, the horizontal passes into rings run along their rows (blur_rows_exact_avx512;
   // the AVX2 and generic builds transpose tiles, so the ISAs' agreement checks it too): its
   // one-texel lanes' second product not masked to -0 (an Inf times 0), its texel selects
   // dropped, or its first term taken as 0 + term each fail 24-48 of these assertions. Its inexact

@@ -55,9 +55,10 @@ constexpr int kRingChannels = 3;
 constexpr int kRingPad = 8;
 // Floats of readable slack before and after a pass's ring: the row kernel's vectors at a strip's
 // ends read up to 31 floats before the first column of their row that they store (its vectors
-// at f - 16, f, f + 16, f a multiple of 16) and after the last, of which at least 12 (4 texels:
-// the taps' reach, or the image's edge, where no vector is ok) are the row's own. 64: whole
-// cache lines, so the rows stay 64-byte aligned.
+// at f - 16, f, f + 16, f a multiple of 16) and after the last. A ring row starts at a multiple
+// of 48 floats (16 texels), so at most 16 of those lie before the row's first float or after its
+// last; 64 is that with room to spare, and a whole number of cache lines, so that the rows stay
+// 64-byte aligned.
 constexpr int kRingFront = 64;
 constexpr int kRingBack = 64;
 constexpr std::size_t kRowAlign = 16;  // floats: a ring row's stride is a multiple of 64 bytes
@@ -205,8 +206,9 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
   if (!sink && (dst.width != w || dst.height != h))
     throw ParamError("blur_passes_fused: source and destination sizes differ");
   const detail::TileKernel tile_kernel = detail::tile_kernel_for(isa);
-  // The exact horizontal passes between rings along their rows (blur_rows_exact_avx512), where
-  // the CPU has AVX-512F; the tile kernel does the rest, and everything elsewhere.
+  // The exact horizontal passes into rings along their rows (blur_rows_exact_avx512 and, for
+  // their inexact rows, blur_row_inexact_avx512), from a ring or the RGBA source, where the CPU
+  // has AVX-512F; the tile kernel does the image's edges and the rest, and everything elsewhere.
   const bool rows_exact = detail::resolve_isa(isa) == BlurIsa::avx512;
   const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
   // The approximate blur (blur_pass_approx's stencil) in the same strips and rings.

@@ -185,7 +185,8 @@ struct PassTables {
   /// nonzero weights, each lane's first texel e or e + 1 after its position (not where
   /// clamp-to-edge repeats a texel). Other positions take blur_texel's per-texel path.
   std::vector<std::uint8_t> group_ok;
-  /// The horizontal pass's taps for blur_rows_exact_* (discrete9 only; empty otherwise).
+  /// The horizontal pass's taps for blur_rows_exact_* and blur_row_inexact_* (discrete9 only;
+  /// empty otherwise).
   std::shared_ptr<const RowTaps> row_taps;
 };
 /// The exact horizontal pass along its rows (blur_rows_exact_*): lanes along a row of R, G, B
@@ -212,18 +213,19 @@ RowTaps make_row_taps(const PassTables& t, int width);
 
 struct RowsExactJob {
   /// Image row y at src_rows[y], texel x at 3 x (a ring) or, with src_channels 4, at 4 x (RGBA:
-  /// the vectors of R, G, B are packed from it in registers; the caller keeps every load, 16
-  /// floats from float 16 (v + v / 3 - 1) to 16 (v + v / 3 + 3) of a vector v, inside the row).
+  /// the vectors of R, G, B are packed from it in registers; vector v reads the row's floats
+  /// [16 (u + u / 3), 16 (w + w / 3 + 2)) with u = v - 1, w = v + 1, which the caller keeps
+  /// inside the row).
   const float* const* src_rows = nullptr;
   int src_channels = 3;
   float* const* dst_rows = nullptr;
   const RowTaps* taps = nullptr;
   const float* weights = nullptr;  ///< the kernel's, centre first (5)
   int v0 = 0, v1 = 0;              ///< vectors [v0, v1), every one ok
-  /// Only the floats [f0, f1) of a row are stored (the strip's columns; lanes outside them are
-  /// computed from whatever their loads find, which must be readable memory, and not stored:
-  /// the fused blur's rings have room for whole vectors there, and no pass reads those columns,
-  /// so this keeps the rule local rather than being needed today).
+  /// Only the floats [f0, f1) of a row are stored (the strip's columns). Lanes outside them are
+  /// computed from whatever their loads find, which must be readable memory, and are not stored.
+  /// (Whole vectors would also fit in the fused blur's ring rows, and no pass reads the columns
+  /// outside a strip's; the mask keeps that from being a rule the caller must know.)
   int f0 = 0, f1 = 1 << 30;
 };
 void blur_rows_exact_avx512(const RowsExactJob& job, int r0, int r1);

@@ -1,6 +1,10 @@
 // The exact horizontal pass along its rows, 16 floats of a row a vector (blur_internal.h,
-// RowTaps). Built with -mavx512f; nothing is fused (-ffp-contract=off, no FMA intrinsics), so
-// every lane does blur_texel's operations in its order; only called where the CPU has AVX-512F.
+// RowTaps): the rows whose lookup across sits on them (blur_rows_exact_avx512: blur_texel's
+// operations in its order) and those whose lookup mixes two (blur_row_inexact_avx512:
+// blur_inexact_lines's, bilinear_v4's terms), from rows of R, G, B or, packed in registers, of
+// RGBA (the first pass). Built with -mavx512f; nothing is fused (-ffp-contract=off, no FMA
+// intrinsics), so every lane does the reference's operations in its order; only called where
+// the CPU has AVX-512F.
 //
 // A lane reads its taps' texels 3 floats apart, so the vectors it needs start 3 j floats from
 // its own (j = -5 ... 5): they are cut from three aligned vectors by lane rotations (valignd).
@@ -10,6 +14,8 @@
 #include <immintrin.h>
 
 #include <algorithm>
+#include <cstdint>
+#include <type_traits>
 
 #include "blur_internal.h"
 
@@ -61,9 +67,11 @@ struct RgbaPacking {
   }
 };
 
+struct NoPacking {};  // rows of 3 floats a texel need none
+
 // The shifted vectors of vector v of a row of C floats a texel (3: as they are; 4: packed).
-template <int C>
-inline void shifted_at(const float* row, int v, const RgbaPacking& pk, __m512i* s) {
+template <int C, class Packing>
+inline void shifted_at(const float* row, int v, const Packing& pk, __m512i* s) {
   if constexpr (C == 3) {
     const float* p = row + std::ptrdiff_t(v) * L;
     shifted(_mm512_castps_si512(_mm512_loadu_ps(p - L)), _mm512_castps_si512(_mm512_loadu_ps(p)),
@@ -139,7 +147,7 @@ inline void store(float* p, __mmask16 keep, __m512 r) {
 
 template <int C>
 void row_inexact(const RowInexactJob& job) {
-  const RgbaPacking pk;
+  const std::conditional_t<C == 4, RgbaPacking, NoPacking> pk;
   __m512 wk[5];
   for (int i = 0; i < 5; ++i) wk[i] = _mm512_set1_ps(job.weights[i]);
   const __m512 wa = _mm512_set1_ps(job.wa), wb = _mm512_set1_ps(job.wb);
@@ -166,7 +174,7 @@ void row_inexact(const RowInexactJob& job) {
 
 template <int C>
 void rows_exact(const RowsExactJob& job, int r0, int r1) {
-  const RgbaPacking pk;
+  const std::conditional_t<C == 4, RgbaPacking, NoPacking> pk;
   __m512 wk[5];
   for (int i = 0; i < 5; ++i) wk[i] = _mm512_set1_ps(job.weights[i]);
   for (int v = job.v0; v < job.v1; ++v) {
@@ -181,10 +189,12 @@ void rows_exact(const RowsExactJob& job, int r0, int r1) {
         // The source comes from memory, a few floats of each of the chunk's rows in turn:
         // fetched kPrefetch vectors ahead (the two lines the packing of vector v + kPrefetch
         // starts in; a prefetch past the row does not fault).
-        const char* q = reinterpret_cast<const char*>(
-            job.src_rows[y] + std::ptrdiff_t(L) * (v + kPrefetch + (v + kPrefetch) / 3));
-        _mm_prefetch(q, _MM_HINT_T0);
-        _mm_prefetch(q + 64, _MM_HINT_T0);
+        // (An address, not a pointer past the row's array.)
+        const std::uintptr_t q =
+            reinterpret_cast<std::uintptr_t>(job.src_rows[y]) +
+            sizeof(float) * std::uintptr_t(L) * std::uintptr_t(v + kPrefetch + (v + kPrefetch) / 3);
+        _mm_prefetch(reinterpret_cast<const char*>(q), _MM_HINT_T0);
+        _mm_prefetch(reinterpret_cast<const char*>(q + 64), _MM_HINT_T0);
       }
       __m512 r;
       tap<0, 0>(s, w, m, wk[0], r);
