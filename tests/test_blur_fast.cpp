@@ -538,7 +538,10 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
   // regrouped or a weight product reordered each fail 20-46. The first pass, when horizontal,
   // packs R, G, B vectors from the RGBA source in registers: a wrong packing index, the wrong
   // neighbouring vector or its inexact rows read as rows of 3 floats fail 49-115 (and the bound
-  // of its loads past the row's end, loosened, fails under AddressSanitizer).
+  // of its loads past the row's end, loosened, fails under AddressSanitizer). With AVX2 the
+  // inexact rows between rings go along their rows as well (blur_row_inexact_avx2): its second
+  // products masked to +0, the across weights swapped, a texel select dropped or the tables'
+  // halves swapped each fail 20-46.
   const std::vector<std::vector<Axis>> orders = fused_orders();
   unsigned seed = 40;
   for (auto [w, h] : sizes) {

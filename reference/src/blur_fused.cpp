@@ -210,6 +210,9 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
   // their inexact rows, blur_row_inexact_avx512), from a ring or the RGBA source, where the CPU
   // has AVX-512F; the tile kernel does the image's edges and the rest, and everything elsewhere.
   const bool rows_exact = detail::resolve_isa(isa) == BlurIsa::avx512;
+  // The AVX2 build's inexact rows between rings along their rows too (blur_row_inexact_avx2);
+  // its other rows go through the tile kernel.
+  const bool rows_inexact_avx2 = detail::resolve_isa(isa) == BlurIsa::avx2;
   const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
   // The approximate blur (blur_pass_approx's stencil) in the same strips and rings.
   const bool approx = impl == BlurImpl::approx;
@@ -313,7 +316,8 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
         if (rings[k].size() < floats) rings[k] = PixelBuffer<float>(floats);
         out_rows[k].resize(h);
         for (int r = 0; r < h; ++r)
-          out_rows[k][r] = shifted(rings[k].data() + kRingFront + (r % ring[k]) * row_floats, first);
+          out_rows[k][r] =
+              shifted(rings[k].data() + kRingFront + (r % ring[k]) * row_floats, first);
       }
       // With a sink, the last pass's rows: a block of kChunk rows of the strip (RGBA), row r
       // in slot r mod kChunk (the last pass computes whole blocks from a multiple of kChunk).
@@ -406,7 +410,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
             job.along_hi = a1;
             tile_kernel(job, t0 + a0 / kTileAlongH, t0 + (a1 + kTileAlongH - 1) / kTileAlongH);
           };
-          if (rows_exact && cout == 3 && t.row_taps) {
+          if (t.row_taps && cout == 3 && (rows_exact || (rows_inexact_avx2 && cin == 3))) {
             // Along the rows where the row kernel's vectors fit (every one that holds a float
             // of the strip's columns [x0, x1) and is ok: away from the image's edges), storing
             // only the floats of those columns; the tile kernel elsewhere, after it (its whole
@@ -449,17 +453,22 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
               v = e;
             }
             if (done < x1) gaps.push_back({done, x1});
-            for (const auto& [v, e] : segments) {
-              rj.v0 = v;
-              rj.v1 = e;
-              detail::blur_rows_exact_avx512(rj, r0, r1);
+            if (rows_exact) {
+              for (const auto& [v, e] : segments) {
+                rj.v0 = v;
+                rj.v1 = e;
+                detail::blur_rows_exact_avx512(rj, r0, r1);
+              }
+              for (const auto& [a0, a1] : gaps) tiles(a0, a1);
+            } else {
+              tiles(x0, x1);  // AVX2: only the inexact rows go along their rows
             }
-            for (const auto& [a0, a1] : gaps) tiles(a0, a1);
             // The inexact rows (the kernels above computed them as if exact) along their rows
-            // too (blur_row_inexact_avx512), where every 2-D weight is nonzero as its terms
-            // assume (weights are >= 0: the least across weight times the least along one),
-            // their gaps then per texel; the others all per texel. At 3840x2160 (85 such rows
-            // of 2160) the group kernel made them ~18% of ten fused passes (README, stop 33).
+            // too (blur_row_inexact_avx512 or _avx2), where every 2-D weight is nonzero as its
+            // terms assume (weights are >= 0: the least across weight times the least along
+            // one), their gaps then per texel; the others all per texel. At 3840x2160 (85 such
+            // rows of 2160) the group kernel made them ~18% of ten fused passes with AVX-512,
+            // ~22% with AVX2 (README, stop 33).
             const auto first = std::lower_bound(t.inexact.begin(), t.inexact.end(), r0);
             for (auto it = first; it != t.inexact.end() && *it < r1; ++it) {
               const int b = *it;
@@ -483,7 +492,8 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
               for (const auto& [v, e] : segments) {
                 ij.v0 = v;
                 ij.v1 = e;
-                detail::blur_row_inexact_avx512(ij);
+                if (rows_exact) detail::blur_row_inexact_avx512(ij);
+                else detail::blur_row_inexact_avx2(ij);
               }
               for (const auto& [a0, a1] : gaps)
                 detail::blur_inexact_lines(t, in, out, weights, a0, a1, b, b + 1, nullptr, w,

@@ -250,6 +250,9 @@ struct RowInexactJob {
   int f0 = 0, f1 = 1 << 30;  ///< as RowsExactJob's
 };
 void blur_row_inexact_avx512(const RowInexactJob& job);
+/// The same with AVX2, 8 floats a vector, from rows of 3 floats a texel only (src_channels 3),
+/// for the AVX2 build's fused blur (its other rows go through the tile kernel).
+void blur_row_inexact_avx2(const RowInexactJob& job);
 
 PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits);
 /// make_pass_tables, kept for the last few (axis, size, kernel offsets, bits) asked: the
