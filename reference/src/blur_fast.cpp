@@ -112,6 +112,13 @@ TileKernel tile_kernel_for(BlurIsa isa) {
   }
 }
 
+RowKernels row_kernels_for(BlurIsa isa) {
+  const BlurIsa r = resolve(isa);
+  if (r == BlurIsa::avx512) return {blur_rows_exact_avx512, blur_row_inexact_avx512};
+  if (r == BlurIsa::avx2) return {nullptr, blur_row_inexact_avx2};
+  return {};
+}
+
 InexactKernels inexact_kernels_for(BlurIsa isa) {
   const BlurIsa r = resolve(isa);
   if (r == BlurIsa::avx512) return {blur_inexact_group_avx512, blur_inexact_columns_avx512};
@@ -180,12 +187,11 @@ void make_group_taps(PassTables& t) {
 // Whether lane l of vector v fits the row kernel (RowTaps), its weights and mask bits set.
 bool fill_row_lane(const PassTables& t, int width, int v, int l, RowTaps& r) {
   constexpr int L = RowTaps::kLanes, K = RowTaps::kTaps;
-  static constexpr int kOffset[K] = {0, 1, -1, 2, -2, 3, -3, 4, -4};  // the shader's order
   const int a = (v * L + l) / 3;
   if (a < 5 || a > width - 6) return false;  // a tap reads a texel past an edge
   for (int k = 0; k < K; ++k) {
     const std::optional<LaneTap> lt = lane_tap(t, a, k);
-    const int d = lt ? lt->i0 - (a + kOffset[k]) : 1;
+    const int d = lt ? lt->i0 - (a + RowTaps::kOffset[k]) : 1;
     if (d != 0 && d != -1) return false;
     float* w = r.w.data() + (std::size_t(v) * K + k) * 2 * L;
     std::uint32_t& m = r.masks[std::size_t(v) * K + k];

@@ -193,6 +193,39 @@ float* shifted(float* p, int x0, int channels = kRingChannels) {
                                   std::uintptr_t(x0) * std::uintptr_t(channels) * sizeof(float));
 }
 
+// The row kernels' work on the texels [x0, x1) of a horizontal pass: `segments`, runs [v, e) of
+// ok vectors (RowTaps) among those holding a float of those texels, and `gaps`, the texels
+// [a0, a1) the vectors do not cover whole (the image's edges, a vector's part texels at either
+// end of a run), which the tile kernel or the per-texel path computes after them. A source of
+// cin = 4 floats a texel (the RGBA image) keeps the kernel's packing loads inside its rows of w
+// texels (RowsExactJob); the rings have room around their rows (kRingFront, kRingBack).
+using Runs = std::vector<std::pair<int, int>>;
+void row_runs(const detail::RowTaps& rt, int x0, int x1, int cin, int w, Runs& segments,
+              Runs& gaps) {
+  constexpr int L = detail::RowTaps::kLanes;
+  const int va = std::max(3 * x0 / L, cin == 4 ? 1 : 0);
+  int vb = (3 * x1 + L - 1) / L;
+  if (cin == 4)
+    while (vb > va && L * (vb + vb / 3 + 2) > 4 * w) --vb;
+  segments.clear();
+  gaps.clear();
+  int done = x0;  // texels before it are covered or in a gap
+  for (int v = va; v < vb;) {
+    if (!rt.ok[v]) {
+      ++v;
+      continue;
+    }
+    int e = v;
+    while (e < vb && rt.ok[e]) ++e;
+    segments.push_back({v, e});
+    const int c0 = std::max(x0, (L * v + 2) / 3), c1 = std::min(x1, (L * e) / 3);  // whole
+    if (done < c0) gaps.push_back({done, c0});
+    done = std::max(done, c1);
+    v = e;
+  }
+  if (done < x1) gaps.push_back({done, x1});
+}
+
 // The entry points: the last pass writes into dst, or (sink given) into a block of kChunk rows
 // of the strip handed to the sink as each is done; with `threshold`, src is the scene and pass 0
 // is stage bright of it (blur_bright_fused).
@@ -209,10 +242,8 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
   // The exact horizontal passes into rings along their rows (blur_rows_exact_avx512 and, for
   // their inexact rows, blur_row_inexact_avx512), from a ring or the RGBA source, where the CPU
   // has AVX-512F; the tile kernel does the image's edges and the rest, and everything elsewhere.
-  const bool rows_exact = detail::resolve_isa(isa) == BlurIsa::avx512;
-  // The AVX2 build's inexact rows between rings along their rows too (blur_row_inexact_avx2);
-  // its other rows go through the tile kernel.
-  const bool rows_inexact_avx2 = detail::resolve_isa(isa) == BlurIsa::avx2;
+  // With AVX2 only the inexact rows between rings go along their rows (blur_row_inexact_avx2).
+  const detail::RowKernels row_kernels = detail::row_kernels_for(isa);
   const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
   // The approximate blur (blur_pass_approx's stencil) in the same strips and rings.
   const bool approx = impl == BlurImpl::approx;
@@ -333,7 +364,7 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
         for (int i = 0; i < kChunk; ++i) handed[i] = block.data() + i * row_floats;
       }
       std::vector<int> produced(n, 0);
-      std::vector<std::pair<int, int>> segments, gaps;  // the row kernel's, per chunk
+      Runs segments, gaps;  // the row kernels', per chunk (row_runs)
       // The approximate kernel's row before it is converted (ApproxRowsJob::scratch): pass 0
       // computes the most columns.
       PixelBuffer<float> approx_scratch(
@@ -410,7 +441,8 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
             job.along_hi = a1;
             tile_kernel(job, t0 + a0 / kTileAlongH, t0 + (a1 + kTileAlongH - 1) / kTileAlongH);
           };
-          if (t.row_taps && cout == 3 && (rows_exact || (rows_inexact_avx2 && cin == 3))) {
+          if (t.row_taps && cout == 3 &&
+              (row_kernels.exact || (row_kernels.inexact && cin == 3))) {
             // Along the rows where the row kernel's vectors fit (every one that holds a float
             // of the strip's columns [x0, x1) and is ok: away from the image's edges), storing
             // only the floats of those columns; the tile kernel elsewhere, after it (its whole
@@ -419,45 +451,21 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
             // the ring's row or its neighbours' or the pads around the ring (kRingFront,
             // kRingBack). The first pass reads the source's RGBA rows, all of whose columns it
             // may read, as far as the kernel's packing loads stay inside them (RowsExactJob).
-            constexpr int L = detail::RowTaps::kLanes;
             const detail::RowTaps& rt = *t.row_taps;
-            const int va = std::max(3 * x0 / L, cin == 4 ? 1 : 0);
-            int vb = (3 * x1 + L - 1) / L;
-            if (cin == 4)
-              while (vb > va && L * (vb + vb / 3 + 2) > 4 * w) --vb;
-            detail::RowsExactJob rj;
-            rj.src_channels = cin;
-            rj.src_rows = in;
-            rj.dst_rows = out;
-            rj.taps = &rt;
-            rj.weights = weights.data();
-            rj.f0 = 3 * x0;
-            rj.f1 = 3 * x1;
-            // The runs of ok vectors, and the texels between them (whole texels: a vector's
-            // part texels at either end are the tile kernel's).
-            segments.clear();
-            gaps.clear();
-            int done = x0;  // texels before it are computed or given to the tile kernel
-            for (int v = va; v < vb;) {
-              if (!rt.ok[v]) {
-                ++v;
-                continue;
-              }
-              int e = v;
-              while (e < vb && rt.ok[e]) ++e;
-              segments.push_back({v, e});
-              // The whole texels covered.
-              const int c0 = std::max(x0, (L * v + 2) / 3), c1 = std::min(x1, (L * e) / 3);
-              if (done < c0) gaps.push_back({done, c0});
-              done = std::max(done, c1);
-              v = e;
-            }
-            if (done < x1) gaps.push_back({done, x1});
-            if (rows_exact) {
+            row_runs(rt, x0, x1, cin, w, segments, gaps);
+            if (row_kernels.exact) {
+              detail::RowsExactJob rj;
+              rj.src_channels = cin;
+              rj.src_rows = in;
+              rj.dst_rows = out;
+              rj.taps = &rt;
+              rj.weights = weights.data();
+              rj.f0 = 3 * x0;
+              rj.f1 = 3 * x1;
               for (const auto& [v, e] : segments) {
                 rj.v0 = v;
                 rj.v1 = e;
-                detail::blur_rows_exact_avx512(rj, r0, r1);
+                row_kernels.exact(rj, r0, r1);
               }
               for (const auto& [a0, a1] : gaps) tiles(a0, a1);
             } else {
@@ -487,13 +495,12 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
               ij.wb = o.w1;
               ij.taps = &rt;
               ij.weights = weights.data();
-              ij.f0 = rj.f0;
-              ij.f1 = rj.f1;
+              ij.f0 = 3 * x0;
+              ij.f1 = 3 * x1;
               for (const auto& [v, e] : segments) {
                 ij.v0 = v;
                 ij.v1 = e;
-                if (rows_exact) detail::blur_row_inexact_avx512(ij);
-                else detail::blur_row_inexact_avx2(ij);
+                row_kernels.inexact(ij);
               }
               for (const auto& [a0, a1] : gaps)
                 detail::blur_inexact_lines(t, in, out, weights, a0, a1, b, b + 1, nullptr, w,

@@ -7,12 +7,14 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
 #include "bloomref/kernel.h"
 #include "bloomref/sampler.h"
 #include "bloomref/stages.h"
+#include "isa_namespace.h"
 
 namespace bloomref::detail {
 
@@ -201,6 +203,8 @@ struct PassTables {
 struct RowTaps {
   static constexpr int kLanes = 16;
   static constexpr int kTaps = 9;  ///< discrete9's (other kernels have no row taps)
+  /// Tap k's offset in texels, in the shader's order (centre, +1, -1, ..., +4, -4).
+  static constexpr int kOffset[kTaps] = {0, 1, -1, 2, -2, 3, -3, 4, -4};
   std::vector<std::uint8_t> ok;      ///< per vector
   PixelBuffer<float> w;  ///< per vector and tap: w0[16], then w1[16] (64-byte aligned)
   std::vector<std::uint32_t> masks;  ///< per vector and tap: sel | two << 16
@@ -210,6 +214,19 @@ struct RowTaps {
   float min_weight = 1.0f;
 };
 RowTaps make_row_taps(const PassTables& t, int width);
+
+inline namespace BLOOMREF_ISA_NAMESPACE {  // instantiated by each row kernel's file
+/// f(K, O) for the row kernels' taps in the shader's order, K and O compile-time constants
+/// (std::integral_constant): tap K at offset O = RowTaps::kOffset[K], kernel weight (K + 1) / 2.
+template <class F, int... K>
+inline void each_row_tap(F&& f, std::integer_sequence<int, K...>) {
+  (f(std::integral_constant<int, K>{}, std::integral_constant<int, RowTaps::kOffset[K]>{}), ...);
+}
+template <class F>
+inline void each_row_tap(F&& f) {
+  each_row_tap(f, std::make_integer_sequence<int, RowTaps::kTaps>{});
+}
+}  // namespace BLOOMREF_ISA_NAMESPACE
 
 struct RowsExactJob {
   /// Image row y at src_rows[y], texel x at 3 x (a ring) or, with src_channels 4, at 4 x (RGBA:
@@ -253,6 +270,16 @@ void blur_row_inexact_avx512(const RowInexactJob& job);
 /// The same with AVX2, 8 floats a vector, from rows of 3 floats a texel only (src_channels 3),
 /// for the AVX2 build's fused blur (its other rows go through the tile kernel).
 void blur_row_inexact_avx2(const RowInexactJob& job);
+
+/// The row kernels for `isa` (as tile_kernel_for), null where it has none: the exact rows'
+/// (AVX-512) and the inexact rows' (AVX-512; AVX2, whose other rows take the tile kernel).
+/// `exact` and, where `exact` is set, `inexact` take rows of 3 or 4 floats a texel; AVX2's
+/// `inexact` alone takes rows of 3 only.
+struct RowKernels {
+  void (*exact)(const RowsExactJob&, int, int) = nullptr;
+  void (*inexact)(const RowInexactJob&) = nullptr;
+};
+RowKernels row_kernels_for(BlurIsa isa);
 
 PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits);
 /// make_pass_tables, kept for the last few (axis, size, kernel offsets, bits) asked: the

@@ -93,15 +93,8 @@ void blur_row_inexact_avx2(const RowInexactJob& job) {
       if (f + 8 <= job.f0 || f >= job.f1) continue;
       const float *a = job.a, *b = job.b;
       __m256 r;
-      tap<0, 0>(a, b, f, h, w, m, wa, wb, wk[0], r);
-      tap<1, 1>(a, b, f, h, w, m, wa, wb, wk[1], r);
-      tap<2, -1>(a, b, f, h, w, m, wa, wb, wk[1], r);
-      tap<3, 2>(a, b, f, h, w, m, wa, wb, wk[2], r);
-      tap<4, -2>(a, b, f, h, w, m, wa, wb, wk[2], r);
-      tap<5, 3>(a, b, f, h, w, m, wa, wb, wk[3], r);
-      tap<6, -3>(a, b, f, h, w, m, wa, wb, wk[3], r);
-      tap<7, 4>(a, b, f, h, w, m, wa, wb, wk[4], r);
-      tap<8, -4>(a, b, f, h, w, m, wa, wb, wk[4], r);
+      each_row_tap(
+          [&](auto K, auto O) { tap<K, O>(a, b, f, h, w, m, wa, wb, wk[(K + 1) / 2], r); });
       store(job.dst, f, job.f0, job.f1, r);
     }
   }

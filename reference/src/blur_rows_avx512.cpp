@@ -159,15 +159,7 @@ void row_inexact(const RowInexactJob& job) {
     shifted_at<C>(job.a, v, pk, sa);
     shifted_at<C>(job.b, v, pk, sb);
     __m512 r;
-    tap2<0, 0>(sa, sb, w, m, wa, wb, wk[0], r);
-    tap2<1, 1>(sa, sb, w, m, wa, wb, wk[1], r);
-    tap2<2, -1>(sa, sb, w, m, wa, wb, wk[1], r);
-    tap2<3, 2>(sa, sb, w, m, wa, wb, wk[2], r);
-    tap2<4, -2>(sa, sb, w, m, wa, wb, wk[2], r);
-    tap2<5, 3>(sa, sb, w, m, wa, wb, wk[3], r);
-    tap2<6, -3>(sa, sb, w, m, wa, wb, wk[3], r);
-    tap2<7, 4>(sa, sb, w, m, wa, wb, wk[4], r);
-    tap2<8, -4>(sa, sb, w, m, wa, wb, wk[4], r);
+    each_row_tap([&](auto K, auto O) { tap2<K, O>(sa, sb, w, m, wa, wb, wk[(K + 1) / 2], r); });
     store(job.dst + f, kept_lanes(v, job.f0, job.f1), r);
   }
 }
@@ -188,24 +180,16 @@ void rows_exact(const RowsExactJob& job, int r0, int r1) {
       if constexpr (C == 4) {
         // The source comes from memory, a few floats of each of the chunk's rows in turn:
         // fetched kPrefetch vectors ahead (the two lines the packing of vector v + kPrefetch
-        // starts in; a prefetch past the row does not fault).
-        // (An address, not a pointer past the row's array.)
-        const std::uintptr_t q =
-            reinterpret_cast<std::uintptr_t>(job.src_rows[y]) +
-            sizeof(float) * std::uintptr_t(L) * std::uintptr_t(v + kPrefetch + (v + kPrefetch) / 3);
+        // starts in; a prefetch past the row does not fault, and its address is an integer,
+        // not a pointer past the row's array).
+        const int u = v + kPrefetch;
+        const std::uintptr_t q = reinterpret_cast<std::uintptr_t>(job.src_rows[y]) +
+                                 sizeof(float) * std::uintptr_t(L) * std::uintptr_t(u + u / 3);
         _mm_prefetch(reinterpret_cast<const char*>(q), _MM_HINT_T0);
         _mm_prefetch(reinterpret_cast<const char*>(q + 64), _MM_HINT_T0);
       }
       __m512 r;
-      tap<0, 0>(s, w, m, wk[0], r);
-      tap<1, 1>(s, w, m, wk[1], r);
-      tap<2, -1>(s, w, m, wk[1], r);
-      tap<3, 2>(s, w, m, wk[2], r);
-      tap<4, -2>(s, w, m, wk[2], r);
-      tap<5, 3>(s, w, m, wk[3], r);
-      tap<6, -3>(s, w, m, wk[3], r);
-      tap<7, 4>(s, w, m, wk[4], r);
-      tap<8, -4>(s, w, m, wk[4], r);
+      each_row_tap([&](auto K, auto O) { tap<K, O>(s, w, m, wk[(K + 1) / 2], r); });
       store(job.dst_rows[y] + f, keep, r);
     }
   }
