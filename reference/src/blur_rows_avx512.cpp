@@ -190,9 +190,10 @@ void rows_exact(const RowsExactJob& job, int r0, int r1) {
     int y = r0;
     if constexpr (C == 3) {
       // Two rows at a time, their taps interleaved: two independent chains of nine additions
-      // in flight (in-process alternation against one row at a time, ten fused passes at
-      // 3840x2160: 0.949 of the time on one thread). Not for the first pass: its packing's
-      // registers and two rows' shifted vectors do not fit in 32 (0.961 against 0.949).
+      // in flight. With second_form_taps, against stop 33's kernel (in-process alternation,
+      // ten fused passes at 3840x2160): 0.944 of the time on one thread, 0.937 on two, where
+      // second_form_taps alone gave 0.972. Not for the first pass: its packing's registers
+      // and two rows' shifted vectors do not fit in 32 (pairs there too: 0.961, not 0.949).
       for (; y + 1 < r1; y += 2) {
         __m512i s[11], t[11];
         shifted_at<C>(job.src_rows[y], v, pk, s);
