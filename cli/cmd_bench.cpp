@@ -245,6 +245,7 @@ std::function<int()> add_bench(CLI::App& app) {
       nlohmann::ordered_json cj = nlohmann::ordered_json::array();
       for (const ParallelCeiling& c : ceilings)
         cj.push_back({{"threads", c.threads}, {"register_only_speedup", c.compute},
+                      {"throughput_bound_speedup", c.throughput},
                       {"memory_copy_speedup", c.memory}, {"copy_gb_per_s_1", c.copy_gb_per_s_one},
                       {"copy_gb_per_s_all", c.copy_gb_per_s_all}});
       j["machine_ceiling_before_after"] = cj;

@@ -16,13 +16,16 @@ void parallel_rows(int height, int threads, const std::function<void(int y0, int
 
 /// What `threads` threads can give on this machine at best, each a speedup over one thread with
 /// the same work per thread through parallel_rows, median of `repeats` alternating measurements:
-/// `compute` on work that touches no memory (independent float multiply-add chains in
-/// registers), `memory` on copying 32 MiB per thread between buffers far larger than the caches.
-/// The ceilings the blur's thread scaling is judged against: two vCPUs that share a physical
-/// core, or share one memory channel, stay well below `threads`.
+/// `compute` on work that touches no memory (8 independent float multiply-add chains in
+/// registers: latency-bound, a core's vector units mostly idle), `throughput` on the same kind
+/// of work with enough chains to keep a core's vector units busy (as the blur's kernels do),
+/// `memory` on copying 32 MiB per thread between buffers far larger than the caches. The
+/// ceilings the blur's thread scaling is judged against: two vCPUs that are one physical core's
+/// two hardware threads stay well below `threads` in `throughput` (not in `compute`), two that
+/// share one memory channel in `memory`.
 struct ParallelCeiling {
   int threads = 1;
-  double compute = 1, memory = 1;
+  double compute = 1, throughput = 1, memory = 1;
   double copy_gb_per_s_one = 0, copy_gb_per_s_all = 0;  ///< bytes read + written per second
 };
 ParallelCeiling parallel_ceiling(int threads, int repeats = 5);
