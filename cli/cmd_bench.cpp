@@ -109,7 +109,8 @@ std::function<int()> add_bench(CLI::App& app) {
     if (all >= 2) wedge.push_back(2);
     if (all > 2) wedge.push_back(all);
     // The machine's own ceilings for the thread wedge, before and after the timed runs (the
-    // neighbours of a virtual machine come and go): register-only work and memory copy.
+    // neighbours of a virtual machine come and go): register-only work, latency- and
+    // throughput-bound, and memory copy.
     std::vector<ParallelCeiling> ceilings;
     if (all >= 2) ceilings.push_back(parallel_ceiling(2));
     const int per_size = static_cast<int>(wedge.size()) * 2 + (ctx ? 2 : 0);
@@ -244,7 +245,7 @@ std::function<int()> add_bench(CLI::App& app) {
       }
       nlohmann::ordered_json cj = nlohmann::ordered_json::array();
       for (const ParallelCeiling& c : ceilings)
-        cj.push_back({{"threads", c.threads}, {"register_only_speedup", c.compute},
+        cj.push_back({{"threads", c.threads}, {"latency_bound_speedup", c.compute},
                       {"throughput_bound_speedup", c.throughput},
                       {"memory_copy_speedup", c.memory}, {"copy_gb_per_s_1", c.copy_gb_per_s_one},
                       {"copy_gb_per_s_all", c.copy_gb_per_s_all}});

@@ -83,8 +83,9 @@ inline void shifted_at(const float* row, int v, const Packing& pk, __m512i* s) {
 
 // Bit k: tap k of a vector (its masks m[k]) is not every lane one texel at its offset (sel all
 // lanes, two none), so it takes tap's second form. Found once per vector, not tested from its
-// masks anew in every row: a load, a shift and two branches a tap less per row (ten fused
-// one-thread passes at 3840x2160, in-process alternation: 0.972 of the time).
+// masks anew in every row: a load, a shift and a compare-and-branch a tap less per row (ten
+// fused one-thread passes at 3840x2160 on this project's 2-core AMD EPYC, Zen 5, in-process
+// alternation against testing the masks: 0.972 of the time).
 inline std::uint32_t second_form_taps(const std::uint32_t* m) {
   std::uint32_t bits = 0;
   for (int k = 0; k < RowTaps::kTaps; ++k)
@@ -176,6 +177,35 @@ void row_inexact(const RowInexactJob& job) {
   }
 }
 
+// Rows [y, r1) of vector v of rows of R, G, B (the rings), two at a time, their taps
+// interleaved: two independent chains of eight additions in flight where one row has one.
+// Returns the row left over when their count is odd (r1 otherwise). Both changes against stop
+// 33's kernel (second_form_taps and this; in-process alternation, ten fused passes at 3840x2160
+// on the 2-core AMD EPYC): 0.944 of the time on one thread, 0.937 on two. Rows packed from RGBA
+// (rows_exact<4>, the first pass of blur_passes_fused) stay one at a time: with their packing's
+// index registers beside two rows' shifted vectors, pairs there too gave 0.961 of stop 33's time
+// where pairs for the rings alone gave 0.949 (same session).
+__attribute__((always_inline)) inline int row_pairs(const RowsExactJob& job, int v, int y, int r1,
+                                                    const float* w, const std::uint32_t* m,
+                                                    std::uint32_t second, const __m512* wk,
+                                                    __mmask16 keep) {
+  const NoPacking pk;
+  const std::ptrdiff_t f = std::ptrdiff_t(v) * L;
+  for (; y + 1 < r1; y += 2) {
+    __m512i s[11], t[11];
+    shifted_at<3>(job.src_rows[y], v, pk, s);
+    shifted_at<3>(job.src_rows[y + 1], v, pk, t);
+    __m512 r, q;
+    each_row_tap([&](auto K, auto O) {
+      tap<K, O>(s, w, m, second, wk[(K + 1) / 2], r);
+      tap<K, O>(t, w, m, second, wk[(K + 1) / 2], q);
+    });
+    store(job.dst_rows[y] + f, keep, r);
+    store(job.dst_rows[y + 1] + f, keep, q);
+  }
+  return y;
+}
+
 template <int C>
 void rows_exact(const RowsExactJob& job, int r0, int r1) {
   const std::conditional_t<C == 4, RgbaPacking, NoPacking> pk;
@@ -188,25 +218,7 @@ void rows_exact(const RowsExactJob& job, int r0, int r1) {
     const __mmask16 keep = kept_lanes(v, job.f0, job.f1);
     const std::uint32_t second = second_form_taps(m);
     int y = r0;
-    if constexpr (C == 3) {
-      // Two rows at a time, their taps interleaved: two independent chains of nine additions
-      // in flight. With second_form_taps, against stop 33's kernel (in-process alternation,
-      // ten fused passes at 3840x2160): 0.944 of the time on one thread, 0.937 on two, where
-      // second_form_taps alone gave 0.972. Not for the first pass: its packing's registers
-      // and two rows' shifted vectors do not fit in 32 (pairs there too: 0.961, not 0.949).
-      for (; y + 1 < r1; y += 2) {
-        __m512i s[11], t[11];
-        shifted_at<C>(job.src_rows[y], v, pk, s);
-        shifted_at<C>(job.src_rows[y + 1], v, pk, t);
-        __m512 r, q;
-        each_row_tap([&](auto K, auto O) {
-          tap<K, O>(s, w, m, second, wk[(K + 1) / 2], r);
-          tap<K, O>(t, w, m, second, wk[(K + 1) / 2], q);
-        });
-        store(job.dst_rows[y] + f, keep, r);
-        store(job.dst_rows[y + 1] + f, keep, q);
-      }
-    }
+    if constexpr (C == 3) y = row_pairs(job, v, y, r1, w, m, second, wk, keep);
     for (; y < r1; ++y) {
       __m512i s[11];
       shifted_at<C>(job.src_rows[y], v, pk, s);

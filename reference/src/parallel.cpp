@@ -71,10 +71,11 @@ __attribute__((noinline)) float register_work(float seed) {
 
 // One unit of throughput-bound work: 14 independent chains of 4-float vectors (SSE registers
 // in this baseline build: 14 and the two constants fill its 16 without spilling), x = x * a + b:
-// more multiplies and adds in flight than a core's vector units take (a multiply and an add of
-// ~3 cycles each, two units of each kind), so one thread keeps them busy. register_work's
-// scalar chains leave them mostly idle, so two hardware threads of one core double it as two
-// cores would; they cannot double this (the blur's kernels are of this kind).
+// more multiplies and adds in flight than a core's vector units take (on this project's AMD
+// EPYC, Zen 5: ~3 cycles each, two units for each; Intel's recent cores: 4 cycles, two ports),
+// so one thread keeps them busy. register_work's 8 floats (two 4-float chains once GCC
+// vectorises them) leave the units mostly idle, so two hardware threads of one core double it
+// as two cores would; they cannot double this (the blur's kernels are of this kind).
 __attribute__((noinline)) float throughput_work(float seed) {
   typedef float V __attribute__((vector_size(16)));
   constexpr int kChains = 14;

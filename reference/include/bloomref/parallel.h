@@ -16,8 +16,9 @@ void parallel_rows(int height, int threads, const std::function<void(int y0, int
 
 /// What `threads` threads can give on this machine at best, each a speedup over one thread with
 /// the same work per thread through parallel_rows, median of `repeats` alternating measurements:
-/// `compute` on work that touches no memory (8 independent float multiply-add chains in
-/// registers: latency-bound, a core's vector units mostly idle), `throughput` on the same kind
+/// `compute` on work that touches no memory (8 float multiply-add chains in registers, two
+/// 4-float vectors once vectorised: latency-bound, a core's vector units mostly idle),
+/// `throughput` on the same kind
 /// of work with enough chains to keep a core's vector units busy (as the blur's kernels do),
 /// `memory` on copying 32 MiB per thread between buffers far larger than the caches. The
 /// ceilings the blur's thread scaling is judged against: two vCPUs that are one physical core's
@@ -25,7 +26,7 @@ void parallel_rows(int height, int threads, const std::function<void(int y0, int
 /// share one memory channel in `memory`.
 struct ParallelCeiling {
   int threads = 1;
-  double compute = 1, throughput = 1, memory = 1;
+  double compute = 0, throughput = 0, memory = 0;  ///< 0: not measured
   double copy_gb_per_s_one = 0, copy_gb_per_s_all = 0;  ///< bytes read + written per second
 };
 ParallelCeiling parallel_ceiling(int threads, int repeats = 5);
