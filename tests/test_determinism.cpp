@@ -161,4 +161,3 @@ TEST_CASE("the adaptive plan's kept scratch images carry nothing from one run in
   }
   release_scratch_images();
 }
-

@@ -453,30 +453,37 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
             // may read, as far as the kernel's packing loads stay inside them (RowsExactJob).
             const detail::RowTaps& rt = *t.row_taps;
             row_runs(rt, x0, x1, cin, w, segments, gaps);
+            // A row kernel's job over the runs of ok vectors: what both kernels share set once.
+            auto along_rows = [&](auto& job, auto&& kernel) {
+              job.src_channels = cin;
+              job.taps = &rt;
+              job.weights = weights.data();
+              job.f0 = 3 * x0;
+              job.f1 = 3 * x1;
+              for (const auto& [v, e] : segments) {
+                job.v0 = v;
+                job.v1 = e;
+                kernel(job);
+              }
+            };
             if (row_kernels.exact) {
               detail::RowsExactJob rj;
-              rj.src_channels = cin;
               rj.src_rows = in;
               rj.dst_rows = out;
-              rj.taps = &rt;
-              rj.weights = weights.data();
-              rj.f0 = 3 * x0;
-              rj.f1 = 3 * x1;
-              for (const auto& [v, e] : segments) {
-                rj.v0 = v;
-                rj.v1 = e;
-                row_kernels.exact(rj, r0, r1);
-              }
+              along_rows(rj,
+                         [&](const detail::RowsExactJob& job) { row_kernels.exact(job, r0, r1); });
               for (const auto& [a0, a1] : gaps) tiles(a0, a1);
             } else {
               tiles(x0, x1);  // AVX2: only the inexact rows go along their rows
             }
-            // The inexact rows (the kernels above computed them as if exact) along their rows
-            // too (blur_row_inexact_avx512 or _avx2), where every 2-D weight is nonzero as its
-            // terms assume (weights are >= 0: the least across weight times the least along
-            // one), their gaps then per texel; the others all per texel. At 3840x2160 (85 such
-            // rows of 2160) the group kernel made them ~18% of ten fused passes with AVX-512,
-            // ~22% with AVX2 (README, stop 33).
+            // The inexact rows (the kernels above computed them as if exact; leaving them out
+            // of those calls, 85 of 2160 rows at 3840x2160, gained nothing measurable: with
+            // them in, 0.995-0.997 of the time, in-process alternation) along their rows too
+            // (blur_row_inexact_avx512 or _avx2), where every 2-D weight is nonzero as its terms
+            // assume (weights are >= 0: the least across weight times the least along one),
+            // their gaps then per texel; the others all per texel. At 3840x2160 the group
+            // kernel made them ~18% of ten fused passes with AVX-512, ~22% with AVX2 (README,
+            // stop 33).
             const auto first = std::lower_bound(t.inexact.begin(), t.inexact.end(), r0);
             for (auto it = first; it != t.inexact.end() && *it < r1; ++it) {
               const int b = *it;
@@ -487,21 +494,12 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
                 continue;
               }
               detail::RowInexactJob ij;
-              ij.src_channels = cin;
               ij.a = in[o.i0];
               ij.b = in[o.i1];
               ij.dst = out[b];
               ij.wa = o.w0;
               ij.wb = o.w1;
-              ij.taps = &rt;
-              ij.weights = weights.data();
-              ij.f0 = 3 * x0;
-              ij.f1 = 3 * x1;
-              for (const auto& [v, e] : segments) {
-                ij.v0 = v;
-                ij.v1 = e;
-                row_kernels.inexact(ij);
-              }
+              along_rows(ij, row_kernels.inexact);
               for (const auto& [a0, a1] : gaps)
                 detail::blur_inexact_lines(t, in, out, weights, a0, a1, b, b + 1, nullptr, w,
                                            false, cin, cout, inexact_kernels);
