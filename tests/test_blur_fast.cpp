@@ -541,7 +541,9 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
   // of its loads past the row's end, loosened, fails under AddressSanitizer). With AVX2 the
   // inexact rows between rings go along their rows as well (blur_row_inexact_avx2): its second
   // products masked to +0, the across weights swapped, a texel select dropped or the tables'
-  // halves swapped each fail 20-46.
+  // halves swapped each fail 20-46. The AVX-512 exact kernel's rows two at a time: the second
+  // row stored from the first's sum, the odd row's tail dropped, one tap's form bit lost or the
+  // second row's taps read from the first's each fail 72-138.
   const std::vector<std::vector<Axis>> orders = fused_orders();
   unsigned seed = 40;
   for (auto [w, h] : sizes) {
