@@ -25,6 +25,8 @@
 #include "bloomref/parallel.h"
 #include "bloomref/scenes.h"
 #include "bloomref/stages.h"
+#include "bloomref/engine/fast_stages.h"
+#include "bloomref/machine_ceiling.h"
 
 using namespace bloomref;
 using Clock = std::chrono::steady_clock;

@@ -20,6 +20,7 @@
 #include "bloomref/io.h"
 #include "bloomref/parallel.h"
 #include "bloomref/scenes.h"
+#include "bloomref/machine_ceiling.h"
 #include "commands.h"
 #include "json_out.h"
 #include "options.h"

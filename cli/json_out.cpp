@@ -7,6 +7,7 @@
 
 #include "bloomref/parallel.h"
 #include "bloomref/stages.h"
+#include "bloomref/engine/fast_stages.h"
 
 namespace bloomref::cli {
 namespace {

@@ -21,6 +21,9 @@
 #include "bloomref/sampler.h"
 #include "bloomref/scenes.h"
 #include "bloomref/stages.h"
+#include "bloomref/engine/fast_stages.h"
+#include "bloomref/engine/support.h"
+#include "bloomref/engine/page_ledger.h"
 #include "corpus.h"
 
 using namespace bloomref;

@@ -12,6 +12,7 @@
 #include "bloomref/sampler.h"
 #include "bloomref/scenes.h"
 #include "bloomref/stages.h"
+#include "bloomref/engine/support.h"
 #include "corpus.h"
 
 using namespace bloomref;

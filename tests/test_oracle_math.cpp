@@ -15,6 +15,7 @@
 
 #include "bloomref/error.h"
 #include "bloomref/stages.h"
+#include "bloomref/engine/fast_stages.h"
 
 using namespace bloomref;
 

@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include "bloomref/parallel.h"
+#include "bloomref/machine_ceiling.h"
 
 using namespace bloomref;
 

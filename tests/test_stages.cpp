@@ -16,6 +16,8 @@
 #include "bloomref/plan.h"
 #include "bloomref/scenes.h"
 #include "bloomref/stages.h"
+#include "bloomref/engine/fast_stages.h"
+#include "bloomref/engine/support.h"
 #include "corpus.h"
 
 using namespace bloomref;

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "bloomref/mip.h"
+#include "bloomref/engine/support.h"
 #include "gl_objects.h"
 
 namespace bloomref::gpu {

@@ -111,6 +111,10 @@ namespace detail {
 void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold);
 }  // namespace detail
 
+namespace detail {
+class PageLedger;  // bloomref/engine/page_ledger.h: the fast engine's, ignored by blur_pass
+}  // namespace detail
+
 enum class Axis { horizontal, vertical };
 
 /// A run of set texels on one row: x in [x0, x1).
@@ -160,71 +164,6 @@ struct BlurPassOptions {
 template <class T>
 void blur_pass(BasicView<const T> src, BasicView<T> dst, const BlurPassOptions& opt, int threads);
 
-/// Instruction sets of the fast blur's kernel. Every one gives blur_pass's bits. avx512: the
-/// blur's tile kernels with 64-byte vectors (AVX-512F), the other fast stages' AVX2 kernels.
-enum class BlurIsa { best, generic, avx2, avx512 };
-/// Whether this CPU (and this build) can run `isa`; `best` and `generic` always can.
-bool blur_isa_available(BlurIsa isa);
-/// The instruction set `best` resolves to here ("avx512", "avx2" or "generic").
-std::string blur_isa_name(BlurIsa isa = BlurIsa::best);
-
-/// Stage `blur.k` in f32, fast and bit-identical to blur_pass (same IEEE operations in the same
-/// order per channel, tested on every scene and corpus image): tiled, one whole output line at
-/// a time from whole input lines, vectorised across the blur (blur_fast.cpp). Two provisos:
-/// where two NaNs meet, which one comes out (sign, payload) is not specified (IEEE 754 leaves it
-/// open and the compiler may commute an addition); and x * 1 is taken as x, which differs only
-/// for a signalling NaN -- the bright stage passes no NaN and arithmetic makes only quiet ones,
-/// so none reaches a blur. `dst` must not overlap `src`. Throws ParamError for an instruction
-/// set this CPU lacks.
-void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
-                    int threads, BlurIsa isa = BlurIsa::best);
-
-/// Stages `blur.1` ... `blur.n` of the dense plan in f32 at once (pass k along axes[k - 1]),
-/// with blur_pass_fast's bits in every texel (tested), but fused: the image is cut into
-/// column strips, and each strip streams through all n passes keeping per pass only the rows
-/// the next pass still reads (a ring of about 2 x (16 + 5) rows of the strip), so the image is
-/// read and written once instead of n times (blur_fused.cpp). Nothing is rounded between passes
-/// (f32 storage). With `impl` approx, every pass is blur_pass_approx's instead, with its bits
-/// (tested; `kernel` and `subtexel_bits` then only shape the strips); `reference` is `fast`
-/// (the same bits).
-void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
-                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                       int threads, BlurIsa isa = BlurIsa::best,
-                       BlurImpl impl = BlurImpl::fast);
-
-/// What blur_passes_fused can hand its output to instead of an image: rows [y0, y1) of columns
-/// [x0, x1) of the last pass (RGBA, alpha 1), row y0 + i at rows[i], texel x0 first. Called
-/// from the thread of the strip [x0, x1) as each block of rows is done (rows in order within a
-/// strip, strips in any order, two strips at once on two threads); every texel of the image is
-/// handed over exactly once. The rows are scratch, valid during the call.
-using FusedBlurSink =
-    std::function<void(int x0, int x1, int y0, int y1, const float* const* rows)>;
-/// blur_passes_fused with its output handed to `sink` block by block while it is still in
-/// cache (the same bits), instead of written into an image: the executor finishes it there
-/// (finish_fast_rows), so the dense plan neither allocates the bloom image nor reads it back.
-void blur_passes_fused(BasicView<const float> src, const FusedBlurSink& sink,
-                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                       int threads, BlurIsa isa = BlurIsa::best,
-                       BlurImpl impl = BlurImpl::fast);
-
-/// Stages bright and blur.1 ... blur.n at once, for the dense plan: blur_passes_fused of
-/// extract_bright(scene) (the same bits), the bright image never made whole (each strip makes
-/// its rows as its first pass reads them). The sink may write the texels it is handed into
-/// `scene` itself (in place: the executor's finishing stages do); nothing else may change the
-/// scene during the call.
-void blur_bright_fused(BasicView<const float> scene, float threshold, const FusedBlurSink& sink,
-                       const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                       int threads, BlurIsa isa = BlurIsa::best,
-                       BlurImpl impl = BlurImpl::fast);
-
-/// Stage `blur.k`, fast and approximate: not GL's sampling but the 9-tap stencil both kernels
-/// sample exactly (taps on texels x +- i, clamped to the edge, the discrete9 weights rounded to
-/// float), pairs summed first, multiply-adds fused with AVX2+FMA. Its error against the f64
-/// truth is measured (docs/tradeoff.md). Honours opt.active row by row (a row without an active
-/// texel is written (0, 0, 0, 1)); ignores subtexel_bits.
-void blur_pass_approx(BasicView<const float> src, BasicView<float> dst,
-                      const BlurPassOptions& opt, int threads, BlurIsa isa = BlurIsa::best);
-
 /// Whether a texel's RGB is not +0 in every channel (bit-exact: -0, NaN and Inf count): what
 /// the adaptive plan tracks (nonzero_support, extract_bright's `nonzero`).
 template <class T>
@@ -233,72 +172,6 @@ inline bool rgb_not_plus_zero(const T* p) {
   for (int c = 0; c < 3; ++c) nz |= !(p[c] == T(0) && !std::signbit(p[c]));
   return nz;
 }
-
-/// The texels whose RGB is not +0 in every channel (bit-exact: -0, NaN and Inf count), as a
-/// width x height mask. Returns how many.
-template <class T>
-std::size_t nonzero_support(BasicView<const T> img, std::uint8_t* mask, int threads);
-
-/// The support of a blur pass's output given its input's: a texel is set when any texel one of
-/// its lookups may read (both texels of every tap, both rows across) is set in `in`. Uses the
-/// pass's own tap tables, so it is exact for this pass's coordinates. Returns how many are set.
-template <class T>
-std::size_t blur_support(const std::uint8_t* in, std::uint8_t* out, int width, int height,
-                         const BlurPassOptions& opt, int threads);
-
-/// The set texels of a width x height mask (0 or 1 per texel) as spans per row. Returns how many.
-/// With `rows` (one entry a row), a row whose entry is 0 is taken as empty without reading it.
-std::size_t mask_spans(const std::uint8_t* mask, int width, int height, RowSpans& out,
-                       int threads, const std::uint8_t* rows = nullptr);
-
-/// blur_support on spans: the same set (tested), in time proportional to the spans. Each pass's
-/// lookups read a contiguous range of positions along the blur whose ends never decrease with
-/// the position, and one or two adjacent lines across it: an input span maps to an output span
-/// found by two binary searches. Returns how many are set, or nothing when a pass's tables lack
-/// that shape (then use blur_support).
-template <class T>
-std::optional<std::size_t> blur_support_spans(const RowSpans& in, RowSpans& out, int width,
-                                              int height, const BlurPassOptions& opt,
-                                              int threads);
-
-/// The adaptive plan's support through the blur passes, one tracker for the CPU and the GL
-/// executors: the bright image's nonzero texels, then each pass's blur_support_spans (as spans,
-/// with a mask kept equal to them for the consumers that read texels). The support only
-/// grows; once it covers more than `dense_fraction` of the image, tracking it costs more than it
-/// saves (scripts/adaptive-table), so the tracker stops and says so: whole passes from there.
-class BlurSupportTracker {
- public:
-  BlurSupportTracker(int width, int height, double dense_fraction)
-      : width_(width), height_(height), dense_fraction_(dense_fraction) {}
-  /// Pass 1's input, the bright image (read once, on the first advance).
-  template <class T>
-  void start(BasicView<const T> bright, int threads);
-  /// Pass 1's input support given directly as a mask (extract_bright's `nonzero`); rows whose
-  /// entry in `rows` (optional) is 0 are empty.
-  void start(std::vector<std::uint8_t>&& support, int threads,
-             const std::uint8_t* rows = nullptr);
-  bool started() const { return !mask_.empty(); }
-  /// This pass's output support, width x height, row-major; nullptr once dense. T chooses the
-  /// tap tables (f32: the shader's coordinates; f64: exact taps).
-  template <class T>
-  const std::uint8_t* advance(const BlurPassOptions& opt, int threads);
-  bool dense() const { return dense_; }
-  /// Set texels of the last pass's support (the whole image once dense).
-  std::size_t count() const { return count_; }
-  /// The last pass's support as spans per row (the same set as advance's mask); nullptr once
-  /// dense.
-  const RowSpans* spans() const { return dense_ ? nullptr : &spans_; }
-
- private:
-  int width_, height_;
-  double dense_fraction_;
-  bool dense_ = false;
-  std::size_t count_ = 0;
-  // The support is tracked as spans; the mask is kept equal to them by clearing the old spans
-  // and setting the new ones (both in proportion to the support, not to the image).
-  std::vector<std::uint8_t> mask_;
-  RowSpans spans_, next_;
-};
 
 /// Stage `composite`: scene + strength * bloom (f32: t = strength * bloom; scene + t).
 template <class T>
@@ -327,39 +200,6 @@ void tonemap(BasicView<const T> hdr, BasicView<T> dst, T exposure, int threads);
 /// Display-referred.
 template <class T>
 void encode_output(BasicView<const T> mapped, BasicView<T> dst, T gamma, int threads);
-
-/// Stages `tonemap` and `output` in f32, fast and bit-identical to tonemap<float> and
-/// encode_output<float> (tested): each row's RGB values packed into a line and run through
-/// oracle_exp / oracle_pow four double lanes at a time (finish_kernels.inc). `dst` may be
-/// `src`. Throws ParamError for an instruction set this CPU lacks.
-void tonemap_fast(BasicView<const float> hdr, BasicView<float> dst, float exposure, int threads,
-                  BlurIsa isa = BlurIsa::best);
-void encode_output_fast(BasicView<const float> mapped, BasicView<float> dst, float gamma,
-                        int threads, BlurIsa isa = BlurIsa::best);
-/// Stages `composite`, `tonemap` and `output` in f32 at once, row by row (the image is read
-/// and written once instead of three times), with the three stages' bits (tested); `bloom`
-/// empty means no composite. `dst` may be `scene`. Nothing is rounded between the stages (f32
-/// storage). `bloom_support`, where given (one span list per row), says where the bloom's R, G
-/// and B may differ from +0 (the adaptive plan's last blur support): elsewhere the composite
-/// adds strength * +0 without reading the bloom, the same bits, and the bloom's pages that no
-/// pass wrote are not touched. There, where 2^17 or more pixels lie outside the support and at
-/// least half of 1024 pixels sampled over the scene have binary16 values (a half-float file),
-/// the finished value of every binary16 value is computed once (65536 values, by the same
-/// kernel) and a pixel outside the support whose values s + strength * +0 are binary16 values
-/// takes them from that table: the same function of the same floats, so the same bits.
-/// Returns the pixels finished from the table (0 without one).
-std::size_t finish_fast(BasicView<const float> scene, BasicView<const float> bloom,
-                        BasicView<float> dst, float strength, float exposure, float gamma,
-                        int threads, BlurIsa isa = BlurIsa::best,
-                        const RowSpans* bloom_support = nullptr);
-
-/// finish_fast's composite, tone map and output over `rows` row segments of `width` RGBA
-/// pixels (scene_rows[i], bloom_rows[i], dst_rows[i]; dst may be the scene), on the calling
-/// thread, with finish_fast's bits: every value is finished on its own, so a row cut into
-/// segments gives what the whole row gives. For the fused blur's sink.
-void finish_fast_rows(const float* const* scene_rows, const float* const* bloom_rows,
-                      float* const* dst_rows, int rows, int width, float strength,
-                      float exposure, float gamma, BlurIsa isa = BlurIsa::best);
 
 /// Rounds every channel to the storage format in place. f32 storage is a no-op in either
 /// precision (the f64 truth is not narrowed to float); f16 storage rounds to binary16.

@@ -5,6 +5,7 @@
 #include <cstddef>
 
 #include "bloomref/stages.h"
+#include "bloomref/engine/fast_stages.h"
 
 namespace bloomref::detail {
 

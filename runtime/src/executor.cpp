@@ -10,6 +10,9 @@
 
 #include "bloomref/error.h"
 #include "bloomref/mip.h"
+#include "bloomref/engine/fast_stages.h"
+#include "bloomref/engine/support.h"
+#include "bloomref/engine/page_ledger.h"
 
 namespace bloomref {
 namespace {

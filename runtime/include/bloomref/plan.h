@@ -16,6 +16,7 @@
 #include "bloomref/mip.h"
 #include "bloomref/params.h"
 #include "bloomref/stages.h"
+#include "bloomref/engine/fast_stages.h"
 
 namespace bloomref {
 

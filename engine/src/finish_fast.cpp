@@ -15,6 +15,7 @@
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
 #include "bloomref/stages.h"
+#include "bloomref/engine/fast_stages.h"
 
 namespace bloomref {
 namespace {

@@ -1,5 +1,6 @@
-// bloomref — what the reference blur (blur.cpp) and the fast tiled blur (blur_fast*.cpp) share:
-// the per-pass tap tables, the reference texel, and the tile kernel's job description.
+// bloomref engine — the fast blur's shared parts: the per-pass tables built on the reference's
+// taps (taps.h), the tile and row kernels' job descriptions, and their per-instruction-set
+// dispatch.
 #pragma once
 
 #include <algorithm>
@@ -14,30 +15,11 @@
 #include "bloomref/kernel.h"
 #include "bloomref/sampler.h"
 #include "bloomref/stages.h"
+#include "bloomref/engine/fast_stages.h"
 #include "isa_namespace.h"
+#include "taps.h"
 
 namespace bloomref::detail {
-
-// Taps of one output position along the blurred axis, in the shader's order:
-// centre, +o1, -o1, +o2, -o2, ...
-template <class T>
-struct TapTable {
-  int per_position = 0;
-  std::vector<AxisTap<T>> taps;
-  const AxisTap<T>* at(int x) const { return taps.data() + std::size_t(x) * per_position; }
-};
-
-TapTable<float> make_taps(int n, const Kernel& k, int bits, float);
-TapTable<double> make_taps(int n, const Kernel& k, int bits, double);
-
-/// The lookup across the blur for line x: the centre of texel x.
-AxisTap<float> centre_tap(int x, int n, int bits, float);
-AxisTap<double> centre_tap(int x, int n, int bits, double);
-
-/// One texel of blur_pass, computed the reference way (RGB into d[0..2], d[3] = 1).
-template <class T>
-void blur_texel(BasicView<const T> src, bool horizontal, const AxisTap<T>* taps,
-                const AxisTap<T>& other, const std::vector<T>& w, T* d);
 
 /// How the tile kernel forms a tap's term, in blur_texel's form (p0 w0 [+ p1 w1]) wk: `one` when
 /// w0 is exactly 1 and there is no second texel (x * 1 == x: no signalling NaN reaches the blur,

@@ -7,6 +7,8 @@
 
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
+#include "bloomref/engine/fast_stages.h"
+#include "bloomref/engine/support.h"
 #include "blur_internal.h"
 #include "scan_internal.h"
 

@@ -4,6 +4,7 @@
 #include <cstdint>
 
 #include "bloomref/stages.h"
+#include "bloomref/engine/fast_stages.h"
 
 namespace bloomref::detail {
 
