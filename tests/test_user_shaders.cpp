@@ -1,0 +1,457 @@
+// A user's own GLSL run through the learnopengl preset (gpu/user_pipeline.h): shaders written
+// here from DESIGN.md with the tutorial's interface, judged against the CPU stages; the declared
+// host state (format, filter, wrap, clear colour, row order) checked on inputs whose results are
+// known by hand; and the refusals (compile errors, missing or unknown uniforms and samplers).
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include "bloomref/gpu/user_pipeline.h"
+#include "bloomref/half.h"
+#include "gl_fixture.h"
+#include "user_shader_checks.h"
+
+using namespace bloomref;
+using gpu::LearnOpenGLShaders;
+using gpu::ShaderSource;
+using gpu::UserPipelineOptions;
+
+namespace {
+
+// discrete9 written from DESIGN.md ("The pipeline", 3.): a centre tap and four pairs at i texels,
+// weights 924, 792, 495, 220, 66 over 4070, added centre first, then +i before -i.
+const char* kBlur9 = R"glsl(#version 330 core
+in vec2 TexCoords;
+out vec4 colour;
+uniform sampler2D image;
+uniform bool horizontal;
+uniform float w[5] = float[](0.2270270270, 0.1945945946, 0.1216216216, 0.0540540541,
+                             0.0162162162);
+void main() {
+  vec2 texel = 1.0 / vec2(textureSize(image, 0));
+  vec2 d = horizontal ? vec2(texel.x, 0.0) : vec2(0.0, texel.y);
+  vec3 sum = texture(image, TexCoords).rgb * w[0];
+  for (int i = 1; i < 5; ++i) {
+    sum += texture(image, TexCoords + d * float(i)).rgb * w[i];
+    sum += texture(image, TexCoords - d * float(i)).rgb * w[i];
+  }
+  colour = vec4(sum, 1.0);
+}
+)glsl";
+
+// DESIGN.md stages 4-6 in one pass (strength 1, gamma 2.2), as the tutorial's final pass does.
+const char* kFinal = R"glsl(#version 330 core
+in vec2 TexCoords;
+out vec4 colour;
+uniform sampler2D scene;
+uniform sampler2D bloomBlur;
+uniform bool bloom;
+uniform float exposure;
+void main() {
+  vec3 hdr = texture(scene, TexCoords).rgb;
+  if (bloom) hdr += texture(bloomBlur, TexCoords).rgb;
+  vec3 mapped = 1.0 - exp(-hdr * exposure);
+  colour = vec4(pow(max(mapped, 0.0), vec3(1.0 / 2.2)), 1.0);
+}
+)glsl";
+
+// Passes the source through, reading `horizontal` where no compiler can fold it away.
+const char* kCopyBlur = R"glsl(#version 330 core
+in vec2 TexCoords;
+out vec4 colour;
+uniform sampler2D image;
+uniform bool horizontal;
+void main() {
+  colour = texture(image, TexCoords);
+  if (!horizontal) colour.a = 0.5;
+}
+)glsl";
+
+// Writes its interpolated texture coordinate; reads every host uniform where the condition
+// (exposure below -1e30) never holds, so none is removed.
+const char* kCoordFinal = R"glsl(#version 330 core
+in vec2 TexCoords;
+out vec4 colour;
+uniform sampler2D scene;
+uniform sampler2D bloomBlur;
+uniform bool bloom;
+uniform float exposure;
+void main() {
+  colour = vec4(TexCoords, 0.0, 1.0);
+  if (exposure < -1e30 && bloom) colour = texture(scene, TexCoords) + texture(bloomBlur, TexCoords);
+}
+)glsl";
+
+LearnOpenGLShaders own_shaders(const std::string& blur = kBlur9,
+                               const std::string& final_fs = kFinal) {
+  LearnOpenGLShaders s;
+  s.blur_fs = {"test_blur9.fs", blur};
+  s.final_fs = {"test_final.fs", final_fs};
+  return s;
+}
+
+// A dim background between 0.05 and 0.45 (no tone-map value near 0, where gamma's slope is
+// unbounded) with bright texels inside, on the edges and in a corner.
+Image test_scene(int w, int h) {
+  Image img(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const float b = 0.05f + 0.05f * float((x * 7 + y * 3) % 9);
+      float* p = img.pixel(x, y);
+      p[0] = b, p[1] = 0.8f * b + 0.02f, p[2] = 0.6f * b + 0.04f, p[3] = 1.0f;
+    }
+  auto set = [&](int x, int y, float r, float g, float b) {
+    float* p = img.pixel(x, y);
+    p[0] = r, p[1] = g, p[2] = b;
+  };
+  set(w / 4, h / 3, 4, 4, 4);
+  set(w / 2 + 1, h / 2, 30, 12, 2);
+  set(w - 2, h - 1, 0, 0, 25);
+  set(0, 1, 6, 1, 1);
+  return img;
+}
+
+// Tolerances, from what llvmpipe (or any GL) may do differently from the CPU's f32 order:
+//  * blur, f32: the interpolated TexCoords may differ from (x + 0.5) / w by a float ULP, which
+//    moves each tap by ~1e-7 texel, and the nine products and sums round in float: each well
+//    under 1e-6 of the largest input; 1e-5 of it is ten times that.
+//  * half targets: one ULP of binary16 (2^-10 relative; a write may round to nearest or toward
+//    zero), plus the smallest half denormal.
+//  * output: exp to (3 + 2|x|) ULP and pow as exp2(y log2 x) (GLSL 4.50, 4.7.1), through
+//    gamma's slope, at most 2.3 for a tone-mapped value above 1 - exp(-0.05): 1e-4 absolute is
+//    far above it and far below a 1% error.
+test::Tolerance blur_tolerance(gpu::TargetFormat f) {
+  return f == gpu::TargetFormat::rgba32f ? test::Tolerance{1e-5, 0, 0}
+                                         : test::Tolerance{1e-5, kHalfMinDenormal, 1.0 / 1024};
+}
+test::Tolerance output_tolerance(gpu::TargetFormat f) {
+  return f == gpu::TargetFormat::rgba32f ? test::Tolerance{0, 1e-4, 0}
+                                         : test::Tolerance{0, 1e-4, 1.0 / 1024};
+}
+
+void check_trace_against_cpu(const Image& scene, const gpu::UserPipelineRun& run,
+                             const UserPipelineOptions& opt) {
+  const StageTrace& t = run.trace;
+  REQUIRE(t.stages.size() == std::size_t(opt.passes) + 3);
+  CHECK(t.stages.front().name == "input");
+  CHECK(t.stages[1].name == "bright");
+  CHECK(t.stages.back().name == "output");
+  // The scene texture read back is the oracle's input stage exactly (uploaded, not computed).
+  Image input(scene.width(), scene.height());
+  sanitize(scene.cview(), input.view(), opt.nonfinite, gpu::storage_of(opt.format), 1);
+  store(input.view(), gpu::storage_of(opt.format), opt.half_rounding, 1);
+  CHECK(test::stage_error("input", t.find("input")->image, input, 0, 0).max_ratio == 0);
+  for (const test::StageError& e :
+       test::isolated_errors(scene, t, opt, opt.half_rounding, blur_tolerance(opt.format),
+                             output_tolerance(opt.format))) {
+    INFO(gpu::to_string(opt.format) << " " << gpu::to_string(opt.rows) << " " << scene.width()
+                                    << "x" << scene.height() << " " << e.stage << ": max |d| "
+                                    << e.max_abs << ", worst ratio " << e.max_ratio << " at ("
+                                    << e.x << ", " << e.y << ") c" << e.channel << " gl " << e.gl
+                                    << " cpu " << e.cpu);
+    CHECK(e.nan_gl == 0);
+    CHECK(e.max_ratio <= 1.0);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("own 9-tap blur and final pass match the CPU stages", "[user-shaders]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  for (gpu::TargetFormat f :
+       {gpu::TargetFormat::rgba32f, gpu::TargetFormat::rgba16f, gpu::TargetFormat::rgb16f})
+    for (gpu::RowOrder rows : {gpu::RowOrder::same, gpu::RowOrder::flipped})
+      for (auto [w, h] : {std::pair{40, 24}, std::pair{37, 23}}) {
+        UserPipelineOptions opt;
+        opt.format = f;
+        opt.rows = rows;
+        opt.passes = 6;
+        const Image scene = test_scene(w, h);
+        check_trace_against_cpu(scene, gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(), opt),
+                                opt);
+      }
+}
+
+TEST_CASE("a 1% weight error in the blur exceeds the blur's tolerance", "[user-shaders]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  std::string blur = kBlur9;
+  const std::string w1 = "0.1945945946";
+  blur.replace(blur.find(w1), w1.size(), "0.1965405405");  // x 1.01
+  UserPipelineOptions opt;
+  opt.passes = 1;
+  const Image scene = test_scene(40, 24);
+  const auto run = gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(blur), opt);
+  const auto errors = test::isolated_errors(scene, run.trace, opt, opt.half_rounding,
+                                            blur_tolerance(opt.format), output_tolerance(opt.format));
+  REQUIRE(errors[1].stage == "blur.1");
+  CHECK(errors[1].max_ratio > 3.0);
+}
+
+TEST_CASE("bloom off: the final pass reads the scene alone", "[user-shaders]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  UserPipelineOptions opt;
+  opt.format = gpu::TargetFormat::rgba32f;
+  opt.passes = 2;
+  opt.bloom = false;
+  opt.exposure = 0.7f;
+  const Image scene = test_scene(20, 10);
+  const auto run = gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(), opt);
+  const auto errors = test::isolated_errors(scene, run.trace, opt, opt.half_rounding,
+                                            blur_tolerance(opt.format), output_tolerance(opt.format));
+  REQUIRE(errors.back().stage == "output");
+  CHECK(errors.back().max_ratio <= 1.0);  // against the scene alone
+  // ... and not against the scene with the bloom added.
+  const Image with_bloom = test::cpu_final(scene, run.trace.find("blur.2")->image, 0.7f, 2.2f,
+                                           Storage::f32, opt.half_rounding);
+  CHECK(test::stage_error("output", run.trace.find("output")->image, with_bloom, 1e-4, 0)
+            .max_ratio > 10);
+}
+
+TEST_CASE("the trace is in bloomref's orientation for either row order", "[user-shaders]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  const int w = 8, h = 5;
+  Image scene(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      float* p = scene.pixel(x, y);
+      p[0] = float(2 + x), p[1] = float(2 + 10 * y), p[2] = 3.0f, p[3] = 1.0f;  // all bright
+    }
+  for (gpu::RowOrder rows : {gpu::RowOrder::same, gpu::RowOrder::flipped}) {
+    UserPipelineOptions opt;
+    opt.format = gpu::TargetFormat::rgba32f;
+    opt.filter = gpu::TextureFilter::nearest;
+    opt.rows = rows;
+    opt.passes = 1;
+    const auto run = gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(kCopyBlur, kCoordFinal),
+                                          opt);
+    const Image& copy = run.trace.find("blur.1")->image;
+    const Image& out = run.trace.find("output")->image;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        INFO(gpu::to_string(rows) << " (" << x << ", " << y << ")");
+        // A copy of the bright image comes back where it was, in either row order.
+        CHECK(copy.pixel(x, y)[0] == float(2 + x));
+        CHECK(copy.pixel(x, y)[1] == float(2 + 10 * y));
+        // The texture coordinate: s = (x + 0.5) / w; t counts from GL's row 0, which is the
+        // image's top row in `same` and its bottom row in `flipped`.
+        const double s = (x + 0.5) / w, t = (y + 0.5) / h;
+        CHECK(out.pixel(x, y)[0] == Approx(s).margin(1e-6));
+        CHECK(out.pixel(x, y)[1] == Approx(rows == gpu::RowOrder::same ? t : 1 - t).margin(1e-6));
+      }
+  }
+}
+
+TEST_CASE("declared host state: wrap, filter, clear colour and format", "[user-shaders]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  const int w = 8, h = 2;
+  Image scene(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      float* p = scene.pixel(x, y);
+      p[0] = p[1] = p[2] = float(x + 2), p[3] = 1.0f;  // every texel bright, value x + 2
+    }
+  // Reads 1.75 texels to the left: texel coordinate x + 0.5 - 1.75 = x - 1.25, a quarter
+  // texel from a texel centre and never on a texel edge, so nearest has one answer.
+  const char* probe = R"glsl(#version 330 core
+in vec2 TexCoords;
+out vec4 colour;
+uniform sampler2D image;
+uniform bool horizontal;
+void main() {
+  float dx = 1.0 / float(textureSize(image, 0).x);
+  colour = texture(image, TexCoords - vec2(1.75 * dx, 0.0));
+  if (!horizontal) colour.a = 0.5;
+}
+)glsl";
+  auto blur1 = [&](gpu::TextureWrap wrap, gpu::TextureFilter filter) {
+    UserPipelineOptions opt;
+    opt.format = gpu::TargetFormat::rgba32f;
+    opt.wrap = wrap;
+    opt.filter = filter;
+    opt.passes = 1;
+    return gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(probe), opt)
+        .trace.find("blur.1")
+        ->image;
+  };
+  SECTION("wrap at the left edge, nearest: x = 0 reads texel coordinate -1.25") {
+    // clamp -> texel 0 (value 2); repeat -> w - 1.25, texel w - 2 (value w); mirrored ->
+    // 1.25, texel 1 (value 3).
+    CHECK(blur1(gpu::TextureWrap::clamp_to_edge, gpu::TextureFilter::nearest).pixel(0, 0)[0] ==
+          2.0f);
+    CHECK(blur1(gpu::TextureWrap::repeat, gpu::TextureFilter::nearest).pixel(0, 0)[0] ==
+          float(w));
+    CHECK(blur1(gpu::TextureWrap::mirrored_repeat, gpu::TextureFilter::nearest).pixel(0, 0)[0] ==
+          3.0f);
+  }
+  SECTION("filter: texel coordinate x - 1.25 is texel x - 2 (nearest) or 3:1 between x - 2 and "
+          "x - 1 (linear)") {
+    const Image nearest = blur1(gpu::TextureWrap::clamp_to_edge, gpu::TextureFilter::nearest);
+    const Image linear = blur1(gpu::TextureWrap::clamp_to_edge, gpu::TextureFilter::linear);
+    for (int x = 2; x < w; ++x) {
+      INFO("x " << x);
+      CHECK(nearest.pixel(x, 1)[0] == float(x));  // texel x - 2 holds x
+      CHECK(linear.pixel(x, 1)[0] == Approx(0.75 * x + 0.25 * (x + 1)).margin(1e-5));
+    }
+  }
+  SECTION("clear colour: what a vertex shader leaves uncovered") {
+    const char* left_half = R"glsl(#version 330 core
+layout(location = 0) in vec3 aPos;
+layout(location = 1) in vec2 aTexCoords;
+out vec2 TexCoords;
+void main() {
+  TexCoords = aTexCoords;
+  gl_Position = vec4(0.5 * aPos.x - 0.5, aPos.y, aPos.z, 1.0);
+}
+)glsl";
+    LearnOpenGLShaders s = own_shaders(kCopyBlur, kFinal);
+    s.final_vs = ShaderSource{"left_half.vs", left_half};
+    UserPipelineOptions opt;
+    opt.format = gpu::TargetFormat::rgba32f;
+    opt.passes = 1;
+    opt.clear_colour = {0.25f, 0.5f, 0.75f, 0.125f};
+    const Image out = gpu::run_learnopengl(*ctx, scene.cview(), s, opt).trace.find("output")->image;
+    for (int x = w / 2; x < w; ++x) {
+      CHECK(out.pixel(x, 1)[0] == 0.25f);
+      CHECK(out.pixel(x, 1)[2] == 0.75f);
+      CHECK(out.pixel(x, 1)[3] == 0.125f);
+    }
+    CHECK(out.pixel(0, 1)[3] == 1.0f);  // drawn
+  }
+  SECTION("format: a third stored as float or as half; RGB16F reads alpha back as 1") {
+    const char* third = R"glsl(#version 330 core
+in vec2 TexCoords;
+out vec4 colour;
+uniform sampler2D scene;
+uniform sampler2D bloomBlur;
+uniform bool bloom;
+uniform float exposure;
+void main() {
+  colour = vec4(1.0 / 3.0);
+  if (exposure < -1e30 && bloom) colour = texture(scene, TexCoords) + texture(bloomBlur, TexCoords);
+}
+)glsl";
+    const float third_f = 1.0f / 3.0f;
+    // binary16 neighbours of 1/3: 0x3555 = 0.333251953125 (below), 0x3556 = 0.33349609375.
+    for (gpu::TargetFormat f :
+         {gpu::TargetFormat::rgba32f, gpu::TargetFormat::rgba16f, gpu::TargetFormat::rgb16f}) {
+      UserPipelineOptions opt;
+      opt.format = f;
+      opt.passes = 1;
+      const Image out =
+          gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(kCopyBlur, third), opt)
+              .trace.find("output")->image;
+      INFO(gpu::to_string(f));
+      const float v = out.pixel(1, 1)[0];
+      if (f == gpu::TargetFormat::rgba32f) CHECK(std::fabs(v - third_f) <= 2e-7f);
+      else CHECK((v == 0.333251953125f || v == 0.33349609375f));
+      CHECK(out.pixel(1, 1)[3] == (f == gpu::TargetFormat::rgb16f ? 1.0f : v));
+    }
+  }
+}
+
+TEST_CASE("shaders that do not fit the preset are refused, naming the file and the name",
+          "[user-shaders]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  const UserPipelineOptions opt;
+  auto refusal = [&](const LearnOpenGLShaders& s, const UserPipelineOptions& o) -> std::string {
+    try {
+      gpu::check_learnopengl(*ctx, s, o);
+    } catch (const gpu::UserShaderError& e) {
+      return e.file() + " | " + e.what();
+    }
+    return "accepted";
+  };
+  auto replaced = [](std::string text, const std::string& from, const std::string& to) {
+    const auto at = text.find(from);
+    REQUIRE(at != std::string::npos);
+    return text.replace(at, from.size(), to);
+  };
+  CHECK(refusal(own_shaders(), opt) == "accepted");
+  SECTION("a compile error: the file and the compiler's log") {
+    const std::string m = refusal(own_shaders(replaced(kBlur9, "sum += texture", "sum += textur")), opt);
+    CHECK_THAT(m, Catch::Contains("test_blur9.fs | test_blur9.fs: fragment shader does not compile"));
+    CHECK_THAT(m, Catch::Contains("textur"));  // the log names the culprit
+  }
+  SECTION("a sampler the preset requires is missing") {
+    const std::string m = refusal(
+        own_shaders(kBlur9, replaced(kFinal, "hdr += texture(bloomBlur, TexCoords).rgb", "hdr *= 2.0")),
+        opt);
+    CHECK_THAT(m, Catch::StartsWith("test_final.fs | "));
+    CHECK_THAT(m, Catch::Contains("sampler 'bloomBlur'"));
+    CHECK_THAT(m, Catch::Contains("missing"));
+  }
+  SECTION("a uniform the preset requires is unused, so missing") {
+    const std::string m = refusal(own_shaders(kBlur9, replaced(kFinal, "-hdr * exposure", "-hdr")), opt);
+    CHECK_THAT(m, Catch::Contains("uniform 'exposure'"));
+    CHECK_THAT(m, Catch::Contains("missing"));
+  }
+  SECTION("an unknown uniform: refused without an initialiser, kept with one") {
+    const std::string base =
+        replaced(kBlur9, "uniform bool horizontal;", "uniform bool horizontal;\nuniform float spread@;");
+    const std::string used = replaced(base, "vec2 d = horizontal ? vec2(texel.x, 0.0) : vec2(0.0, texel.y);",
+                                      "vec2 d = spread * (horizontal ? vec2(texel.x, 0.0) : vec2(0.0, texel.y));");
+    const std::string m = refusal(own_shaders(replaced(used, "@", "")), opt);
+    CHECK_THAT(m, Catch::StartsWith("test_blur9.fs | "));
+    CHECK_THAT(m, Catch::Contains("uniform 'spread'"));
+    CHECK_THAT(m, Catch::Contains("used at 0"));
+    CHECK(refusal(own_shaders(replaced(used, "@", " = 1.0")), opt) == "accepted");
+  }
+  SECTION("an unknown sampler") {
+    const std::string m = refusal(
+        own_shaders(kBlur9, replaced(replaced(kFinal, "uniform bool bloom;",
+                                              "uniform bool bloom;\nuniform sampler2D dirt;"),
+                                     "vec3 mapped", "hdr += texture(dirt, TexCoords).rgb;\n  vec3 mapped")),
+        opt);
+    CHECK_THAT(m, Catch::Contains("sampler 'dirt'"));
+  }
+  SECTION("a host uniform of another type") {
+    const std::string m = refusal(
+        own_shaders(replaced(replaced(kBlur9, "uniform bool horizontal;", "uniform float horizontal;"),
+                             "vec2 d = horizontal ?", "vec2 d = horizontal > 0.5 ?")),
+        opt);
+    CHECK_THAT(m, Catch::Contains("uniform 'horizontal' is declared float"));
+  }
+  SECTION("bloom off needs the `bloom` uniform") {
+    const std::string always = replaced(kFinal, "if (bloom) ", "");
+    UserPipelineOptions off;
+    off.bloom = false;
+    CHECK(refusal(own_shaders(kBlur9, always), opt) == "accepted");
+    CHECK_THAT(refusal(own_shaders(kBlur9, always), off), Catch::Contains("uniform 'bloom'"));
+  }
+  SECTION("a vertex attribute the preset does not feed") {
+    LearnOpenGLShaders s = own_shaders();
+    s.blur_vs = ShaderSource{"odd.vs", R"glsl(#version 330 core
+layout(location = 0) in vec3 aPos;
+layout(location = 2) in vec2 aUV;
+out vec2 TexCoords;
+void main() { TexCoords = aUV; gl_Position = vec4(aPos, 1.0); }
+)glsl"};
+    const std::string m = refusal(s, opt);
+    CHECK_THAT(m, Catch::StartsWith("odd.vs | "));
+    CHECK_THAT(m, Catch::Contains("attribute 'aUV'"));
+  }
+  SECTION("a link error names both files") {
+    // The fragment shader's input is a vec3 where the vertex shader writes a vec2.
+    std::string blur = replaced(kBlur9, "in vec2 TexCoords;", "in vec3 TexCoords;");
+    for (auto at = blur.find("TexCoords)"); at != std::string::npos; at = blur.find("TexCoords)"))
+      blur.replace(at, 10, "TexCoords.xy)");
+    for (auto at = blur.find("TexCoords +"); at != std::string::npos; at = blur.find("TexCoords +"))
+      blur.replace(at, 11, "TexCoords.xy +");
+    for (auto at = blur.find("TexCoords -"); at != std::string::npos; at = blur.find("TexCoords -"))
+      blur.replace(at, 11, "TexCoords.xy -");
+    const std::string m = refusal(own_shaders(blur), opt);
+    CHECK_THAT(m, Catch::Contains("user_quad.vert + test_blur9.fs"));
+    CHECK_THAT(m, Catch::Contains("does not link"));
+  }
+  SECTION("an unreadable file") {
+    CHECK_THROWS_AS(gpu::load_shader("no/such/dir/7.blur.fs"), InputError);
+  }
+}
