@@ -23,6 +23,7 @@ struct StageError {
   int x = 0, y = 0, channel = 0;  ///< where max_ratio is
   double gl = 0, cpu = 0;
   std::size_t nan_gl = 0, nan_cpu = 0;  ///< non-finite RGB values on each side
+  int abs_x = 0, abs_y = 0, abs_channel = 0;  ///< where max_abs is
 };
 
 /// Compares RGB of `gl` with `cpu`; ratios against abs_tol + rel_tol * |cpu| + extra (per value,
@@ -41,7 +42,7 @@ inline StageError stage_error(const std::string& stage, const Image& gl, const I
         const double d = std::fabs(g - o);
         const double bound = abs_tol + rel_tol * std::fabs(o) + (extra ? extra->pixel(x, y)[c] : 0);
         const double r = d == 0 ? 0 : d / bound;
-        e.max_abs = std::max(e.max_abs, d);
+        if (d > e.max_abs) e.max_abs = d, e.abs_x = x, e.abs_y = y, e.abs_channel = c;
         if (r > e.max_ratio) {
           e.max_ratio = r;
           e.x = x, e.y = y, e.channel = c, e.gl = g, e.cpu = o;
@@ -55,29 +56,29 @@ inline StageError stage_error(const std::string& stage, const Image& gl, const I
 /// near 1 (2^-24 each, times n in texels); 16 such roundings is 2^-20 n.
 inline double lookup_error_texels(int n) { return std::ldexp(double(n), -20); }
 
-/// Per value: lookup_error_texels times the largest difference between two texels adjacent along
-/// an axis within `reach` texels of it (along `axis`, or both axes when `both`): what a lookup
-/// landing that far off can change in a weighted sum of lookups whose weights add to 1.
-inline Image lookup_term(const Image& src, bool horizontal, bool both, int reach) {
+/// Per value: the largest difference between two adjacent texels within rx columns and ry rows
+/// of it, times lookup_error_texels along that axis: what lookups landing that far off can change
+/// in a weighted sum whose weights add to 1. Both axes count: a horizontal pass's lookups also
+/// land off in t (measured on llvmpipe: its interpolated TexCoords are within one float ULP of
+/// (y + 0.5) / h, so a pass along x reads ~2^-24 h of the rows above or below; next to a row of
+/// 400s that is 0.02 where the CPU gives 0).
+inline Image lookup_term(const Image& src, int rx, int ry) {
   const int w = src.width(), h = src.height();
+  const double ex = lookup_error_texels(w), ey = lookup_error_texels(h);
   Image out(w, h, 0.0f);
+  auto at = [&](int i, int j, int c) {
+    return double(src.pixel(std::clamp(i, 0, w - 1), std::clamp(j, 0, h - 1))[c]);
+  };
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x)
       for (int c = 0; c < 3; ++c) {
         double m = 0;
-        auto at = [&](int i, int j) {
-          return double(src.pixel(std::clamp(i, 0, w - 1), std::clamp(j, 0, h - 1))[c]);
-        };
-        for (int a = 0; a < 2; ++a) {
-          const bool hor = both ? a == 0 : horizontal;
-          if (!both && a == 1) break;
-          const double eps = lookup_error_texels(hor ? w : h);
-          for (int k = -reach; k <= reach; ++k) {
-            const double d = hor ? at(x + k + 1, y) - at(x + k, y) : at(x, y + k + 1) - at(x, y + k);
-            m = std::max(m, eps * std::fabs(d));
+        for (int j = y - ry - 1; j <= y + ry; ++j)
+          for (int i = x - rx - 1; i <= x + rx; ++i) {
+            const double v = at(i, j, c);
+            m = std::max({m, ex * std::fabs(at(i + 1, j, c) - v), ey * std::fabs(at(i, j + 1, c) - v)});
           }
-        }
-        out.pixel(x, y)[c] = static_cast<float>(m);
+        out.pixel(x, y)[c] = std::isfinite(m) ? static_cast<float>(m) : 0.0f;
       }
   return out;
 }
@@ -137,7 +138,8 @@ inline std::vector<StageError> isolated_errors(const Image& scene, const StageTr
     blur_pass(prev->cview(), b.view(), o, 1);
     store(b.view(), storage, rounding, 1);
     const double m = max_magnitude(*prev);
-    const Image look = lookup_term(*prev, o.axis == Axis::horizontal, false, 5);
+    const bool hor = o.axis == Axis::horizontal;
+    const Image look = lookup_term(*prev, hor ? 5 : 1, hor ? 1 : 5);
     out.push_back(stage_error(name, t.find(name)->image, b,
                               blur_tol.abs_of_max * m + blur_tol.abs, blur_tol.rel, &look));
     prev = &t.find(name)->image;
@@ -146,19 +148,23 @@ inline std::vector<StageError> isolated_errors(const Image& scene, const StageTr
   const Image none(w, h, 0.0f);
   const Image expect =
       cpu_final(scene_in, opt.bloom ? *prev : none, opt.exposure, gamma, storage, rounding);
-  // The lookups of the scene and the bloom may land off the texel centre; their error goes
-  // through the tone map and gamma as an interval (gamma's slope is unbounded near 0).
-  const Image ls = lookup_term(scene_in, true, true, 1), lb = lookup_term(*prev, true, true, 1);
+  // The lookups of the scene and the bloom may land off the texel centre (lookup_term), and
+  // GLSL's exp is within (3 + 2|x|) ULP (GLSL 4.50, 4.7.1): both go through the tone map and
+  // gamma as an interval, as gamma's slope is unbounded near 0 (1 - exp(-0) one ULP of 1 off
+  // gives pow(2^-24, 1 / 2.2) = 0.00052).
+  const Image ls = lookup_term(scene_in, 1, 1), lb = lookup_term(*prev, 1, 1);
   Image extra(w, h, 0.0f);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x)
       for (int c = 0; c < 3; ++c) {
         const double hdr = double(scene_in.pixel(x, y)[c]) + (opt.bloom ? prev->pixel(x, y)[c] : 0);
         const double d = ls.pixel(x, y)[c] + (opt.bloom ? lb.pixel(x, y)[c] : 0);
-        auto display = [&](double v) {
-          return std::pow(std::max(-std::expm1(-v * opt.exposure), 0.0), 1.0 / gamma);
-        };
-        const double e = display(hdr + d) - display(hdr - d);
+        auto mapped = [&](double v) { return -std::expm1(-v * opt.exposure); };
+        const double arg = std::fabs(hdr * opt.exposure);
+        const double exp_err = (3 + 2 * arg) * std::ldexp(std::exp(-(hdr - d) * opt.exposure), -23);
+        const double lo = std::max(mapped(hdr - d) - exp_err, 0.0);
+        const double hi = std::max(mapped(hdr + d) + exp_err, 0.0);
+        const double e = std::pow(hi, 1.0 / gamma) - std::pow(lo, 1.0 / gamma);
         extra.pixel(x, y)[c] = std::isfinite(e) ? static_cast<float>(e) : 0.0f;
       }
   out.push_back(stage_error("output", t.find("output")->image, expect, out_tol.abs, out_tol.rel,
