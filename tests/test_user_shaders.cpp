@@ -142,7 +142,13 @@ void check_trace_against_cpu(const Image& scene, const gpu::UserPipelineRun& run
   Image input(scene.width(), scene.height());
   sanitize(scene.cview(), input.view(), opt.nonfinite, gpu::storage_of(opt.format), 1);
   store(input.view(), gpu::storage_of(opt.format), opt.half_rounding, 1);
-  CHECK(test::stage_error("input", t.find("input")->image, input, 0, 0).max_ratio == 0);
+  CHECK(test::stage_error("input", t.find("input")->image, input, 0, 0).max_abs == 0);
+  // ... and so is the oracle's bright image, rounded as the input is.
+  Image sanitized(scene.width(), scene.height()), bright(scene.width(), scene.height());
+  sanitize(scene.cview(), sanitized.view(), opt.nonfinite, gpu::storage_of(opt.format), 1);
+  extract_bright(sanitized.cview(), bright.view(), opt.threshold, 1);
+  store(bright.view(), gpu::storage_of(opt.format), opt.half_rounding, 1);
+  CHECK(test::stage_error("bright", t.find("bright")->image, bright, 0, 0).max_abs == 0);
   for (const test::StageError& e :
        test::isolated_errors(scene, t, opt, opt.half_rounding, blur_tolerance(opt.format),
                              output_tolerance(opt.format))) {
@@ -454,4 +460,156 @@ void main() { TexCoords = aUV; gl_Position = vec4(aPos, 1.0); }
   SECTION("an unreadable file") {
     CHECK_THROWS_AS(gpu::load_shader("no/such/dir/7.blur.fs"), InputError);
   }
+}
+
+// A bright pass written from DESIGN.md stage 2 (Rec. 709 luminance, strictly above the
+// threshold), in the two forms the preset accepts.
+const char* kBright = R"glsl(#version 330 core
+in vec2 TexCoords;
+out vec4 bright;
+uniform sampler2D scene;
+uniform float threshold;
+void main() {
+  vec3 c = texture(scene, TexCoords).rgb;
+  float l = dot(c, vec3(0.2126, 0.7152, 0.0722));
+  bright = l > threshold ? vec4(c, 1.0) : vec4(0.0, 0.0, 0.0, 1.0);
+}
+)glsl";
+
+// The MRT form (as the tutorial's 7.bloom.fs writes FragColor and BrightColor): location 0 is
+// the scene the final pass reads -- here twice the scene, so that the test can tell.
+const char* kBrightMrt = R"glsl(#version 330 core
+in vec2 TexCoords;
+layout(location = 0) out vec4 colour;
+layout(location = 1) out vec4 bright;
+uniform sampler2D scene;
+uniform float threshold;
+void main() {
+  vec3 c = texture(scene, TexCoords).rgb;
+  colour = vec4(2.0 * c, 1.0);
+  bright = dot(c, vec3(0.2126, 0.7152, 0.0722)) > threshold ? vec4(c, 1.0) : vec4(0.0, 0.0, 0.0, 1.0);
+}
+)glsl";
+
+TEST_CASE("the user's bright pass, one output or two", "[user-shaders]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  const Image scene = test_scene(40, 24);  // no luminance within 0.5 of the threshold 1.5
+  UserPipelineOptions opt;
+  opt.format = gpu::TargetFormat::rgba32f;
+  opt.passes = 2;
+  opt.threshold = 1.5f;
+  Image bright(40, 24);
+  extract_bright(scene.cview(), bright.view(), 1.5f, 1);
+  // Each stage within the bounds of user_shader_checks.h (the bright pass's lookups of the
+  // scene at interpolated coordinates included).
+  auto check_stages = [&](const gpu::UserPipelineRun& run) {
+    for (const auto& e : test::isolated_errors(scene, run.trace, opt, opt.half_rounding,
+                                               blur_tolerance(opt.format),
+                                               output_tolerance(opt.format))) {
+      INFO(e.stage << ": max |d| " << e.max_abs << ", ratio " << e.max_ratio);
+      CHECK(e.max_ratio <= 1.0);
+    }
+  };
+  SECTION("one output: the bright image") {
+    LearnOpenGLShaders s = own_shaders();
+    s.bright_fs = ShaderSource{"bright.fs", kBright};
+    const auto run = gpu::run_learnopengl(*ctx, scene.cview(), s, opt);
+    CHECK(run.bright_source == "bright.fs");
+    CHECK(run.programs.front().program == "bright");
+    CHECK(test::stage_error("input", run.trace.find("input")->image, scene, 0, 0).max_abs == 0);
+    check_stages(run);
+    // Not vacuous: the bright texels are where the CPU's are (a texel off by one lookup error
+    // is within 2e-4 of its value; a missing or extra bright texel is off by its whole value).
+    CHECK(test::stage_error("bright", run.trace.find("bright")->image, bright, 1e-3, 0).max_ratio <=
+          1.0);
+  }
+  SECTION("two outputs: location 1 is the bright image, location 0 the final pass's scene") {
+    LearnOpenGLShaders s = own_shaders();
+    s.bright_fs = ShaderSource{"bright_mrt.fs", kBrightMrt};
+    const auto run = gpu::run_learnopengl(*ctx, scene.cview(), s, opt);
+    Image twice = scene;
+    for (std::size_t i = 0; i < twice.values().size(); ++i)
+      if (i % 4 != 3) twice.values()[i] *= 2.0f;
+    const Image look = test::lookup_term(twice, 1, 1);
+    CHECK(test::stage_error("input", run.trace.find("input")->image, twice, 0, 0, &look)
+              .max_ratio <= 1.0);
+    check_stages(run);  // the output from the trace's input: twice the scene
+    CHECK(test::stage_error("input", run.trace.find("input")->image, scene, 1e-3, 0).max_ratio > 1);
+  }
+  SECTION("a threshold uniform is optional; a scene sampler is not") {
+    std::string fixed = kBright;
+    fixed.replace(fixed.find("> threshold"), 11, "> 1.5");
+    LearnOpenGLShaders s = own_shaders();
+    s.bright_fs = ShaderSource{"fixed.fs", fixed};
+    CHECK_NOTHROW(gpu::check_learnopengl(*ctx, s, opt));
+    s.bright_fs->text = R"glsl(#version 330 core
+out vec4 bright;
+void main() { bright = vec4(1.0); }
+)glsl";
+    CHECK_THROWS_WITH(gpu::check_learnopengl(*ctx, s, opt), Catch::Contains("sampler 'scene'"));
+  }
+}
+
+TEST_CASE("no blur passes: the final pass reads the bright image", "[user-shaders]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  const Image scene = test_scene(20, 12);
+  UserPipelineOptions opt;
+  opt.format = gpu::TargetFormat::rgba32f;
+  opt.passes = 0;
+  const auto run = gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(), opt);
+  REQUIRE(run.trace.stages.size() == 3);
+  const auto errors = test::isolated_errors(scene, run.trace, opt, opt.half_rounding,
+                                            blur_tolerance(opt.format), output_tolerance(opt.format));
+  REQUIRE(errors.back().stage == "output");  // from the input and the bright image
+  CHECK(errors.back().max_ratio <= 1.0);
+}
+
+TEST_CASE("the programs' interfaces say how each uniform is set", "[user-shaders]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  const auto programs = gpu::check_learnopengl(*ctx, own_shaders(), {});
+  REQUIRE(programs.size() == 2);
+  CHECK(programs[0].program == "blur");
+  CHECK(programs[0].fragment_file == "test_blur9.fs");
+  CHECK(programs[0].vertex_file.empty());
+  auto role = [](const gpu::ProgramInterface& p, const std::string& name) -> std::string {
+    for (const auto& u : p.uniforms)
+      if (u.name == name) return u.type + " " + std::to_string(u.size) + ": " + u.role;
+    for (const auto& a : p.attributes)
+      if (a.name == name) return a.type + " @" + std::to_string(a.location) + ": " + a.role;
+    return "absent";
+  };
+  CHECK(role(programs[0], "w") == "float 5: not set by the host: kept at its initialiser");
+  CHECK_THAT(role(programs[0], "horizontal"), Catch::StartsWith("bool 1: set by the host"));
+  CHECK_THAT(role(programs[0], "image"), Catch::StartsWith("sampler2D 1: set by the host"));
+  CHECK_THAT(role(programs[1], "bloomBlur"), Catch::Contains("texture unit 1"));
+  CHECK_THAT(role(programs[1], "aPos"), Catch::StartsWith("vec3 @0: fed by the host"));
+  CHECK_THAT(role(programs[1], "aTexCoords"), Catch::StartsWith("vec2 @1: fed by the host"));
+}
+
+TEST_CASE("options from bloomref's parameters, and the names of host state",
+          "[user-shaders][options]") {
+  BloomParams p;
+  p.storage = Storage::f16;
+  p.passes = 7;
+  p.exposure = 0.25f;
+  p.threshold = 2.0f;
+  const UserPipelineOptions o = gpu::options_for(p);
+  CHECK(o.format == gpu::TargetFormat::rgba16f);
+  CHECK(o.passes == 7);
+  CHECK(o.exposure == 0.25f);
+  CHECK(o.threshold == 2.0f);
+  p.storage = Storage::f32;
+  CHECK(gpu::options_for(p).format == gpu::TargetFormat::rgba32f);
+  p.method = Method::mip;
+  CHECK_THROWS_AS(gpu::options_for(p), ParamError);
+  CHECK(gpu::parse_target_format("GL_RGB16F") == gpu::TargetFormat::rgb16f);
+  CHECK(gpu::parse_texture_wrap("mirrored-repeat") == gpu::TextureWrap::mirrored_repeat);
+  CHECK(gpu::parse_texture_filter("GL_NEAREST") == gpu::TextureFilter::nearest);
+  CHECK(gpu::parse_row_order("flipped") == gpu::RowOrder::flipped);
+  CHECK_THROWS_WITH(gpu::parse_texture_wrap("clamp"),
+                    Catch::Contains("clamp-to-edge, repeat, mirrored-repeat"));
+  CHECK(gpu::storage_of(gpu::TargetFormat::rgb16f) == Storage::f16);
 }
