@@ -29,15 +29,17 @@ namespace {
 std::optional<gpu::LearnOpenGLShaders> tutorial_shaders() {
   const char* dir = std::getenv("BLOOMREF_LEARNOPENGL_DIR");
   if (!dir || !*dir) {
-    WARN("BLOOMREF_LEARNOPENGL_DIR is not set: the tutorial's shaders are not tested (see "
-         "tests/test_learnopengl_files.cpp for how to get them)");
+    WARN(
+        "BLOOMREF_LEARNOPENGL_DIR is not set: the tutorial's shaders are not tested (see "
+        "tests/test_learnopengl_files.cpp for how to get them)");
     return std::nullopt;
   }
   const std::filesystem::path d(dir);
   gpu::LearnOpenGLShaders s;
   s.blur_fs = gpu::load_shader((d / "7.blur.fs").string());
   s.final_fs = gpu::load_shader((d / "7.bloom_final.fs").string());
-  if (std::filesystem::exists(d / "7.blur.vs")) s.blur_vs = gpu::load_shader((d / "7.blur.vs").string());
+  if (std::filesystem::exists(d / "7.blur.vs"))
+    s.blur_vs = gpu::load_shader((d / "7.blur.vs").string());
   if (std::filesystem::exists(d / "7.bloom_final.vs"))
     s.final_vs = gpu::load_shader((d / "7.bloom_final.vs").string());
   return s;
@@ -81,7 +83,8 @@ std::string replaced(std::string text, const std::string& from, const std::strin
 
 }  // namespace
 
-TEST_CASE("the tutorial's shaders pass the CPU stages, f16 and f32", "[user-shaders][learnopengl]") {
+TEST_CASE("the tutorial's shaders pass the CPU stages, f16 and f32",
+          "[user-shaders][learnopengl]") {
   gpu::GlContext* ctx = test::gl_context();
   const auto shaders = tutorial_shaders();
   if (!ctx || !shaders) return;
@@ -114,18 +117,19 @@ TEST_CASE("broken copies of the tutorial's shaders fail at their stage",
   SECTION("blur weight[1] 1% too large: blur.1 fails") {
     gpu::LearnOpenGLShaders s = *shaders;
     s.blur_fs.text = replaced(s.blur_fs.text, "0.1945945946", "0.1965405405");
-    const auto e = test::isolated_errors(scene, gpu::run_learnopengl(*ctx, scene.cview(), s, opt).trace,
-                                         opt, opt.half_rounding, blur_tol(opt.format),
-                                         out_tol(opt.format));
+    const auto e =
+        test::isolated_errors(scene, gpu::run_learnopengl(*ctx, scene.cview(), s, opt).trace, opt,
+                              opt.half_rounding, blur_tol(opt.format), out_tol(opt.format));
     CHECK(e[1].stage == "blur.1");
     CHECK(e[1].max_ratio > 10);
   }
   SECTION("the bloom added twice: output fails, the blur passes") {
     gpu::LearnOpenGLShaders s = *shaders;
-    s.final_fs.text = replaced(s.final_fs.text, "hdrColor += bloomColor", "hdrColor += 2.0 * bloomColor");
-    const auto e = test::isolated_errors(scene, gpu::run_learnopengl(*ctx, scene.cview(), s, opt).trace,
-                                         opt, opt.half_rounding, blur_tol(opt.format),
-                                         out_tol(opt.format));
+    s.final_fs.text =
+        replaced(s.final_fs.text, "hdrColor += bloomColor", "hdrColor += 2.0 * bloomColor");
+    const auto e =
+        test::isolated_errors(scene, gpu::run_learnopengl(*ctx, scene.cview(), s, opt).trace, opt,
+                              opt.half_rounding, blur_tol(opt.format), out_tol(opt.format));
     CHECK(e[4].max_ratio <= 1.0);  // blur.4
     CHECK(e.back().stage == "output");
     CHECK(e.back().max_ratio > 10);
@@ -171,12 +175,15 @@ TEST_CASE("the tutorial's shaders on the corpus: largest error per stage",
         if (e.stage == "output") output_nan = e.nan_gl;
       }
       const double e2e_blur = test::stage_error("blur.10", run.trace.find("blur.10")->image,
-                                                cpu.find("blur.10")->image, 1, 0).max_abs;
+                                                cpu.find("blur.10")->image, 1, 0)
+                                  .max_abs;
       const double e2e_out = test::stage_error("output", run.trace.find("output")->image,
-                                               cpu.find("output")->image, 1, 0).max_abs;
-      std::printf(" | e2e blur.10 %.3g output %.3g | worst/bound %.3g (%s) | negative in %zu,"
-                  " NaN out %zu\n",
-                  e2e_blur, e2e_out, worst_ratio, worst.c_str(), negative, output_nan);
+                                               cpu.find("output")->image, 1, 0)
+                                 .max_abs;
+      std::printf(
+          " | e2e blur.10 %.3g output %.3g | worst/bound %.3g (%s) | negative in %zu,"
+          " NaN out %zu\n",
+          e2e_blur, e2e_out, worst_ratio, worst.c_str(), negative, output_nan);
       if (worst_ratio > 1)
         std::printf("    over its bound at (%d, %d) channel %d: GL %.9g, CPU %.9g\n", worst_e.x,
                     worst_e.y, worst_e.channel, worst_e.gl, worst_e.cpu);

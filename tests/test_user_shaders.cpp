@@ -152,11 +152,10 @@ void check_trace_against_cpu(const Image& scene, const gpu::UserPipelineRun& run
   for (const test::StageError& e :
        test::isolated_errors(scene, t, opt, opt.half_rounding, blur_tolerance(opt.format),
                              output_tolerance(opt.format))) {
-    INFO(gpu::to_string(opt.format) << " " << gpu::to_string(opt.rows) << " " << scene.width()
-                                    << "x" << scene.height() << " " << e.stage << ": max |d| "
-                                    << e.max_abs << ", worst ratio " << e.max_ratio << " at ("
-                                    << e.x << ", " << e.y << ") c" << e.channel << " gl " << e.gl
-                                    << " cpu " << e.cpu);
+    INFO(gpu::to_string(opt.format)
+         << " " << gpu::to_string(opt.rows) << " " << scene.width() << "x" << scene.height() << " "
+         << e.stage << ": max |d| " << e.max_abs << ", worst ratio " << e.max_ratio << " at ("
+         << e.x << ", " << e.y << ") c" << e.channel << " gl " << e.gl << " cpu " << e.cpu);
     CHECK(e.nan_gl == 0);
     CHECK(e.max_ratio <= 1.0);
   }
@@ -176,8 +175,8 @@ TEST_CASE("own 9-tap blur and final pass match the CPU stages", "[user-shaders]"
         opt.rows = rows;
         opt.passes = 6;
         const Image scene = test_scene(w, h);
-        check_trace_against_cpu(scene, gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(), opt),
-                                opt);
+        check_trace_against_cpu(scene,
+                                gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(), opt), opt);
       }
 }
 
@@ -191,8 +190,9 @@ TEST_CASE("a 1% weight error in the blur exceeds the blur's tolerance", "[user-s
   opt.passes = 1;
   const Image scene = test_scene(40, 24);
   const auto run = gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(blur), opt);
-  const auto errors = test::isolated_errors(scene, run.trace, opt, opt.half_rounding,
-                                            blur_tolerance(opt.format), output_tolerance(opt.format));
+  const auto errors =
+      test::isolated_errors(scene, run.trace, opt, opt.half_rounding, blur_tolerance(opt.format),
+                            output_tolerance(opt.format));
   REQUIRE(errors[1].stage == "blur.1");
   CHECK(errors[1].max_ratio > 3.0);
 }
@@ -207,15 +207,17 @@ TEST_CASE("bloom off: the final pass reads the scene alone", "[user-shaders]") {
   opt.exposure = 0.7f;
   const Image scene = test_scene(20, 10);
   const auto run = gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(), opt);
-  const auto errors = test::isolated_errors(scene, run.trace, opt, opt.half_rounding,
-                                            blur_tolerance(opt.format), output_tolerance(opt.format));
+  const auto errors =
+      test::isolated_errors(scene, run.trace, opt, opt.half_rounding, blur_tolerance(opt.format),
+                            output_tolerance(opt.format));
   REQUIRE(errors.back().stage == "output");
   CHECK(errors.back().max_ratio <= 1.0);  // against the scene alone
   // ... and not against the scene with the bloom added.
   const Image with_bloom = test::cpu_final(scene, run.trace.find("blur.2")->image, 0.7f, 2.2f,
                                            Storage::f32, opt.half_rounding);
-  CHECK(test::stage_error("output", run.trace.find("output")->image, with_bloom, 1e-4, 0)
-            .max_ratio > 10);
+  CHECK(
+      test::stage_error("output", run.trace.find("output")->image, with_bloom, 1e-4, 0).max_ratio >
+      10);
 }
 
 TEST_CASE("the trace is in bloomref's orientation for either row order", "[user-shaders]") {
@@ -234,8 +236,8 @@ TEST_CASE("the trace is in bloomref's orientation for either row order", "[user-
     opt.filter = gpu::TextureFilter::nearest;
     opt.rows = rows;
     opt.passes = 1;
-    const auto run = gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(kCopyBlur, kCoordFinal),
-                                          opt);
+    const auto run =
+        gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(kCopyBlur, kCoordFinal), opt);
     const Image& copy = run.trace.find("blur.1")->image;
     const Image& out = run.trace.find("output")->image;
     for (int y = 0; y < h; ++y)
@@ -291,13 +293,13 @@ void main() {
     // 1.25, texel 1 (value 3).
     CHECK(blur1(gpu::TextureWrap::clamp_to_edge, gpu::TextureFilter::nearest).pixel(0, 0)[0] ==
           2.0f);
-    CHECK(blur1(gpu::TextureWrap::repeat, gpu::TextureFilter::nearest).pixel(0, 0)[0] ==
-          float(w));
+    CHECK(blur1(gpu::TextureWrap::repeat, gpu::TextureFilter::nearest).pixel(0, 0)[0] == float(w));
     CHECK(blur1(gpu::TextureWrap::mirrored_repeat, gpu::TextureFilter::nearest).pixel(0, 0)[0] ==
           3.0f);
   }
-  SECTION("filter: texel coordinate x - 1.25 is texel x - 2 (nearest) or 3:1 between x - 2 and "
-          "x - 1 (linear)") {
+  SECTION(
+      "filter: texel coordinate x - 1.25 is texel x - 2 (nearest) or 3:1 between x - 2 and "
+      "x - 1 (linear)") {
     const Image nearest = blur1(gpu::TextureWrap::clamp_to_edge, gpu::TextureFilter::nearest);
     const Image linear = blur1(gpu::TextureWrap::clamp_to_edge, gpu::TextureFilter::linear);
     for (int x = 2; x < w; ++x) {
@@ -352,11 +354,14 @@ void main() {
       opt.passes = 1;
       const Image out =
           gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(kCopyBlur, third), opt)
-              .trace.find("output")->image;
+              .trace.find("output")
+              ->image;
       INFO(gpu::to_string(f));
       const float v = out.pixel(1, 1)[0];
-      if (f == gpu::TargetFormat::rgba32f) CHECK(std::fabs(v - third_f) <= 2e-7f);
-      else CHECK((v == 0.333251953125f || v == 0.33349609375f));
+      if (f == gpu::TargetFormat::rgba32f)
+        CHECK(std::fabs(v - third_f) <= 2e-7f);
+      else
+        CHECK((v == 0.333251953125f || v == 0.33349609375f));
       CHECK(out.pixel(1, 1)[3] == (f == gpu::TargetFormat::rgb16f ? 1.0f : v));
     }
   }
@@ -382,28 +387,33 @@ TEST_CASE("shaders that do not fit the preset are refused, naming the file and t
   };
   CHECK(refusal(own_shaders(), opt) == "accepted");
   SECTION("a compile error: the file and the compiler's log") {
-    const std::string m = refusal(own_shaders(replaced(kBlur9, "sum += texture", "sum += textur")), opt);
-    CHECK_THAT(m, Catch::Contains("test_blur9.fs | test_blur9.fs: fragment shader does not compile"));
+    const std::string m =
+        refusal(own_shaders(replaced(kBlur9, "sum += texture", "sum += textur")), opt);
+    CHECK_THAT(m,
+               Catch::Contains("test_blur9.fs | test_blur9.fs: fragment shader does not compile"));
     CHECK_THAT(m, Catch::Contains("textur"));  // the log names the culprit
   }
   SECTION("a sampler the preset requires is missing") {
     const std::string m = refusal(
-        own_shaders(kBlur9, replaced(kFinal, "hdr += texture(bloomBlur, TexCoords).rgb", "hdr *= 2.0")),
+        own_shaders(kBlur9,
+                    replaced(kFinal, "hdr += texture(bloomBlur, TexCoords).rgb", "hdr *= 2.0")),
         opt);
     CHECK_THAT(m, Catch::StartsWith("test_final.fs | "));
     CHECK_THAT(m, Catch::Contains("sampler 'bloomBlur'"));
     CHECK_THAT(m, Catch::Contains("missing"));
   }
   SECTION("a uniform the preset requires is unused, so missing") {
-    const std::string m = refusal(own_shaders(kBlur9, replaced(kFinal, "-hdr * exposure", "-hdr")), opt);
+    const std::string m =
+        refusal(own_shaders(kBlur9, replaced(kFinal, "-hdr * exposure", "-hdr")), opt);
     CHECK_THAT(m, Catch::Contains("uniform 'exposure'"));
     CHECK_THAT(m, Catch::Contains("missing"));
   }
   SECTION("an unknown uniform: refused without an initialiser, kept with one") {
-    const std::string base =
-        replaced(kBlur9, "uniform bool horizontal;", "uniform bool horizontal;\nuniform float spread@;");
-    const std::string used = replaced(base, "vec2 d = horizontal ? vec2(texel.x, 0.0) : vec2(0.0, texel.y);",
-                                      "vec2 d = spread * (horizontal ? vec2(texel.x, 0.0) : vec2(0.0, texel.y));");
+    const std::string base = replaced(kBlur9, "uniform bool horizontal;",
+                                      "uniform bool horizontal;\nuniform float spread@;");
+    const std::string used =
+        replaced(base, "vec2 d = horizontal ? vec2(texel.x, 0.0) : vec2(0.0, texel.y);",
+                 "vec2 d = spread * (horizontal ? vec2(texel.x, 0.0) : vec2(0.0, texel.y));");
     const std::string m = refusal(own_shaders(replaced(used, "@", "")), opt);
     CHECK_THAT(m, Catch::StartsWith("test_blur9.fs | "));
     CHECK_THAT(m, Catch::Contains("uniform 'spread'"));
@@ -412,17 +422,19 @@ TEST_CASE("shaders that do not fit the preset are refused, naming the file and t
   }
   SECTION("an unknown sampler") {
     const std::string m = refusal(
-        own_shaders(kBlur9, replaced(replaced(kFinal, "uniform bool bloom;",
-                                              "uniform bool bloom;\nuniform sampler2D dirt;"),
-                                     "vec3 mapped", "hdr += texture(dirt, TexCoords).rgb;\n  vec3 mapped")),
+        own_shaders(kBlur9,
+                    replaced(replaced(kFinal, "uniform bool bloom;",
+                                      "uniform bool bloom;\nuniform sampler2D dirt;"),
+                             "vec3 mapped", "hdr += texture(dirt, TexCoords).rgb;\n  vec3 mapped")),
         opt);
     CHECK_THAT(m, Catch::Contains("sampler 'dirt'"));
   }
   SECTION("a host uniform of another type") {
-    const std::string m = refusal(
-        own_shaders(replaced(replaced(kBlur9, "uniform bool horizontal;", "uniform float horizontal;"),
-                             "vec2 d = horizontal ?", "vec2 d = horizontal > 0.5 ?")),
-        opt);
+    const std::string m =
+        refusal(own_shaders(replaced(
+                    replaced(kBlur9, "uniform bool horizontal;", "uniform float horizontal;"),
+                    "vec2 d = horizontal ?", "vec2 d = horizontal > 0.5 ?")),
+                opt);
     CHECK_THAT(m, Catch::Contains("uniform 'horizontal' is declared float"));
   }
   SECTION("bloom off needs the `bloom` uniform") {
@@ -487,7 +499,8 @@ uniform float threshold;
 void main() {
   vec3 c = texture(scene, TexCoords).rgb;
   colour = vec4(2.0 * c, 1.0);
-  bright = dot(c, vec3(0.2126, 0.7152, 0.0722)) > threshold ? vec4(c, 1.0) : vec4(0.0, 0.0, 0.0, 1.0);
+  float l = dot(c, vec3(0.2126, 0.7152, 0.0722));
+  bright = l > threshold ? vec4(c, 1.0) : vec4(0.0, 0.0, 0.0, 1.0);
 }
 )glsl";
 
@@ -504,9 +517,9 @@ TEST_CASE("the user's bright pass, one output or two", "[user-shaders]") {
   // Each stage within the bounds of user_shader_checks.h (the bright pass's lookups of the
   // scene at interpolated coordinates included).
   auto check_stages = [&](const gpu::UserPipelineRun& run) {
-    for (const auto& e : test::isolated_errors(scene, run.trace, opt, opt.half_rounding,
-                                               blur_tolerance(opt.format),
-                                               output_tolerance(opt.format))) {
+    for (const auto& e :
+         test::isolated_errors(scene, run.trace, opt, opt.half_rounding, blur_tolerance(opt.format),
+                               output_tolerance(opt.format))) {
       INFO(e.stage << ": max |d| " << e.max_abs << ", ratio " << e.max_ratio);
       CHECK(e.max_ratio <= 1.0);
     }
@@ -532,8 +545,9 @@ TEST_CASE("the user's bright pass, one output or two", "[user-shaders]") {
     for (std::size_t i = 0; i < twice.values().size(); ++i)
       if (i % 4 != 3) twice.values()[i] *= 2.0f;
     const Image look = test::lookup_term(twice, 1, 1);
-    CHECK(test::stage_error("input", run.trace.find("input")->image, twice, 0, 0, &look)
-              .max_ratio <= 1.0);
+    CHECK(
+        test::stage_error("input", run.trace.find("input")->image, twice, 0, 0, &look).max_ratio <=
+        1.0);
     check_stages(run);  // the output from the trace's input: twice the scene
     CHECK(test::stage_error("input", run.trace.find("input")->image, scene, 1e-3, 0).max_ratio > 1);
   }
@@ -560,8 +574,9 @@ TEST_CASE("no blur passes: the final pass reads the bright image", "[user-shader
   opt.passes = 0;
   const auto run = gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(), opt);
   REQUIRE(run.trace.stages.size() == 3);
-  const auto errors = test::isolated_errors(scene, run.trace, opt, opt.half_rounding,
-                                            blur_tolerance(opt.format), output_tolerance(opt.format));
+  const auto errors =
+      test::isolated_errors(scene, run.trace, opt, opt.half_rounding, blur_tolerance(opt.format),
+                            output_tolerance(opt.format));
   REQUIRE(errors.back().stage == "output");  // from the input and the bright image
   CHECK(errors.back().max_ratio <= 1.0);
 }

@@ -18,11 +18,11 @@ namespace bloomref::test {
 
 struct StageError {
   std::string stage;
-  double max_abs = 0;    ///< largest |gl - cpu| over finite RGB values
-  double max_ratio = 0;  ///< largest |gl - cpu| / (abs_tol + rel_tol * |cpu|)
+  double max_abs = 0;             ///< largest |gl - cpu| over finite RGB values
+  double max_ratio = 0;           ///< largest |gl - cpu| / (abs_tol + rel_tol * |cpu|)
   int x = 0, y = 0, channel = 0;  ///< where max_ratio is
   double gl = 0, cpu = 0;
-  std::size_t nan_gl = 0, nan_cpu = 0;  ///< non-finite RGB values on each side
+  std::size_t nan_gl = 0, nan_cpu = 0;        ///< non-finite RGB values on each side
   int abs_x = 0, abs_y = 0, abs_channel = 0;  ///< where max_abs is
 };
 
@@ -54,7 +54,9 @@ inline StageError stage_error(const std::string& stage, const Image& gl, const I
 /// How far, in texels, a lookup may land from where the CPU puts it: the interpolated texture
 /// coordinate, the added offset and the sampler's scaling by the size n each round in float
 /// near 1 (2^-24 each, times n in texels); 16 such roundings is 2^-20 n.
-inline double lookup_error_texels(int n) { return std::ldexp(double(n), -20); }
+inline double lookup_error_texels(int n) {
+  return std::ldexp(double(n), -20);
+}
 
 /// Per value: the largest difference between two adjacent texels within rx columns and ry rows
 /// of it, times lookup_error_texels along that axis: what lookups landing that far off can change
@@ -76,7 +78,8 @@ inline Image lookup_term(const Image& src, int rx, int ry) {
         for (int j = y - ry - 1; j <= y + ry; ++j)
           for (int i = x - rx - 1; i <= x + rx; ++i) {
             const double v = at(i, j, c);
-            m = std::max({m, ex * std::fabs(at(i + 1, j, c) - v), ey * std::fabs(at(i, j + 1, c) - v)});
+            m = std::max(
+                {m, ex * std::fabs(at(i + 1, j, c) - v), ey * std::fabs(at(i, j + 1, c) - v)});
           }
         out.pixel(x, y)[c] = std::isfinite(m) ? static_cast<float>(m) : 0.0f;
       }
@@ -84,7 +87,9 @@ inline Image lookup_term(const Image& src, int rx, int ry) {
 }
 
 /// One binary16 ULP relative (either rounding of a write), or 0 for float storage.
-inline double rel_store(Storage s) { return s == Storage::f16 ? 1.0 / 1024 : 0.0; }
+inline double rel_store(Storage s) {
+  return s == Storage::f16 ? 1.0 / 1024 : 0.0;
+}
 
 /// Largest |value| over RGB (finite values).
 inline double max_magnitude(const Image& img) {
@@ -133,8 +138,8 @@ inline std::vector<StageError> isolated_errors(const Image& scene, const StageTr
   // A user's bright pass looks the scene up at interpolated coordinates (lookup_term); the
   // oracle's bright image is uploaded as it is, and then meets this bound with error 0.
   const Image bright_look = lookup_term(sanitized, 1, 1);
-  out.push_back(stage_error("bright", t.find("bright")->image, bright, 0, rel_store(storage),
-                            &bright_look));
+  out.push_back(
+      stage_error("bright", t.find("bright")->image, bright, 0, rel_store(storage), &bright_look));
   const Image* prev = &t.find("bright")->image;
   for (int k = 1; k <= opt.passes; ++k) {
     const std::string name = "blur." + std::to_string(k);
@@ -147,8 +152,8 @@ inline std::vector<StageError> isolated_errors(const Image& scene, const StageTr
     const double m = max_magnitude(*prev);
     const bool hor = o.axis == Axis::horizontal;
     const Image look = lookup_term(*prev, hor ? 5 : 1, hor ? 1 : 5);
-    out.push_back(stage_error(name, t.find(name)->image, b,
-                              blur_tol.abs_of_max * m + blur_tol.abs, blur_tol.rel, &look));
+    out.push_back(stage_error(name, t.find(name)->image, b, blur_tol.abs_of_max * m + blur_tol.abs,
+                              blur_tol.rel, &look));
     prev = &t.find(name)->image;
   }
   const Image& scene_in = t.find("input")->image;
@@ -174,8 +179,8 @@ inline std::vector<StageError> isolated_errors(const Image& scene, const StageTr
         const double e = std::pow(hi, 1.0 / gamma) - std::pow(lo, 1.0 / gamma);
         extra.pixel(x, y)[c] = std::isfinite(e) ? static_cast<float>(e) : 0.0f;
       }
-  out.push_back(stage_error("output", t.find("output")->image, expect, out_tol.abs, out_tol.rel,
-                            &extra));
+  out.push_back(
+      stage_error("output", t.find("output")->image, expect, out_tol.abs, out_tol.rel, &extra));
   return out;
 }
 

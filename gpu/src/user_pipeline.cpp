@@ -59,20 +59,28 @@ E parse(const Named<E> (&table)[N], const char* what, const std::string& s) {
 
 GLenum gl_format(TargetFormat f) {
   switch (f) {
-    case TargetFormat::rgba16f: return GL_RGBA16F;
-    case TargetFormat::rgb16f: return GL_RGB16F;
-    case TargetFormat::rgba32f: return GL_RGBA32F;
+    case TargetFormat::rgba16f:
+      return GL_RGBA16F;
+    case TargetFormat::rgb16f:
+      return GL_RGB16F;
+    case TargetFormat::rgba32f:
+      return GL_RGBA32F;
   }
   return GL_RGBA32F;
 }
 
-GLenum gl_filter(TextureFilter f) { return f == TextureFilter::nearest ? GL_NEAREST : GL_LINEAR; }
+GLenum gl_filter(TextureFilter f) {
+  return f == TextureFilter::nearest ? GL_NEAREST : GL_LINEAR;
+}
 
 GLenum gl_wrap(TextureWrap w) {
   switch (w) {
-    case TextureWrap::clamp_to_edge: return GL_CLAMP_TO_EDGE;
-    case TextureWrap::repeat: return GL_REPEAT;
-    case TextureWrap::mirrored_repeat: return GL_MIRRORED_REPEAT;
+    case TextureWrap::clamp_to_edge:
+      return GL_CLAMP_TO_EDGE;
+    case TextureWrap::repeat:
+      return GL_REPEAT;
+    case TextureWrap::mirrored_repeat:
+      return GL_MIRRORED_REPEAT;
   }
   return GL_CLAMP_TO_EDGE;
 }
@@ -122,8 +130,8 @@ Programs build_programs_unchecked(GlContext& ctx, const LearnOpenGLShaders& s,
   }
   p.blur = build_user_program("blur", s.blur_vs ? &*s.blur_vs : nullptr, s.blur_fs, blur_host());
   p.blur.set_sampler("image", 0);
-  p.final = build_user_program("final", s.final_vs ? &*s.final_vs : nullptr, s.final_fs,
-                               final_host(opt));
+  p.final =
+      build_user_program("final", s.final_vs ? &*s.final_vs : nullptr, s.final_fs, final_host(opt));
   p.final.set_sampler("scene", 0);
   p.final.set_sampler("bloomBlur", 1);
   p.final.set_flag("bloom", opt.bloom);
@@ -175,10 +183,10 @@ Image flipped_rows(ConstImageView src) {
 
 // The quad of bloom.cpp's renderQuad: a triangle strip, (x, y, z, s, t) per corner.
 constexpr float kQuad[] = {
-    -1.0f, 1.0f, 0.0f, 0.0f, 1.0f,   // top left
+    -1.0f, 1.0f,  0.0f, 0.0f, 1.0f,  // top left
     -1.0f, -1.0f, 0.0f, 0.0f, 0.0f,  // bottom left
-    1.0f, 1.0f, 0.0f, 1.0f, 1.0f,    // top right
-    1.0f, -1.0f, 0.0f, 1.0f, 0.0f,   // bottom right
+    1.0f,  1.0f,  0.0f, 1.0f, 1.0f,  // top right
+    1.0f,  -1.0f, 0.0f, 1.0f, 0.0f,  // bottom right
 };
 
 // The quad's vertex array, and the fixed-function state the tutorial's passes run with.
@@ -239,16 +247,30 @@ class QuadState {
 
 }  // namespace
 
-std::string to_string(TargetFormat f) { return name_of(kFormats, f); }
-std::string to_string(TextureFilter f) { return name_of(kFilters, f); }
-std::string to_string(TextureWrap w) { return name_of(kWraps, w); }
-std::string to_string(RowOrder r) { return name_of(kRows, r); }
+std::string to_string(TargetFormat f) {
+  return name_of(kFormats, f);
+}
+std::string to_string(TextureFilter f) {
+  return name_of(kFilters, f);
+}
+std::string to_string(TextureWrap w) {
+  return name_of(kWraps, w);
+}
+std::string to_string(RowOrder r) {
+  return name_of(kRows, r);
+}
 TargetFormat parse_target_format(const std::string& s) {
   return parse(kFormats, "target format", s);
 }
-TextureFilter parse_texture_filter(const std::string& s) { return parse(kFilters, "filter", s); }
-TextureWrap parse_texture_wrap(const std::string& s) { return parse(kWraps, "wrap", s); }
-RowOrder parse_row_order(const std::string& s) { return parse(kRows, "row order", s); }
+TextureFilter parse_texture_filter(const std::string& s) {
+  return parse(kFilters, "filter", s);
+}
+TextureWrap parse_texture_wrap(const std::string& s) {
+  return parse(kWraps, "wrap", s);
+}
+RowOrder parse_row_order(const std::string& s) {
+  return parse(kRows, "row order", s);
+}
 
 Storage storage_of(TargetFormat f) {
   return f == TargetFormat::rgba32f ? Storage::f32 : Storage::f16;
@@ -265,8 +287,10 @@ ShaderSource load_shader(const std::string& path) {
 
 UserPipelineOptions options_for(const BloomParams& params) {
   if (params.method != Method::gaussian)
-    throw ParamError("the learnopengl preset runs the gaussian method (ping-pong blur passes); "
-                     "--method " + to_string(params.method) + " has no such passes");
+    throw ParamError(
+        "the learnopengl preset runs the gaussian method (ping-pong blur passes); "
+        "--method " +
+        to_string(params.method) + " has no such passes");
   UserPipelineOptions opt;
   opt.format = params.storage == Storage::f16 ? TargetFormat::rgba16f : TargetFormat::rgba32f;
   opt.passes = params.passes;
@@ -284,8 +308,7 @@ std::vector<ProgramInterface> check_learnopengl(GlContext& ctx, const LearnOpenG
 }
 
 UserPipelineRun run_learnopengl(GlContext& ctx, ConstImageView scene,
-                                const LearnOpenGLShaders& shaders,
-                                const UserPipelineOptions& opt) {
+                                const LearnOpenGLShaders& shaders, const UserPipelineOptions& opt) {
   validate(opt);
   const auto t_start = Clock::now();
   const int w = scene.width, h = scene.height;
@@ -383,8 +406,8 @@ UserPipelineRun run_learnopengl(GlContext& ctx, ConstImageView scene,
   const Texture& bloom = opt.passes > 0 ? ping[horizontal ? 0 : 1] : bright_tex;
 
   Texture out(w, h, format);
-  const double ms = quad.draw(ctx, prog.final, {&scene_tex, &bloom}, out, nullptr,
-                              opt.clear_colour, "the user's final pass");
+  const double ms = quad.draw(ctx, prog.final, {&scene_tex, &bloom}, out, nullptr, opt.clear_colour,
+                              "the user's final pass");
   add("output", read_back(out), ms);
   trace.total_ms = ms_since(t_start);
   return run;

@@ -17,6 +17,7 @@ struct GlType {
 };
 
 // The uniform and attribute types a fragment or vertex shader of GLSL 3.30 can declare.
+// clang-format off
 constexpr GlType kTypes[] = {
     {GL_FLOAT, "float", 1},         {GL_FLOAT_VEC2, "vec2", 2},
     {GL_FLOAT_VEC3, "vec3", 3},     {GL_FLOAT_VEC4, "vec4", 4},
@@ -32,6 +33,7 @@ constexpr GlType kTypes[] = {
     {GL_FLOAT_MAT3x4, "mat3x4", 12}, {GL_FLOAT_MAT4x2, "mat4x2", 8},
     {GL_FLOAT_MAT4x3, "mat4x3", 12}, {GL_SAMPLER_2D, "sampler2D", 1},
 };
+// clang-format on
 
 std::string type_name(GLenum t) {
   for (const GlType& g : kTypes)
@@ -48,6 +50,7 @@ int components(GLenum t) {
 }
 
 // Sampler types of every dimensionality and return type (GLSL 3.30 and later).
+// clang-format off
 bool is_sampler(GLenum t) {
   switch (t) {
     case GL_SAMPLER_1D: case GL_SAMPLER_2D: case GL_SAMPLER_3D: case GL_SAMPLER_CUBE:
@@ -62,17 +65,24 @@ bool is_sampler(GLenum t) {
       return false;
   }
 }
+// clang-format on
 
-bool is_flag_type(GLenum t) { return t == GL_BOOL || t == GL_INT || t == GL_UNSIGNED_INT; }
+bool is_flag_type(GLenum t) {
+  return t == GL_BOOL || t == GL_INT || t == GL_UNSIGNED_INT;
+}
 
 std::string info_log(GLuint object, bool program) {
   GLint n = 0;
-  if (program) glGetProgramiv(object, GL_INFO_LOG_LENGTH, &n);
-  else glGetShaderiv(object, GL_INFO_LOG_LENGTH, &n);
+  if (program)
+    glGetProgramiv(object, GL_INFO_LOG_LENGTH, &n);
+  else
+    glGetShaderiv(object, GL_INFO_LOG_LENGTH, &n);
   if (n <= 1) return "";
   std::string log(static_cast<std::size_t>(n), '\0');
-  if (program) glGetProgramInfoLog(object, n, nullptr, log.data());
-  else glGetShaderInfoLog(object, n, nullptr, log.data());
+  if (program)
+    glGetProgramInfoLog(object, n, nullptr, log.data());
+  else
+    glGetShaderInfoLog(object, n, nullptr, log.data());
   log.resize(std::strlen(log.c_str()));
   while (!log.empty() && (log.back() == '\n' || log.back() == ' ')) log.pop_back();
   return log;
@@ -121,9 +131,12 @@ bool initialised(GLuint prog, const std::string& name, GLenum type, int size) {
 
 const char* kind_name(HostUniform::Kind k) {
   switch (k) {
-    case HostUniform::sampler: return "sampler2D";
-    case HostUniform::flag: return "bool";
-    case HostUniform::number: return "float";
+    case HostUniform::sampler:
+      return "sampler2D";
+    case HostUniform::flag:
+      return "bool";
+    case HostUniform::number:
+      return "float";
   }
   return "?";
 }
@@ -148,7 +161,7 @@ void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostU
     char name[256] = {};
     glGetActiveUniformBlockName(prog, 0, sizeof name, nullptr, name);
     throw UserShaderError(files.of(name), std::string("uniform block '") + name +
-                                    "' is not set by the learnopengl preset's host code");
+                                              "' is not set by the learnopengl preset's host code");
   }
   std::vector<std::string> seen;
   for (GLint i = 0; i < count; ++i) {
@@ -189,12 +202,12 @@ void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostU
   }
   for (const HostUniform& h : host) {
     if (!h.required || std::find(seen.begin(), seen.end(), h.name) != seen.end()) continue;
-    throw UserShaderError(files.fs.path, std::string(h.kind == HostUniform::sampler ? "sampler '"
-                                                                           : "uniform '") +
-                                    h.name + "' (" + kind_name(h.kind) + ", " + h.role +
-                                    ") is missing: the preset requires it. A uniform the shader "
-                                    "declares but never reads is removed by the compiler and "
-                                    "counts as missing");
+    throw UserShaderError(files.fs.path,
+                          std::string(h.kind == HostUniform::sampler ? "sampler '" : "uniform '") +
+                              h.name + "' (" + kind_name(h.kind) + ", " + h.role +
+                              ") is missing: the preset requires it. A uniform the shader "
+                              "declares but never reads is removed by the compiler and "
+                              "counts as missing");
   }
 }
 
@@ -211,8 +224,8 @@ void check_attributes(UserProgram& up, const std::string& file) {
     if (name.rfind("gl_", 0) == 0) continue;  // gl_VertexID and friends
     const GLint loc = glGetAttribLocation(prog, buf);
     ActiveVariable v{name, type_name(type), size, loc, ""};
-    const bool vector = type == GL_FLOAT || type == GL_FLOAT_VEC2 || type == GL_FLOAT_VEC3 ||
-                        type == GL_FLOAT_VEC4;
+    const bool vector =
+        type == GL_FLOAT || type == GL_FLOAT_VEC2 || type == GL_FLOAT_VEC3 || type == GL_FLOAT_VEC4;
     if ((loc != 0 && loc != 1) || !vector || size != 1)
       throw UserShaderError(file, "attribute '" + name + "' (" + v.type + ", location " +
                                       std::to_string(loc) +
@@ -254,8 +267,10 @@ void UserProgram::set_flag(const std::string& uniform, bool v) const {
   const char* name = uniform.c_str();
   glGetUniformIndices(program.id, 1, &name, &index);
   glGetActiveUniform(program.id, index, 0, nullptr, &size, &type, nullptr);
-  if (type == GL_UNSIGNED_INT) glProgramUniform1ui(program.id, loc, v ? 1u : 0u);
-  else glProgramUniform1i(program.id, loc, v ? 1 : 0);
+  if (type == GL_UNSIGNED_INT)
+    glProgramUniform1ui(program.id, loc, v ? 1u : 0u);
+  else
+    glProgramUniform1i(program.id, loc, v ? 1 : 0);
 }
 
 void UserProgram::set_number(const std::string& uniform, float v) const {
@@ -269,8 +284,7 @@ void UserProgram::set_sampler(const std::string& uniform, int unit) const {
 }
 
 bool UserProgram::has_output(int loc) const {
-  return std::find(output_locations.begin(), output_locations.end(), loc) !=
-         output_locations.end();
+  return std::find(output_locations.begin(), output_locations.end(), loc) != output_locations.end();
 }
 
 UserProgram build_user_program(const std::string& name, const ShaderSource* vs,

@@ -137,7 +137,7 @@ struct ActiveVariable {
 };
 
 struct ProgramInterface {
-  std::string program;  ///< "bright", "blur" or "final"
+  std::string program;                     ///< "bright", "blur" or "final"
   std::string vertex_file, fragment_file;  ///< "" for bloomref's own vertex shader
   std::vector<ActiveVariable> uniforms, attributes;
   std::string log;  ///< the compiler's and linker's messages (warnings), if any
