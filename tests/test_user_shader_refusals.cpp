@@ -68,6 +68,16 @@ TEST_CASE("shaders that do not fit the preset are refused, naming the file and t
     CHECK_THAT(m, Catch::Contains("used at 0"));
     CHECK(refusal(own_shaders(replaced(used, "@", " = 1.0")), opt) == "accepted");
   }
+  SECTION("an unknown array: refused when every element is 0, kept when one is not") {
+    const std::string used = replaced(
+        replaced(kFinal, "uniform float exposure;", "uniform float exposure;\nuniform vec2 k[3]@;"),
+        "vec3 mapped", "hdr *= k[0].x + k[1].y + k[2].x;\n  vec3 mapped");
+    const std::string m = refusal(own_shaders(kBlur9, replaced(used, "@", "")), opt);
+    CHECK_THAT(m, Catch::Contains("uniform 'k' (vec2)"));
+    CHECK(refusal(own_shaders(kBlur9, replaced(used, "@", " = vec2[](vec2(0.0), vec2(0.0), "
+                                                       "vec2(1.0, 0.0))")),
+                  opt) == "accepted");
+  }
   SECTION("an unknown sampler") {
     const std::string m = refusal(
         own_shaders(kBlur9,

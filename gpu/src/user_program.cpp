@@ -191,7 +191,7 @@ void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostU
       throw UserShaderError(file, "sampler '" + name + "' (" + v.type +
                                       ") is not one the learnopengl preset binds here; it would "
                                       "read texture unit 0");
-    } else if (!initialised(prog, buf, type, size)) {
+    } else if (!initialised(prog, name, type, size)) {
       throw UserShaderError(file, "uniform '" + name + "' (" + v.type +
                                       ") is not set by the learnopengl preset's host code and has "
                                       "no non-zero initialiser, so it would be used at 0");
