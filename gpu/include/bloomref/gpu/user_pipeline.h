@@ -1,0 +1,168 @@
+// bloomref GPU — running a user's own, unmodified GLSL bloom shaders headless, the way their
+// host code drives them, and reading back every pass as a StageTrace the parity library judges.
+//
+// Preset `learnopengl` (JoeyDeVries/LearnOpenGL, src/5.advanced_lighting/7.bloom/bloom.cpp, the
+// host code the tutorial's 7.blur.fs and 7.bloom_final.fs are written for):
+//  * every pass draws a full-screen quad: a triangle strip of four vertices, attribute location
+//    0 `aPos` (vec3, the corners at z = 0) and location 1 `aTexCoords` (vec2, 0 at the left and
+//    bottom corners, 1 at the right and top ones);
+//  * bright: the oracle's (extract_bright on the CPU, stored as the target format stores it,
+//    uploaded), or the user's bright-pass fragment shader (below);
+//  * blur: `passes` draws into two ping-pong framebuffers, the first reading the bright texture
+//    and each later one the other framebuffer's texture; pass k sets `horizontal` to true when k
+//    is odd (the first pass is horizontal); the blur program's sampler `image` is unit 0;
+//  * final: samplers `scene` (unit 0: the scene texture) and `bloomBlur` (unit 1: the last blur
+//    pass's texture, or the bright texture when passes is 0), uniforms `bloom` (bool) and
+//    `exposure` (float); it draws into a target of the same format.
+// Host state is declared in UserPipelineOptions, never assumed: target format, filter, wrap,
+// clear colour (every target is cleared to it before its pass draws), passes, exposure, bloom.
+//
+// Interface check (before any pass runs): each linked program's active uniforms and attributes
+// are read back (glGetProgramiv GL_ACTIVE_UNIFORMS / GL_ACTIVE_ATTRIBUTES) and compared with what
+// the preset sets. Refused, with a UserShaderError naming the file and the name:
+//  * a sampler or uniform the preset requires that is missing (a compiler drops a uniform the
+//    shader never reads, so an unused `exposure` is missing too), or of another type;
+//  * a sampler the preset does not know (it would read unit 0), a uniform block;
+//  * a uniform the preset does not know whose value after linking is zero in every component:
+//    the host never sets it, so it is used at 0. One with an initialiser (the tutorial's
+//    `uniform float weight[5] = float[](...)`) keeps its initialiser and is accepted;
+//  * an attribute at a location other than 0 or 1 (the host binds `aPos` and `aTexCoords`
+//    there with glBindAttribLocation; a `layout(location = ...)` in the shader wins);
+//  * a program without a fragment output at location 0.
+// A shader that does not compile, or programs that do not link, are a UserShaderError naming
+// the file(s), with the compiler's log.
+//
+// Orientation: bloomref images have row 0 at the top; GL's texture rows count from the bottom.
+// RowOrder::same uploads image row y as texel row y (texture coordinate t = (y + 0.5) / h counts
+// from the top, as the CPU oracle's coordinates do, and as bloomref's own GL path stores images);
+// RowOrder::flipped uploads the top row as GL's row h - 1 (as a window would show it). Either
+// way every readback is put back in bloomref's orientation, so the trace's images line up with
+// the oracle's.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bloomref/error.h"
+#include "bloomref/executor.h"
+#include "bloomref/gpu/context.h"
+#include "bloomref/half.h"
+#include "bloomref/params.h"
+
+namespace bloomref::gpu {
+
+/// A user's shader cannot be used: it does not compile or link, or its interface is not the
+/// preset's. file() names the shader file (or files, for a link error); the CLI exits 2.
+class UserShaderError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
+/// Internal formats of every texture and render target of the user's pipeline.
+enum class TargetFormat { rgba16f, rgb16f, rgba32f };
+enum class TextureFilter { linear, nearest };
+enum class TextureWrap { clamp_to_edge, repeat, mirrored_repeat };
+enum class RowOrder { same, flipped };
+
+std::string to_string(TargetFormat f);
+std::string to_string(TextureFilter f);
+std::string to_string(TextureWrap w);
+std::string to_string(RowOrder r);
+// parse_* accept the names to_string gives (and GL's: "GL_RGBA16F", "GL_LINEAR",
+// "GL_CLAMP_TO_EDGE", ...); they throw ParamError listing the accepted names.
+TargetFormat parse_target_format(const std::string& s);
+TextureFilter parse_texture_filter(const std::string& s);
+TextureWrap parse_texture_wrap(const std::string& s);
+RowOrder parse_row_order(const std::string& s);
+/// f16 for the half formats, f32 for RGBA32F: the storage the oracle must be run with.
+Storage storage_of(TargetFormat f);
+
+/// One shader's text and the file it came from (named in every error about it).
+struct ShaderSource {
+  std::string path;
+  std::string text;
+};
+/// Reads a shader file unmodified. Throws InputError naming the file when it cannot be read.
+ShaderSource load_shader(const std::string& path);
+
+/// The user's shaders for the `learnopengl` preset. Vertex shaders left out are bloomref's
+/// pass-through (gpu/shaders/user_quad.vert: TexCoords = aTexCoords, gl_Position = (aPos, 1)).
+struct LearnOpenGLShaders {
+  ShaderSource blur_fs, final_fs;
+  std::optional<ShaderSource> blur_vs, final_vs;
+  /// Optional bright pass, drawn over the quad: sampler `scene` (unit 0: the scene texture),
+  /// optional uniform `threshold` (float). With one output it writes the bright image at
+  /// location 0; with an output at location 1 (the tutorial's 7.bloom.fs writes FragColor and
+  /// BrightColor), location 1 is the bright image and location 0 becomes the scene the final
+  /// pass reads (and the trace's `input`).
+  std::optional<ShaderSource> bright_fs, bright_vs;
+};
+
+struct UserPipelineOptions {
+  TargetFormat format = TargetFormat::rgba16f;  ///< the tutorial's GL_RGBA16F
+  TextureFilter filter = TextureFilter::linear;
+  TextureWrap wrap = TextureWrap::clamp_to_edge;
+  std::array<float, 4> clear_colour = {0.0f, 0.0f, 0.0f, 1.0f};
+  int passes = 10;        ///< the tutorial's `amount`
+  float exposure = 1.0f;  ///< uniform `exposure`
+  bool bloom = true;      ///< uniform `bloom`
+  /// The oracle's bright pass (luminance > threshold), and the user's bright shader's
+  /// `threshold` uniform when it has one.
+  float threshold = 1.0f;
+  /// The scene's non-finite policy, applied on the CPU before upload (the oracle's `input`).
+  NonFinite nonfinite = NonFinite::zero;
+  /// How the scene and the oracle's bright image are rounded to binary16 for a half target
+  /// before upload (the oracle must use the same: parity's compare_with_oracle takes it from the
+  /// device profile).
+  HalfRounding half_rounding = HalfRounding::nearest_even_saturate;
+  RowOrder rows = RowOrder::same;
+  int threads = 0;  ///< CPU threads for the oracle's input and bright stages
+};
+
+/// The options a bloomref run with `params` declares: passes, exposure, threshold, non-finite
+/// policy, and RGBA16F / RGBA32F from the storage. Throws ParamError for what the preset cannot
+/// run (method mip). The kernel, gamma and strength are the user's shaders' own: the oracle's
+/// are only what they are judged against.
+UserPipelineOptions options_for(const BloomParams& params);
+
+/// One active uniform or attribute as the linked program reports it.
+struct ActiveVariable {
+  std::string name;  ///< without "[0]"
+  std::string type;  ///< GLSL type name ("float", "bool", "sampler2D", "vec3", ...)
+  int size = 1;      ///< array length
+  int location = -1;
+  std::string role;  ///< "set by the host: ...", "kept at its initialiser", ...
+};
+
+struct ProgramInterface {
+  std::string program;                     ///< "bright", "blur" or "final"
+  std::string vertex_file, fragment_file;  ///< "" for bloomref's own vertex shader
+  std::vector<ActiveVariable> uniforms, attributes;
+  std::string log;  ///< the compiler's and linker's messages (warnings), if any
+};
+
+struct UserPipelineRun {
+  /// `input` (the scene texture as stored), `bright`, `blur.1` ... `blur.N`, `output`, every one
+  /// read back in bloomref's orientation; RGB targets read back with alpha 1. Timings are wall
+  /// times around each pass's draw followed by glFinish.
+  StageTrace trace;
+  std::vector<ProgramInterface> programs;
+  std::string bright_source;  ///< "oracle" or the bright shader's file
+};
+
+/// Compiles, links and checks the user's programs against the preset without drawing: the
+/// refusals above, before any work. Throws UserShaderError; GlError for a GL failure.
+std::vector<ProgramInterface> check_learnopengl(GlContext& ctx, const LearnOpenGLShaders& shaders,
+                                                const UserPipelineOptions& opt);
+
+/// Runs the user's pipeline on `scene` (any size GL allows). Throws UserShaderError (bad
+/// shaders), ParamError (bad options, or non-finite values under NonFinite::error), GlError.
+/// The caller makes the context: GlContext::create throws GlUnavailable where there is no GL
+/// (the CLI exits 3; tests skip unless BLOOMREF_REQUIRE_GL is set, tests/gl_fixture.h).
+UserPipelineRun run_learnopengl(GlContext& ctx, ConstImageView scene,
+                                const LearnOpenGLShaders& shaders,
+                                const UserPipelineOptions& opt = {});
+
+}  // namespace bloomref::gpu

@@ -1,0 +1,416 @@
+#include "bloomref/gpu/user_pipeline.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "bloomref/stages.h"
+#include "gl_objects.h"
+#include "user_program.h"
+
+namespace bloomref::gpu {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+template <class E>
+struct Named {
+  E value;
+  const char* name;
+  const char* gl_name;
+};
+
+constexpr Named<TargetFormat> kFormats[] = {{TargetFormat::rgba16f, "rgba16f", "GL_RGBA16F"},
+                                            {TargetFormat::rgb16f, "rgb16f", "GL_RGB16F"},
+                                            {TargetFormat::rgba32f, "rgba32f", "GL_RGBA32F"}};
+constexpr Named<TextureFilter> kFilters[] = {{TextureFilter::linear, "linear", "GL_LINEAR"},
+                                             {TextureFilter::nearest, "nearest", "GL_NEAREST"}};
+constexpr Named<TextureWrap> kWraps[] = {
+    {TextureWrap::clamp_to_edge, "clamp-to-edge", "GL_CLAMP_TO_EDGE"},
+    {TextureWrap::repeat, "repeat", "GL_REPEAT"},
+    {TextureWrap::mirrored_repeat, "mirrored-repeat", "GL_MIRRORED_REPEAT"}};
+constexpr Named<RowOrder> kRows[] = {{RowOrder::same, "same", "same"},
+                                     {RowOrder::flipped, "flipped", "flipped"}};
+
+template <class E, std::size_t N>
+std::string name_of(const Named<E> (&table)[N], E v) {
+  for (const auto& n : table)
+    if (n.value == v) return n.name;
+  return "?";
+}
+
+template <class E, std::size_t N>
+E parse(const Named<E> (&table)[N], const char* what, const std::string& s) {
+  std::string names;
+  for (const auto& n : table) {
+    if (s == n.name || s == n.gl_name) return n.value;
+    names += (names.empty() ? "" : ", ") + std::string(n.name);
+  }
+  throw ParamError(std::string(what) + " '" + s + "' is not one of: " + names);
+}
+
+GLenum gl_format(TargetFormat f) {
+  switch (f) {
+    case TargetFormat::rgba16f:
+      return GL_RGBA16F;
+    case TargetFormat::rgb16f:
+      return GL_RGB16F;
+    case TargetFormat::rgba32f:
+      return GL_RGBA32F;
+  }
+  return GL_RGBA32F;
+}
+
+GLenum gl_filter(TextureFilter f) {
+  return f == TextureFilter::nearest ? GL_NEAREST : GL_LINEAR;
+}
+
+GLenum gl_wrap(TextureWrap w) {
+  switch (w) {
+    case TextureWrap::clamp_to_edge:
+      return GL_CLAMP_TO_EDGE;
+    case TextureWrap::repeat:
+      return GL_REPEAT;
+    case TextureWrap::mirrored_repeat:
+      return GL_MIRRORED_REPEAT;
+  }
+  return GL_CLAMP_TO_EDGE;
+}
+
+std::string number(float v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+// What the preset's host code sets in each program (bloom.cpp's shaderBlur, shaderBloomFinal).
+std::vector<HostUniform> blur_host() {
+  return {{"image", HostUniform::sampler, true,
+           "texture unit 0: the bright image on pass 1, else the other ping-pong target"},
+          {"horizontal", HostUniform::flag, true, "true on odd passes: pass 1 is horizontal"}};
+}
+
+std::vector<HostUniform> final_host(const UserPipelineOptions& opt) {
+  return {{"scene", HostUniform::sampler, true, "texture unit 0: the scene"},
+          {"bloomBlur", HostUniform::sampler, true, "texture unit 1: the last blur pass"},
+          // Without `bloom` the shader always adds the bloom: refused only when asked off.
+          {"bloom", HostUniform::flag, !opt.bloom, opt.bloom ? "true" : "false: bloom off"},
+          {"exposure", HostUniform::number, true, "exposure = " + number(opt.exposure)}};
+}
+
+std::vector<HostUniform> bright_host(const UserPipelineOptions& opt) {
+  return {{"scene", HostUniform::sampler, true, "texture unit 0: the scene"},
+          {"threshold", HostUniform::number, false, "threshold = " + number(opt.threshold)}};
+}
+
+struct Programs {
+  std::optional<UserProgram> bright;
+  UserProgram blur, final;
+};
+
+Programs build_programs_unchecked(GlContext& ctx, const LearnOpenGLShaders& s,
+                                  const UserPipelineOptions& opt) {
+  Programs p;
+  if (s.bright_fs) {
+    p.bright = build_user_program("bright", s.bright_vs ? &*s.bright_vs : nullptr, *s.bright_fs,
+                                  bright_host(opt));
+    p.bright->set_sampler("scene", 0);
+    p.bright->set_number("threshold", opt.threshold);
+  } else if (s.bright_vs) {
+    throw ParamError("a bright-pass vertex shader (" + s.bright_vs->path +
+                     ") was given without a bright-pass fragment shader");
+  }
+  p.blur = build_user_program("blur", s.blur_vs ? &*s.blur_vs : nullptr, s.blur_fs, blur_host());
+  p.blur.set_sampler("image", 0);
+  p.final =
+      build_user_program("final", s.final_vs ? &*s.final_vs : nullptr, s.final_fs, final_host(opt));
+  p.final.set_sampler("scene", 0);
+  p.final.set_sampler("bloomBlur", 1);
+  p.final.set_flag("bloom", opt.bloom);
+  p.final.set_number("exposure", opt.exposure);
+  ctx.check("building the user's programs");
+  return p;
+}
+
+Programs build_programs(GlContext& ctx, const LearnOpenGLShaders& s,
+                        const UserPipelineOptions& opt) {
+  ctx.check("before building the user's programs");
+  try {
+    return build_programs_unchecked(ctx, s, opt);
+  } catch (const UserShaderError&) {
+    // The compiler's errors also arrive as GL debug messages of type error; they are in the
+    // UserShaderError already, and must not be charged to the next GL call.
+    try {
+      ctx.check("building the user's programs");
+    } catch (const GlError&) {
+    }
+    throw;
+  }
+}
+
+std::vector<ProgramInterface> interfaces(const Programs& p) {
+  std::vector<ProgramInterface> out;
+  if (p.bright) out.push_back(p.bright->interface);
+  out.push_back(p.blur.interface);
+  out.push_back(p.final.interface);
+  return out;
+}
+
+void validate(const UserPipelineOptions& opt) {
+  if (opt.passes < 0 || opt.passes > 1000)
+    throw ParamError("passes " + std::to_string(opt.passes) + " is not in [0, 1000]");
+  if (!std::isfinite(opt.exposure)) throw ParamError("exposure must be finite");
+  if (!std::isfinite(opt.threshold)) throw ParamError("threshold must be finite");
+  for (float c : opt.clear_colour)
+    if (!std::isfinite(c)) throw ParamError("the clear colour must be finite");
+}
+
+Image flipped_rows(ConstImageView src) {
+  Image out = Image::uninitialised(src.width, src.height);
+  for (int y = 0; y < src.height; ++y)
+    std::copy(src.row(y), src.row(y) + std::size_t(src.width) * kChannels,
+              out.view().row(src.height - 1 - y));
+  return out;
+}
+
+// The quad of bloom.cpp's renderQuad: a triangle strip, (x, y, z, s, t) per corner.
+constexpr float kQuad[] = {
+    -1.0f, 1.0f,  0.0f, 0.0f, 1.0f,  // top left
+    -1.0f, -1.0f, 0.0f, 0.0f, 0.0f,  // bottom left
+    1.0f,  1.0f,  0.0f, 1.0f, 1.0f,  // top right
+    1.0f,  -1.0f, 0.0f, 1.0f, 0.0f,  // bottom right
+};
+
+// The quad's vertex array, and the fixed-function state the tutorial's passes run with.
+class QuadState {
+ public:
+  QuadState() {
+    glGenVertexArrays(1, &vao_);
+    glGenBuffers(1, &vbo_);
+    glBindVertexArray(vao_);
+    glBindBuffer(GL_ARRAY_BUFFER, vbo_);
+    glBufferData(GL_ARRAY_BUFFER, sizeof kQuad, kQuad, GL_STATIC_DRAW);
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 5 * sizeof(float), nullptr);
+    glEnableVertexAttribArray(1);
+    glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, 5 * sizeof(float),
+                          reinterpret_cast<const void*>(3 * sizeof(float)));
+    for (GLenum cap : {GL_BLEND, GL_DEPTH_TEST, GL_SCISSOR_TEST, GL_CULL_FACE, GL_STENCIL_TEST,
+                       GL_FRAMEBUFFER_SRGB})
+      glDisable(cap);
+  }
+  ~QuadState() {
+    glBindVertexArray(0);
+    glUseProgram(0);
+    glDeleteBuffers(1, &vbo_);
+    glDeleteVertexArrays(1, &vao_);
+  }
+  QuadState(const QuadState&) = delete;
+  QuadState& operator=(const QuadState&) = delete;
+
+  // Clears the target(s) to the clear colour and draws the quad with `prog`, `units[i]` bound
+  // to texture unit i; returns the wall time of the draw, glFinish included.
+  double draw(GlContext& ctx, const UserProgram& prog, const std::vector<const Texture*>& units,
+              const Texture& out0, const Texture* out1, const std::array<float, 4>& clear,
+              const std::string& what) {
+    Framebuffer fb(out0, out1);
+    glViewport(0, 0, out0.width, out0.height);
+    glClearColor(clear[0], clear[1], clear[2], clear[3]);
+    glClear(GL_COLOR_BUFFER_BIT);
+    glUseProgram(prog.program.id);
+    for (std::size_t i = 0; i < units.size(); ++i) {
+      glActiveTexture(GL_TEXTURE0 + static_cast<GLenum>(i));
+      glBindTexture(GL_TEXTURE_2D, units[i]->id);
+    }
+    glBindVertexArray(vao_);
+    glFinish();
+    const auto t0 = Clock::now();
+    glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+    glFinish();
+    const double ms = ms_since(t0);
+    glActiveTexture(GL_TEXTURE0);
+    ctx.check(what.c_str());
+    return ms;
+  }
+
+ private:
+  GLuint vao_ = 0, vbo_ = 0;
+};
+
+}  // namespace
+
+std::string to_string(TargetFormat f) {
+  return name_of(kFormats, f);
+}
+std::string to_string(TextureFilter f) {
+  return name_of(kFilters, f);
+}
+std::string to_string(TextureWrap w) {
+  return name_of(kWraps, w);
+}
+std::string to_string(RowOrder r) {
+  return name_of(kRows, r);
+}
+TargetFormat parse_target_format(const std::string& s) {
+  return parse(kFormats, "target format", s);
+}
+TextureFilter parse_texture_filter(const std::string& s) {
+  return parse(kFilters, "filter", s);
+}
+TextureWrap parse_texture_wrap(const std::string& s) {
+  return parse(kWraps, "wrap", s);
+}
+RowOrder parse_row_order(const std::string& s) {
+  return parse(kRows, "row order", s);
+}
+
+Storage storage_of(TargetFormat f) {
+  return f == TargetFormat::rgba32f ? Storage::f32 : Storage::f16;
+}
+
+ShaderSource load_shader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, std::string("cannot be read: ") + std::strerror(errno));
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw InputError(path, "cannot be read");
+  return {path, text.str()};
+}
+
+UserPipelineOptions options_for(const BloomParams& params) {
+  if (params.method != Method::gaussian)
+    throw ParamError(
+        "the learnopengl preset runs the gaussian method (ping-pong blur passes); "
+        "--method " +
+        to_string(params.method) + " has no such passes");
+  UserPipelineOptions opt;
+  opt.format = params.storage == Storage::f16 ? TargetFormat::rgba16f : TargetFormat::rgba32f;
+  opt.passes = params.passes;
+  opt.exposure = params.exposure;
+  opt.threshold = params.threshold;
+  opt.nonfinite = params.nonfinite;
+  opt.threads = params.threads;
+  return opt;
+}
+
+std::vector<ProgramInterface> check_learnopengl(GlContext& ctx, const LearnOpenGLShaders& shaders,
+                                                const UserPipelineOptions& opt) {
+  validate(opt);
+  return interfaces(build_programs(ctx, shaders, opt));
+}
+
+UserPipelineRun run_learnopengl(GlContext& ctx, ConstImageView scene,
+                                const LearnOpenGLShaders& shaders, const UserPipelineOptions& opt) {
+  validate(opt);
+  const auto t_start = Clock::now();
+  const int w = scene.width, h = scene.height;
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+  if (w <= 0 || h <= 0 || w > max_size || h > max_size)
+    throw ParamError("a " + std::to_string(w) + "x" + std::to_string(h) +
+                     " scene does not fit this GL's textures (GL_MAX_TEXTURE_SIZE " +
+                     std::to_string(max_size) + ")");
+  Programs prog = build_programs(ctx, shaders, opt);
+  UserPipelineRun run;
+  run.programs = interfaces(prog);
+  run.bright_source = shaders.bright_fs ? shaders.bright_fs->path : "oracle";
+  StageTrace& trace = run.trace;
+  auto add = [&](const std::string& name, Image&& img, double ms) {
+    trace.stages.push_back({name, std::move(img), ms, false});
+    trace.timings.emplace_back(name, ms);
+  };
+
+  // The scene as the user's renderer leaves it in its target: the oracle's input stage
+  // (non-finite policy, then the target's storage), which both sides then read.
+  const Storage storage = storage_of(opt.format);
+  auto t0 = Clock::now();
+  Image sanitized(w, h);
+  trace.nonfinite = sanitize(scene, sanitized.view(), opt.nonfinite, storage, opt.threads);
+  if (opt.nonfinite == NonFinite::error && trace.nonfinite.total() > 0)
+    throw ParamError("the scene holds " + std::to_string(trace.nonfinite.total()) +
+                     " NaN or infinite values, refused under --nonfinite error");
+  Image input = sanitized;
+  store(input.view(), storage, opt.half_rounding, opt.threads);
+
+  const GLenum format = gl_format(opt.format);
+  const bool flip = opt.rows == RowOrder::flipped;
+  auto upload = [&](const Image& img) {
+    if (!flip) return Texture(w, h, format, img.data());
+    const Image f = flipped_rows(img.cview());
+    return Texture(w, h, format, f.data());
+  };
+  auto read_back = [&](const Texture& t) {
+    Image img = Image::uninitialised(w, h);
+    t.read(img.data());
+    return flip ? flipped_rows(img.cview()) : img;
+  };
+  auto sample = [&](const Texture& t) { t.set_sampling(gl_filter(opt.filter), gl_wrap(opt.wrap)); };
+
+  QuadState quad;
+  Texture scene_tex = upload(input);
+  sample(scene_tex);
+  Texture bright_tex(w, h, format);
+  sample(bright_tex);
+  ctx.check("uploading the scene");
+  double input_ms = ms_since(t0);
+
+  if (!prog.bright) {
+    t0 = Clock::now();
+    Image bright(w, h);
+    extract_bright(sanitized.cview(), bright.view(), opt.threshold, opt.threads);
+    store(bright.view(), storage, opt.half_rounding, opt.threads);
+    bright_tex = upload(bright);
+    sample(bright_tex);
+    ctx.check("uploading the oracle's bright image");
+    add("input", read_back(scene_tex), input_ms);
+    add("bright", read_back(bright_tex), ms_since(t0));
+  } else if (prog.bright->has_output(1)) {
+    // The tutorial's MRT form: location 0 is the scene the final pass reads.
+    Texture scene_out(w, h, format);
+    sample(scene_out);
+    const double ms = quad.draw(ctx, *prog.bright, {&scene_tex}, scene_out, &bright_tex,
+                                opt.clear_colour, "the user's bright pass");
+    scene_tex = std::move(scene_out);
+    add("input", read_back(scene_tex), input_ms);
+    add("bright", read_back(bright_tex), ms);
+  } else {
+    const double ms = quad.draw(ctx, *prog.bright, {&scene_tex}, bright_tex, nullptr,
+                                opt.clear_colour, "the user's bright pass");
+    add("input", read_back(scene_tex), input_ms);
+    add("bright", read_back(bright_tex), ms);
+  }
+
+  // bloom.cpp's loop: pingpong[horizontal] is drawn from the bright image on the first
+  // iteration, else from pingpong[!horizontal]; the bloom is pingpong[!horizontal] after it.
+  Texture ping[2] = {Texture(w, h, format), Texture(w, h, format)};
+  sample(ping[0]);
+  sample(ping[1]);
+  bool horizontal = true;
+  for (int k = 1; k <= opt.passes; ++k) {
+    const Texture& src = k == 1 ? bright_tex : ping[horizontal ? 0 : 1];
+    prog.blur.set_flag("horizontal", horizontal);
+    const std::string name = "blur." + std::to_string(k);
+    const double ms = quad.draw(ctx, prog.blur, {&src}, ping[horizontal ? 1 : 0], nullptr,
+                                opt.clear_colour, ("the user's blur pass " + name).c_str());
+    add(name, read_back(ping[horizontal ? 1 : 0]), ms);
+    horizontal = !horizontal;
+  }
+  const Texture& bloom = opt.passes > 0 ? ping[horizontal ? 0 : 1] : bright_tex;
+
+  Texture out(w, h, format);
+  const double ms = quad.draw(ctx, prog.final, {&scene_tex, &bloom}, out, nullptr, opt.clear_colour,
+                              "the user's final pass");
+  add("output", read_back(out), ms);
+  trace.total_ms = ms_since(t_start);
+  return run;
+}
+
+}  // namespace bloomref::gpu

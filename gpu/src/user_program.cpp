@@ -1,0 +1,331 @@
+#include "user_program.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include "shader_sources.h"
+
+namespace bloomref::gpu {
+namespace {
+
+struct GlType {
+  GLenum type;
+  const char* name;
+  int components;  // values glGetUniformfv writes for one element
+};
+
+// The uniform and attribute types a fragment or vertex shader of GLSL 3.30 can declare.
+// clang-format off
+constexpr GlType kTypes[] = {
+    {GL_FLOAT, "float", 1},         {GL_FLOAT_VEC2, "vec2", 2},
+    {GL_FLOAT_VEC3, "vec3", 3},     {GL_FLOAT_VEC4, "vec4", 4},
+    {GL_INT, "int", 1},             {GL_INT_VEC2, "ivec2", 2},
+    {GL_INT_VEC3, "ivec3", 3},      {GL_INT_VEC4, "ivec4", 4},
+    {GL_UNSIGNED_INT, "uint", 1},   {GL_UNSIGNED_INT_VEC2, "uvec2", 2},
+    {GL_UNSIGNED_INT_VEC3, "uvec3", 3}, {GL_UNSIGNED_INT_VEC4, "uvec4", 4},
+    {GL_BOOL, "bool", 1},           {GL_BOOL_VEC2, "bvec2", 2},
+    {GL_BOOL_VEC3, "bvec3", 3},     {GL_BOOL_VEC4, "bvec4", 4},
+    {GL_FLOAT_MAT2, "mat2", 4},     {GL_FLOAT_MAT3, "mat3", 9},
+    {GL_FLOAT_MAT4, "mat4", 16},    {GL_FLOAT_MAT2x3, "mat2x3", 6},
+    {GL_FLOAT_MAT2x4, "mat2x4", 8}, {GL_FLOAT_MAT3x2, "mat3x2", 6},
+    {GL_FLOAT_MAT3x4, "mat3x4", 12}, {GL_FLOAT_MAT4x2, "mat4x2", 8},
+    {GL_FLOAT_MAT4x3, "mat4x3", 12}, {GL_SAMPLER_2D, "sampler2D", 1},
+};
+// clang-format on
+
+std::string type_name(GLenum t) {
+  for (const GlType& g : kTypes)
+    if (g.type == t) return g.name;
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "GL type 0x%04x", t);
+  return buf;
+}
+
+int components(GLenum t) {
+  for (const GlType& g : kTypes)
+    if (g.type == t) return g.components;
+  return 0;
+}
+
+// Sampler types of every dimensionality and return type (GLSL 3.30 and later).
+// clang-format off
+bool is_sampler(GLenum t) {
+  switch (t) {
+    case GL_SAMPLER_1D: case GL_SAMPLER_2D: case GL_SAMPLER_3D: case GL_SAMPLER_CUBE:
+    case GL_SAMPLER_1D_SHADOW: case GL_SAMPLER_2D_SHADOW: case GL_SAMPLER_1D_ARRAY:
+    case GL_SAMPLER_2D_ARRAY: case GL_SAMPLER_2D_RECT: case GL_SAMPLER_BUFFER:
+    case GL_SAMPLER_2D_MULTISAMPLE: case GL_INT_SAMPLER_2D: case GL_UNSIGNED_INT_SAMPLER_2D:
+    case GL_SAMPLER_CUBE_SHADOW: case GL_SAMPLER_2D_ARRAY_SHADOW: case GL_INT_SAMPLER_3D:
+    case GL_UNSIGNED_INT_SAMPLER_3D: case GL_INT_SAMPLER_2D_ARRAY:
+    case GL_UNSIGNED_INT_SAMPLER_2D_ARRAY:
+      return true;
+    default:
+      return false;
+  }
+}
+// clang-format on
+
+bool is_flag_type(GLenum t) {
+  return t == GL_BOOL || t == GL_INT || t == GL_UNSIGNED_INT;
+}
+
+std::string info_log(GLuint object, bool program) {
+  GLint n = 0;
+  if (program)
+    glGetProgramiv(object, GL_INFO_LOG_LENGTH, &n);
+  else
+    glGetShaderiv(object, GL_INFO_LOG_LENGTH, &n);
+  if (n <= 1) return "";
+  std::string log(static_cast<std::size_t>(n), '\0');
+  if (program)
+    glGetProgramInfoLog(object, n, nullptr, log.data());
+  else
+    glGetShaderInfoLog(object, n, nullptr, log.data());
+  log.resize(std::strlen(log.c_str()));
+  while (!log.empty() && (log.back() == '\n' || log.back() == ' ')) log.pop_back();
+  return log;
+}
+
+// Compiles one shader from the user's text as it is. The log (warnings) goes to `log`.
+GLuint compile(GLenum stage, const ShaderSource& s, std::string& log) {
+  const GLuint id = glCreateShader(stage);
+  const char* text = s.text.c_str();
+  const GLint length = static_cast<GLint>(s.text.size());
+  glShaderSource(id, 1, &text, &length);
+  glCompileShader(id);
+  GLint ok = 0;
+  glGetShaderiv(id, GL_COMPILE_STATUS, &ok);
+  const std::string messages = info_log(id, false);
+  if (!ok) {
+    glDeleteShader(id);
+    throw UserShaderError(s.path, std::string(stage == GL_VERTEX_SHADER ? "vertex" : "fragment") +
+                                      " shader does not compile:\n" +
+                                      (messages.empty() ? "(the compiler gave no log)" : messages));
+  }
+  if (!messages.empty()) log += s.path + ": " + messages + "\n";
+  return id;
+}
+
+std::string strip_array_suffix(std::string name) {
+  if (name.size() > 3 && name.compare(name.size() - 3, 3, "[0]") == 0) name.resize(name.size() - 3);
+  return name;
+}
+
+// Whether any component of any element of a uniform holds a non-zero value after linking.
+bool initialised(GLuint prog, const std::string& name, GLenum type, int size) {
+  const int n = components(type);
+  if (n == 0) return false;
+  for (int i = 0; i < size; ++i) {
+    const std::string element = size > 1 ? name + "[" + std::to_string(i) + "]" : name;
+    const GLint loc = glGetUniformLocation(prog, element.c_str());
+    if (loc < 0) continue;
+    float v[16] = {};
+    glGetUniformfv(prog, loc, v);
+    for (int c = 0; c < n; ++c)
+      if (v[c] != 0.0f) return true;
+  }
+  return false;
+}
+
+const char* kind_name(HostUniform::Kind k) {
+  switch (k) {
+    case HostUniform::sampler:
+      return "sampler2D";
+    case HostUniform::flag:
+      return "bool";
+    case HostUniform::number:
+      return "float";
+  }
+  return "?";
+}
+
+// The file to name for a uniform: the user's vertex shader when only it mentions the name.
+struct Files {
+  const ShaderSource* vs;
+  const ShaderSource& fs;
+  const std::string& of(const std::string& name) const {
+    if (vs && vs->text.find(name) != std::string::npos && fs.text.find(name) == std::string::npos)
+      return vs->path;
+    return fs.path;
+  }
+};
+
+void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostUniform>& host) {
+  const GLuint prog = up.program.id;
+  GLint count = 0, blocks = 0;
+  glGetProgramiv(prog, GL_ACTIVE_UNIFORMS, &count);
+  glGetProgramiv(prog, GL_ACTIVE_UNIFORM_BLOCKS, &blocks);
+  if (blocks > 0) {
+    char name[256] = {};
+    glGetActiveUniformBlockName(prog, 0, sizeof name, nullptr, name);
+    throw UserShaderError(files.of(name), std::string("uniform block '") + name +
+                                              "' is not set by the learnopengl preset's host code");
+  }
+  std::vector<std::string> seen;
+  for (GLint i = 0; i < count; ++i) {
+    char buf[256] = {};
+    GLint size = 0;
+    GLenum type = 0;
+    glGetActiveUniform(prog, static_cast<GLuint>(i), sizeof buf, nullptr, &size, &type, buf);
+    const std::string name = strip_array_suffix(buf);
+    if (name.rfind("gl_", 0) == 0) continue;  // built-in state (gl_DepthRange)
+    ActiveVariable v{name, type_name(type), size, glGetUniformLocation(prog, buf), ""};
+    const std::string& file = files.of(name);
+    const auto it = std::find_if(host.begin(), host.end(),
+                                 [&](const HostUniform& h) { return h.name == name; });
+    if (it != host.end()) {
+      const bool ok = size == 1 && (it->kind == HostUniform::sampler ? type == GL_SAMPLER_2D
+                                    : it->kind == HostUniform::flag  ? is_flag_type(type)
+                                                                     : type == GL_FLOAT);
+      if (!ok)
+        throw UserShaderError(file, (is_sampler(type) ? "sampler '" : "uniform '") + name +
+                                        "' is declared " + v.type +
+                                        (size > 1 ? "[" + std::to_string(size) + "]" : "") +
+                                        "; the learnopengl preset sets a " + kind_name(it->kind) +
+                                        " (" + it->role + ")");
+      v.role = "set by the host: " + it->role;
+      seen.push_back(name);
+    } else if (is_sampler(type)) {
+      throw UserShaderError(file, "sampler '" + name + "' (" + v.type +
+                                      ") is not one the learnopengl preset binds here; it would "
+                                      "read texture unit 0");
+    } else if (!initialised(prog, name, type, size)) {
+      throw UserShaderError(file, "uniform '" + name + "' (" + v.type +
+                                      ") is not set by the learnopengl preset's host code and has "
+                                      "no non-zero initialiser, so it would be used at 0");
+    } else {
+      v.role = "not set by the host: kept at its initialiser";
+    }
+    up.interface.uniforms.push_back(std::move(v));
+  }
+  for (const HostUniform& h : host) {
+    if (!h.required || std::find(seen.begin(), seen.end(), h.name) != seen.end()) continue;
+    throw UserShaderError(files.fs.path,
+                          std::string(h.kind == HostUniform::sampler ? "sampler '" : "uniform '") +
+                              h.name + "' (" + kind_name(h.kind) + ", " + h.role +
+                              ") is missing: the preset requires it. A uniform the shader "
+                              "declares but never reads is removed by the compiler and "
+                              "counts as missing");
+  }
+}
+
+void check_attributes(UserProgram& up, const std::string& file) {
+  const GLuint prog = up.program.id;
+  GLint count = 0;
+  glGetProgramiv(prog, GL_ACTIVE_ATTRIBUTES, &count);
+  for (GLint i = 0; i < count; ++i) {
+    char buf[256] = {};
+    GLint size = 0;
+    GLenum type = 0;
+    glGetActiveAttrib(prog, static_cast<GLuint>(i), sizeof buf, nullptr, &size, &type, buf);
+    const std::string name = strip_array_suffix(buf);
+    if (name.rfind("gl_", 0) == 0) continue;  // gl_VertexID and friends
+    const GLint loc = glGetAttribLocation(prog, buf);
+    ActiveVariable v{name, type_name(type), size, loc, ""};
+    const bool vector =
+        type == GL_FLOAT || type == GL_FLOAT_VEC2 || type == GL_FLOAT_VEC3 || type == GL_FLOAT_VEC4;
+    if ((loc != 0 && loc != 1) || !vector || size != 1)
+      throw UserShaderError(file, "attribute '" + name + "' (" + v.type + ", location " +
+                                      std::to_string(loc) +
+                                      ") is not one the learnopengl preset feeds: it feeds "
+                                      "location 0 aPos (vec3) and location 1 aTexCoords (vec2)");
+    v.role = loc == 0 ? "fed by the host: the quad's corner (x, y, 0)"
+                      : "fed by the host: the quad's texture coordinate (s, t)";
+    up.interface.attributes.push_back(std::move(v));
+  }
+}
+
+void read_outputs(UserProgram& up, const std::string& file) {
+  const GLuint prog = up.program.id;
+  GLint count = 0;
+  glGetProgramInterfaceiv(prog, GL_PROGRAM_OUTPUT, GL_ACTIVE_RESOURCES, &count);
+  for (GLint i = 0; i < count; ++i) {
+    const GLenum prop = GL_LOCATION;
+    GLint loc = -1;
+    glGetProgramResourceiv(prog, GL_PROGRAM_OUTPUT, static_cast<GLuint>(i), 1, &prop, 1, nullptr,
+                           &loc);
+    if (loc >= 0) up.output_locations.push_back(loc);
+  }
+  if (!up.has_output(0))
+    throw UserShaderError(file, "the fragment shader has no output at location 0");
+}
+
+}  // namespace
+
+GLint UserProgram::location(const std::string& uniform) const {
+  return glGetUniformLocation(program.id, uniform.c_str());
+}
+
+void UserProgram::set_flag(const std::string& uniform, bool v) const {
+  const GLint loc = location(uniform);
+  if (loc < 0) return;
+  GLint size = 0;
+  GLenum type = 0;
+  GLuint index = 0;
+  const char* name = uniform.c_str();
+  glGetUniformIndices(program.id, 1, &name, &index);
+  glGetActiveUniform(program.id, index, 0, nullptr, &size, &type, nullptr);
+  if (type == GL_UNSIGNED_INT)
+    glProgramUniform1ui(program.id, loc, v ? 1u : 0u);
+  else
+    glProgramUniform1i(program.id, loc, v ? 1 : 0);
+}
+
+void UserProgram::set_number(const std::string& uniform, float v) const {
+  const GLint loc = location(uniform);
+  if (loc >= 0) glProgramUniform1f(program.id, loc, v);
+}
+
+void UserProgram::set_sampler(const std::string& uniform, int unit) const {
+  const GLint loc = location(uniform);
+  if (loc >= 0) glProgramUniform1i(program.id, loc, unit);
+}
+
+bool UserProgram::has_output(int loc) const {
+  return std::find(output_locations.begin(), output_locations.end(), loc) != output_locations.end();
+}
+
+UserProgram build_user_program(const std::string& name, const ShaderSource* vs,
+                               const ShaderSource& fs, const std::vector<HostUniform>& host) {
+  static const ShaderSource pass_through{"bloomref's user_quad.vert",
+                                         shader_sources().at("user_quad.vert")};
+  const ShaderSource& vertex = vs ? *vs : pass_through;
+  UserProgram up;
+  up.interface.program = name;
+  up.interface.vertex_file = vs ? vs->path : "";
+  up.interface.fragment_file = fs.path;
+  std::string log;
+  const GLuint v = compile(GL_VERTEX_SHADER, vertex, log);
+  GLuint f = 0;
+  try {
+    f = compile(GL_FRAGMENT_SHADER, fs, log);
+  } catch (...) {
+    glDeleteShader(v);
+    throw;
+  }
+  up.program.id = glCreateProgram();
+  glAttachShader(up.program.id, v);
+  glAttachShader(up.program.id, f);
+  glBindAttribLocation(up.program.id, 0, "aPos");
+  glBindAttribLocation(up.program.id, 1, "aTexCoords");
+  glLinkProgram(up.program.id);
+  glDeleteShader(v);
+  glDeleteShader(f);
+  GLint ok = 0;
+  glGetProgramiv(up.program.id, GL_LINK_STATUS, &ok);
+  const std::string messages = info_log(up.program.id, true);
+  if (!ok)
+    throw UserShaderError(vertex.path + " + " + fs.path,
+                          "the " + name + " program does not link:\n" +
+                              (messages.empty() ? "(the linker gave no log)" : messages));
+  if (!messages.empty()) log += name + " program: " + messages + "\n";
+  up.interface.log = log;
+  check_uniforms(up, Files{vs, fs}, host);
+  check_attributes(up, vs ? vs->path : fs.path);
+  read_outputs(up, fs.path);
+  return up;
+}
+
+}  // namespace bloomref::gpu
