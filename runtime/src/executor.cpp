@@ -110,438 +110,566 @@ double ms_since(Clock::time_point t0) {
 Image to_float_image(const Image& img) { return img; }
 Image to_float_image(const ImageF64& img) { return convert_image<float>(img.cview()); }
 
+// ---- How to schedule it --------------------------------------------------------------------
+// The stages below are the specification's (plan.h); the schedule says which code computes
+// them. Every schedule gives the same bits (tests/test_stages.cpp, test_determinism.cpp).
+
+// How the gaussian method's blur passes run.
+enum class BlurPath {
+  // Pass by pass, each pass stored (and kept when asked): f64, f16 storage, the reference
+  // blur, or every stage kept.
+  staged,
+  // Pass by pass over the bright pixels' support (adaptive plan) while it is sparse; from the
+  // first dense pass, the rest at once (blur_passes_fused: the image read and written once),
+  // the finishing stages in its sink.
+  fused_once_dense,
+  // Stage bright and every pass at once from pass 1 (blur_bright_fused), the finishing stages
+  // in its sink: no bright image is made.
+  fused_from_bright,
+};
+
+// How the finishing stages (composite, tonemap, output) run.
+enum class FinishPath {
+  reference,  // stage by stage, the scalar kernels
+  fast,       // stage by stage, the vectorised f32 tone map and output
+  fused,      // all three in one sweep (finish_fast), or in the fused blur's sink
+};
+
+struct Schedule {
+  BlurPath blur = BlurPath::staged;
+  FinishPath finish = FinishPath::reference;
+  // Adaptive plan: the blur passes and the mip chain compute only the texels that can be
+  // nonzero (the bright pixels' support, dilated stage by stage).
+  bool track_support = false;
+  // The input stage writes only the bright pixels, into a zeroed image from the pool.
+  bool sparse_bright = false;
+  // Blur pass 1 writes into a zeroed image from the pool, only the tiles its support reaches.
+  bool zeroed_blur_target = false;
+};
+
+// Whether blur pass 1 runs (the plan skips every pass of a scene with nothing bright).
+bool blurs_from_pass_1(const Plan& plan) {
+  return std::any_of(plan.stages.begin(), plan.stages.end(), [](const StageSpec& s) {
+    return s.kind == StageKind::blur && s.pass == 1 && !s.skipped;
+  });
+}
+
+Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt) {
+  const BloomParams& p = plan.params;
+  const bool adaptive = p.plan == PlanMode::adaptive;
+  // The vectorised f32 kernels, unless the staged reference was asked for (--blur reference)
+  // or values are rounded to f16 between stages.
+  const bool fast =
+      p.precision == Precision::f32 && p.blur != BlurImpl::reference && p.storage == Storage::f32;
+  // Fused where no intermediate is kept; the finish only where the composite comes before the
+  // tone map.
+  const bool fuse = fast && !opt.keep_all;
+  Schedule s;
+  s.finish = !fast ? FinishPath::reference
+             : fuse && !(p.method == Method::mip && p.composite == CompositeOrder::after_tonemap)
+                 ? FinishPath::fused
+                 : FinishPath::fast;
+  if (p.method == Method::gaussian && fuse) {
+    // The full plan blurs every pixel, and so does the adaptive plan on a dense scene
+    // (Plan::dense_scene) and for the approximate blur, which following a support runs pass by
+    // pass over whole images (stages.h: blur_pass_approx) and measured slower than all of it
+    // fused (StarField 28.6 against 14.9 ms, 2 threads, the project's 2-core Zen 5). The bright
+    // image is then one more full-size image, faulted in, written and read once.
+    const bool dense = !adaptive || plan.dense_scene || p.blur == BlurImpl::approx;
+    s.blur =
+        dense && blurs_from_pass_1(plan) ? BlurPath::fused_from_bright : BlurPath::fused_once_dense;
+  }
+  s.track_support = adaptive && s.blur != BlurPath::fused_from_bright;
+  // At most 1% of the pixels bright: the corpus's images are either sparse (0.03-0.6%:
+  // StarField, GoldenGate, CandleGlass, the demo) or not (10-25%). A blur that reads all of the
+  // bright image pays a fault for every page never written.
+  const std::uint64_t pixels = std::uint64_t(plan.facts.width) * std::uint64_t(plan.facts.height);
+  s.sparse_bright = adaptive && !opt.keep_all && plan.facts.bright_pixels * 100 <= pixels;
+  // No stage kept, so the texels left alone (alpha 0, which nothing after the blur reads) are
+  // never seen (stages.h: dst_zero_outside).
+  s.zeroed_blur_target =
+      adaptive && p.blur == BlurImpl::fast && p.precision == Precision::f32 && !opt.keep_all;
+  return s;
+}
+
+// ---- The algorithm: one function per stage -------------------------------------------------
+
 // Runs the plan in precision T. The scene, bright image and the latest blur result are the only
 // full-size images alive at once (plus the kept intermediates when asked).
 template <class T>
-StageTrace run(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& opt,
-               Image* owned) {
-  const BloomParams& p = plan.params;
-  const int threads = p.threads;
-  const HalfRounding rounding = opt.half_rounding;
-  const int w = scene_in.width, h = scene_in.height;
-  StageTrace trace;
+class Executor {
+ public:
+  Executor(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& opt, Image* owned)
+      : plan_(plan),
+        p_(plan.params),
+        opt_(opt),
+        sched_(choose_schedule(plan, opt)),
+        scene_in_(scene_in),
+        owned_(owned),
+        w_(scene_in.width),
+        h_(scene_in.height),
+        threads_(plan.params.threads),
+        support_(scene_in.width, scene_in.height, 0.5),
+        down_(plan.levels.size() + 1),
+        up_(plan.levels.size() + 1) {}
 
-  auto record = [&](const std::string& name, const BasicImage<T>& img, double ms, bool skipped) {
-    if (!skipped) trace.timings.emplace_back(name, ms);
-    if (opt.keep_all || name == "output") trace.stages.push_back({name, to_float_image(img), ms, skipped});
-  };
+  StageTrace run() {
+    ledgers_.reserve(2);  // the bright image and the first blur target
+    make_bright_image();
+    for (const StageSpec& stage : plan_.stages) {
+      const auto t0 = Clock::now();
+      switch (stage.kind) {
+        case StageKind::input:
+          input(stage, t0);
+          break;
+        case StageKind::bright:
+          bright(stage);
+          break;
+        case StageKind::blur:
+          blur(stage, t0);
+          break;
+        case StageKind::down:
+          down(stage, t0);
+          break;
+        case StageKind::up:
+          up(stage, t0);
+          break;
+        case StageKind::bloom:
+          mip_bloom(stage, t0);
+          break;
+        case StageKind::composite:
+          composite_stage(stage, t0);
+          break;
+        case StageKind::tonemap:
+          tonemap_stage(stage, t0);
+          break;
+        case StageKind::output:
+          output(stage, t0);
+          break;
+      }
+    }
+    return std::move(trace_);
+  }
 
-  const auto t_total = Clock::now();
-  BasicImage<T> scene;
-  // The finishing stages: the fast f32 ones unless the staged reference was asked for (--blur
-  // reference) or values are rounded to f16 between stages; and all three in one sweep
-  // (finish_fast) where no intermediate is kept and the composite comes before the tone map.
-  const bool fast_finish = std::is_same_v<T, float> && p.blur != BlurImpl::reference &&
-                           p.storage == Storage::f32;
-  const bool fuse_finish = fast_finish && !opt.keep_all &&
-                           !(p.method == Method::mip &&
-                             p.composite == CompositeOrder::after_tonemap);
-  // Where the gaussian blur's last passes run fused, the finishing stages run inside it, on
-  // each block of the last pass (blur_passes_fused's sink): the composite stage then has
-  // nothing left to do.
-  const bool finish_in_blur = fuse_finish && p.method == Method::gaussian;
-  bool finished_in_blur = false;
-  // Whether dense blur passes run fused (blur_passes_fused): the fast f32 blur or the
-  // approximate one, nothing rounded or kept between passes. The blur stage runs the rest fused
-  // from the first dense pass.
-  const bool fusable = std::is_same_v<T, float> && p.blur != BlurImpl::reference &&
-                       p.storage == Storage::f32 && !opt.keep_all;
-  // The full plan then runs every pass fused from pass 1, and stage bright with them
-  // (blur_bright_fused): no bright image is made. It was one more full-size image, faulted in
-  // by every run (mmap'd anew: 133 MB at 3840x2160), written and read once. So does the
-  // adaptive plan on a dense scene (Plan::dense_scene), tracking no support.
-  // The approximate blur takes that path under the adaptive plan too, whenever something is
-  // bright: following a support, it runs pass by pass over whole images, skipping only rows
-  // (stages.h: blur_pass_approx), and measured slower than all of it fused (stop 31, --repeat 5
-  // warm medians, 2 threads: StarField 28.6 against 14.9 ms, CandleGlass 23.1 against 10.3).
-  const bool bright_in_blur =
-      fusable && finish_in_blur &&
-      (p.plan == PlanMode::full || plan.dense_scene || p.blur == BlurImpl::approx) &&
-      std::any_of(plan.stages.begin(), plan.stages.end(), [](const StageSpec& s) {
-        return s.kind == StageKind::blur && s.pass == 1 && !s.skipped;
-      });
-  // The adaptive plan's blur follows the bright pixels' support pass by pass.
-  const bool track_support = p.plan == PlanMode::adaptive && !bright_in_blur;
-  // Written by the input stage (extract_bright): whole, or under the adaptive plan when no
-  // stage is kept and at most 1% of the pixels are bright, only its bright pixels into a zeroed
-  // image (its pages exist where written; no stage after it reads its alpha, left 0 elsewhere).
-  // A blur that reads all of it (the adaptive one once dense) pays a fault for every page never
-  // written; none where the bright stage runs inside the fused blur. The corpus's images are
-  // either sparse (0.03-0.6% bright: StarField, GoldenGate, CandleGlass, the demo) or not
-  // (10-25%: WideColorGamut, BrightRingsNanInf, StageEnvLatLong, WideFloatRange, comp_dwab_v2).
-  const int bw = p.method == Method::gaussian && !bright_in_blur ? w : 0;
-  const int bh = p.method == Method::gaussian && !bright_in_blur ? h : 0;
-  const bool sparse_bright = p.plan == PlanMode::adaptive && !opt.keep_all &&
-                             plan.facts.bright_pixels * 100 <= std::uint64_t(w) * std::uint64_t(h);
-  // The ledgers of the pool's images (image.h), each found by the buffer it was made for.
-  std::vector<detail::PageLedger> ledgers;
-  ledgers.reserve(2);  // the bright image and the first blur target
-  auto ledger_of = [&](const BasicImage<T>& img) -> detail::PageLedger* {
-    for (detail::PageLedger& l : ledgers)
+ private:
+  static constexpr bool kF32 = std::is_same_v<T, float>;
+
+  void record(const std::string& name, const BasicImage<T>& img, double ms, bool skipped) {
+    if (!skipped) trace_.timings.emplace_back(name, ms);
+    if (opt_.keep_all || name == "output")
+      trace_.stages.push_back({name, to_float_image(img), ms, skipped});
+  }
+  void store_image(BasicImage<T>& img) {
+    store(img.view(), p_.storage, opt_.half_rounding, threads_);
+  }
+  // The ledger of a pool image (image.h), found by the buffer it was made for.
+  detail::PageLedger* ledger_of(const BasicImage<T>& img) {
+    for (detail::PageLedger& l : ledgers_)
       if (!img.empty() && l.of(img.data())) return &l;
     return nullptr;
-  };
-  BasicImage<T> bright = sparse_bright ? take_zeroed<T>(bw, bh, ledgers)
-                                       : BasicImage<T>::uninitialised(bw, bh);
-  if (!sparse_bright) prefault_image(bright, threads);
-  BasicImage<T> ping, pong;  // allocated by the first blur pass
-  // The adaptive fast f32 blur writes only the tiles its support reaches when what it writes
-  // into is already +0 around them (stages.h: dst_zero_outside), and no stage image is kept (the
-  // texels left alone keep alpha 0, which nothing after the blur reads): its first pass then
-  // writes into pages that only exist where written (image.h: zeroed).
-  const bool leave_zeros = p.plan == PlanMode::adaptive && p.blur == BlurImpl::fast &&
-                           std::is_same_v<T, float> && !opt.keep_all;
-  bool blur_fused_done = false;  // the remaining blur passes ran fused (blur_passes_fused)
-  auto tonemap_as = [&](const BasicImage<T>& src, BasicImage<T>& dst) {
-    if constexpr (std::is_same_v<T, float>)
-      if (fast_finish) return tonemap_fast(src.cview(), dst.view(), p.exposure, threads);
-    tonemap(src.cview(), dst.view(), static_cast<T>(p.exposure), threads);
-  };
-  auto encode_output_as = [&](const BasicImage<T>& src, BasicImage<T>& dst) {
-    if constexpr (std::is_same_v<T, float>)
-      if (fast_finish) return encode_output_fast(src.cview(), dst.view(), p.gamma, threads);
-    encode_output(src.cview(), dst.view(), static_cast<T>(p.gamma), threads);
-  };
-  // Method mip: level k of the down and up chains (index 0 unused), and the full-size bloom.
-  std::vector<BasicImage<T>> down(plan.levels.size() + 1), up(plan.levels.size() + 1);
-  BasicImage<T> mip_bloom, mapped;
-  // Adaptive plan: the blur's nonzero texels; whole passes once they cover half the image.
-  BlurSupportTracker support(w, h, 0.5);
-  const int top = static_cast<int>(plan.levels.size());
-  // Adaptive plan, method mip: the texels of a chain stage that can be nonzero (mip_support),
-  // from the nonzero texels of what it reads; null (compute all) under the full plan or once
-  // they cover half the target. Records the skipped fraction.
-  // Up the chain the support only grows (each level adds the tent's reach to the one below and
-  // its own down level's), so once one up stage is dense the rest are computed whole untracked.
-  std::vector<std::uint8_t> mip_src_mask, mip_also_mask, mip_active;
-  bool mip_up_dense = false;
-  auto mip_mask = [&](const std::string& name, const BasicImage<T>& src, const BasicImage<T>& dst,
-                      int reach, const BasicImage<T>& also) -> const std::uint8_t* {
-    if (p.plan != PlanMode::adaptive) return nullptr;
-    const bool up_chain = reach == 1;
-    if (up_chain && mip_up_dense) {
-      trace.skipped_fraction.emplace_back(name, 0.0);
-      return nullptr;
-    }
-    mip_src_mask.resize(src.pixel_count());
-    nonzero_support(src.cview(), mip_src_mask.data(), threads);
-    if (!also.empty()) {
-      mip_also_mask.resize(also.pixel_count());
-      nonzero_support(also.cview(), mip_also_mask.data(), threads);
-    }
-    mip_active.resize(dst.pixel_count());
-    const std::size_t n = mip_support<T>(
-        mip_src_mask.data(), src.width(), src.height(), also.empty() ? nullptr : mip_also_mask.data(),
-        dst.width(), dst.height(), reach, p.subtexel_bits, mip_active.data(), threads);
-    const bool dense = 2 * n > dst.pixel_count();
-    mip_up_dense = up_chain && dense;
-    trace.skipped_fraction.emplace_back(
-        name, dense ? 0.0 : 1.0 - double(n) / double(dst.pixel_count()));
-    return dense ? nullptr : mip_active.data();
-  };
+  }
 
-  for (const StageSpec& stage : plan.stages) {
-    const auto t0 = Clock::now();
-    switch (stage.kind) {
-      case StageKind::input: {
-        if constexpr (std::is_same_v<T, float>) {
-          if (owned) {
-            scene = std::move(*owned);  // the caller handed the image over: no copy
-          } else {
-            // Copied by every thread (the pages are faulted in by whichever thread writes them
-            // first), with no zero fill before the copy.
-            scene = BasicImage<T>::uninitialised(w, h);
-            parallel_rows(h, threads, [&](int y0, int y1) {
-              for (int y = y0; y < y1; ++y)
-                std::copy(scene_in.row(y), scene_in.row(y) + std::size_t(w) * kChannels,
-                          scene.view().row(y));
-            });
-          }
-        } else {
-          scene = convert_image<T>(scene_in);
-        }
-        // In place: each value is read once and written once at the same index.
-        if (plan.sanitize)
-          trace.nonfinite = sanitize(scene.cview(), scene.view(), p.nonfinite, p.storage, threads);
-        // The seeds' MRT pass writes the scene and the bright colour in one draw: bright is
-        // decided on the sanitised value before either is stored (rounded to f16).
-        if (p.method == Method::gaussian && !bright_in_blur) {
-          // The adaptive plan's first support comes out of the same sweep (the bright image's
-          // nonzero texels): no second read of the bright image, most of whose pages are
-          // never written (zeroed).
-          std::vector<std::uint8_t> nonzero;
-          const bool blurs = std::any_of(plan.stages.begin(), plan.stages.end(), [](const StageSpec& s) {
-            return s.kind == StageKind::blur && !s.skipped;
-          });
-          if (p.plan == PlanMode::adaptive && blurs) nonzero.resize(std::size_t(w) * h);
-          // Into a zeroed image the rows without a bright pixel (the plan's scan found them)
-          // have nothing to write and a zero support: not read at all.
-          const std::uint8_t* rows =
-              sparse_bright && plan.facts.bright_rows.size() == std::size_t(h)
-                  ? plan.facts.bright_rows.data() : nullptr;
-          extract_bright(scene.cview(), bright.view(), static_cast<T>(p.threshold), threads,
-                         /*dst_zeroed=*/sparse_bright, nonzero.empty() ? nullptr : nonzero.data(),
-                         rows);
-          if (!nonzero.empty()) support.start(std::move(nonzero), threads, rows);
-        }
-        store(scene.view(), p.storage, rounding, threads);
-        record(stage.name, scene, ms_since(t0), false);
-        break;
-      }
-      case StageKind::bright: {
-        if (bright_in_blur) break;  // in the fused blur, timed with it
-        const auto t1 = Clock::now();
-        store(bright.view(), p.storage, rounding, threads);
-        record(stage.name, bright, ms_since(t1), false);
-        break;
-      }
-      case StageKind::blur: {
-        const BasicImage<T>& src = stage.pass == 1 ? bright : ping;
-        if (blur_fused_done) break;  // this pass ran inside the fused blur
-        if (stage.skipped) {
-          // Blur of an all-zero image is exactly zero: the bloom is `bright` itself.
-          if (opt.keep_all) record(stage.name, bright, 0.0, true);
-          break;
-        }
-        BlurPassOptions o{stage.axis, &kernel_for(p.kernel), p.subtexel_bits};
-        const bool first_pass = stage.pass == 1;
-        if (track_support) {
-          // Blur only the bright pixels' support (started by the input stage), dilated pass by
-          // pass by the taps' reach. Every pass on all the run's threads: a small support on
-          // one thread (under 2^15 texels, when waking the others cost more than they saved
-          // before the kept arenas, parallel.cpp) measured slower since (README, stop 29).
-          o.active = support.advance<T>(o, threads);
-          o.active_spans = support.spans();
-          // Pass k > 1 writes the buffer pass k - 2 (pass 2: bright) left +0 outside a support
-          // contained in this one (stages.h); pass 1 a zeroed one, or a new one it fills.
-          o.dst_zero_outside = !first_pass || leave_zeros;
-          trace.skipped_fraction.emplace_back(
-              stage.name, 1.0 - double(support.count()) / (double(w) * h));
-        }
-        // Dense from here on (the full plan, or the adaptive plan once its support covers half
-        // the image): the rest of the passes run fused. (Always with the bright stage inside:
-        // bright_in_blur implies fusable and tracks nothing.)
-        const bool fused_rest = fusable && o.active == nullptr;
-        if (pong.empty() && !(fused_rest && finish_in_blur)) {
-          if (leave_zeros && first_pass) {
-            pong = take_zeroed<T>(w, h, ledgers);
-          } else {
-            pong = BasicImage<T>::uninitialised(w, h);
-            prefault_image(pong, threads);  // written whole by this pass
-          }
-        }
-        if (track_support) {
-          o.src_pages = ledger_of(src);
-          o.dst_pages = ledger_of(pong);
-          o.page_threads = threads;
-        }
-        if constexpr (std::is_same_v<T, float>) {
-          // This pass and the rest at once, fused (the same bits as pass by pass, tested; the
-          // image is read and written once). The adaptive plan stops tracking its support once
-          // dense, so the rest are recorded as not skipping anything.
-          if (fused_rest) {
-            std::vector<Axis> axes;
-            for (const StageSpec& s : plan.stages)
-              if (s.kind == StageKind::blur && s.pass >= stage.pass) {
-                axes.push_back(s.axis);
-                if (p.plan == PlanMode::adaptive && (s.pass > stage.pass || bright_in_blur))
-                  trace.skipped_fraction.emplace_back(s.name, 0.0);
-              }
-            std::string name = "blur." + std::to_string(stage.pass) + "-" +
-                               std::to_string(stage.pass + int(axes.size()) - 1);
-            if (finish_in_blur) {
-              // Composite, tone map and output on each block of the last pass while it is in
-              // cache, in place into the scene (finish_fast_rows: finish_fast's bits, value by
-              // value): no bloom image is allocated, written or read back.
-              BasicView<float> out = scene.view();
-              const FusedBlurSink sink = [&](int x0, int x1, int y0, int y1,
-                                             const float* const* rows) {
-                std::vector<float*> dst(std::size_t(y1 - y0));
-                for (int y = y0; y < y1; ++y) dst[std::size_t(y - y0)] = out.row(y) + 4 * x0;
-                finish_fast_rows(dst.data(), rows, dst.data(), y1 - y0, x1 - x0, p.strength,
-                                 p.exposure, p.gamma);
-              };
-              if (bright_in_blur) {
-                blur_bright_fused(scene.cview(), static_cast<float>(p.threshold), sink, axes,
-                                  kernel_for(p.kernel), p.subtexel_bits, threads, BlurIsa::best,
-                                  p.blur);
-                name = "bright+" + name;
-              } else {
-                blur_passes_fused(src.cview(), sink, axes, kernel_for(p.kernel), p.subtexel_bits,
-                                  threads, BlurIsa::best, p.blur);
-              }
-              finished_in_blur = true;
-              name += "+composite+tonemap+output";
-            } else {
-              blur_passes_fused(src.cview(), pong.view(), axes, kernel_for(p.kernel),
-                                p.subtexel_bits, threads, BlurIsa::best, p.blur);
-              std::swap(ping, pong);
-            }
-            pong = BasicImage<T>();
-            bright = BasicImage<T>();  // not read again
-            blur_fused_done = true;
-            trace.timings.emplace_back(name, ms_since(t0));
-            break;
-          }
-          if (p.blur == BlurImpl::fast) blur_pass_fast(src.cview(), pong.view(), o, threads);
-          else if (p.blur == BlurImpl::approx) blur_pass_approx(src.cview(), pong.view(), o, threads);
-          else blur_pass(src.cview(), pong.view(), o, threads);
-        } else {
-          blur_pass(src.cview(), pong.view(), o, threads);
-        }
-        store(pong.view(), p.storage, rounding, threads);
-        std::swap(ping, pong);
-        // After the first pass the bright image is not read again: its buffer becomes the
-        // other half of the ping-pong pair (three full-size images alive: scene, ping, pong).
-        if (first_pass && pong.empty()) pong = std::move(bright);
-        record(stage.name, ping, ms_since(t0), false);
-        break;
-      }
-      case StageKind::down: {
-        const int k = stage.pass;
-        const BasicImage<T>& src = k == 1 ? scene : down[k - 1];
-        down[k] = BasicImage<T>(plan.levels[k - 1].width, plan.levels[k - 1].height);
-        DownsampleOptions o{k == 1, p.threshold, p.karis && k == 1, p.subtexel_bits};
-        // The first level reads the whole scene; the others only where the level above has
-        // anything (adaptive plan).
-        if (k > 1) {
-          o.active = mip_mask(stage.name, src, down[k], 2, BasicImage<T>());
-        } else if (p.plan == PlanMode::adaptive &&
-                   mip_nothing_bright(src.cview(), double(p.threshold), threads)) {
-          mip_active.assign(down[k].pixel_count(), 0);  // every tap thresholded to zero
-          o.active = mip_active.data();
-          trace.skipped_fraction.emplace_back(stage.name, 1.0);
-        }
-        downsample(src.cview(), down[k].view(), o, threads);
-        store(down[k].view(), p.storage, rounding, threads);
-        record(stage.name, down[k], ms_since(t0), false);
-        break;
-      }
-      case StageKind::up: {
-        const int k = stage.pass;
-        const BasicImage<T>& small = k + 1 == top ? down[top] : up[k + 1];
-        up[k] = BasicImage<T>(down[k].width(), down[k].height());
-        upsample_tent(small.cview(), down[k].cview(), up[k].view(), p.subtexel_bits, threads,
-                      mip_mask(stage.name, small, up[k], 1, down[k]));
-        store(up[k].view(), p.storage, rounding, threads);
-        record(stage.name, up[k], ms_since(t0), false);
-        break;
-      }
-      case StageKind::bloom: {
-        const BasicImage<T>& small = top == 1 ? down[1] : up[1];
-        mip_bloom = BasicImage<T>(w, h);
-        upsample_tent(small.cview(), BasicView<const T>{}, mip_bloom.view(), p.subtexel_bits,
-                      threads, mip_mask(stage.name, small, mip_bloom, 1, BasicImage<T>()));
-        store(mip_bloom.view(), p.storage, rounding, threads);
-        record(stage.name, mip_bloom, ms_since(t0), false);
-        break;
-      }
-      case StageKind::composite: {
-        if (finished_in_blur) break;  // in the fused blur's sink, timed with it
-        // What is added: the mip chain's bloom, the last blur pass, or (no pass ran) bright.
-        const bool blurred = p.method == Method::gaussian && p.passes > 0 &&
-                             !plan.stages[1 + p.passes].skipped;
-        const BasicImage<T>& bloom =
-            p.method == Method::mip ? mip_bloom : blurred ? ping : bright;
-        if (fuse_finish) {
-          // composite, tonemap and output at once, in place into the scene (finish_fast: the
-          // three stages' bits, tested); one timing for the three.
-          // Under the adaptive plan the bloom's R, G and B are +0 outside the last pass's
-          // support (or everywhere, when nothing was bright enough to blur): the composite
-          // does not read it there (most of its pages were never written).
-          const RowSpans* bloom_support = nullptr;
-          RowSpans none;  // no spans on any row
-          if (p.plan == PlanMode::adaptive && p.method == Method::gaussian) {
-            if (plan.facts.bright_pixels == 0) {
-              none.resize(std::size_t(h));
-              bloom_support = &none;
-            } else if (blurred && !blur_fused_done && support.started()) {
-              bloom_support = support.spans();  // null once dense
-            }
-          }
-          if constexpr (std::is_same_v<T, float>) {
-            const std::size_t from_table =
-                finish_fast(scene.cview(), bloom.cview(), scene.view(), p.strength, p.exposure,
-                            p.gamma, threads, BlurIsa::best, bloom_support);
-            if (from_table)  // finished from the table of binary16 values, not computed
-              trace.skipped_fraction.emplace_back(
-                  "composite+tonemap+output", double(from_table) / (double(w) * h));
-          }
-          mip_bloom = BasicImage<T>();
-        } else if (p.method == Method::mip) {
-          // before-tonemap: scene + strength * bloom; after-tonemap: mapped + strength * bloom.
-          BasicImage<T>& base = p.composite == CompositeOrder::after_tonemap ? mapped : scene;
-          BasicImage<T> out(w, h);
-          composite(base.cview(), bloom.cview(), out.view(), static_cast<T>(p.strength),
-                    threads);
-          store(out.view(), p.storage, rounding, threads);
-          scene = std::move(out);
-        } else {
-          // In place into the scene (per value, same index).
-          composite(scene.cview(), bloom.cview(), scene.view(), static_cast<T>(p.strength),
-                    threads);
-          store(scene.view(), p.storage, rounding, threads);
-        }
-        // The bloom buffers go (empty under the mip method); those of a sparse adaptive blur
-        // back to the pool, zeroed over the last support (which holds every texel a pass or
-        // the input stage wrote nonzero: the supports only grow from the bright pixels).
-        if constexpr (std::is_same_v<T, float>) {
-          if (leave_zeros && support.started() && support.spans())
-            for (BasicImage<T>* img : {&ping, &pong, &bright}) {
-              detail::PageLedger* pages = ledger_of(*img);
-              scratch_pool().give(std::move(*img), pages ? std::move(*pages) : detail::PageLedger(),
-                                  *support.spans(), threads);
-            }
-        }
-        ping = BasicImage<T>();
-        pong = BasicImage<T>();
-        bright = BasicImage<T>();
-        if (fuse_finish) trace.timings.emplace_back("composite+tonemap+output", ms_since(t0));
-        else record(stage.name, scene, ms_since(t0), false);
-        break;
-      }
-      case StageKind::tonemap:
-        if (fuse_finish) break;  // done with the composite
-        if (p.method == Method::mip && p.composite == CompositeOrder::after_tonemap) {
-          mapped = BasicImage<T>(w, h);  // the scene tone-mapped; the bloom is added after
-          tonemap_as(scene, mapped);
-          store(mapped.view(), p.storage, rounding, threads);
-          record(stage.name, mapped, ms_since(t0), false);
-          break;
-        }
-        tonemap_as(scene, scene);
-        store(scene.view(), p.storage, rounding, threads);
-        record(stage.name, scene, ms_since(t0), false);
-        break;
-      case StageKind::output: {
-        if constexpr (std::is_same_v<T, float>) {
-          if (fuse_finish) {  // done with the composite; the buffer is handed over
-            trace.total_ms = ms_since(t_total);
-            trace.stages.push_back({stage.name, std::move(scene), 0.0, false});
-            break;
-          }
-        }
-        encode_output_as(scene, scene);
-        store(scene.view(), p.storage, rounding, threads);
-        // The stage's clock is read before the run's: the stages' times add up to at most the
-        // total.
-        const double output_ms = ms_since(t0);
-        trace.total_ms = ms_since(t_total);
-        if constexpr (std::is_same_v<T, double>) trace.output_f64 = scene;
-        if constexpr (std::is_same_v<T, float>) {
-          if (!opt.keep_all) {  // hand the buffer over instead of copying it
-            trace.timings.emplace_back(stage.name, output_ms);
-            trace.stages.push_back({stage.name, std::move(scene), output_ms, false});
-            break;
-          }
-        }
-        record(stage.name, scene, output_ms, false);
-        break;
-      }
+  // The gaussian method's bright image, unless stage bright runs inside the fused blur.
+  bool makes_bright_image() const {
+    return p_.method == Method::gaussian && sched_.blur != BlurPath::fused_from_bright;
+  }
+  // Written by the input stage (extract_bright): whole, or when sparse only its bright pixels
+  // into a zeroed image (its pages exist where written; nothing after it reads its alpha).
+  void make_bright_image() {
+    const int bw = makes_bright_image() ? w_ : 0, bh = makes_bright_image() ? h_ : 0;
+    if (sched_.sparse_bright) {
+      bright_ = take_zeroed<T>(bw, bh, ledgers_);
+    } else {
+      bright_ = BasicImage<T>::uninitialised(bw, bh);
+      prefault_image(bright_, threads_);
     }
   }
-  return trace;
-}
+
+  // Stage input: the scene after the non-finite policy; for the gaussian method the bright
+  // image comes out of the same sweep, as the seeds' MRT pass writes both in one draw (bright
+  // is decided on the sanitised value before either is stored).
+  void input(const StageSpec& stage, Clock::time_point t0) {
+    load_scene();
+    // In place: each value is read once and written once at the same index.
+    if (plan_.sanitize)
+      trace_.nonfinite =
+          sanitize(scene_.cview(), scene_.view(), p_.nonfinite, p_.storage, threads_);
+    if (makes_bright_image()) extract_bright_image();
+    store_image(scene_);
+    record(stage.name, scene_, ms_since(t0), false);
+  }
+
+  void load_scene() {
+    if constexpr (kF32) {
+      if (owned_) {
+        scene_ = std::move(*owned_);  // the caller handed the image over: no copy
+        return;
+      }
+      // Copied by every thread (the pages are faulted in by whichever thread writes them
+      // first), with no zero fill before the copy.
+      scene_ = BasicImage<T>::uninitialised(w_, h_);
+      parallel_rows(h_, threads_, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y)
+          std::copy(scene_in_.row(y), scene_in_.row(y) + std::size_t(w_) * kChannels,
+                    scene_.view().row(y));
+      });
+    } else {
+      scene_ = convert_image<T>(scene_in_);
+    }
+  }
+
+  // The adaptive plan's first support comes out of the same sweep (the bright image's nonzero
+  // texels): no second read of the bright image, most of whose pages are never written.
+  void extract_bright_image() {
+    std::vector<std::uint8_t> nonzero;
+    const bool blurs =
+        std::any_of(plan_.stages.begin(), plan_.stages.end(),
+                    [](const StageSpec& s) { return s.kind == StageKind::blur && !s.skipped; });
+    if (sched_.track_support && blurs) nonzero.resize(std::size_t(w_) * h_);
+    // Into a zeroed image the rows without a bright pixel (the plan's scan found them) have
+    // nothing to write and a zero support: not read at all.
+    const std::uint8_t* rows =
+        sched_.sparse_bright && plan_.facts.bright_rows.size() == std::size_t(h_)
+            ? plan_.facts.bright_rows.data()
+            : nullptr;
+    extract_bright(scene_.cview(), bright_.view(), static_cast<T>(p_.threshold), threads_,
+                   /*dst_zeroed=*/sched_.sparse_bright, nonzero.empty() ? nullptr : nonzero.data(),
+                   rows);
+    if (!nonzero.empty()) support_.start(std::move(nonzero), threads_, rows);
+  }
+
+  // Stage bright: made by the input stage; here only stored.
+  void bright(const StageSpec& stage) {
+    if (sched_.blur == BlurPath::fused_from_bright) return;  // in the fused blur, timed with it
+    const auto t1 = Clock::now();
+    store_image(bright_);
+    record(stage.name, bright_, ms_since(t1), false);
+  }
+
+  // Stage blur.k: one pass, or (fused) this pass and the rest with the finishing stages.
+  void blur(const StageSpec& stage, Clock::time_point t0) {
+    if (finished_in_blur_) return;  // this pass ran inside the fused blur
+    const BasicImage<T>& src = stage.pass == 1 ? bright_ : ping_;
+    if (stage.skipped) {
+      // Blur of an all-zero image is exactly zero: the bloom is `bright` itself.
+      if (opt_.keep_all) record(stage.name, bright_, 0.0, true);
+      return;
+    }
+    BlurPassOptions o{stage.axis, &kernel_for(p_.kernel), p_.subtexel_bits};
+    if (sched_.track_support) follow_support(stage, o);
+    // Dense from here on (the full plan, or the adaptive plan once its support covers half the
+    // image): the rest of the passes run fused.
+    if (sched_.blur != BlurPath::staged && o.active == nullptr) {
+      if constexpr (kF32) blur_rest_fused(stage, src, t0);
+      return;
+    }
+    if (pong_.empty()) {
+      if (sched_.zeroed_blur_target && stage.pass == 1) {
+        pong_ = take_zeroed<T>(w_, h_, ledgers_);
+      } else {
+        pong_ = BasicImage<T>::uninitialised(w_, h_);
+        prefault_image(pong_, threads_);  // written whole by this pass
+      }
+    }
+    if (sched_.track_support) {
+      o.src_pages = ledger_of(src);
+      o.dst_pages = ledger_of(pong_);
+      o.page_threads = threads_;
+    }
+    blur_one_pass(src, o);
+    store_image(pong_);
+    std::swap(ping_, pong_);
+    // After the first pass the bright image is not read again: its buffer becomes the other
+    // half of the ping-pong pair (three full-size images alive: scene, ping, pong).
+    if (stage.pass == 1 && pong_.empty()) pong_ = std::move(bright_);
+    record(stage.name, ping_, ms_since(t0), false);
+  }
+
+  // Blur only the bright pixels' support (started by the input stage), dilated pass by pass by
+  // the taps' reach; every pass on all the run's threads.
+  void follow_support(const StageSpec& stage, BlurPassOptions& o) {
+    o.active = support_.advance<T>(o, threads_);
+    o.active_spans = support_.spans();
+    // Pass k > 1 writes the buffer pass k - 2 (pass 2: bright) left +0 outside a support
+    // contained in this one (stages.h); pass 1 a zeroed one, or a new one it fills.
+    o.dst_zero_outside = stage.pass != 1 || sched_.zeroed_blur_target;
+    trace_.skipped_fraction.emplace_back(stage.name,
+                                         1.0 - double(support_.count()) / (double(w_) * h_));
+  }
+
+  void blur_one_pass(const BasicImage<T>& src, const BlurPassOptions& o) {
+    if constexpr (kF32) {
+      if (p_.blur == BlurImpl::fast) return blur_pass_fast(src.cview(), pong_.view(), o, threads_);
+      if (p_.blur == BlurImpl::approx)
+        return blur_pass_approx(src.cview(), pong_.view(), o, threads_);
+    }
+    blur_pass(src.cview(), pong_.view(), o, threads_);
+  }
+
+  // This pass and the rest at once, fused (the same bits as pass by pass, tested), with
+  // composite, tone map and output on each block of the last pass while it is in cache, in
+  // place into the scene (finish_fast_rows: finish_fast's bits, value by value): no bloom image
+  // is allocated, written or read back. The adaptive plan stops tracking its support once
+  // dense, so the rest are recorded as not skipping anything.
+  void blur_rest_fused(const StageSpec& stage, const Image& src, Clock::time_point t0) {
+    std::vector<Axis> axes;
+    for (const StageSpec& s : plan_.stages)
+      if (s.kind == StageKind::blur && s.pass >= stage.pass) {
+        axes.push_back(s.axis);
+        if (p_.plan == PlanMode::adaptive &&
+            (s.pass > stage.pass || sched_.blur == BlurPath::fused_from_bright))
+          trace_.skipped_fraction.emplace_back(s.name, 0.0);
+      }
+    std::string name = "blur." + std::to_string(stage.pass) + "-" +
+                       std::to_string(stage.pass + int(axes.size()) - 1);
+    BasicView<float> out = scene_.view();
+    const FusedBlurSink sink = [&](int x0, int x1, int y0, int y1, const float* const* rows) {
+      std::vector<float*> dst(std::size_t(y1 - y0));
+      for (int y = y0; y < y1; ++y) dst[std::size_t(y - y0)] = out.row(y) + 4 * x0;
+      finish_fast_rows(dst.data(), rows, dst.data(), y1 - y0, x1 - x0, p_.strength, p_.exposure,
+                       p_.gamma);
+    };
+    if (sched_.blur == BlurPath::fused_from_bright) {
+      blur_bright_fused(scene_.cview(), static_cast<float>(p_.threshold), sink, axes,
+                        kernel_for(p_.kernel), p_.subtexel_bits, threads_, BlurIsa::best, p_.blur);
+      name = "bright+" + name;
+    } else {
+      blur_passes_fused(src.cview(), sink, axes, kernel_for(p_.kernel), p_.subtexel_bits, threads_,
+                        BlurIsa::best, p_.blur);
+    }
+    pong_ = BasicImage<T>();
+    bright_ = BasicImage<T>();  // not read again
+    finished_in_blur_ = true;
+    trace_.timings.emplace_back(name + "+composite+tonemap+output", ms_since(t0));
+  }
+
+  // Method mip. Adaptive plan: the texels of a chain stage that can be nonzero (mip_support),
+  // from the nonzero texels of what it reads; null (compute all) under the full plan or once
+  // they cover half the target. Records the skipped fraction. Up the chain the support only
+  // grows (each level adds the tent's reach to the one below and its own down level's), so once
+  // one up stage is dense the rest are computed whole untracked.
+  const std::uint8_t* mip_mask(const std::string& name, const BasicImage<T>& src,
+                               const BasicImage<T>& dst, int reach, const BasicImage<T>& also) {
+    if (!sched_.track_support) return nullptr;
+    const bool up_chain = reach == 1;
+    if (up_chain && mip_up_dense_) {
+      trace_.skipped_fraction.emplace_back(name, 0.0);
+      return nullptr;
+    }
+    mip_src_mask_.resize(src.pixel_count());
+    nonzero_support(src.cview(), mip_src_mask_.data(), threads_);
+    if (!also.empty()) {
+      mip_also_mask_.resize(also.pixel_count());
+      nonzero_support(also.cview(), mip_also_mask_.data(), threads_);
+    }
+    mip_active_.resize(dst.pixel_count());
+    const std::size_t n =
+        mip_support<T>(mip_src_mask_.data(), src.width(), src.height(),
+                       also.empty() ? nullptr : mip_also_mask_.data(), dst.width(), dst.height(),
+                       reach, p_.subtexel_bits, mip_active_.data(), threads_);
+    const bool dense = 2 * n > dst.pixel_count();
+    mip_up_dense_ = up_chain && dense;
+    trace_.skipped_fraction.emplace_back(name,
+                                         dense ? 0.0 : 1.0 - double(n) / double(dst.pixel_count()));
+    return dense ? nullptr : mip_active_.data();
+  }
+
+  // Stage down.k: the 13-tap downsample of the scene (k = 1, thresholded) or of down.k-1.
+  void down(const StageSpec& stage, Clock::time_point t0) {
+    const int k = stage.pass;
+    const BasicImage<T>& src = k == 1 ? scene_ : down_[k - 1];
+    BasicImage<T>& dst = down_[k];
+    dst = BasicImage<T>(plan_.levels[k - 1].width, plan_.levels[k - 1].height);
+    DownsampleOptions o{k == 1, p_.threshold, p_.karis && k == 1, p_.subtexel_bits};
+    // The first level reads the whole scene; the others only where the level above has
+    // anything (adaptive plan).
+    if (k > 1) {
+      o.active = mip_mask(stage.name, src, dst, 2, BasicImage<T>());
+    } else if (sched_.track_support &&
+               mip_nothing_bright(src.cview(), double(p_.threshold), threads_)) {
+      mip_active_.assign(dst.pixel_count(), 0);  // every tap thresholded to zero
+      o.active = mip_active_.data();
+      trace_.skipped_fraction.emplace_back(stage.name, 1.0);
+    }
+    downsample(src.cview(), dst.view(), o, threads_);
+    store_image(dst);
+    record(stage.name, dst, ms_since(t0), false);
+  }
+
+  // Stage up.k = down.k + tent3x3(up.k+1) (the smallest level: down.K itself).
+  void up(const StageSpec& stage, Clock::time_point t0) {
+    const int k = stage.pass, top = static_cast<int>(plan_.levels.size());
+    const BasicImage<T>& small = k + 1 == top ? down_[top] : up_[k + 1];
+    BasicImage<T>& dst = up_[k];
+    dst = BasicImage<T>(down_[k].width(), down_[k].height());
+    upsample_tent(small.cview(), down_[k].cview(), dst.view(), p_.subtexel_bits, threads_,
+                  mip_mask(stage.name, small, dst, 1, down_[k]));
+    store_image(dst);
+    record(stage.name, dst, ms_since(t0), false);
+  }
+
+  // Stage bloom (method mip): tent3x3(up.1) at full resolution.
+  void mip_bloom(const StageSpec& stage, Clock::time_point t0) {
+    const int top = static_cast<int>(plan_.levels.size());
+    const BasicImage<T>& small = top == 1 ? down_[1] : up_[1];
+    mip_bloom_ = BasicImage<T>(w_, h_);
+    upsample_tent(small.cview(), BasicView<const T>{}, mip_bloom_.view(), p_.subtexel_bits,
+                  threads_, mip_mask(stage.name, small, mip_bloom_, 1, BasicImage<T>()));
+    store_image(mip_bloom_);
+    record(stage.name, mip_bloom_, ms_since(t0), false);
+  }
+
+  // What the composite adds: the mip chain's bloom, the last blur pass, or (no pass ran) bright.
+  bool blurred() const {
+    return p_.method == Method::gaussian && p_.passes > 0 && !plan_.stages[1 + p_.passes].skipped;
+  }
+  const BasicImage<T>& bloom_image() const {
+    return p_.method == Method::mip ? mip_bloom_ : blurred() ? ping_ : bright_;
+  }
+
+  // Stage composite (with tonemap and output when fused).
+  void composite_stage(const StageSpec& stage, Clock::time_point t0) {
+    if (finished_in_blur_) return;  // in the fused blur's sink, timed with it
+    const BasicImage<T>& bloom = bloom_image();
+    if (sched_.finish == FinishPath::fused) {
+      finish_fused(bloom);
+    } else if (p_.method == Method::mip) {
+      // before-tonemap: scene + strength * bloom; after-tonemap: mapped + strength * bloom.
+      BasicImage<T>& base = p_.composite == CompositeOrder::after_tonemap ? mapped_ : scene_;
+      BasicImage<T> out(w_, h_);
+      composite(base.cview(), bloom.cview(), out.view(), static_cast<T>(p_.strength), threads_);
+      store_image(out);
+      scene_ = std::move(out);
+    } else {
+      // In place into the scene (per value, same index).
+      composite(scene_.cview(), bloom.cview(), scene_.view(), static_cast<T>(p_.strength),
+                threads_);
+      store_image(scene_);
+    }
+    release_blur_images();
+    if (sched_.finish == FinishPath::fused)
+      trace_.timings.emplace_back("composite+tonemap+output", ms_since(t0));
+    else
+      record(stage.name, scene_, ms_since(t0), false);
+  }
+
+  // Composite, tonemap and output at once, in place into the scene (finish_fast: the three
+  // stages' bits, tested). Under the adaptive plan the bloom's R, G and B are +0 outside the
+  // last pass's support (or everywhere, when nothing was bright enough to blur): the composite
+  // does not read it there (most of its pages were never written).
+  void finish_fused(const BasicImage<T>& bloom) {
+    const RowSpans* bloom_support = nullptr;
+    RowSpans none;  // no spans on any row
+    if (sched_.track_support && p_.method == Method::gaussian) {
+      if (plan_.facts.bright_pixels == 0) {
+        none.resize(std::size_t(h_));
+        bloom_support = &none;
+      } else if (blurred() && support_.started()) {
+        bloom_support = support_.spans();  // null once dense
+      }
+    }
+    if constexpr (kF32) {
+      const std::size_t from_table =
+          finish_fast(scene_.cview(), bloom.cview(), scene_.view(), p_.strength, p_.exposure,
+                      p_.gamma, threads_, BlurIsa::best, bloom_support);
+      if (from_table)  // finished from the table of binary16 values, not computed
+        trace_.skipped_fraction.emplace_back("composite+tonemap+output",
+                                             double(from_table) / (double(w_) * h_));
+    }
+    mip_bloom_ = BasicImage<T>();
+  }
+
+  // The bloom buffers go (empty under the mip method); those of a sparse adaptive blur back to
+  // the pool, zeroed over the last support (which holds every texel a pass or the input stage
+  // wrote nonzero: the supports only grow from the bright pixels).
+  void release_blur_images() {
+    if constexpr (kF32) {
+      if (sched_.zeroed_blur_target && support_.started() && support_.spans())
+        for (BasicImage<T>* img : {&ping_, &pong_, &bright_}) {
+          detail::PageLedger* pages = ledger_of(*img);
+          scratch_pool().give(std::move(*img), pages ? std::move(*pages) : detail::PageLedger(),
+                              *support_.spans(), threads_);
+        }
+    }
+    ping_ = BasicImage<T>();
+    pong_ = BasicImage<T>();
+    bright_ = BasicImage<T>();
+  }
+
+  void tonemap_as(const BasicImage<T>& src, BasicImage<T>& dst) {
+    if constexpr (kF32)
+      if (sched_.finish == FinishPath::fast)
+        return tonemap_fast(src.cview(), dst.view(), p_.exposure, threads_);
+    tonemap(src.cview(), dst.view(), static_cast<T>(p_.exposure), threads_);
+  }
+
+  // Stage tonemap: in place, or (mip, after-tonemap) into its own image, the bloom added after.
+  void tonemap_stage(const StageSpec& stage, Clock::time_point t0) {
+    if (sched_.finish == FinishPath::fused) return;  // done with the composite
+    BasicImage<T>* dst = &scene_;
+    if (p_.method == Method::mip && p_.composite == CompositeOrder::after_tonemap) {
+      mapped_ = BasicImage<T>(w_, h_);
+      dst = &mapped_;
+    }
+    tonemap_as(scene_, *dst);
+    store_image(*dst);
+    record(stage.name, *dst, ms_since(t0), false);
+  }
+
+  void encode_output_as(BasicImage<T>& img) {
+    if constexpr (kF32)
+      if (sched_.finish == FinishPath::fast)
+        return encode_output_fast(img.cview(), img.view(), p_.gamma, threads_);
+    encode_output(img.cview(), img.view(), static_cast<T>(p_.gamma), threads_);
+  }
+
+  // Stage output: gamma, in place; the buffer handed over to the trace where nothing is kept.
+  void output(const StageSpec& stage, Clock::time_point t0) {
+    if (sched_.finish == FinishPath::fused) {  // done with the composite
+      if constexpr (kF32) {
+        trace_.total_ms = ms_since(t_total_);
+        trace_.stages.push_back({stage.name, std::move(scene_), 0.0, false});
+      }
+      return;
+    }
+    encode_output_as(scene_);
+    store_image(scene_);
+    // The stage's clock is read before the run's: the stages' times add up to at most the total.
+    const double output_ms = ms_since(t0);
+    trace_.total_ms = ms_since(t_total_);
+    if constexpr (kF32) {
+      if (!opt_.keep_all) {  // hand the buffer over instead of copying it
+        trace_.timings.emplace_back(stage.name, output_ms);
+        trace_.stages.push_back({stage.name, std::move(scene_), output_ms, false});
+        return;
+      }
+    } else {
+      trace_.output_f64 = scene_;
+    }
+    record(stage.name, scene_, output_ms, false);
+  }
+
+  const Clock::time_point t_total_ = Clock::now();  // first: the total covers every allocation
+  const Plan& plan_;
+  const BloomParams& p_;
+  const ExecuteOptions& opt_;
+  const Schedule sched_;
+  const ConstImageView scene_in_;
+  Image* const owned_;
+  const int w_, h_, threads_;
+  StageTrace trace_;
+  BasicImage<T> scene_, bright_, ping_, pong_;  // ping_ and pong_ allocated by the first blur pass
+  std::vector<detail::PageLedger> ledgers_;     // of the pool's images
+  bool finished_in_blur_ = false;  // the remaining blur passes and the finishing stages ran fused
+  // Adaptive plan: the blur's nonzero texels; whole passes once they cover half the image.
+  BlurSupportTracker support_;
+  // Method mip: level k of the down and up chains (index 0 unused), the full-size bloom, and
+  // (after-tonemap) the tone-mapped scene.
+  std::vector<BasicImage<T>> down_, up_;
+  BasicImage<T> mip_bloom_, mapped_;
+  std::vector<std::uint8_t> mip_src_mask_, mip_also_mask_, mip_active_;
+  bool mip_up_dense_ = false;
+};
 
 // The plan's scan of the scene is part of the run it was made for: its first timing, "plan", and
 // part of the total.
@@ -567,8 +695,8 @@ StageTrace execute(const Plan& plan, ConstImageView scene, const ExecuteOptions&
                      std::to_string(plan.facts.height) + " scene, not " +
                      std::to_string(scene.width) + "x" + std::to_string(scene.height));
   return with_scan(plan, plan.params.precision == Precision::f64
-                               ? run<double>(plan, scene, opt, nullptr)
-                               : run<float>(plan, scene, opt, nullptr));
+                               ? Executor<double>(plan, scene, opt, nullptr).run()
+                               : Executor<float>(plan, scene, opt, nullptr).run());
 }
 
 StageTrace execute(const Plan& plan, Image&& scene, const ExecuteOptions& opt) {
@@ -576,7 +704,7 @@ StageTrace execute(const Plan& plan, Image&& scene, const ExecuteOptions& opt) {
   if (scene.width() != plan.facts.width || scene.height() != plan.facts.height)
     return execute(plan, scene.cview(), opt);  // reports the mismatch
   const ConstImageView view = scene.cview();
-  return with_scan(plan, run<float>(plan, view, opt, &scene));
+  return with_scan(plan, Executor<float>(plan, view, opt, &scene).run());
 }
 
 }  // namespace bloomref
