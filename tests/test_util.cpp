@@ -28,6 +28,10 @@ std::string corpus_dir() {
   return fs::absolute(p).string();  // commands run from other folders read it too
 }
 
+std::string data_path(const std::string& name) {
+  return (fs::path(BLOOMREF_SOURCE_DIR) / "data" / name).string();
+}
+
 std::vector<std::string> corpus_files() {
   std::vector<std::string> files;
   const std::string dir = corpus_dir();

@@ -21,6 +21,9 @@ namespace fs = std::filesystem;
 /// repository root; one that names no folder throws (a test must not pass by reading nothing).
 std::string corpus_dir();
 
+/// The path of `name` in the repository's data/ folder (data/README.md).
+std::string data_path(const std::string& name);
+
 /// Paths of every .exr and .hdr image in the corpus folder (sorted); empty when BLOOMREF_CORPUS
 /// is unset.
 std::vector<std::string> corpus_files();
