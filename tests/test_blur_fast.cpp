@@ -1,4 +1,4 @@
-// The fast blur (blur_pass_fast) gives blur_pass's bits (any NaN equal to any NaN: corpus.h says
+// The fast blur (blur_pass_fast) gives blur_pass's bits (any NaN equal to any NaN: test_util.h says
 // why): pass by pass on hostile values and
 // awkward sizes, with and without the adaptive plan's masks, for every instruction set this CPU
 // has; and whole runs on every scene and corpus image with `--blur fast` and `--blur reference`.
@@ -24,23 +24,16 @@
 #include "bloomref/engine/fast_stages.h"
 #include "bloomref/engine/support.h"
 #include "bloomref/engine/page_ledger.h"
-#include "corpus.h"
+#include "test_util.h"
 
 using namespace bloomref;
 
 namespace {
 
-std::vector<BlurIsa> isas() {
-  std::vector<BlurIsa> v = {BlurIsa::generic};
-  if (blur_isa_available(BlurIsa::avx2)) v.push_back(BlurIsa::avx2);
-  if (blur_isa_available(BlurIsa::avx512)) v.push_back(BlurIsa::avx512);
-  return v;
-}
-
 // Every instruction set, with the masked tiles found from the mask and from the spans.
 std::vector<std::pair<BlurIsa, bool>> isa_and_spans() {
   std::vector<std::pair<BlurIsa, bool>> v;
-  for (BlurIsa isa : isas())
+  for (BlurIsa isa : test::isas())
     for (bool spans : {false, true}) v.emplace_back(isa, spans);
   return v;
 }
@@ -133,7 +126,7 @@ TEST_CASE("blur_pass_fast gives blur_pass's bits on hostile values and awkward s
             o.active = masked ? active.data() : nullptr;
             Image ref(w, h), fast(w, h, 7.0f);
             blur_pass(src.cview(), ref.view(), o, 1);
-            for (BlurIsa isa : isas()) {
+            for (BlurIsa isa : test::isas()) {
               for (int threads : {1, 2}) {
                 blur_pass_fast(src.cview(), fast.view(), o, threads, isa);
                 INFO(w << "x" << h << " " << k->name << " bits " << bits << " axis "
@@ -530,23 +523,15 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
   // pass (its lookup straddles two columns), which the pass before must compute for the strip.
   // 1000x61: inexact lines both ways: rows with whole groups of 8 positions along them (the
   // group kernel; strips of 500 columns cut groups at 496 and 504) and columns side by side in
-  // chunks of 32 rows (the columns kernel). The kernels' term orders, weight products, lane
-  // selects, form blends and first terms each fail this test when altered. Where the CPU has
-  // AVX-512F, the horizontal passes into rings run along their rows (blur_rows_exact_avx512;
-  // the AVX2 and generic builds transpose tiles, so the ISAs' agreement checks it too): its
-  // one-texel lanes' second product not masked to -0 (an Inf times 0), its texel selects
-  // dropped, or its first term taken as 0 + term each fail 24-48 of these assertions. Its inexact
-  // rows go along their rows too (blur_row_inexact_avx512): there the one-texel lanes' second
-  // products masked to +0, the across weights swapped, the texel selects dropped, the 2-D terms
-  // regrouped or a weight product reordered each fail 20-46. The first pass, when horizontal,
-  // packs R, G, B vectors from the RGBA source in registers: a wrong packing index, the wrong
-  // neighbouring vector or its inexact rows read as rows of 3 floats fail 49-115 (and the bound
-  // of its loads past the row's end, loosened, fails under AddressSanitizer). With AVX2 the
-  // inexact rows between rings go along their rows as well (blur_row_inexact_avx2): its second
-  // products masked to +0, the across weights swapped, a texel select dropped or the tables'
-  // halves swapped each fail 20-46. The AVX-512 exact kernel's rows two at a time: the second
-  // row stored from the first's sum, the odd row's tail dropped, one tap's form bit lost or the
-  // second row's taps read from the first's each fail 72-138.
+  // chunks of 32 rows (the columns kernel): their term orders, weight products, lane selects,
+  // form blends and first terms. Where the CPU has AVX-512F, the horizontal passes into rings
+  // run along their rows (blur_rows_exact_avx512, two rows at a time and an odd row's tail;
+  // the AVX2 and generic builds transpose tiles, so the ISAs' agreement checks it too), and so
+  // do their inexact rows (blur_row_inexact_avx512); with AVX2 the inexact rows between rings
+  // (blur_row_inexact_avx2). The first pass, when horizontal, packs R, G, B vectors from the
+  // RGBA source in registers (under AddressSanitizer, its loads past a row's end are checked
+  // too). The hostile values pin what a reordering would change: an Inf times a zero weight in
+  // the one-texel lanes, -0 sums, weights swapped across the axis.
   const std::vector<std::vector<Axis>> orders = fused_orders();
   unsigned seed = 40;
   for (auto [w, h] : sizes) {
@@ -564,7 +549,7 @@ TEST_CASE("blur_passes_fused gives the pass-by-pass blur's bits", "[blur][fast][
             blur_pass(a.cview(), b.view(), BlurPassOptions{axis, k, bits}, 2);
             std::swap(a, b);
           }
-          for (BlurIsa isa : isas()) {
+          for (BlurIsa isa : test::isas()) {
             for (int threads : {1, 2}) {
               Image fused(w, h, 7.0f);
               blur_passes_fused(src.cview(), fused.view(), axes, *k, bits, threads, isa);
@@ -619,7 +604,7 @@ TEST_CASE("the fused blur's inexact rows keep a lone infinity, bit for bit",
     }
     REQUIRE(infinite > 0);
     REQUIRE(nan == 0);
-    for (BlurIsa isa : isas()) {
+    for (BlurIsa isa : test::isas()) {
       Image fused(w, h);
       blur_passes_fused(src.cview(), fused.view(), axes, kernel_discrete9(), 0, 1, isa);
       INFO("passes " << axes.size() << " isa " << blur_isa_name(isa));
@@ -665,7 +650,7 @@ TEST_CASE("blur_bright_fused gives extract_bright then the pass-by-pass blur's b
           blur_pass(x.cview(), b.view(), BlurPassOptions{axis, &kernel_discrete9(), 0}, 2);
           std::swap(x, b);
         }
-        for (BlurIsa isa : isas()) {
+        for (BlurIsa isa : test::isas()) {
           for (int threads : {1, 2}) {
             Image in_place = scene, sunk(w, h, 7.0f);
             std::vector<int> times(std::size_t(w) * h, 0);
@@ -712,7 +697,7 @@ TEST_CASE("the approximate blur fused gives its pass-by-pass bits", "[blur][appr
   for (auto [w, h] : sizes) {
     const Image src = hostile_image(w, h, seed++);
     for (const std::vector<Axis>& axes : orders) {
-      for (BlurIsa isa : isas()) {
+      for (BlurIsa isa : test::isas()) {
         Image a = src, b(w, h);
         for (Axis axis : axes) {
           blur_pass_approx(a.cview(), b.view(), BlurPassOptions{axis, &kernel_discrete9(), 0}, 2,
@@ -739,7 +724,7 @@ TEST_CASE("the approximate blur fused gives its pass-by-pass bits", "[blur][appr
     // Stage bright inside: extract_bright, then the passes.
     const std::vector<Axis> hv = {Axis::horizontal, Axis::vertical, Axis::horizontal,
                                   Axis::vertical};
-    for (BlurIsa isa : isas()) {
+    for (BlurIsa isa : test::isas()) {
       Image a(w, h), b(w, h);
       extract_bright(src.cview(), a.view(), 1.0f, 1);
       for (Axis axis : hv) {
@@ -800,7 +785,7 @@ TEST_CASE("the fused blur's last pass stored past the cache gives the same bits"
     Image a(w, h), b(w, h);
     blur_pass(src.cview(), a.view(), BlurPassOptions{axes[0], &kernel_discrete9(), 0}, 2);
     blur_pass(a.cview(), b.view(), BlurPassOptions{axes[1], &kernel_discrete9(), 0}, 2);
-    for (BlurIsa isa : isas()) {
+    for (BlurIsa isa : test::isas()) {
       Image fused(w, h, 7.0f);
       blur_passes_fused(src.cview(), fused.view(), axes, kernel_discrete9(), 0, 2, isa);
       INFO(w << "x" << h << " isa " << blur_isa_name(isa));
@@ -910,7 +895,7 @@ TEST_CASE("the approximate blur: impulse response and error against the f64 trut
           "[blur][approx]") {
   // Binomial row 12 without its two outer terms (LearnOpenGL's 9 taps): C(12, 6 + d) / 4070.
   const double w[5] = {924.0 / 4070, 792.0 / 4070, 495.0 / 4070, 220.0 / 4070, 66.0 / 4070};
-  for (BlurIsa isa : isas()) {
+  for (BlurIsa isa : test::isas()) {
     for (Axis axis : {Axis::horizontal, Axis::vertical}) {
       // An impulse of 3 at (20, 20) of 41x41: one pass puts v * w_|d| at distance d along the
       // axis (one rounding: the pair sum adds an exact 0), nothing elsewhere.

@@ -5,7 +5,6 @@
 // The command runs as a separate process (BLOOMREF_EXE) in a temporary folder.
 #include <ImfInputFile.h>
 #include <OpenImageIO/imageio.h>
-#include <sys/wait.h>
 
 #include <catch2/catch.hpp>
 #include <algorithm>
@@ -15,31 +14,12 @@
 
 #include "io_test_util.h"
 
+using bloomref::test::CliResult;
+using bloomref::test::run_cli;
 using bloomref::test::TempDir;
 namespace fs = std::filesystem;
 
 namespace {
-
-struct CliResult {
-  int code = -1;  ///< exit status; 128 + signal when the process was killed by one
-  std::string out, err;
-};
-
-/// Runs `bloomref ARGS` with `cwd` as its working folder; `env` (NAME=value ...) is put
-/// before the command.
-CliResult run_cli(const TempDir& cwd, const std::string& args, const std::string& env = "") {
-  TempDir logs;
-  const std::string cmd = "cd '" + cwd.path().string() + "' && " + env + " '" BLOOMREF_EXE "' " + args +
-                          " >'" + (logs / "out") + "' 2>'" + (logs / "err") + "'";
-  const int status = std::system(cmd.c_str());
-  CliResult r;
-  if (status == -1) FAIL("std::system could not start a shell");
-  if (WIFEXITED(status)) r.code = WEXITSTATUS(status);
-  else if (WIFSIGNALED(status)) r.code = 128 + WTERMSIG(status);
-  r.out = bloomref::test::read_bytes(logs / "out");
-  r.err = bloomref::test::read_bytes(logs / "err");
-  return r;
-}
 
 /// Runs a command that must be refused as bad input: exit 2, stderr names every item of
 /// `mentions`, `inputs` keep their bytes, no output file appears.
@@ -49,7 +29,7 @@ void expect_bad_input(const TempDir& dir, const std::string& args,
   std::vector<std::string> before;
   for (const auto& in : inputs) before.push_back(bloomref::test::read_bytes(dir / in));
   const auto listing = dir.listing();
-  const CliResult r = run_cli(dir, args);
+  const CliResult r = run_cli(args, "", dir.path());
   INFO("bloomref " << args << "\nstderr: " << r.err);
   CHECK(r.code < 128);  // no crash
   CHECK(r.code == 2);
@@ -145,7 +125,7 @@ TEST_CASE("bloomref run refuses bad input with exit code 2", "[cli]") {
   }
   SECTION("an output folder that does not exist") {
     const auto before = bloomref::test::read_bytes(dir / "in.exr");
-    const CliResult r = run_cli(dir, run + "in.exr -o nowhere/out.exr");
+    const CliResult r = run_cli(run + "in.exr -o nowhere/out.exr", "", dir.path());
     INFO(r.err);
     CHECK(r.code == 2);
     CHECK(r.err.find("nowhere/out.exr") != std::string::npos);
@@ -184,7 +164,8 @@ TEST_CASE("bloomref run writes EXR, PNG and JSON", "[cli]") {
     bloomref::test::write_test_exr(in, 16, 16, {"R", "G", "B"}, std::vector<float>(256, 2.0f));
   }
   const std::string before = bloomref::test::read_bytes(in);
-  const CliResult r = run_cli(dir, "run " + shell_quoted(in) + " -o out.exr -o out.png --json out.json");
+  const CliResult r =
+      run_cli("run " + shell_quoted(in) + " -o out.exr -o out.png --json out.json", "", dir.path());
   INFO(r.err);
   REQUIRE(r.code == 0);
   CHECK(bloomref::test::read_bytes(in) == before);
@@ -204,8 +185,9 @@ TEST_CASE("bloomref run --json says whether the adaptive plan took the scene as 
   TempDir dir;
   for (const auto& [threshold, dense] : {std::pair{"1", false}, std::pair{"0.05", true}}) {
     const std::string json = std::string("t") + threshold + ".json";
-    const CliResult r = run_cli(dir, std::string("run --size 320x180 -q -o out.exr --threshold ") +
-                                         threshold + " --json " + json);
+    const CliResult r = run_cli(std::string("run --size 320x180 -q -o out.exr --threshold ") +
+                                    threshold + " --json " + json,
+                                "", dir.path());
     REQUIRE(r.code == 0);
     const auto j = nlohmann::json::parse(bloomref::test::read_bytes(dir / json));
     INFO("threshold " << threshold);
@@ -222,9 +204,9 @@ TEST_CASE("bloomref run --repeat times later runs in the same process, same bits
     for (int x = 30; x < 34; ++x)
       for (int c = 0; c < 3; ++c) px[(std::size_t(y) * 64 + x) * 3 + c] = 6.0f;
   bloomref::test::write_test_exr(dir / "in.exr", 64, 48, {"R", "G", "B"}, px);
-  const CliResult once = run_cli(dir, "run in.exr -o once.exr");
+  const CliResult once = run_cli("run in.exr -o once.exr", "", dir.path());
   REQUIRE(once.code == 0);
-  const CliResult r = run_cli(dir, "run in.exr -o rep.exr --repeat 4 --json rep.json");
+  const CliResult r = run_cli("run in.exr -o rep.exr --repeat 4 --json rep.json", "", dir.path());
   INFO(r.err);
   REQUIRE(r.code == 0);
   CHECK(r.out.find("first of 4 runs") != std::string::npos);
@@ -269,13 +251,13 @@ TEST_CASE("OpenImageIO is loaded only for the formats that need it", "[cli]") {
   bloomref::test::write_test_exr(dir / "in.exr", 8, 8, {"R", "G", "B"},
                                  std::vector<float>(64, 2.0f));
   write_small_hdr(dir / "in.hdr");
-  const CliResult exr = run_cli(dir, "run in.exr -o out.png -o out.exr", "LD_DEBUG=libs");
+  const CliResult exr = run_cli("run in.exr -o out.png -o out.exr", "LD_DEBUG=libs", dir.path());
   INFO(exr.err.substr(0, 2000));
   REQUIRE(exr.code == 0);
   CHECK(exr.err.find("libOpenImageIO") == std::string::npos);
   CHECK(exr.err.find("libbloomref_oiio") == std::string::npos);
   // The control: reading a .hdr loads the module, and through it OIIO.
-  const CliResult hdr = run_cli(dir, "run in.hdr -o hdr.exr", "LD_DEBUG=libs");
+  const CliResult hdr = run_cli("run in.hdr -o hdr.exr", "LD_DEBUG=libs", dir.path());
   INFO(hdr.err.substr(0, 2000));
   REQUIRE(hdr.code == 0);
   CHECK(hdr.err.find("libbloomref_oiio") != std::string::npos);
@@ -290,7 +272,8 @@ TEST_CASE("a missing OpenImageIO module is a clear input error", "[cli]") {
   TempDir dir;
   write_small_hdr(dir / "in.hdr");
   // BLOOMREF_OIIO_MODULE, when set, is the only place the module is looked for.
-  const CliResult r = run_cli(dir, "run in.hdr -o out.exr", "BLOOMREF_OIIO_MODULE=./nowhere.so");
+  const CliResult r =
+      run_cli("run in.hdr -o out.exr", "BLOOMREF_OIIO_MODULE=./nowhere.so", dir.path());
   INFO(r.err);
   CHECK(r.code == 2);
   CHECK(r.err.find("in.hdr") != std::string::npos);
@@ -300,7 +283,7 @@ TEST_CASE("a missing OpenImageIO module is a clear input error", "[cli]") {
   // EXR input needs no module.
   bloomref::test::write_test_exr(dir / "in.exr", 8, 8, {"R", "G", "B"},
                                  std::vector<float>(64, 2.0f));
-  CHECK(run_cli(dir, "run in.exr -o out.exr", "BLOOMREF_OIIO_MODULE=./nowhere.so").code == 0);
+  CHECK(run_cli("run in.exr -o out.exr", "BLOOMREF_OIIO_MODULE=./nowhere.so", dir.path()).code == 0);
 }
 
 TEST_CASE("bloomref run succeeds on every corpus image, with no NaN out", "[cli][corpus]") {
@@ -316,7 +299,8 @@ TEST_CASE("bloomref run succeeds on every corpus image, with no NaN out", "[cli]
     if (name == "README.md") continue;
     ++files;
     const std::string before = bloomref::test::read_bytes(e.path().string());
-    const CliResult r = run_cli(dir, "run " + shell_quoted(e.path().string()) + " -o out.exr -q");
+    const CliResult r =
+        run_cli("run " + shell_quoted(e.path().string()) + " -o out.exr -q", "", dir.path());
     INFO(name << "\nstderr: " << r.err);
     REQUIRE(r.code == 0);
     CHECK(bloomref::test::read_bytes(e.path().string()) == before);

@@ -6,7 +6,7 @@
 #include "bloomref/error.h"
 #include "bloomref/executor.h"
 #include "bloomref/io.h"
-#include "corpus.h"
+#include "test_util.h"
 
 using namespace bloomref;
 

@@ -7,7 +7,7 @@
 #include "bloomref/plan.h"
 #include "bloomref/io.h"
 #include "bloomref/scenes.h"
-#include "corpus.h"
+#include "test_util.h"
 
 using namespace bloomref;
 

@@ -7,16 +7,13 @@
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
-#include <unistd.h>
 
 #include "bloomref/gpu/device_facts.h"
 #include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
 #include "bloomref/parity/compare.h"
 #include "bloomref/scenes.h"
-#include "corpus.h"
+#include "test_util.h"
 #include "gl_fixture.h"
 
 using namespace bloomref;
@@ -140,44 +137,22 @@ TEST_CASE("the measured llvmpipe facts are the llvmpipe profile's", "[gl][facts]
   CHECK(f.shader_denormals_kept == !p.flush_denormals);
 }
 
-namespace {
-struct Run {
-  int code;
-  std::string err;
-};
-Run run_cli(const std::string& args, const std::string& env = "") {
-  // One file per call and process: ctest runs test cases of this binary in parallel, and a
-  // shared file let one case read another's (empty) stderr.
-  static int calls = 0;
-  const auto dir = std::filesystem::temp_directory_path();
-  const std::string err = (dir / ("bloomref_gl_cli_err_" + std::to_string(::getpid()) + "_" +
-                                  std::to_string(++calls) + ".txt")).string();
-  const int status = std::system((env + " " + BLOOMREF_EXE + " " + args + " 2>" + err).c_str());
-  std::stringstream ss;
-  {
-    std::ifstream f(err);
-    ss << f.rdbuf();
-  }
-  std::filesystem::remove(err);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128, ss.str()};
-}
-}  // namespace
-
 TEST_CASE("bloomref compare exit codes: 0 pass, 1 fail, 2 bad usage, 3 no GL", "[gl][cli]") {
-  const Run none = run_cli("compare -q --scene impulse", "BLOOMREF_EGL_DEVICE=no-such-device");
+  const test::CliResult none =
+      test::run_cli("compare -q --scene impulse", "BLOOMREF_EGL_DEVICE=no-such-device");
   CHECK(none.code == 3);
   CHECK_THAT(none.err, Catch::Contains("GL path unavailable"));
-  CHECK(run_cli("compare -q --scene impulse --inject-fault bogus").code == 2);
+  CHECK(test::run_cli("compare -q --scene impulse --inject-fault bogus").code == 2);
   if (!test::gl_context()) return;
-  CHECK(run_cli("compare -q --scene hot-edge").code == 0);
-  CHECK(run_cli("compare -q --scene hot-edge --inject-fault gamma-twice").code == 1);
-  CHECK(run_cli("compare -q --scene hot-edge --precision f64").code == 2);
+  CHECK(test::run_cli("compare -q --scene hot-edge").code == 0);
+  CHECK(test::run_cli("compare -q --scene hot-edge --inject-fault gamma-twice").code == 1);
+  CHECK(test::run_cli("compare -q --scene hot-edge --precision f64").code == 2);
 }
 
 TEST_CASE("bloomref stability: every hostile case's expectation holds on CPU and GL",
           "[gl][stability]") {
   if (!test::gl_context()) return;
-  const Run r = run_cli("stability --json " +
+  const test::CliResult r = test::run_cli("stability --json " +
                         (std::filesystem::temp_directory_path() / "bloomref_stability.json").string());
   CHECK(r.code == 0);
 }

@@ -9,7 +9,7 @@
 #include "bloomref/io.h"
 #include "bloomref/parity/compare.h"
 #include "bloomref/scenes.h"
-#include "corpus.h"
+#include "test_util.h"
 #include "gl_fixture.h"
 
 using namespace bloomref;

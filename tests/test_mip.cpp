@@ -13,7 +13,7 @@
 #include "bloomref/scenes.h"
 #include "bloomref/stages.h"
 #include "bloomref/engine/support.h"
-#include "corpus.h"
+#include "test_util.h"
 
 using namespace bloomref;
 

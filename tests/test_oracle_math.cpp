@@ -16,6 +16,7 @@
 #include "bloomref/error.h"
 #include "bloomref/stages.h"
 #include "bloomref/engine/fast_stages.h"
+#include "test_util.h"
 
 using namespace bloomref;
 
@@ -51,13 +52,6 @@ struct Agreement {
     worst = std::max(worst, d);
   }
 };
-
-std::vector<BlurIsa> isas() {
-  std::vector<BlurIsa> v = {BlurIsa::generic};
-  if (blur_isa_available(BlurIsa::avx2)) v.push_back(BlurIsa::avx2);
-  if (blur_isa_available(BlurIsa::avx512)) v.push_back(BlurIsa::avx512);
-  return v;
-}
 
 }  // namespace
 
@@ -162,11 +156,6 @@ Image hostile(int w, int h, unsigned seed) {
   return img;
 }
 
-bool same_bits(const Image& a, const Image& b) {
-  return a.values().size() == b.values().size() &&
-         std::memcmp(a.values().data(), b.values().data(), a.values().size() * 4) == 0;
-}
-
 }  // namespace
 
 TEST_CASE("the fast finishing stages give the staged reference's bits", "[stages][oracle-math]") {
@@ -184,24 +173,24 @@ TEST_CASE("the fast finishing stages give the staged reference's bits", "[stages
       encode_output(scene.cview(), encoded.view(), gamma, 1);  // raw values: < 0, > 1, NaN
       Image scene_mapped(w, h);
       tonemap(scene.cview(), scene_mapped.view(), exposure, 1);
-      for (BlurIsa isa : isas())
+      for (BlurIsa isa : test::isas())
         for (int threads : {1, 2}) {
           INFO(w << "x" << h << " exposure " << exposure << " gamma " << gamma << " "
                  << blur_isa_name(isa) << " threads " << threads);
           Image t(w, h);
           tonemap_fast(scene.cview(), t.view(), exposure, threads, isa);
-          CHECK(same_bits(t, scene_mapped));
+          CHECK(test::bit_identical(t.cview(), scene_mapped.cview()));
           Image e(w, h);
           encode_output_fast(scene.cview(), e.view(), gamma, threads, isa);
-          CHECK(same_bits(e, encoded));
+          CHECK(test::bit_identical(e.cview(), encoded.cview()));
           Image f(w, h);
           finish_fast(scene.cview(), bloom.cview(), f.view(), strength, exposure, gamma,
                       threads, isa);
-          CHECK(same_bits(f, out));
+          CHECK(test::bit_identical(f.cview(), out.cview()));
           Image in_place = scene;  // dst = scene, as the executor runs it
           finish_fast(in_place.cview(), bloom.cview(), in_place.view(), strength, exposure,
                       gamma, threads, isa);
-          CHECK(same_bits(in_place, out));
+          CHECK(test::bit_identical(in_place.cview(), out.cview()));
           if (threads == 1) {
             // finish_fast_rows over row segments of 1, 7 and 160 pixels in turn (the fused
             // blur's sink hands over strips of rows), in place.
@@ -218,7 +207,7 @@ TEST_CASE("the fast finishing stages give the staged reference's bits", "[stages
                                gamma, isa);
               x0 = x1;
             }
-            CHECK(same_bits(seg, out));
+            CHECK(test::bit_identical(seg.cview(), out.cview()));
           }
         }
     }
@@ -247,13 +236,13 @@ TEST_CASE("the fast tone map's 8- and 16-lane series and mixed vectors give the 
   composite(scene.cview(), bloom.cview(), composed.view(), 0.04f, 1);
   tonemap(composed.cview(), out.view(), 1.0f, 1);
   encode_output(out.cview(), out.view(), 2.2f, 1);
-  for (BlurIsa isa : isas()) {
+  for (BlurIsa isa : test::isas()) {
     INFO(blur_isa_name(isa));
     Image t(641, 4), f(641, 4);
     tonemap_fast(scene.cview(), t.view(), 1.0f, 1, isa);
-    CHECK(same_bits(t, mapped));
+    CHECK(test::bit_identical(t.cview(), mapped.cview()));
     finish_fast(scene.cview(), bloom.cview(), f.view(), 0.04f, 1.0f, 2.2f, 2, isa);
-    CHECK(same_bits(f, out));
+    CHECK(test::bit_identical(f.cview(), out.cview()));
   }
 }
 
@@ -281,11 +270,11 @@ TEST_CASE("the finishing stages with the bloom's support read the bloom only ins
     INFO("strength " << strength);
     Image full(w, h);
     finish_fast(scene.cview(), bloom.cview(), full.view(), strength, 1.0f, 2.2f, 1);
-    for (BlurIsa isa : isas()) {
+    for (BlurIsa isa : test::isas()) {
       Image spans(w, h);
       finish_fast(scene.cview(), bloom.cview(), spans.view(), strength, 1.0f, 2.2f, 2, isa,
                   &support);
-      CHECK(same_bits(full, spans));
+      CHECK(test::bit_identical(full.cview(), spans.cview()));
     }
     Image planted = bloom;
     planted.view().pixel(20, 1)[0] = 100.0f;  // row 1, between its spans
@@ -294,8 +283,8 @@ TEST_CASE("the finishing stages with the bloom's support read the bloom only ins
     finish_fast(scene.cview(), planted.cview(), read.view(), strength, 1.0f, 2.2f, 1);
     finish_fast(scene.cview(), planted.cview(), skipped.view(), strength, 1.0f, 2.2f, 1,
                 BlurIsa::best, &support);
-    CHECK(same_bits(skipped, full));
-    CHECK_FALSE(same_bits(read, full));
+    CHECK(test::bit_identical(skipped.cview(), full.cview()));
+    CHECK_FALSE(test::bit_identical(read.cview(), full.cview()));
   }
   RowSpans short_support(h - 1);
   Image out(w, h);
@@ -324,11 +313,11 @@ TEST_CASE("the fast output stage gives the reference's bits for every kind of ex
                       std::numeric_limits<float>::quiet_NaN()}) {
     Image ref(29, 5);
     encode_output(scene.cview(), ref.view(), gamma, 1);
-    for (BlurIsa isa : isas()) {
+    for (BlurIsa isa : test::isas()) {
       INFO("gamma " << gamma << " " << blur_isa_name(isa));
       Image fast(29, 5);
       encode_output_fast(scene.cview(), fast.view(), gamma, 1, isa);
-      CHECK(same_bits(fast, ref));
+      CHECK(test::bit_identical(fast.cview(), ref.cview()));
     }
   }
 }
@@ -339,10 +328,10 @@ TEST_CASE("the fast finishing stages are not vacuous: one ulp off is caught",
   Image ref(33, 7), fast(33, 7);
   tonemap(scene.cview(), ref.view(), 1.0f, 1);
   tonemap_fast(scene.cview(), fast.view(), std::nextafter(1.0f, 2.0f), 1);
-  CHECK_FALSE(same_bits(ref, fast));
+  CHECK_FALSE(test::bit_identical(ref.cview(), fast.cview()));
   encode_output(scene.cview(), ref.view(), 2.2f, 1);
   encode_output_fast(scene.cview(), fast.view(), std::nextafter(2.2f, 3.0f), 1);
-  CHECK_FALSE(same_bits(ref, fast));
+  CHECK_FALSE(test::bit_identical(ref.cview(), fast.cview()));
 }
 
 namespace {
@@ -383,13 +372,13 @@ TEST_CASE("the finishing stages' kept tables: parameters that share the exposure
       composite(scene.cview(), bloom.cview(), composed.view(), 1.0f, 1);
       tonemap(composed.cview(), ref.view(), exposure, 1);
       encode_output(ref.cview(), ref.view(), gamma, 1);
-      for (BlurIsa isa : isas()) {
+      for (BlurIsa isa : test::isas()) {
         INFO("round " << round << " exposure " << exposure << " gamma " << gamma << " "
                       << blur_isa_name(isa));
         Image out(w, h);
         CHECK(finish_fast(scene.cview(), bloom.cview(), out.view(), 1.0f, exposure, gamma, 2,
                           isa, &none) == std::size_t(w) * h);
-        CHECK(same_bits(out, ref));
+        CHECK(test::bit_identical(out.cview(), ref.cview()));
       }
     }
 }
@@ -490,18 +479,18 @@ TEST_CASE("the finishing stages take binary16 sums from a table with the staged 
     composite(scene.cview(), bloom.cview(), composed.view(), strength, 1);
     tonemap(composed.cview(), ref.view(), exposure, 1);
     encode_output(ref.cview(), ref.view(), gamma, 1);
-    for (BlurIsa isa : isas()) {
+    for (BlurIsa isa : test::isas()) {
       INFO("strength " << strength << " exposure " << exposure << " gamma " << gamma << " "
                        << blur_isa_name(isa));
       Image out = scene;  // in place, as the executor runs it
       const std::size_t from_table = finish_fast(out.cview(), bloom.cview(), out.view(),
                                                  strength, exposure, gamma, 2, isa, &support);
       CHECK(from_table == expected);
-      CHECK(same_bits(out, ref));
+      CHECK(test::bit_identical(out.cview(), ref.cview()));
       Image apart(w, h);  // into another image: alpha is carried over from the scene
       CHECK(finish_fast(scene.cview(), bloom.cview(), apart.view(), strength, exposure, gamma, 1,
                         isa, &support) == expected);
-      CHECK(same_bits(apart, ref));
+      CHECK(test::bit_identical(apart.cview(), ref.cview()));
     }
   }
   // No table where it would not pay: a float scene (no binary16 values to speak of), or too
@@ -515,11 +504,11 @@ TEST_CASE("the finishing stages take binary16 sums from a table with the staged 
     composite(img->cview(), bl.cview(), composed.view(), 1.0f, 1);
     tonemap(composed.cview(), ref.view(), 1.0f, 1);
     encode_output(ref.cview(), ref.view(), 2.2f, 1);
-    for (BlurIsa isa : isas()) {
+    for (BlurIsa isa : test::isas()) {
       Image out(w, h);
       CHECK(finish_fast(img->cview(), bl.cview(), out.view(), 1.0f, 1.0f, 2.2f, 2, isa,
                         spans) == 0);
-      CHECK(same_bits(out, ref));
+      CHECK(test::bit_identical(out.cview(), ref.cview()));
     }
   }
 }

@@ -23,7 +23,7 @@
 #include "bloomref/executor.h"
 #include "bloomref/io.h"
 #include "bloomref/scenes.h"
-#include "corpus.h"
+#include "test_util.h"
 
 using namespace bloomref;
 

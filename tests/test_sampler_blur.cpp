@@ -7,7 +7,7 @@
 #include "bloomref/kernel.h"
 #include "bloomref/sampler.h"
 #include "bloomref/stages.h"
-#include "corpus.h"
+#include "test_util.h"
 
 using namespace bloomref;
 

@@ -18,7 +18,7 @@
 #include "bloomref/stages.h"
 #include "bloomref/engine/fast_stages.h"
 #include "bloomref/engine/support.h"
-#include "corpus.h"
+#include "test_util.h"
 
 using namespace bloomref;
 

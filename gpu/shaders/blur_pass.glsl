@@ -8,31 +8,20 @@ uniform bool horizontal;
 #ifdef KERNEL_LINEAR5
 const int N = 3;
 const float offset[3] = float[](0.0, 1.3846153846, 3.2307692308);
-float weight[3] = float[](0.2270270270, 0.3162162162, 0.0702702703);
+const float weight[3] = float[](0.2270270270, 0.3162162162, 0.0702702703);
 #else
 const int N = 5;
 const float offset[5] = float[](0.0, 1.0, 2.0, 3.0, 4.0);
-float weight[5] = float[](0.2270270270, 0.1945945946, 0.1216216216, 0.0540540541, 0.0162162162);
+const float weight[5] = float[](0.2270270270, 0.1945945946, 0.1216216216, 0.0540540541, 0.0162162162);
 #endif
 
 void run_stage(vec2 frag_coord) {
-#ifdef FAULT_WEIGHT_SCALE
-  weight[1] = weight[1] * FAULT_WEIGHT_SCALE;
-#endif
   vec2 size = vec2(textureSize(image, 0));
   vec2 uv = frag_coord / size;
   vec2 tex_offset = 1.0 / size;  // the size of one texel
-#ifdef FAULT_HALF_TEXEL
-  uv = uv + 0.5 * tex_offset;
-#endif
   vec3 result = texture(image, uv).rgb * weight[0];
   for (int i = 1; i < N; ++i) {
-#ifdef FAULT_VERTICAL_ALONG_X
-    // seed 001's shader: the vertical branch offsets along x
-    vec2 d = horizontal ? vec2(tex_offset.x * offset[i], 0.0) : vec2(tex_offset.y * offset[i], 0.0);
-#else
     vec2 d = horizontal ? vec2(tex_offset.x * offset[i], 0.0) : vec2(0.0, tex_offset.y * offset[i]);
-#endif
     result += texture(image, uv + d).rgb * weight[i];
     result += texture(image, uv - d).rgb * weight[i];
   }

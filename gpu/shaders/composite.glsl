@@ -8,8 +8,5 @@ void run_stage(vec2 frag_coord) {
   vec4 s = texelFetch(scene, p, 0);
   vec3 b = texelFetch(bloom, p, 0).rgb;
   vec3 hdr = s.rgb + strength * b;
-#ifdef FAULT_SWAP_RB
-  hdr = hdr.bgr;
-#endif
   emit0(vec4(hdr, s.a));
 }

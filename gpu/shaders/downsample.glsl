@@ -20,11 +20,7 @@ void run_stage(vec2 frag_coord) {
   vec2 texel = 1.0 / vec2(textureSize(src, 0));
   vec3 q[13];
   for (int i = 0; i < 13; ++i) {
-#ifdef FAULT_TAP_OFFSET
-    vec2 o = vec2(down_offset[i]) * (i == 5 ? 1.5 : 1.0);  // one tap a half texel out
-#else
     vec2 o = vec2(down_offset[i]);
-#endif
     q[i] = texture(src, uv + o * texel).rgb;
     if (first_level && luminance(q[i]) < threshold) q[i] = vec3(0.0);
   }
@@ -37,11 +33,7 @@ void run_stage(vec2 frag_coord) {
       for (int j = 0; j < 4; ++j) s = s + w[group_tap[g * 4 + j]];
       for (int j = 0; j < 4; ++j) {
         int i = group_tap[g * 4 + j];
-#ifdef FAULT_KARIS_UNNORMALISED
-        float f = group_weight[g] * w[i];
-#else
         float f = group_weight[g] * w[i] / s;
-#endif
         r = r + f * q[i];
       }
     }

@@ -5,8 +5,5 @@ uniform float gamma;
 void run_stage(vec2 frag_coord) {
   vec4 m = texelFetch(mapped, ivec2(frag_coord), 0);
   vec3 c = pow(max(m.rgb, vec3(0.0)), vec3(1.0 / gamma));
-#ifdef FAULT_GAMMA_TWICE
-  c = pow(max(c, vec3(0.0)), vec3(1.0 / gamma));
-#endif
   emit0(vec4(c, m.a));
 }

@@ -21,11 +21,7 @@ float one_minus_exp_neg(float a, float x) {
 
 void run_stage(vec2 frag_coord) {
   vec4 h = texelFetch(hdr, ivec2(frag_coord), 0);
-#ifdef FAULT_NO_EXPOSURE
-  vec3 x = -h.rgb;
-#else
   vec3 x = -h.rgb * exposure;
-#endif
   vec3 mapped = vec3(one_minus_exp_neg(-x.r, x.r), one_minus_exp_neg(-x.g, x.g),
                      one_minus_exp_neg(-x.b, x.b));
   emit0(vec4(mapped, h.a));

@@ -1,7 +1,56 @@
+#include <map>
+#include <stdexcept>
+
 #include "bloomref/error.h"
 #include "bloomref/gpu/gl_executor.h"
+#include "fault_patches.h"
 
 namespace bloomref::gpu {
+namespace {
+
+// weight[1] of both blur kernels (only the compiled one matters) scaled by `scale`, as the
+// shader's float arithmetic would: the literal times the scale, rounded to float.
+std::vector<SourcePatch> weight_patches(const std::string& scale) {
+  return {{"blur_pass.glsl", "float weight[3] = float[](0.2270270270, 0.3162162162,",
+           "float weight[3] = float[](0.2270270270, 0.3162162162 * " + scale + ","},
+          {"blur_pass.glsl", "float weight[5] = float[](0.2270270270, 0.1945945946,",
+           "float weight[5] = float[](0.2270270270, 0.1945945946 * " + scale + ","}};
+}
+
+const std::map<Fault, std::vector<SourcePatch>>& patch_table() {
+  static const std::map<Fault, std::vector<SourcePatch>> table = {
+      // seed 001's blur shader: the vertical branch offsets along x.
+      {Fault::vertical_offsets_x,
+       {{"blur_pass.glsl", "vec2(0.0, tex_offset.y * offset[i])",
+         "vec2(tex_offset.y * offset[i], 0.0)"}}},
+      {Fault::half_texel_shift,
+       {{"blur_pass.glsl", "  vec3 result = texture(image, uv).rgb * weight[0];",
+         "  uv = uv + 0.5 * tex_offset;\n  vec3 result = texture(image, uv).rgb * weight[0];"}}},
+      {Fault::threshold_ge,
+       {{"extract_bright.glsl", "luminance(v.rgb) > threshold", "luminance(v.rgb) >= threshold"}}},
+      {Fault::weight_1pct, weight_patches("1.01")},
+      {Fault::weight_0_1pct, weight_patches("1.001")},
+      {Fault::weight_0_01pct, weight_patches("1.0001")},
+      {Fault::gamma_twice,
+       {{"encode_output.glsl", "  vec3 c = pow(max(m.rgb, vec3(0.0)), vec3(1.0 / gamma));",
+         "  vec3 c = pow(max(m.rgb, vec3(0.0)), vec3(1.0 / gamma));\n"
+         "  c = pow(max(c, vec3(0.0)), vec3(1.0 / gamma));"}}},
+      {Fault::swap_rb,
+       {{"composite.glsl", "  vec3 hdr = s.rgb + strength * b;",
+         "  vec3 hdr = s.rgb + strength * b;\n  hdr = hdr.bgr;"}}},
+      {Fault::exposure_ignored, {{"tonemap.glsl", "vec3 x = -h.rgb * exposure;", "vec3 x = -h.rgb;"}}},
+      // Tap 5 (the corner (-2, -2)) half a texel further out on each axis.
+      {Fault::tap_offset,
+       {{"downsample.glsl", "vec2 o = vec2(down_offset[i]);",
+         "vec2 o = vec2(down_offset[i]) * (i == 5 ? 1.5 : 1.0);"}}},
+      {Fault::karis_unnormalised,
+       {{"downsample.glsl", "float f = group_weight[g] * w[i] / s;",
+         "float f = group_weight[g] * w[i];"}}},
+  };
+  return table;
+}
+
+}  // namespace
 
 std::string to_string(ShaderKind k) { return k == ShaderKind::compute ? "compute" : "fragment"; }
 
@@ -61,6 +110,45 @@ const FaultInfo& fault_info(Fault f) {
   for (const FaultInfo& i : fault_list())
     if (i.fault == f) return i;
   return none;
+}
+
+const std::vector<SourcePatch>& fault_patches(Fault f) {
+  static const std::vector<SourcePatch> none;
+  const auto it = patch_table().find(f);
+  return it == patch_table().end() ? none : it->second;
+}
+
+std::string apply_fault(Fault f, const std::string& file, std::string source) {
+  for (const SourcePatch& p : fault_patches(f)) {
+    if (p.file != file) continue;
+    const std::size_t at = source.find(p.anchor);
+    const bool once = at != std::string::npos && source.find(p.anchor, at + 1) == std::string::npos;
+    if (!once)
+      throw std::logic_error("fault '" + fault_info(f).name + "': anchor '" + p.anchor + "' is " +
+                             (at == std::string::npos ? "not in " : "more than once in ") + file);
+    source.replace(at, p.anchor.size(), p.replacement);
+  }
+  return source;
+}
+
+Fault fault_of_define(const std::string& define) {
+  static const std::map<std::string, Fault> by_define = {
+      {"FAULT_VERTICAL_ALONG_X 1", Fault::vertical_offsets_x},
+      {"FAULT_HALF_TEXEL 1", Fault::half_texel_shift},
+      {"FAULT_THRESHOLD_GE 1", Fault::threshold_ge},
+      {"FAULT_WEIGHT_SCALE 1.01", Fault::weight_1pct},
+      {"FAULT_WEIGHT_SCALE 1.001", Fault::weight_0_1pct},
+      {"FAULT_WEIGHT_SCALE 1.0001", Fault::weight_0_01pct},
+      {"FAULT_GAMMA_TWICE 1", Fault::gamma_twice},
+      {"FAULT_SWAP_RB 1", Fault::swap_rb},
+      {"FAULT_NO_EXPOSURE 1", Fault::exposure_ignored},
+      {"FAULT_TAP_OFFSET 1", Fault::tap_offset},
+      {"FAULT_KARIS_UNNORMALISED 1", Fault::karis_unnormalised},
+  };
+  if (define.rfind("FAULT_", 0) != 0) return Fault::none;
+  const auto it = by_define.find(define);
+  if (it == by_define.end()) throw std::logic_error("no fault is named by the define '" + define + "'");
+  return it->second;
 }
 
 }  // namespace bloomref::gpu

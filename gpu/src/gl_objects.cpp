@@ -1,6 +1,7 @@
 #include "gl_objects.h"
 
 #include "bloomref/gpu/context.h"
+#include "fault_patches.h"
 #include "shader_sources.h"
 
 namespace bloomref::gpu {
@@ -112,11 +113,17 @@ GLuint compile(GLenum type, const std::string& text, const std::string& name) {
 }  // namespace
 
 Program build_program(bool compute, const std::string& stage_file,
-                      const std::vector<std::string>& defines) {
+                      const std::vector<std::string>& defines, Fault fault) {
   std::string head = "#version 430 core\n";
-  for (const std::string& d : defines) head += "#define " + d + "\n";
+  for (const std::string& d : defines) {
+    const Fault named = fault_of_define(d);
+    if (named == Fault::none)
+      head += "#define " + d + "\n";
+    else
+      fault = named;
+  }
   const std::string text = head + source(compute ? "compute_main.glsl" : "fragment_main.glsl") +
-                           source("common.glsl") + source(stage_file);
+                           source("common.glsl") + apply_fault(fault, stage_file, source(stage_file));
   Program prog;
   prog.id = glCreateProgram();
   std::vector<GLuint> shaders;

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "bloomref/gpu/gl_executor.h"
+
 namespace bloomref::gpu {
 
 class GlContext;
@@ -46,8 +48,10 @@ struct Program {
 };
 
 /// Compiles a stage: the entry file (fragment_main.glsl or compute_main.glsl), common.glsl and
-/// the stage file, after `#version 430 core` and `defines` (one "NAME VALUE" per entry).
+/// the stage file, after `#version 430 core` and `defines` (one "NAME VALUE" per entry), with
+/// `fault`'s source edits applied to the stage file (fault_patches.h). A "FAULT_..." entry of
+/// `defines` names a fault the same way (fault_of_define) and is not emitted as a #define.
 Program build_program(bool compute, const std::string& stage_file,
-                      const std::vector<std::string>& defines);
+                      const std::vector<std::string>& defines, Fault fault = Fault::none);
 
 }  // namespace bloomref::gpu

@@ -25,10 +25,10 @@ void* allocate_pixels(std::size_t bytes) { return ::operator new(bytes, kAlign);
 
 void free_pixels(void* p, std::size_t) noexcept { ::operator delete(p, kAlign); }
 
-// Writing a fresh 133 MB mapping (a 3840x2160 RGBA float image) on this project's virtual
-// machine: 169-207 ms faulting 4 KiB pages on first touch, 100-152 ms after this call (harness,
-// Linux 6.18). Huge pages were faster still when the kernel had one free (25-27 ms) and far
-// slower when it had to compact memory first; not used (README, stop 17).
+// Writing a fresh 133 MB mapping (a 3840x2160 RGBA float image): 169-207 ms faulting 4 KiB pages
+// on first touch, 100-152 ms after this call (the 2-core AMD EPYC virtual machine, Linux 6.18).
+// Huge pages are not used: fast when the kernel has one free, far slower when it must compact
+// memory first.
 void prefault(void* p, std::size_t bytes) noexcept {
 #ifdef MADV_POPULATE_WRITE
   static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));

@@ -130,7 +130,7 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
         // Into a zeroed image a pixel that is not bright writes nothing: four at a time, the
         // luminance of each in one lane (the same operations, so the same test), and only a
         // group with a bright pixel taken pixel by pixel (StarField.exr, 0.03% bright: most of
-        // the sparse sweep's time was the per-pixel branches; README, stop 20).
+        // the sparse sweep's time was the per-pixel branches).
         if (dst_zeroed)
           for (; x + 4 <= src.width; x += 4) {
             if (!any_bright4(src.pixel(x, y), threshold)) {

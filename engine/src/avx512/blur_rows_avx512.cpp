@@ -23,9 +23,9 @@ namespace bloomref::detail {
 namespace {
 
 constexpr int L = RowTaps::kLanes;
-// How far ahead (in vectors) the first pass fetches its RGBA rows. Ten fused one-thread passes
-// at 3840x2160, in-process alternation against the tile kernel (README, stop 33): without it
-// 1.033 of the tile kernel's time, with 4, 8 or 16 0.968-0.974.
+// How far ahead (in vectors) the first pass fetches its RGBA rows (4, 8 and 16 alike). Without
+// the prefetch, ten fused one-thread passes at 3840x2160 take 1.033 of the tile kernel's time,
+// with it 0.97 (in-process alternation, the 2-core AMD EPYC, Zen 5).
 constexpr int kPrefetch = 8;
 
 // s[j + 5]: the row's floats [f + 3 j, f + 3 j + 16), j = -5 ... 5, from a, b, c: its vectors
@@ -178,13 +178,12 @@ void row_inexact(const RowInexactJob& job) {
 }
 
 // Rows [y, r1) of vector v of rows of R, G, B (the rings), two at a time, their taps
-// interleaved: two independent chains of eight additions in flight where one row has one.
-// Returns the row left over when their count is odd (r1 otherwise). Both changes against stop
-// 33's kernel (second_form_taps and this; in-process alternation, ten fused passes at 3840x2160
-// on the 2-core AMD EPYC): 0.944 of the time on one thread, 0.937 on two. Rows packed from RGBA
-// (rows_exact<4>, the first pass of blur_passes_fused) stay one at a time: with their packing's
-// index registers beside two rows' shifted vectors, pairs there too gave 0.961 of stop 33's time
-// where pairs for the rings alone gave 0.949 (same session).
+// interleaved: two independent chains of eight additions in flight where one row has one
+// (with second_form_taps, 0.94 of the one-row kernel's time: ten fused passes at 3840x2160, the
+// 2-core AMD EPYC, Zen 5). Returns the row left over when their count is odd (r1 otherwise).
+// Rows packed from RGBA (rows_exact<4>, the first pass of blur_passes_fused) stay one at a time:
+// their packing's index registers beside two rows' shifted vectors make pairs there slower than
+// pairs for the rings alone.
 __attribute__((always_inline)) inline int row_pairs(const RowsExactJob& job, int v, int y, int r1,
                                                     const float* w, const std::uint32_t* m,
                                                     std::uint32_t second, const __m512* wk,
