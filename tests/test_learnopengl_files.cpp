@@ -17,7 +17,7 @@
 #include "bloomref/gpu/device_facts.h"
 #include "bloomref/gpu/user_pipeline.h"
 #include "bloomref/io.h"
-#include "corpus.h"
+#include "test_util.h"
 #include "gl_fixture.h"
 #include "user_shader_checks.h"
 
