@@ -72,17 +72,224 @@ double blur_ms(const StageTrace& t) {
   return b;
 }
 
+struct BenchArgs {
+  std::string sizes = "256x256,1024x1024,1920x1080,3840x2160";
+  std::string out_dir;
+  int repeat = 5;
+  bool no_gl = false;
+  PipelineOptions pipeline;
+};
+
+// The GL context (none with --no-gl or when GL is unavailable) and the renderer's description.
+std::string open_gl(bool no_gl, std::unique_ptr<gpu::GlContext>& ctx) {
+  if (no_gl) return "none";
+  try {
+    ctx = gpu::GlContext::create();
+    return ctx->info().renderer + ", " + ctx->info().version;
+  } catch (const gpu::GlUnavailable& e) {
+    return std::string("unavailable: ") + e.what();
+  }
+}
+
+// Thread counts timed: 1, 2, and every thread when there are more.
+std::vector<int> thread_wedge(int all) {
+  std::vector<int> wedge = {1};
+  if (all >= 2) wedge.push_back(2);
+  if (all > 2) wedge.push_back(all);
+  return wedge;
+}
+
+struct Progress {
+  int done = 0, total = 0;
+  void step(const std::string& what) { progress(++done, total, what); }
+};
+
+// One CPU configuration: a warm-up, then `repeat` timed runs; medians of the totals, blur times
+// and stage times. Its output must have the bits of `reference` (the first configuration's, the
+// 1-thread full plan, which sets it).
+Row time_cpu(const BenchArgs& a, const std::string& size, const Image& scene, int threads,
+             PlanMode mode, Image& reference) {
+  BloomParams p = a.pipeline.params;
+  p.threads = threads;
+  p.plan = mode;
+  // Each run is handed its own copy of the scene, made outside the timer, as `bloomref
+  // run` hands over the image it read: what is timed starts from an image in memory, and
+  // its plan's scan of the scene (the stage "plan").
+  execute(make_plan(p, scene.cview()), Image(scene));  // warm-up, outside the timer
+  std::vector<double> totals, blurs;
+  std::vector<std::vector<double>> per_stage;
+  StageTrace last;
+  for (int r = 0; r < a.repeat; ++r) {
+    Image copy(scene);
+    last = execute(make_plan(p, scene.cview()), std::move(copy));
+    totals.push_back(last.total_ms);
+    blurs.push_back(blur_ms(last));
+    per_stage.resize(last.timings.size());
+    for (std::size_t i = 0; i < last.timings.size(); ++i)
+      per_stage[i].push_back(last.timings[i].second);
+  }
+  Row row{size,
+          "cpu",
+          to_string(mode),
+          threads,
+          (long long)scene.width() * scene.height(),
+          median(totals),
+          median(blurs),
+          {},
+          true,
+          ""};
+  for (std::size_t i = 0; i < last.timings.size(); ++i)
+    row.stages.emplace_back(last.timings[i].first, median(per_stage[i]));
+  if (reference.empty()) reference = last.final_image();
+  const bool same = same_bits(reference, last.final_image());
+  row.check = same ? "bit-identical to 1-thread full" : "DIFFERS from 1-thread full";
+  row.checked = same;
+  return row;
+}
+
+// One GL shader kind: a warm-up (compiles the shaders), then `repeat` timed runs; its output
+// within 2e-3 of the CPU reference's.
+Row time_gl(const BenchArgs& a, gpu::GlContext& ctx, const std::string& size, const Image& scene,
+            gpu::ShaderKind k, const Image& reference) {
+  BloomParams p = a.pipeline.params;
+  gpu::GlOptions go;
+  go.shaders = k;
+  gpu::execute_gl(ctx, make_plan(p, scene.cview()), scene.cview(), go);  // warm-up
+  std::vector<double> totals, blurs;
+  StageTrace last;
+  for (int r = 0; r < a.repeat; ++r) {
+    last = gpu::execute_gl(ctx, make_plan(p, scene.cview()), scene.cview(), go);
+    totals.push_back(last.total_ms);
+    blurs.push_back(blur_ms(last));
+  }
+  double worst = 0;
+  for (std::size_t i = 0; i < reference.values().size(); ++i)
+    if (i % 4 != 3)
+      worst = std::max(worst,
+                       double(std::fabs(reference.values()[i] - last.final_image().values()[i])));
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", worst);
+  return Row{size,
+             "gl-" + gpu::to_string(k),
+             "full",
+             0,
+             (long long)scene.width() * scene.height(),
+             median(totals),
+             median(blurs),
+             last.timings,
+             worst <= 2e-3,
+             "max |gl - cpu| output " + std::string(b)};
+}
+
+void print_rows(const std::vector<Row>& rows, const std::string& renderer, int all, int repeat) {
+  std::printf("renderer: %s; CPU threads available: %d; %d timed runs each, median\n",
+              renderer.c_str(), all, repeat);
+  std::printf("%-10s %-13s %-8s %-7s %10s %10s  %s\n", "size", "backend", "plan", "threads",
+              "total ms", "blur ms", "check");
+  for (const Row& r : rows)
+    std::printf("%-10s %-13s %-8s %-7d %10.1f %10.1f  %s\n", r.size.c_str(), r.backend.c_str(),
+                r.plan.c_str(), r.threads, r.total_ms, r.blur_ms, r.check.c_str());
+}
+
+nlohmann::ordered_json rows_json(const std::vector<Row>& rows) {
+  nlohmann::ordered_json jr = nlohmann::ordered_json::array();
+  for (const Row& r : rows) {
+    nlohmann::ordered_json st = nlohmann::ordered_json::object();
+    for (const auto& [n, ms] : r.stages) st[n] = ms;
+    jr.push_back({{"size", r.size},
+                  {"pixels", r.pixels},
+                  {"backend", r.backend},
+                  {"plan", r.plan},
+                  {"threads", r.threads},
+                  {"total_ms", r.total_ms},
+                  {"blur_ms", r.blur_ms},
+                  {"stages_ms", st},
+                  {"check", r.check},
+                  {"check_ok", r.checked}});
+  }
+  return jr;
+}
+
+std::string rows_csv(const std::vector<Row>& rows) {
+  std::ostringstream csv;
+  csv << "size,pixels,backend,plan,threads,total_ms,blur_ms,check_ok\n";
+  for (const Row& r : rows)
+    csv << r.size << "," << r.pixels << "," << r.backend << "," << r.plan << "," << r.threads << ","
+        << r.total_ms << "," << r.blur_ms << "," << (r.checked ? 1 : 0) << "\n";
+  return csv.str();
+}
+
+// Least-squares fits t = a + b n of total time against pixels, per (backend, plan, threads),
+// printed and returned.
+nlohmann::ordered_json linear_fits(const std::vector<Row>& rows) {
+  nlohmann::ordered_json fits = nlohmann::ordered_json::array();
+  std::vector<std::tuple<std::string, std::string, int>> keys;
+  for (const Row& r : rows)
+    if (std::find(keys.begin(), keys.end(), std::tuple{r.backend, r.plan, r.threads}) == keys.end())
+      keys.emplace_back(r.backend, r.plan, r.threads);
+  for (const auto& [b, pl, t] : keys) {
+    double sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
+    int n = 0;
+    for (const Row& r : rows)
+      if (r.backend == b && r.plan == pl && r.threads == t) {
+        const double x = r.pixels / 1e6, y = r.total_ms;
+        sx += x;
+        sy += y;
+        sxx += x * x;
+        sxy += x * y;
+        syy += y * y;
+        ++n;
+      }
+    if (n < 2) continue;
+    const double slope = (n * sxy - sx * sy) / (n * sxx - sx * sx), icpt = (sy - slope * sx) / n;
+    const double r2 = std::pow(n * sxy - sx * sy, 2) / ((n * sxx - sx * sx) * (n * syy - sy * sy));
+    fits.push_back({{"backend", b},
+                    {"plan", pl},
+                    {"threads", t},
+                    {"ms_per_megapixel", slope},
+                    {"intercept_ms", icpt},
+                    {"r2", r2}});
+    std::printf("fit %-13s %-8s %dt: %.1f ms/Mpx + %.1f ms, R^2 %.4f\n", b.c_str(), pl.c_str(), t,
+                slope, icpt, r2);
+  }
+  return fits;
+}
+
+// Two threads against one, per size and plan (printed and returned).
+nlohmann::ordered_json two_thread_speedups(const std::vector<Row>& rows) {
+  nlohmann::ordered_json scaling = nlohmann::ordered_json::array();
+  for (const Row& one : rows) {
+    if (one.backend != "cpu" || one.threads != 1) continue;
+    for (const Row& two : rows)
+      if (two.backend == "cpu" && two.threads == 2 && two.size == one.size &&
+          two.plan == one.plan) {
+        std::printf("2 threads vs 1, %-10s %-8s: total %.2fx, blur %.2fx\n", one.size.c_str(),
+                    one.plan.c_str(), one.total_ms / two.total_ms, one.blur_ms / two.blur_ms);
+        scaling.push_back({{"size", one.size},
+                           {"plan", one.plan},
+                           {"total_speedup", one.total_ms / two.total_ms},
+                           {"blur_speedup", one.blur_ms / two.blur_ms}});
+      }
+  }
+  return scaling;
+}
+
+nlohmann::ordered_json ceilings_json(const std::vector<ParallelCeiling>& ceilings) {
+  nlohmann::ordered_json cj = nlohmann::ordered_json::array();
+  for (const ParallelCeiling& c : ceilings)
+    cj.push_back({{"threads", c.threads},
+                  {"latency_bound_speedup", c.compute},
+                  {"throughput_bound_speedup", c.throughput},
+                  {"memory_copy_speedup", c.memory},
+                  {"copy_gb_per_s_1", c.copy_gb_per_s_one},
+                  {"copy_gb_per_s_all", c.copy_gb_per_s_all}});
+  return cj;
+}
+
 }  // namespace
 
 std::function<int()> add_bench(CLI::App& app) {
-  struct Args {
-    std::string sizes = "256x256,1024x1024,1920x1080,3840x2160";
-    std::string out_dir;
-    int repeat = 5;
-    bool no_gl = false;
-    PipelineOptions pipeline;
-  };
-  auto a = std::make_shared<Args>();
+  auto a = std::make_shared<BenchArgs>();
   CLI::App* sub = app.add_subcommand("bench", "time CPU and GL per stage, checking every output");
   sub->add_option("--sizes", a->sizes, "comma-separated WxH list")->capture_default_str();
   sub->add_option("--repeat", a->repeat, "timed runs per configuration (median reported)")
@@ -96,170 +303,57 @@ std::function<int()> add_bench(CLI::App& app) {
     if (a->repeat < 1) throw ParamError("--repeat must be >= 1");
     const auto sizes = parse_sizes(a->sizes);
     std::unique_ptr<gpu::GlContext> ctx;
-    std::string renderer = "none";
-    if (!a->no_gl) {
-      try {
-        ctx = gpu::GlContext::create();
-        renderer = ctx->info().renderer + ", " + ctx->info().version;
-      } catch (const gpu::GlUnavailable& e) {
-        renderer = std::string("unavailable: ") + e.what();
-      }
-    }
+    const std::string renderer = open_gl(a->no_gl, ctx);
     const int all = resolve_threads(0);
-    std::vector<int> wedge = {1};
-    if (all >= 2) wedge.push_back(2);
-    if (all > 2) wedge.push_back(all);
+    const std::vector<int> wedge = thread_wedge(all);
     // The machine's own ceilings for the thread wedge, before and after the timed runs (the
     // neighbours of a virtual machine come and go): register-only work, latency- and
     // throughput-bound, and memory copy.
     std::vector<ParallelCeiling> ceilings;
     if (all >= 2) ceilings.push_back(parallel_ceiling(2));
     const int per_size = static_cast<int>(wedge.size()) * 2 + (ctx ? 2 : 0);
-    const int total = per_size * static_cast<int>(sizes.size());
-    int done = 0;
+    Progress bar{0, per_size * static_cast<int>(sizes.size())};
     std::vector<Row> rows;
-    bool all_ok = true;
     for (auto [w, h] : sizes) {
       const std::string size = std::to_string(w) + "x" + std::to_string(h);
       const Image scene = make_scene(a->pipeline.scene, w, h);
       Image reference;  // the 1-thread full plan's output
-      auto time_cpu = [&](int threads, PlanMode mode) {
-        BloomParams p = a->pipeline.params;
-        p.threads = threads;
-        p.plan = mode;
-        // Each run is handed its own copy of the scene, made outside the timer, as `bloomref
-        // run` hands over the image it read: what is timed starts from an image in memory, and
-        // its plan's scan of the scene (the stage "plan").
-        execute(make_plan(p, scene.cview()), Image(scene));  // warm-up, outside the timer
-        std::vector<double> totals, blurs;
-        std::vector<std::vector<double>> per_stage;
-        StageTrace last;
-        for (int r = 0; r < a->repeat; ++r) {
-          Image copy(scene);
-          last = execute(make_plan(p, scene.cview()), std::move(copy));
-          totals.push_back(last.total_ms);
-          blurs.push_back(blur_ms(last));
-          per_stage.resize(last.timings.size());
-          for (std::size_t i = 0; i < last.timings.size(); ++i) per_stage[i].push_back(last.timings[i].second);
-        }
-        Row row{size, "cpu", to_string(mode), threads, (long long)w * h, median(totals), median(blurs), {}, true, ""};
-        for (std::size_t i = 0; i < last.timings.size(); ++i)
-          row.stages.emplace_back(last.timings[i].first, median(per_stage[i]));
-        if (reference.empty()) reference = last.final_image();
-        const bool same = same_bits(reference, last.final_image());
-        row.check = same ? "bit-identical to 1-thread full" : "DIFFERS from 1-thread full";
-        row.checked = same;
-        all_ok &= same;
-        rows.push_back(row);
-        progress(++done, total, size + " cpu " + std::to_string(threads) + "t " + to_string(mode));
-      };
       for (PlanMode mode : {PlanMode::full, PlanMode::adaptive})
-        for (int t : wedge) time_cpu(t, mode);
-      if (ctx) {
-        for (gpu::ShaderKind k : {gpu::ShaderKind::fragment, gpu::ShaderKind::compute}) {
-          BloomParams p = a->pipeline.params;
-          gpu::GlOptions go;
-          go.shaders = k;
-          gpu::execute_gl(*ctx, make_plan(p, scene.cview()), scene.cview(), go);  // warm-up (compiles the shaders)
-          std::vector<double> totals, blurs;
-          StageTrace last;
-          for (int r = 0; r < a->repeat; ++r) {
-            last = gpu::execute_gl(*ctx, make_plan(p, scene.cview()), scene.cview(), go);
-            totals.push_back(last.total_ms);
-            blurs.push_back(blur_ms(last));
-          }
-          double worst = 0;
-          for (std::size_t i = 0; i < reference.values().size(); ++i)
-            if (i % 4 != 3) worst = std::max(worst, double(std::fabs(reference.values()[i] - last.final_image().values()[i])));
-          Row row{size, "gl-" + gpu::to_string(k), "full", 0, (long long)w * h, median(totals), median(blurs), last.timings, worst <= 2e-3,
-                  "max |gl - cpu| output " + [&] {
-                    char b[32];
-                    std::snprintf(b, sizeof b, "%.3g", worst);
-                    return std::string(b);
-                  }()};
-          all_ok &= row.checked;
-          rows.push_back(row);
-          progress(++done, total, size + " gl " + gpu::to_string(k));
+        for (int t : wedge) {
+          rows.push_back(time_cpu(*a, size, scene, t, mode, reference));
+          bar.step(size + " cpu " + std::to_string(t) + "t " + to_string(mode));
         }
-      }
+      if (ctx)
+        for (gpu::ShaderKind k : {gpu::ShaderKind::fragment, gpu::ShaderKind::compute}) {
+          rows.push_back(time_gl(*a, *ctx, size, scene, k, reference));
+          bar.step(size + " gl " + gpu::to_string(k));
+        }
     }
     if (all >= 2) ceilings.push_back(parallel_ceiling(2));
-    // Time against pixel count, per configuration: least squares t = a + b n.
-    std::printf("renderer: %s; CPU threads available: %d; %d timed runs each, median\n",
-                renderer.c_str(), all, a->repeat);
-    std::printf("%-10s %-13s %-8s %-7s %10s %10s  %s\n", "size", "backend", "plan", "threads",
-                "total ms", "blur ms", "check");
-    for (const Row& r : rows)
-      std::printf("%-10s %-13s %-8s %-7d %10.1f %10.1f  %s\n", r.size.c_str(), r.backend.c_str(),
-                  r.plan.c_str(), r.threads, r.total_ms, r.blur_ms, r.check.c_str());
-    nlohmann::ordered_json j = {{"renderer", renderer}, {"threads_available", all},
-                                {"repeat", a->repeat}, {"params", params_json(a->pipeline.params)},
-                                {"timing", "CPU: steady_clock per stage; GL: glFinish after each stage"}};
-    nlohmann::ordered_json jr = nlohmann::ordered_json::array(), fits = nlohmann::ordered_json::array();
-    std::ostringstream csv;
-    csv << "size,pixels,backend,plan,threads,total_ms,blur_ms,check_ok\n";
-    for (const Row& r : rows) {
-      nlohmann::ordered_json st = nlohmann::ordered_json::object();
-      for (const auto& [n, ms] : r.stages) st[n] = ms;
-      jr.push_back({{"size", r.size}, {"pixels", r.pixels}, {"backend", r.backend}, {"plan", r.plan},
-                    {"threads", r.threads}, {"total_ms", r.total_ms}, {"blur_ms", r.blur_ms},
-                    {"stages_ms", st}, {"check", r.check}, {"check_ok", r.checked}});
-      csv << r.size << "," << r.pixels << "," << r.backend << "," << r.plan << "," << r.threads
-          << "," << r.total_ms << "," << r.blur_ms << "," << (r.checked ? 1 : 0) << "\n";
-    }
-    // Linear fits of total time against pixels for each (backend, plan, threads).
-    std::vector<std::tuple<std::string, std::string, int>> keys;
-    for (const Row& r : rows)
-      if (std::find(keys.begin(), keys.end(), std::tuple{r.backend, r.plan, r.threads}) == keys.end())
-        keys.emplace_back(r.backend, r.plan, r.threads);
-    for (const auto& [b, pl, t] : keys) {
-      double sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
-      int n = 0;
-      for (const Row& r : rows)
-        if (r.backend == b && r.plan == pl && r.threads == t) {
-          const double x = r.pixels / 1e6, y = r.total_ms;
-          sx += x; sy += y; sxx += x * x; sxy += x * y; syy += y * y;
-          ++n;
-        }
-      if (n < 2) continue;
-      const double slope = (n * sxy - sx * sy) / (n * sxx - sx * sx), icpt = (sy - slope * sx) / n;
-      const double r2 = std::pow(n * sxy - sx * sy, 2) / ((n * sxx - sx * sx) * (n * syy - sy * sy));
-      fits.push_back({{"backend", b}, {"plan", pl}, {"threads", t}, {"ms_per_megapixel", slope},
-                      {"intercept_ms", icpt}, {"r2", r2}});
-      std::printf("fit %-13s %-8s %dt: %.1f ms/Mpx + %.1f ms, R^2 %.4f\n", b.c_str(), pl.c_str(), t,
-                  slope, icpt, r2);
-    }
-    // Two threads against one, per size and plan, beside what the machine gives two threads.
+    print_rows(rows, renderer, all, a->repeat);
+    nlohmann::ordered_json j = {
+        {"renderer", renderer},
+        {"threads_available", all},
+        {"repeat", a->repeat},
+        {"params", params_json(a->pipeline.params)},
+        {"timing", "CPU: steady_clock per stage; GL: glFinish after each stage"}};
+    const nlohmann::ordered_json fits = linear_fits(rows);
     nlohmann::ordered_json scaling = nlohmann::ordered_json::array();
     if (all >= 2) {
       for (const ParallelCeiling& c : ceilings) std::printf("%s\n", describe(c).c_str());
-      for (const Row& one : rows) {
-        if (one.backend != "cpu" || one.threads != 1) continue;
-        for (const Row& two : rows)
-          if (two.backend == "cpu" && two.threads == 2 && two.size == one.size && two.plan == one.plan) {
-            std::printf("2 threads vs 1, %-10s %-8s: total %.2fx, blur %.2fx\n", one.size.c_str(),
-                        one.plan.c_str(), one.total_ms / two.total_ms, one.blur_ms / two.blur_ms);
-            scaling.push_back({{"size", one.size}, {"plan", one.plan},
-                               {"total_speedup", one.total_ms / two.total_ms},
-                               {"blur_speedup", one.blur_ms / two.blur_ms}});
-          }
-      }
-      nlohmann::ordered_json cj = nlohmann::ordered_json::array();
-      for (const ParallelCeiling& c : ceilings)
-        cj.push_back({{"threads", c.threads}, {"latency_bound_speedup", c.compute},
-                      {"throughput_bound_speedup", c.throughput},
-                      {"memory_copy_speedup", c.memory}, {"copy_gb_per_s_1", c.copy_gb_per_s_one},
-                      {"copy_gb_per_s_all", c.copy_gb_per_s_all}});
-      j["machine_ceiling_before_after"] = cj;
+      scaling = two_thread_speedups(rows);
+      j["machine_ceiling_before_after"] = ceilings_json(ceilings);
     }
     j["two_thread_speedup"] = scaling;
-    j["rows"] = jr;
+    j["rows"] = rows_json(rows);
     j["fits"] = fits;
     if (!a->out_dir.empty()) {
       std::filesystem::create_directories(a->out_dir);
       save_text((std::filesystem::path(a->out_dir) / "bench.json").string(), j.dump(2) + "\n");
-      save_text((std::filesystem::path(a->out_dir) / "bench.csv").string(), csv.str());
+      save_text((std::filesystem::path(a->out_dir) / "bench.csv").string(), rows_csv(rows));
     }
+    bool all_ok = true;
+    for (const Row& r : rows) all_ok &= r.checked;
     return all_ok ? 0 : 1;
   };
 }

@@ -1,0 +1,227 @@
+// The tolerance model's per-value bounds (parity/src/tolerance.h) against values computed by
+// hand from the model's stated terms: u = 2^-24 (f32 unit roundoff), f16 ULP 2^(e - 10) with
+// the exponent floored at -14, GLSL 4.50's precision table (profile.h), discrete9's weights
+// 924, 792, 495, 220, 66 over 4070. Needs no GL.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "bloomref/kernel.h"
+#include "bloomref/parity/profile.h"
+#include "bloomref/stages.h"
+#include "tolerance.h"
+
+using namespace bloomref;
+using namespace bloomref::parity;
+namespace tol = bloomref::parity::detail;  // the tolerance model
+using tol::BoundContext;
+
+namespace {
+
+constexpr double u = 0x1p-24;
+
+// A profile whose half writes round to nearest-even only (the llvmpipe profile accepts toward
+// zero, which loses up to a whole ULP).
+DeviceProfile nearest_even_profile() {
+  DeviceProfile p = profile_llvmpipe();
+  p.half_toward_zero = false;
+  p.half_nearest_even = true;
+  return p;
+}
+
+// A w x 1 image whose RGB all hold values[x] (alpha 1).
+Image row(const std::vector<float>& values) {
+  Image img(static_cast<int>(values.size()), 1);
+  for (std::size_t x = 0; x < values.size(); ++x) {
+    float* p = img.pixel(static_cast<int>(x), 0);
+    p[0] = p[1] = p[2] = values[x];
+    p[3] = 1;
+  }
+  return img;
+}
+
+// The value of the term whose name starts with `prefix`.
+double term(const std::vector<Term>& terms, const std::string& prefix) {
+  for (const Term& t : terms)
+    if (t.name.rfind(prefix, 0) == 0) return t.value;
+  FAIL("no term named " << prefix << "...");
+  return 0;
+}
+
+double total(const std::vector<Term>& terms) {
+  double s = 0;
+  for (const Term& t : terms) s += t.value;
+  return s;
+}
+
+// Window statistics are stored as floats: weight sums such as 781 / 4070 carry one float
+// rounding, so sums of them match the hand value within a few 2^-24 relative.
+bool close(double got, double want) { return std::fabs(got - want) <= 4 * u * std::fabs(want); }
+
+}  // namespace
+
+TEST_CASE("f16 storage: half an ULP (2^-11 relative at 1) for nearest-even, one for toward zero",
+          "[parity][bounds]") {
+  const DeviceProfile ne = nearest_even_profile(), tz = profile_llvmpipe();
+  // Binade [1, 2): ULP 2^-10.
+  CHECK(tol::storage_term(1.0, Storage::f16, ne) == 0x1p-11);
+  CHECK(tol::storage_term(1.5, Storage::f16, ne) == 0x1p-11);
+  CHECK(tol::storage_term(1.0, Storage::f16, tz) == 0x1p-10);
+  // [2, 4): ULP 2^-9; [4, 8): 2^-8; the sign does not matter.
+  CHECK(tol::storage_term(3.0, Storage::f16, ne) == 0x1p-10);
+  CHECK(tol::storage_term(-4.0, Storage::f16, ne) == 0x1p-9);
+  // Below the smallest normal half (2^-14) the ULP stays 2^-24 (the subnormal spacing).
+  CHECK(tol::storage_term(0x1p-20, Storage::f16, ne) == 0x1p-25);
+  CHECK(tol::storage_term(0.0, Storage::f16, tz) == 0x1p-24);
+  // f32 storage is the oracle's own: nothing. A non-finite value has no ULP.
+  CHECK(tol::storage_term(1.0, Storage::f32, tz) == 0.0);
+  CHECK(tol::storage_term(INFINITY, Storage::f16, tz) == 0.0);
+}
+
+TEST_CASE("denormal floor and coordinate error follow the profile", "[parity][bounds]") {
+  CHECK(tol::denormal_floor(profile_llvmpipe()) == 0x1p-120);
+  DeviceProfile keeps = profile_llvmpipe();
+  keeps.flush_denormals = false;
+  CHECK(tol::denormal_floor(keeps) == 0.0);
+  // n u (2 * 2.5 + 4): 1024 * 2^-24 * 9 = 9 * 2^-14, in texels; fixed-point weights of 8 bits
+  // add one weight quantum 2^-8.
+  CHECK(tol::coordinate_error(1024, profile_llvmpipe()) == 9 * 0x1p-14);
+  CHECK(tol::coordinate_error(1024, profile_nvidia_like()) == 9 * 0x1p-14 + 0x1p-8);
+}
+
+TEST_CASE("input: storage plus the value itself where it is a denormal", "[parity][bounds]") {
+  const DeviceProfile p = profile_llvmpipe();
+  const Image img = row({1.0f, 0x1p-130f});
+  const auto b = tol::input_bounds(img.cview(), BoundContext{&p, Storage::f16, 1});
+  CHECK(total(b->terms(0, 0, 0)) == 0x1p-10);          // toward zero: one ULP at 1
+  CHECK(total(b->terms(1, 0, 0)) == 0x1p-24 + 0x1p-130);  // subnormal half ULP + flushed value
+}
+
+TEST_CASE("bright: a tie band only when the luminance is not computed `precise`",
+          "[parity][bounds]") {
+  DeviceProfile p = profile_llvmpipe();
+  const Image img = row({2.0f});
+  const float at = luminance(2.0f, 2.0f, 2.0f);
+  const auto precise = tol::bright_bounds(img.cview(), at, BoundContext{&p, Storage::f32, 1});
+  CHECK(total(precise->terms(0, 0, 1)) == 0.0);
+  p.precise_luminance = false;
+  // |L - threshold| = 0 is within 4u sum|w_i c_i|: either side is right, so the bound is the
+  // largest channel, 2. A threshold far away (0.5) has no band.
+  const auto tie = tol::bright_bounds(img.cview(), at, BoundContext{&p, Storage::f32, 1});
+  CHECK(total(tie->terms(0, 0, 1)) == 2.0);
+  const auto far = tol::bright_bounds(img.cview(), 0.5f, BoundContext{&p, Storage::f32, 1});
+  CHECK(total(far->terms(0, 0, 1)) == 0.0);
+}
+
+TEST_CASE("blur: coordinate term from the local range, rounding from the magnitude",
+          "[parity][bounds]") {
+  const DeviceProfile p = profile_llvmpipe();
+  const BoundContext ctx{&p, Storage::f32, 1};
+  const Kernel& k = kernel_discrete9();
+  // A constant row: no range, so no coordinate term; every tap's magnitude 1 and the weights sum
+  // to (924 + 2 (792 + 495 + 220 + 66)) / 4070 = 1, so the filter and sum rounding is
+  // (3 + 2 * 9) u = 21u; plus the denormal floor 2^-120.
+  {
+    const Image flat = row({1, 1, 1, 1, 1, 1, 1, 1});
+    const auto b = tol::blur_bounds(flat.cview(), flat.cview(), Axis::horizontal, k, ctx);
+    const auto t = b->terms(3, 0, 0);
+    CHECK(term(t, "coordinate") == 0.0);
+    CHECK(close(term(t, "filter"), 21 * u));
+    CHECK(term(t, "storage") == 0.0);
+    CHECK(term(t, "denormal") == 0x1p-120);
+  }
+  // A step, 0 for x < 4 and 1 from x = 4, 8 texels wide and 1 high: the coordinate error is
+  // (8 + 1) u 9 = 81u texels (coordinate_error along and across). A tap based at texel b may
+  // touch [b - 1, b + 2]: its range is 1 for b in {2, 3, 4}, its magnitude 1 for b >= 2.
+  const Image step = row({0, 0, 0, 0, 1, 1, 1, 1});
+  const auto b = tol::blur_bounds(step.cview(), step.cview(), Axis::horizontal, k, ctx);
+  // x = 0: taps at 0, +1..+4 and -1..-4 (clamped to 0); bases 2, 3, 4 are the +2, +3, +4 taps:
+  // range and magnitude both weigh (495 + 220 + 66) / 4070 = 781 / 4070.
+  const auto t0 = b->terms(0, 0, 0);
+  CHECK(close(term(t0, "coordinate"), 81 * u * 781 / 4070));
+  CHECK(close(term(t0, "filter"), 21 * u * 781 / 4070));
+  // x = 7: +1..+4 clamp to 7, -1..-4 at 6, 5, 4, 3. Range: -3 (base 4) and -4 (base 3), so
+  // (220 + 66) / 4070; magnitude: every base is >= 2, so 1.
+  const auto t7 = b->terms(7, 0, 0);
+  CHECK(close(term(t7, "coordinate"), 81 * u * 286 / 4070));
+  CHECK(close(term(t7, "filter"), 21 * u));
+  // fill() writes the sum of the terms.
+  Image bound(8, 1);
+  b->fill(bound);
+  CHECK(close(bound.pixel(0, 0)[0], (81 + 21) * u * 781 / 4070 + 0x1p-120));
+}
+
+TEST_CASE("an error propagated through one blur pass is its windowed, weighted magnitude",
+          "[parity][bounds]") {
+  // An error of 1 at x = 4 of 8: a tap based at b sees it when 4 is in [b - 1, b + 2], so for
+  // b in 2..5.
+  const Image err = row({0, 0, 0, 0, 1, 0, 0, 0});
+  const Image out = tol::propagate_blur(err.cview(), Axis::horizontal, kernel_discrete9(), 1);
+  // x = 4: bases 4 (w0), 5 and 3 (w1 each), 2 (the -2 tap, w2): (924 + 2 * 792 + 495) / 4070.
+  CHECK(close(out.pixel(4, 0)[0], 3003.0 / 4070));
+  // x = 0: bases 2, 3, 4 (the +2, +3, +4 taps): 781 / 4070; x = 7: bases 5, 4, 3 (-2, -3, -4).
+  CHECK(close(out.pixel(0, 0)[0], 781.0 / 4070));
+  CHECK(close(out.pixel(7, 0)[0], 781.0 / 4070));
+  // Vertically, a 1-texel-wide column sees the same sums along y.
+  Image col(1, 8);
+  col.pixel(0, 4)[1] = 1;
+  const Image down = tol::propagate_blur(col.cview(), Axis::vertical, kernel_discrete9(), 1);
+  CHECK(close(down.pixel(0, 4)[1], 3003.0 / 4070));
+}
+
+TEST_CASE("composite and tone map bounds", "[parity][bounds]") {
+  const DeviceProfile p = profile_llvmpipe();
+  const BoundContext ctx{&p, Storage::f32, 1};
+  // s + strength b: one product, one sum: 2u (|s| + |strength b|) = 2u (1 + 0.5 * 2) = 4u.
+  const Image s = row({1}), b = row({2});
+  const auto c = tol::composite_bounds(s.cview(), b.cview(), s.cview(), 0.5f, ctx);
+  CHECK(term(c->terms(0, 0, 0), "product") == 4 * u);
+  // exp branch at a = -hdr * exposure = -1: e = exp(-1); exp's (3 + 2|a|) ULP = 5 ULP <= 10 e u,
+  // the argument's rounding e |a| u, 1 - e's rounding (1 + e) u: (12 e + 1) u, plus 2^-120.
+  const Image one = row({1});
+  const auto tm = tol::tonemap_bounds(one.cview(), one.cview(), 1.0f, ctx);
+  const double e = std::exp(-1.0);
+  CHECK(close(total(tm->terms(0, 0, 0)), (12 * e + 1) * u + 0x1p-120));
+  // Series branch at |a| = 0.25 < 0.5: no exp term; argument 0.25 * 1.7 u; 22 Horner roundings
+  // of m = 1 - exp(-0.25).
+  const Image quarter = row({0.25f});
+  const auto ts = tol::tonemap_bounds(quarter.cview(), quarter.cview(), 1.0f, ctx);
+  const auto t = ts->terms(0, 0, 0);
+  CHECK(term(t, "exp") == 0.0);
+  CHECK(close(term(t, "argument"), 0.25 * 1.7 * u));
+  CHECK(close(term(t, "1 - e"), 22 * u * -std::expm1(-0.25)));
+}
+
+TEST_CASE("output: the bound follows pow's slope towards black", "[parity][bounds]") {
+  const DeviceProfile p = profile_llvmpipe();
+  const BoundContext ctx{&p, Storage::f32, 1};
+  // gamma 2, so out = exp2(0.5 log2 m).
+  // m = 1 (log2 within [0.5, 2]: 2^-21 absolute): out = 1, t = 0: log2 term ln2 * 0.5 * 2^-21,
+  // no rounding of g * log2 (t = 0), exp2 (3 + 0) * 2u.
+  {
+    const Image m = row({1});
+    const auto b = tol::output_bounds(m.cview(), m.cview(), 2.0f, ctx);
+    CHECK(close(total(b->terms(0, 0, 0)), std::log(2.0) * 0x1p-22 + 6 * u));
+  }
+  // m = 2^-20: log2 m = -20 (3 ULP: 6u * 20 = 120u), t = -10, out = 2^-10. log2 term
+  // 2^-10 ln2 0.5 * 120u = 60 ln2 2^-34; g * log2 rounding 2^-10 ln2 * 10 * 3.5u = 35 ln2 2^-34;
+  // exp2 2^-10 (3 + 20) 2u = 46 * 2^-34. Relative to the output that is (95 ln2 + 46) 2^-24,
+  // growing with |log2 m| where m = 1 gave (ln2 2^2 + 6) 2^-24: the slope of the curve.
+  {
+    const Image m = row({0x1p-20f});
+    const auto b = tol::output_bounds(m.cview(), m.cview(), 2.0f, ctx);
+    const auto t = b->terms(0, 0, 0);
+    CHECK(close(term(t, "log2"), 60 * std::log(2.0) * 0x1p-34));
+    CHECK(close(term(t, "1/gamma"), 35 * std::log(2.0) * 0x1p-34));
+    CHECK(close(term(t, "exp2"), 46 * 0x1p-34));
+  }
+  // At 0: pow(0, 0.5) may come out as 2^(-149 / 2) (log2(0) as -149). A denormal that the
+  // device may flush: anything between 0 and pow(2^-126, 0.5) = 2^-63. NaN: unpinned.
+  const Image edge = row({0.0f, 0x1p-130f, NAN});
+  const auto b = tol::output_bounds(edge.cview(), edge.cview(), 2.0f, ctx);
+  CHECK(close(total(b->terms(0, 0, 0)), std::exp2(-74.5)));
+  CHECK(total(b->terms(1, 0, 0)) == 0x1p-63);
+  CHECK(std::isinf(total(b->terms(2, 0, 0))));
+}
