@@ -11,6 +11,7 @@
 #include "bloomref/error.h"
 #include "bloomref/mip.h"
 #include "bloomref/parallel.h"
+#include "judge.h"
 #include "tolerance.h"
 
 namespace bloomref::parity {
@@ -21,6 +22,7 @@ std::string to_string(Verdict v) {
   return v == Verdict::pass ? "PASS" : v == Verdict::warn ? "WARN" : "FAIL";
 }
 
+namespace detail {
 namespace {
 
 constexpr double kWarnTier = 4.0;  // over the derived bound but within 4x: WARN
@@ -72,6 +74,8 @@ struct Tally {
   std::vector<std::uint64_t> hist = std::vector<std::uint64_t>(17, 0);
   std::vector<WorstValue> worst;
 };
+
+}  // namespace
 
 StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
                       const Image& bound, const StageBounds& terms, Storage storage,
@@ -181,174 +185,18 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
   return s;
 }
 
-const Image& stage_image(const StageTrace& t, const std::string& name, const char* which) {
-  const StageResult* r = t.find(name);
-  if (!r) throw ParamError(std::string("the ") + which + " trace has no stage '" + name + "'");
-  return r->image;
-}
-
-}  // namespace
+}  // namespace detail
 
 ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& gl,
                      const StageTrace& cpu, const DeviceProfile& profile,
                      const CompareOptions& opt) {
-  const BloomParams& p = plan.params;
-  const int threads = p.threads, w = scene.width, h = scene.height;
-  const BoundContext ctx{&profile, p.storage, threads};
-  const Kernel& kernel = kernel_for(p.kernel);
-  const bool mip = p.method == Method::mip;
-  const bool after = mip && p.composite == CompositeOrder::after_tonemap;
-  const int top = static_cast<int>(plan.levels.size());
-  ParityResult result;
-  result.profile = profile;
-
-  // The sanitised scene (unrounded): what the input pass computes before storing.
-  Image sanitized(w, h);
-  sanitize(scene, sanitized.view(), p.nonfinite, p.storage, threads);
-
-  auto G = [&](const std::string& n) -> const Image& { return stage_image(gl, n, "GL"); };
-  auto C = [&](const std::string& n) -> const Image& { return stage_image(cpu, n, "CPU"); };
-  auto level = [](const char* kind, int k) { return std::string(kind) + "." + std::to_string(k); };
-  // The stage each one reads (its isolation input), by method and composite order.
-  const std::string bloom_stage = bloom_stage_name(plan);
-  const std::string composite_base = after ? "tonemap" : "input";
-  const std::string tonemap_src = after ? "input" : "composite";
-  const std::string output_src = after ? "composite" : "tonemap";
-  std::map<std::string, Image> e2e;  // end-to-end bound of each stage, on the CPU's images
-
+  CapturedStages captured;
   for (const StageSpec& spec : plan.stages) {
-    const std::string& name = spec.name;
-    const Image& g = G(name);
-    const Image& c = C(name);
-    Image oracle(c.width(), c.height()), bound(c.width(), c.height(), 0.0f);
-    Image e(c.width(), c.height(), 0.0f);  // end-to-end bound
-    std::unique_ptr<StageBounds> b;
-    auto add = [&](const Image& a, double scale) {
-      for (std::size_t i = 0; i < e.values().size(); ++i)
-        e.values()[i] += static_cast<float>(scale * a.values()[i]);
-    };
-    switch (spec.kind) {
-      case StageKind::input:
-        oracle = sanitized;
-        b = input_bounds(oracle.cview(), ctx);
-        b->fill(bound);
-        e = bound;
-        break;
-      case StageKind::bright:
-        extract_bright(sanitized.cview(), oracle.view(), p.threshold, threads);
-        b = bright_bounds(sanitized.cview(), p.threshold, ctx);
-        b->fill(bound);
-        e = bound;
-        break;
-      case StageKind::blur: {
-        const std::string prev = spec.pass == 1 ? "bright" : level("blur", spec.pass - 1);
-        const Image& src = G(prev);
-        blur_pass(src.cview(), oracle.view(), {spec.axis, &kernel, profile.subtexel_bits}, threads);
-        b = blur_bounds(src.cview(), oracle.cview(), spec.axis, kernel, ctx);
-        b->fill(bound);
-        e = propagate_blur(e2e.at(prev).cview(), spec.axis, kernel, threads);
-        add(bound, 1.0);
-        break;
-      }
-      case StageKind::down: {
-        const int k = spec.pass;
-        const std::string prev = k == 1 ? "input" : level("down", k - 1);
-        const Image& src = G(prev);
-        oracle = Image(plan.levels[k - 1].width, plan.levels[k - 1].height);
-        bound = Image(oracle.width(), oracle.height(), 0.0f);
-        const DownsampleOptions o{k == 1, p.threshold, p.karis && k == 1, profile.subtexel_bits};
-        downsample(src.cview(), oracle.view(), o, threads);
-        b = down_bounds(src.cview(), oracle.cview(), nullptr, k == 1, p.threshold, p.karis, ctx);
-        b->fill(bound);
-        down_bounds(C(prev).cview(), c.cview(), &e2e.at(prev), k == 1, p.threshold, p.karis, ctx)
-            ->fill(e);
-        break;
-      }
-      case StageKind::up:
-      case StageKind::bloom: {
-        const int k = spec.kind == StageKind::bloom ? 0 : spec.pass;
-        const std::string small = k + 1 == top ? level("down", top) : level("up", k + 1);
-        const std::string cur = k == 0 ? "" : level("down", k);
-        const BasicView<const float> none{};
-        const Image& gs = G(small);
-        if (k == 0) {
-          oracle = Image(w, h);
-        } else {
-          oracle = Image(G(cur).width(), G(cur).height());
-        }
-        bound = Image(oracle.width(), oracle.height(), 0.0f);
-        upsample_tent(gs.cview(), k ? G(cur).cview() : none, oracle.view(), profile.subtexel_bits,
-                      threads);
-        b = up_bounds(gs.cview(), k ? G(cur).cview() : none, oracle.cview(), nullptr, nullptr, ctx);
-        b->fill(bound);
-        up_bounds(C(small).cview(), k ? C(cur).cview() : none, c.cview(), &e2e.at(small),
-                  k ? &e2e.at(cur) : nullptr, ctx)
-            ->fill(e);
-        break;
-      }
-      case StageKind::composite: {
-        const Image& sc = G(composite_base);
-        const Image& bl = G(bloom_stage);
-        composite(sc.cview(), bl.cview(), oracle.view(), p.strength, threads);
-        b = composite_bounds(sc.cview(), bl.cview(), oracle.cview(), p.strength, ctx);
-        b->fill(bound);
-        e = e2e.at(composite_base);
-        add(e2e.at(bloom_stage), p.strength);
-        add(bound, 1.0);
-        break;
-      }
-      case StageKind::tonemap: {
-        const Image& hd = G(tonemap_src);
-        tonemap(hd.cview(), oracle.view(), p.exposure, threads);
-        b = tonemap_bounds(hd.cview(), oracle.cview(), p.exposure, ctx);
-        b->fill(bound);
-        const Image& ch = C(tonemap_src);
-        const Image& eh = e2e.at(tonemap_src);
-        for (std::size_t i = 0; i < e.values().size(); ++i) {
-          const double hv = ch.values()[i], ev = eh.values()[i];
-          // The slope of 1 - exp(-h k) is k exp(-h k): largest at the low end of h +- e.
-          e.values()[i] = std::isfinite(hv) && std::isfinite(ev)
-                              ? static_cast<float>(p.exposure * std::exp(-(hv - ev) * p.exposure) * ev)
-                              : INFINITY;
-        }
-        add(bound, 1.0);
-        break;
-      }
-      case StageKind::output: {
-        const Image& m = G(output_src);
-        encode_output(m.cview(), oracle.view(), p.gamma, threads);
-        b = output_bounds(m.cview(), oracle.cview(), p.gamma, ctx);
-        b->fill(bound);
-        const Image& cm = C(output_src);
-        const Image& em = e2e.at(output_src);
-        const double gexp = 1.0 / p.gamma;
-        for (std::size_t i = 0; i < e.values().size(); ++i) {
-          const double mv = cm.values()[i], ev = em.values()[i];
-          // Gamma's slope is unbounded near black: bound by the interval's image instead.
-          e.values()[i] = std::isfinite(mv) && std::isfinite(ev)
-                              ? static_cast<float>(std::pow(std::max(mv + ev, 0.0), gexp) -
-                                                   std::pow(std::max(mv - ev, 0.0), gexp))
-                              : INFINITY;
-        }
-        add(bound, 1.0);
-        break;
-      }
-    }
-    result.isolated.push_back(
-        judge(name, g.cview(), oracle.cview(), bound, *b, p.storage, profile, opt, threads));
-    result.end_to_end.push_back(
-        judge(name, g.cview(), c.cview(), e, *b, p.storage, profile, opt, threads));
-    e2e[name] = std::move(e);
+    const StageResult* r = gl.find(spec.name);
+    if (!r) throw ParamError("the GL trace has no stage '" + spec.name + "'");
+    captured[spec.name] = CapturedStage{r->image.cview()};
   }
-
-  for (const StageComparison& s : result.isolated) {
-    if (s.verdict != Verdict::pass && !result.first_divergent_stage)
-      result.first_divergent_stage = s.stage;
-    result.verdict = std::max(result.verdict, s.verdict);
-  }
-  for (const StageComparison& s : result.end_to_end)
-    result.verdict = std::max(result.verdict, s.verdict);
-  return result;
+  return compare_captured(plan, scene, captured, cpu, profile, opt);
 }
 
 Plan plan_for_device(BloomParams params, ConstImageView scene, const DeviceProfile& profile,
@@ -360,19 +208,38 @@ Plan plan_for_device(BloomParams params, ConstImageView scene, const DeviceProfi
   return make_plan(params, scene, source);
 }
 
+HalfRounding half_rounding_for(const DeviceProfile& profile) {
+  return !profile.half_nearest_even       ? HalfRounding::toward_zero
+         : profile.half_overflow_saturate ? HalfRounding::nearest_even_saturate
+                                          : HalfRounding::nearest_even;
+}
+
+namespace {
+StageTrace run_oracle(const Plan& plan, ConstImageView scene, const DeviceProfile& profile,
+                      double* cpu_ms) {
+  ExecuteOptions eo;
+  eo.keep_all = true;
+  eo.half_rounding = half_rounding_for(profile);
+  const auto t0 = std::chrono::steady_clock::now();
+  StageTrace cpu = execute(plan, scene, eo);
+  if (cpu_ms)
+    *cpu_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return cpu;
+}
+}  // namespace
+
 ParityResult compare_with_oracle(const Plan& plan, ConstImageView scene, const StageTrace& gl,
                                  const DeviceProfile& profile, const CompareOptions& opt,
                                  double* cpu_ms) {
-  ExecuteOptions eo;
-  eo.keep_all = true;
-  eo.half_rounding = !profile.half_nearest_even       ? HalfRounding::toward_zero
-                     : profile.half_overflow_saturate ? HalfRounding::nearest_even_saturate
-                                                      : HalfRounding::nearest_even;
-  const auto t0 = std::chrono::steady_clock::now();
-  const StageTrace cpu = execute(plan, scene, eo);
-  if (cpu_ms)
-    *cpu_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const StageTrace cpu = run_oracle(plan, scene, profile, cpu_ms);
   return compare(plan, scene, gl, cpu, profile, opt);
+}
+
+ParityResult check_with_oracle(const Plan& plan, ConstImageView scene,
+                               const CapturedStages& captured, const DeviceProfile& profile,
+                               const CompareOptions& opt, double* cpu_ms) {
+  const StageTrace cpu = run_oracle(plan, scene, profile, cpu_ms);
+  return compare_captured(plan, scene, captured, cpu, profile, opt);
 }
 
 }  // namespace bloomref::parity

@@ -30,7 +30,9 @@ DeviceProfile profile_nvidia_like() {
 DeviceProfile profile_named(const std::string& name) {
   if (name == "llvmpipe") return profile_llvmpipe();
   if (name == "nvidia") return profile_nvidia_like();
-  throw ParamError("--profile '" + name + "' is not one of: llvmpipe, nvidia");
+  throw ParamError("--profile '" + name + "' is not one of: " + profile_names());
 }
+
+std::string profile_names() { return "llvmpipe, nvidia"; }
 
 }  // namespace bloomref::parity

@@ -1,9 +1,13 @@
 // bloomref parity — two traces in, a verdict out.
 //
-// Stage isolation: each GL stage is judged against the CPU stage recomputed (f32, the shaders'
-// order) from GL's own readback of the stage before it, so an error is charged to the stage that
-// made it. End to end: each GL stage against the CPU's full run, with bounds propagated through
-// the pipeline (the blur of the previous bound, the tone map's and gamma's slopes).
+// Stage isolation: each captured stage is judged against the CPU stage recomputed (f32, the
+// shaders' order) from the capture of the stage before it, so an error is charged to the stage
+// that made it. The captures may be any subset of the plan's stages (a GL trace holds them all;
+// a user's dump may hold only `output`): a stage with no capture is recomputed by the oracle from
+// the last captures before it (or the scene), and its own bound is carried into the bounds of
+// the stages that read it. End to end: each captured stage against the CPU's full run, with
+// bounds propagated through the pipeline (the blur of the previous bound, the tone map's and
+// gamma's slopes).
 //
 // Per value the bound is the sum of named terms (tolerance.cpp says how each is derived).
 // PASS: every value within its bound. WARN: some values over it but none beyond 4x (the looser
@@ -12,6 +16,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -36,6 +41,15 @@ struct WorstValue {
   std::vector<Term> terms;
 };
 
+/// A one-change variant of the oracle that explains a failing stage (causes.cpp): the stage
+/// recomputed with that change, judged against the same bound.
+struct CauseFit {
+  std::string id;           ///< stable name: "flipped-vertically", "rb-swapped", ...
+  std::string description;  ///< in words, e.g. "image flipped vertically (bottom row first)"
+  std::string detail;       ///< what was fitted or changed, e.g. the fitted kernel weights
+  double within = 0;        ///< fraction of values within bound under this hypothesis
+};
+
 struct StageComparison {
   std::string stage;
   Verdict verdict = Verdict::pass;
@@ -50,6 +64,13 @@ struct StageComparison {
   /// Signed f16-ULP differences (gl - oracle): bins -8..+8, [0] and [16] also hold the tails.
   std::vector<std::uint64_t> ulp_histogram;
   Image oracle, bound;                   ///< kept when CompareOptions::keep_images
+  /// Fraction of the values within their bound (1 for PASS).
+  double within() const {
+    return values ? double(values - over_bound - nonfinite_mismatch) / double(values) : 1.0;
+  }
+  /// Isolated stages not PASS, when CompareOptions::causes: the hypotheses that bring more
+  /// values within bound than the oracle as specified, best first.
+  std::vector<CauseFit> causes;
 };
 
 struct ParityResult {
@@ -63,13 +84,39 @@ struct ParityResult {
 struct CompareOptions {
   bool keep_images = false;
   int worst_count = 8;
+  bool causes = false;  ///< test the usual causes on every isolated stage that is not PASS
 };
+
+/// A stage image from outside the CPU oracle: a GL readback, or a user's file.
+struct CapturedStage {
+  ConstImageView image;
+  /// 0: float values. 8: stored as 8-bit codes (PNG): each value may be half a code off, and
+  /// values beyond [0, 1] were clamped, so the oracle is clamped to [0, 1] before judging.
+  int code_bits = 0;
+  bool srgb = false;  ///< the 8-bit codes are sRGB-encoded (a code's step measured decoded)
+};
+using CapturedStages = std::map<std::string, CapturedStage>;
 
 /// `gl` and `cpu` are traces of `plan` on `scene` with every stage kept (keep_all); `cpu` is
 /// the f32 CPU oracle run with the profile's sub-texel bits.
 ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& gl,
                      const StageTrace& cpu, const DeviceProfile& profile,
                      const CompareOptions& opt = {});
+
+/// compare's general form: `captured` holds any subset of the plan's stages (at least one;
+/// ParamError for a name the plan lacks); only those are judged. `cpu` as for compare.
+ParityResult compare_captured(const Plan& plan, ConstImageView scene,
+                              const CapturedStages& captured, const StageTrace& cpu,
+                              const DeviceProfile& profile, const CompareOptions& opt = {});
+
+/// The oracle's f16 rounding for a device: the mode it measured (toward zero where it allows
+/// it, else nearest-even, saturating where it saturates).
+HalfRounding half_rounding_for(const DeviceProfile& profile);
+
+/// compare_with_oracle for captures.
+ParityResult check_with_oracle(const Plan& plan, ConstImageView scene,
+                               const CapturedStages& captured, const DeviceProfile& profile,
+                               const CompareOptions& opt = {}, double* cpu_ms = nullptr);
 
 /// The plan both backends run: `params` with the profile's sub-texel bits (the oracle samples as
 /// the device does) and f32 precision.

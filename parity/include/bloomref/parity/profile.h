@@ -33,7 +33,10 @@ DeviceProfile profile_llvmpipe();
 /// NVIDIA-like hardware: 8-bit fixed-point bilinear weights, either half rounding, FMA.
 DeviceProfile profile_nvidia_like();
 
-/// "llvmpipe" or "nvidia"; throws ParamError otherwise.
+/// A profile by name (profile_names()); throws ParamError otherwise.
 DeviceProfile profile_named(const std::string& name);
+
+/// The names profile_named accepts, comma-separated.
+std::string profile_names();
 
 }  // namespace bloomref::parity
