@@ -39,7 +39,7 @@ ordered_json stage_json(const parity::StageComparison& s) {
 
 ordered_json cause_json(const parity::CauseFit& c) {
   return {{"id", c.id}, {"description", c.description}, {"detail", c.detail},
-          {"within_fraction", c.within}};
+          {"within_fraction", c.within}, {"oracle_within_fraction", c.oracle_within}};
 }
 
 ordered_json device_json(const DeviceKeys& d) {
@@ -100,7 +100,7 @@ std::string cause_line(const parity::StageComparison& s) {
   const parity::CauseFit& c = s.causes.front();
   std::string line = (c.within >= 0.999 ? "likely cause: " : "best partial explanation: ") +
                      c.description + " (brings " + percent(c.within) +
-                     " of values within bound; as specified " + percent(s.within()) + ")";
+                     " of values within bound; as specified " + percent(c.oracle_within) + ")";
   if (!c.detail.empty()) line += "; " + c.detail;
   return line;
 }

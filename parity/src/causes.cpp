@@ -31,6 +31,7 @@ struct Hypothesis {
   const Kernel* kernel = nullptr;  // another kernel for every blur pass
   std::vector<float> weights;      // fitted weights, for the target pass only
   int pass_delta = 0;              // blur passes left out (-1) or added (+1)
+  float strength_scale = 1.0f;     // the composite adds strength * scale * bloom
   bool ge = false, clamp_bright = false, f16 = false, no_exposure = false;
   int gamma_times = 1;
   bool sampled() const { return !sampling.is_default(); }
@@ -47,7 +48,7 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
     case StageKind::down: return h.sampled() || h.ge || h.f16;
     case StageKind::up:
     case StageKind::bloom: return h.sampled() || h.f16;
-    case StageKind::composite: return h.f16;
+    case StageKind::composite: return h.f16 || h.strength_scale != 1.0f;
     case StageKind::tonemap: return h.no_exposure || h.f16;
     case StageKind::output: return h.gamma_times != 1 || h.f16;
   }
@@ -200,7 +201,7 @@ class Evaluator {
       }
       case StageKind::composite: {
         Image out(in[0].width, in[0].height);
-        composite(in[0], in[1], out.view(), p_.strength, threads);
+        composite(in[0], in[1], out.view(), p_.strength * h_.strength_scale, threads);
         return out;
       }
       case StageKind::tonemap: {
@@ -326,6 +327,42 @@ std::optional<std::vector<float>> fit_weights(ConstImageView src, ConstImageView
   return std::vector<float>(w->begin(), w->end());
 }
 
+// The factor k that best explains the target as the composite of the same scene and k times the
+// bloom (least squares over the composite's values): a per-pass weight sum s != 1 scales the
+// bloom of N passes by s^N. The target is taken back to the composite through the stages
+// between (gamma: v^gamma; tone map: -ln(1 - v) / exposure, where v < 1).
+std::optional<float> fit_bloom_scale(const CauseContext& ctx, const StageSpec& target) {
+  const BloomParams& p = ctx.plan.params;
+  std::vector<const StageSpec*> chain;  // target back to (not including) the composite
+  const StageSpec* s = &target;
+  while (s->kind != StageKind::composite) {
+    if (s->kind != StageKind::output && s->kind != StageKind::tonemap) return std::nullopt;
+    chain.push_back(s);
+    s = find_stage(ctx.plan, stage_inputs(ctx.plan, *s)[0]);
+  }
+  const std::vector<std::string> in = stage_inputs(ctx.plan, *s);
+  const ConstImageView user = ctx.view(target.name), base = ctx.view(in[0]), bloom = ctx.view(in[1]);
+  double num = 0, den = 0;
+  for (int y = 0; y < user.height; ++y)
+    for (int x = 0; x < user.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        double v = user.pixel(x, y)[c];
+        for (const StageSpec* t : chain) {
+          if (t->kind == StageKind::output) v = std::pow(std::max(v, 0.0), double(p.gamma));
+          else v = v < 1 - 1e-6 ? -std::log1p(-v) / p.exposure : NAN;
+        }
+        const double b = double(p.strength) * bloom.pixel(x, y)[c];
+        const double r = v - base.pixel(x, y)[c];
+        if (!std::isfinite(r) || !std::isfinite(b) || b == 0) continue;
+        num += r * b;
+        den += b * b;
+      }
+  if (!(den > 0)) return std::nullopt;
+  const double k = num / den;
+  if (!std::isfinite(k) || k <= 0 || std::fabs(k - 1) < 1e-4) return std::nullopt;
+  return static_cast<float>(k);
+}
+
 std::string weights_text(const std::vector<float>& w) {
   std::string s = "{";
   double sum = 0;
@@ -375,12 +412,15 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
         ->sampling.wrap = Wrap::mirrored_repeat;
     add("nearest-filter", "GL_NEAREST instead of GL_LINEAR")->sampling.nearest = true;
   }
-  if (has(StageKind::blur)) {
-    const bool d9 = p.kernel == KernelName::discrete9;
-    Hypothesis* h = add("wrong-kernel", d9 ? "kernel linear5 instead of discrete9"
-                                           : "kernel discrete9 instead of linear5");
-    h->kernel = d9 ? &kernel_linear5() : &kernel_discrete9();
-  }
+  if (has(StageKind::composite))
+    if (const auto k = fit_bloom_scale(ctx, target)) {
+      Hypothesis* h = add("bloom-scaled",
+                          "bloom scaled (blur weights not summing to 1, or another strength)");
+      h->strength_scale = *k;
+      char b[96];
+      std::snprintf(b, sizeof b, "the bloom fits best scaled by %.6g", *k);
+      h->detail = b;
+    }
   if (target.kind == StageKind::blur) {
     const Kernel& k = kernel_for(p.kernel);
     const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]);
@@ -426,10 +466,10 @@ std::vector<CauseFit> test_causes(const CauseContext& ctx, const StageSpec& targ
     // Two hypotheses of one id (the half-texel shift's two signs): keep the better.
     auto same = std::find_if(fits.begin(), fits.end(), [&](const CauseFit& c) { return c.id == h.id; });
     if (same != fits.end()) {
-      if (f > same->within) *same = {h.id, h.description, h.detail, f};
+      if (f > same->within) *same = {h.id, h.description, h.detail, f, oracle_within};
       continue;
     }
-    fits.push_back({h.id, h.description, h.detail, f});
+    fits.push_back({h.id, h.description, h.detail, f, oracle_within});
   }
   std::stable_sort(fits.begin(), fits.end(),
                    [](const CauseFit& a, const CauseFit& b) { return a.within > b.within; });

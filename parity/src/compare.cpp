@@ -155,6 +155,7 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
   s.max_ratio = total.max_ratio;
   s.ulp_histogram = total.hist;
   const std::uint64_t warn_tier = total.beyond_tier;
+  s.beyond_tier = total.beyond_tier;
   std::vector<WorstValue> worst = std::move(total.worst);
   keep_worst(worst, n_worst);
   for (WorstValue& w : worst) w.terms = terms.terms(w.x, w.y, w.channel);

@@ -47,7 +47,10 @@ struct CauseFit {
   std::string id;           ///< stable name: "flipped-vertically", "rb-swapped", ...
   std::string description;  ///< in words, e.g. "image flipped vertically (bottom row first)"
   std::string detail;       ///< what was fitted or changed, e.g. the fitted kernel weights
-  double within = 0;        ///< fraction of values within bound under this hypothesis
+  /// Fraction of values within bound under this hypothesis (the stage's bound plus the
+  /// hypothesis's own rounding: captured.cpp says how much).
+  double within = 0;
+  double oracle_within = 0;  ///< the same measure of the oracle as specified
 };
 
 struct StageComparison {
@@ -56,6 +59,7 @@ struct StageComparison {
   std::string reason;
   std::uint64_t values = 0;              ///< RGB values compared
   std::uint64_t over_bound = 0;          ///< values with error > bound
+  std::uint64_t beyond_tier = 0;         ///< values with error > 4x bound (FAIL)
   std::uint64_t nonfinite_mismatch = 0;  ///< NaN/Inf on one side only
   double max_abs = 0, max_rel = 0;       ///< largest |gl - oracle|, and relative to |oracle|
   double max_ulp16 = 0;                  ///< largest error in f16 ULPs of the oracle
@@ -67,6 +71,10 @@ struct StageComparison {
   /// Fraction of the values within their bound (1 for PASS).
   double within() const {
     return values ? double(values - over_bound - nonfinite_mismatch) / double(values) : 1.0;
+  }
+  /// Fraction of the values within the WARN tier (4x their bound): those that do not fail.
+  double within_tier() const {
+    return values ? double(values - beyond_tier - nonfinite_mismatch) / double(values) : 1.0;
   }
   /// Isolated stages not PASS, when CompareOptions::causes: the hypotheses that bring more
   /// values within bound than the oracle as specified, best first.
