@@ -216,6 +216,12 @@ int check_cmd(CheckArgs& a) {
     if (!it.scene.empty()) inputs.push_back(it.scene);
     for (const StageFile& f : it.files) inputs.push_back(f.path);
   }
+  for (const CheckItem& it : items)  // a folder's files are inputs too, whatever their names
+    if (!it.stages_dir.empty()) {
+      std::error_code ec;
+      for (const auto& e : fs::directory_iterator(it.stages_dir, ec))
+        inputs.push_back(e.path().string());
+    }
   if (!a.manifest.empty()) inputs.push_back(a.manifest);
   if (!a.expectations.empty()) inputs.push_back(a.expectations);
   const std::pair<const std::string*, const char*> outs[] = {
