@@ -127,9 +127,8 @@ TEST_CASE("a flipped or R/B-swapped dump fails at its first stage; declared, it 
     CHECK(j["items"][0]["first_divergent_stage"] == "input");
     CHECK(j["items"][0]["first_divergent_cause"]["id"] == c.cause);
     const std::string xml = bloomref::test::read_bytes(dir / "r.xml");
-    CHECK(xml.find(std::string("likely cause: ") +
-                   (c.change == flip ? "image flipped vertically" : "R and B swapped")) !=
-          std::string::npos);
+    CHECK(xml.find("likely cause: ") != std::string::npos);
+    CHECK(xml.find(c.change == flip ? "flipped vertically" : "R and B swapped") != std::string::npos);
     r = run_cli(dir, "check " + kSize + " --stages d " + c.declared);
     CHECK(r.code == 0);
   }

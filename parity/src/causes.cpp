@@ -27,6 +27,9 @@ namespace {
 struct Hypothesis {
   std::string id, description, detail;
   bool flip = false, swap_rb = false;
+  bool transform_inputs = true;  // flip / swap_rb hold for every capture, not the target alone
+  bool stale = false;            // the pass was not drawn: its target holds the pass before last
+  bool along_x = false;          // a vertical pass offsets along x (seed 001)
   Sampling sampling;  // its subtexel bits are the profile's
   const Kernel* kernel = nullptr;  // another kernel for every blur pass
   std::vector<float> weights;      // fitted weights, for the target pass only
@@ -44,7 +47,8 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
     case StageKind::input: return h.f16;
     case StageKind::bright: return h.ge || h.clamp_bright || h.f16;
     case StageKind::blur:
-      return h.sampled() || h.kernel || (is_target && !h.weights.empty()) || h.f16;
+      return h.sampled() || h.kernel ||
+             (is_target && (!h.weights.empty() || h.stale || h.along_x)) || h.f16;
     case StageKind::down: return h.sampled() || h.ge || h.f16;
     case StageKind::up:
     case StageKind::bloom: return h.sampled() || h.f16;
@@ -80,7 +84,7 @@ class Evaluator {
     const auto m = memo_.find(name);
     if (m != memo_.end()) return {m->second.cview(), true};
     if (name != target_.name && ctx_.captured(name)) {
-      if (!h_.flip && !h_.swap_rb) return {ctx_.view(name), false};
+      if (!h_.transform_inputs || (!h_.flip && !h_.swap_rb)) return {ctx_.view(name), false};
       Image img = copy(ctx_.view(name));
       if (h_.flip) flip_vertically(img);
       if (h_.swap_rb) swap_red_blue(img);
@@ -168,6 +172,16 @@ class Evaluator {
       }
       case StageKind::blur: {
         if (is_target && h_.pass_delta < 0) return copy(in[0]);
+        if (is_target && h_.stale) return copy(value("blur." + std::to_string(spec.pass - 2)).view);
+        if (is_target && h_.along_x) {
+          const Kernel& k = kernel_for(p_.kernel);
+          Image out(in[0].width, in[0].height);
+          Sampling plain;
+          plain.subtexel_bits = ctx_.profile.subtexel_bits;
+          blur_pass_variant(in[0], out.view(), Axis::horizontal, k.offsets_f32, k.weights_f32, plain,
+                            threads, 1.0f / static_cast<float>(in[0].height));
+          return out;
+        }
         Image out = blur(in[0], spec.axis, true);
         if (is_target && h_.pass_delta > 0) {
           store_as_device(out);
@@ -393,9 +407,19 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     out.push_back(h);
     return &out.back();
   };
-  add("flipped-vertically", "image flipped vertically (bottom row first, as glReadPixels returns it)")
-      ->flip = true;
-  add("rb-swapped", "R and B swapped (BGRA read as RGBA)")->swap_rb = true;
+  // Flip and swap: of every capture (a readback's order), or of this stage's output alone.
+  for (bool every : {true, false}) {
+    Hypothesis* h = add("flipped-vertically",
+                        every ? "images flipped vertically (bottom row first, as glReadPixels "
+                                "returns them)"
+                              : "image flipped vertically (this stage's output)");
+    h->flip = true;
+    h->transform_inputs = every;
+    h = add("rb-swapped", every ? "R and B swapped (BGRA read as RGBA)"
+                                : "R and B swapped (this stage's output)");
+    h->swap_rb = true;
+    h->transform_inputs = every;
+  }
   if (has(StageKind::output)) {
     add("gamma-missing", "gamma not applied")->gamma_times = 0;
     add("gamma-twice", "gamma applied twice")->gamma_times = 2;
@@ -430,6 +454,12 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       h->detail = "fitted weights " + weights_text(*w) + "; specified " + weights_text(k.weights_f32);
     }
   }
+  if (target.kind == StageKind::blur && target.pass >= 3)
+    add("pass-not-drawn", "blur pass not drawn (its ping-pong target still holds the pass before last)")
+        ->stale = true;
+  if (target.kind == StageKind::blur && target.axis == Axis::vertical)
+    add("offsets-along-x", "vertical pass offsets along x (the bug in seed 001's blur shader)")
+        ->along_x = true;
   // A blur pass in the segment: the bloom is not captured (or the target is a pass).
   if (p.method == Method::gaussian && p.passes > 0 && has(StageKind::blur)) {
     add("pass-skipped", "one blur pass too few")->pass_delta = -1;

@@ -69,14 +69,14 @@ float centre(int x, int n, const Sampling& smp) {
 
 void blur_pass_variant(ConstImageView src, ImageView dst, Axis axis,
                        const std::vector<float>& offsets, const std::vector<float>& weights,
-                       const Sampling& smp, int threads) {
+                       const Sampling& smp, int threads, float texel_step) {
   const bool hz = axis == Axis::horizontal;
   const int n = hz ? src.width : src.height, m = hz ? src.height : src.width;
   const int taps = 2 * static_cast<int>(weights.size()) - 1;
   // Per position along the axis: the centre tap, then +o_i and -o_i (the seeds' order).
   std::vector<AxisTap<float>> along;
   along.reserve(std::size_t(n) * taps);
-  const float d = 1.0f / static_cast<float>(n);
+  const float d = texel_step > 0.0f ? texel_step : 1.0f / static_cast<float>(n);
   for (int x = 0; x < n; ++x) {
     const float uv = centre(x, n, smp);
     along.push_back(variant_axis_tap(uv, n, smp));

@@ -35,10 +35,12 @@ int wrap_index(int i, int n, Wrap wrap);
 AxisTap<float> variant_axis_tap(float s, int n, const Sampling& smp);
 
 /// Stage blur.k with `offsets` and `weights` (a kernel's, or fitted ones: the same count) and
-/// `smp`: blur_pass<float>'s arithmetic.
+/// `smp`: blur_pass<float>'s arithmetic. `texel_step` (0: 1 / n along the axis) is the
+/// normalised size of one offset unit: seed 001's vertical pass offsets along x by
+/// 1 / height (a horizontal pass with texel_step 1 / height).
 void blur_pass_variant(ConstImageView src, ImageView dst, Axis axis,
                        const std::vector<float>& offsets, const std::vector<float>& weights,
-                       const Sampling& smp, int threads);
+                       const Sampling& smp, int threads, float texel_step = 0.0f);
 
 /// Stage down.k with `smp`; `tie_kept` false makes the first level drop taps whose luminance
 /// equals the threshold (the specification keeps them: L < threshold -> 0). downsample<float>'s
