@@ -260,6 +260,102 @@ std::vector<Expectation> read_expectations(const std::string& path) {
   return out;
 }
 
+namespace {
+
+parity::ImageGates read_gates(const std::string& file, const std::string& field, const json& g,
+                              parity::ImageGates out) {
+  if (!g.is_object()) bad(file, field, "must be an object {mean, window, window_size, over_fraction}");
+  for (const auto& [k, v] : g.items()) {
+    if (!v.is_number() || v.get<double>() < 0) bad(file, field + "." + k, "must be a number >= 0");
+    if (k == "mean") out.mean = v;
+    else if (k == "window") out.window = v;
+    else if (k == "window_size") {
+      if (!v.is_number_integer() || v.get<int>() < 1) bad(file, field + "." + k, "must be an integer >= 1");
+      out.window_size = v;
+    } else if (k == "over_fraction") out.over_fraction = v;
+    else bad(file, field + "." + k, "unknown gate (mean, window, window_size, over_fraction)");
+  }
+  return out;
+}
+
+}  // namespace
+
+parity::DeviceProfile read_profile_file(const std::string& path) {
+  const json j = read_json(path);
+  check_version(path, j);
+  parity::DeviceProfile p;
+  try {
+    p = parity::profile_named(j.contains("base") ? get_string(path, j, "(top level)", "base")
+                                                 : std::string("nvidia"));
+  } catch (const ParamError& e) {
+    bad(path, "base", e.what());
+  }
+  p.source = "profile file " + path + " (based on " + p.name + ")";
+  p.name = fs::path(path).stem().string();
+  for (const auto& [k, v] : j.items()) {
+    auto boolean = [&]() {
+      if (!v.is_boolean()) bad(path, k, "must be true or false");
+      return v.get<bool>();
+    };
+    auto integer = [&](int lo, int hi) {
+      if (!v.is_number_integer() || v.get<int>() < lo || v.get<int>() > hi)
+        bad(path, k, "must be an integer from " + std::to_string(lo) + " to " + std::to_string(hi));
+      return v.get<int>();
+    };
+    auto number = [&]() {
+      if (!v.is_number() || !(v.get<double>() >= 0)) bad(path, k, "must be a number >= 0");
+      return v.get<double>();
+    };
+    if (k == "version" || k == "base") continue;
+    if (k == "name") p.name = get_string(path, j, "(top level)", "name");
+    else if (k == "source") p.source = get_string(path, j, "(top level)", "source");
+    else if (k == "subtexel_bits") p.subtexel_bits = integer(0, 16);
+    else if (k == "subtexel_bits_min") p.subtexel_bits_min = integer(0, 16);
+    else if (k == "half_nearest_even") p.half_nearest_even = boolean();
+    else if (k == "half_toward_zero") p.half_toward_zero = boolean();
+    else if (k == "half_overflow_inf") p.half_overflow_inf = boolean();
+    else if (k == "half_overflow_saturate") p.half_overflow_saturate = boolean();
+    else if (k == "flush_denormals") p.flush_denormals = boolean();
+    else if (k == "fma") p.fma = boolean();
+    else if (k == "division_ulps") p.division_ulps = number();
+    else if (k == "unit_roundoff") p.unit_roundoff = number();
+    else if (k == "capture_code_bits") p.capture_code_bits = integer(0, 16);
+    else if (k == "gates") p.gates = read_gates(path, "gates", v, p.gates);
+    else if (k == "stages") {
+      if (!v.is_array()) bad(path, "stages", "must be an array of {pattern, scale, absolute, gates}");
+      int i = 0;
+      for (const json& o : v) {
+        const std::string field = "stages[" + std::to_string(i++) + "]";
+        if (!o.is_object() || !o.contains("pattern"))
+          bad(path, field, "must be an object with a pattern (e.g. \"blur.*\")");
+        parity::StageOverride so;
+        for (const auto& [ok, ov] : o.items()) {
+          if (ok == "pattern") so.pattern = get_string(path, o, field, "pattern");
+          else if (ok == "scale" || ok == "absolute") {
+            if (!ov.is_number() || !(ov.get<double>() >= 0))
+              bad(path, field + "." + ok, "must be a number >= 0");
+            (ok == "scale" ? so.scale : so.absolute) = ov.get<double>();
+          } else if (ok == "gates") {
+            so.gates = read_gates(path, field + ".gates", ov, p.gates);
+            so.has_gates = true;
+          } else {
+            bad(path, field + "." + ok, "unknown field (pattern, scale, absolute, gates)");
+          }
+        }
+        p.overrides.push_back(so);
+      }
+    } else {
+      bad(path, k, "unknown field (base, name, source, subtexel_bits, subtexel_bits_min, "
+                   "half_nearest_even, half_toward_zero, half_overflow_inf, "
+                   "half_overflow_saturate, flush_denormals, fma, division_ulps, unit_roundoff, "
+                   "capture_code_bits, gates, stages)");
+    }
+  }
+  if (p.half_nearest_even == false && p.half_toward_zero == false)
+    bad(path, "half_nearest_even", "one of half_nearest_even and half_toward_zero must be true");
+  return p;
+}
+
 void apply_expectations(ItemResult& r, std::vector<Expectation>& expectations,
                         const DeviceKeys& device) {
   const std::string keys[] = {device.api, device.vendor, device.renderer, device.driver};

@@ -25,6 +25,11 @@ Manifest read_manifest(const std::string& path, const CLI::App& sub, PipelineOpt
 /// "reason"}]}. InputError naming the file and the field.
 std::vector<Expectation> read_expectations(const std::string& path);
 
+/// Reads a profile file (docs/check.md, "Profiles"): {"version": 1, "base": NAME, "name",
+/// device fields, "gates", "stages": [{"pattern", "scale", "absolute", "gates"}]}. InputError
+/// naming the file and the field.
+parity::DeviceProfile read_profile_file(const std::string& path);
+
 /// Fills r.outcomes and r.verdict: each isolated stage's status after the expectations that
 /// match it (item and stage as shell patterns, device as a substring of any device key).
 void apply_expectations(ItemResult& r, std::vector<Expectation>& expectations,

@@ -171,7 +171,9 @@ int check_cmd(CheckArgs& a) {
     throw ParamError("give one of --stages DIR or --manifest FILE");
   if (!a.manifest.empty() && !a.scene.empty())
     throw ParamError("with --manifest the scenes are the manifest's items; give no SCENE");
-  const parity::DeviceProfile profile = parity::profile_named(a.profile);
+  const bool profile_file = a.profile.size() > 5 && a.profile.substr(a.profile.size() - 5) == ".json";
+  const parity::DeviceProfile profile =
+      profile_file ? read_profile_file(a.profile) : parity::profile_named(a.profile);
 
   CheckRun run;
   run.warn_as_error = a.warn_as_error;
@@ -224,6 +226,7 @@ int check_cmd(CheckArgs& a) {
     }
   if (!a.manifest.empty()) inputs.push_back(a.manifest);
   if (!a.expectations.empty()) inputs.push_back(a.expectations);
+  if (profile_file) inputs.push_back(a.profile);
   const std::pair<const std::string*, const char*> outs[] = {
       {&a.json_path, "--json"}, {&a.junit_path, "--junit"}, {&a.markdown_path, "--markdown"}};
   std::set<fs::path> seen;
@@ -277,7 +280,8 @@ std::function<int()> add_check(CLI::App& app) {
                   "folder of stage images named as --dump-stages names them (any subset)");
   sub->add_option("--manifest", args->manifest, "JSON manifest of items (docs/check.md)");
   sub->add_option("--profile", args->profile,
-                  "device precision profile: " + parity::profile_names())
+                  "device precision profile: " + parity::profile_names() +
+                      ", or a profile file NAME.json (docs/check.md)")
       ->capture_default_str();
   sub->add_option("--json", args->json_path, "write the results as JSON (version 1)");
   sub->add_option("--junit", args->junit_path, "write JUnit XML (a testsuite per item)");

@@ -8,6 +8,7 @@
 #include <map>
 #include <string>
 
+#include "bloomref/error.h"
 #include "bloomref/executor.h"
 #include "bloomref/parity/compare.h"
 #include "bloomref/parity/variants.h"
@@ -391,4 +392,117 @@ TEST_CASE("wrap modes follow GL's definitions", "[check]") {
   CHECK(parity::wrap_index(5, 5, Wrap::mirrored_repeat) == 4);
   CHECK(parity::wrap_index(9, 5, Wrap::mirrored_repeat) == 0);
   CHECK(parity::wrap_index(10, 5, Wrap::mirrored_repeat) == 0);
+}
+
+namespace {
+
+parity::ParityResult check_with(const parity::DeviceProfile& profile, const BloomParams& p,
+                                const Image& scene, const std::map<std::string, Image>& user,
+                                bool keep_images = false, int code_bits = 0) {
+  const Plan plan = parity::plan_for_device(p, scene.cview(), profile);
+  parity::CapturedStages captured;
+  for (const auto& [name, img] : user) captured[name] = {img.cview(), code_bits};
+  parity::CompareOptions co;
+  co.keep_images = keep_images;
+  return parity::check_with_oracle(plan, scene.cview(), captured, profile, co);
+}
+
+// The output with `fraction` x its isolated bound added, on the values `where` selects.
+template <class Where>
+Image output_plus_bound(const parity::StageComparison& s, const Image& output, double fraction,
+                        Where where) {
+  Image out = output;
+  for (int y = 0; y < out.height(); ++y)
+    for (int x = 0; x < out.width(); ++x)
+      for (int c = 0; c < 3; ++c)
+        if (where(x, y, c))
+          out.pixel(x, y)[c] = static_cast<float>(s.oracle.pixel(x, y)[c] + fraction * s.bound.pixel(x, y)[c]);
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("image gates catch an error each value's bound lets through", "[check][gates]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto cpu = trace_of(p, scene);
+  const parity::DeviceProfile gated = kProfile;
+  parity::DeviceProfile ungated = kProfile;
+  ungated.gates = parity::ImageGates{0, 0, 8, 0};
+  const auto honest = check_with(gated, p, scene, {{"output", cpu.at("output")}}, true);
+  REQUIRE(honest.verdict == Verdict::pass);
+  const parity::StageComparison& s = honest.isolated.front();
+  CHECK(s.mean_excess < 0.01);
+  auto all = [](int, int, int) { return true; };
+
+  // 0.6 of the bound everywhere: every value within it, the mean gate (0.25) fails.
+  Image offset = output_plus_bound(s, cpu.at("output"), 0.6, all);
+  auto r = check_with(gated, p, scene, {{"output", offset}});
+  CHECK(r.verdict == Verdict::fail);
+  CHECK(r.isolated.front().over_bound == 0);
+  CHECK(r.isolated.front().reason.find("mean error") != std::string::npos);
+  CHECK(r.isolated.front().mean_excess == Approx(0.6).epsilon(0.05));
+  CHECK(check_with(ungated, p, scene, {{"output", offset}}).verdict == Verdict::pass);
+
+  // 0.9 of the bound in the 8x8 window at (16, 8) only: the window gate (0.5) fails there.
+  Image region = output_plus_bound(s, cpu.at("output"), 0.9,
+                                   [](int x, int y, int) { return x >= 16 && x < 24 && y >= 8 && y < 16; });
+  r = check_with(gated, p, scene, {{"output", region}});
+  CHECK(r.verdict == Verdict::fail);
+  INFO(r.isolated.front().reason << " window " << r.isolated.front().worst_window << " mean " << r.isolated.front().mean_excess);
+  CHECK(r.isolated.front().worst_window_x == 16);
+  CHECK(r.isolated.front().worst_window_y == 8);
+  CHECK(r.isolated.front().reason.find("window at (16, 8)") != std::string::npos);
+
+  // 1.5 of the bound on every 20th value: WARN by value (within 4x), 5% over bound fails the
+  // fraction gate (1%).
+  Image sparse = output_plus_bound(s, cpu.at("output"), 1.5,
+                                   [](int x, int y, int c) { return (x + 3 * y + c) % 20 == 0; });
+  CHECK(check_with(ungated, p, scene, {{"output", sparse}}).verdict == Verdict::warn);
+  r = check_with(gated, p, scene, {{"output", sparse}});
+  CHECK(r.verdict == Verdict::fail);
+  INFO(r.isolated.front().reason);
+  CHECK(r.isolated.front().reason.find("exceed their bound (gate 1%)") != std::string::npos);
+}
+
+TEST_CASE("profiles: ldr8 codes, mediump arithmetic, per-stage overrides", "[check][profiles]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto cpu = trace_of(p, scene);
+  // The output as 8-bit codes, kept as floats (a PNG screenshot saved as EXR).
+  Image codes = cpu.at("output");
+  for (std::size_t i = 0; i < codes.values().size(); ++i)
+    if (i % 4 != 3) codes.values()[i] = std::round(std::clamp(codes.values()[i], 0.0f, 1.0f) * 255) / 255;
+  CHECK(check_with(kProfile, p, scene, {{"output", codes}}).verdict == Verdict::fail);
+  CHECK(check_with(parity::profile_ldr8(), p, scene, {{"output", codes}}).verdict == Verdict::pass);
+  CHECK(check_with(kProfile, p, scene, {{"output", codes}}, false, 8).verdict == Verdict::pass);
+  // One code more everywhere: beyond half a code.
+  Image off = codes;
+  for (std::size_t i = 0; i < off.values().size(); ++i)
+    if (i % 4 != 3) off.values()[i] = std::min(1.0f, off.values()[i] + 1.0f / 255);
+  CHECK(check_with(parity::profile_ldr8(), p, scene, {{"output", off}}).verdict == Verdict::fail);
+
+  // A relative error of 2^-12 on the output: far beyond f32 arithmetic's bound, within
+  // mediump's (2^-11 per operation, GLSL ES 3.00).
+  Image rel = cpu.at("output");
+  for (std::size_t i = 0; i < rel.values().size(); ++i)
+    if (i % 4 != 3) rel.values()[i] *= 1.0f + 0x1p-12f;
+  CHECK(check_with(kProfile, p, scene, {{"output", rel}}).verdict == Verdict::fail);
+  CHECK(check_with(parity::profile_mediump(), p, scene, {{"output", rel}}).verdict == Verdict::pass);
+
+  // Twice the bound everywhere: WARN by value, the mean gate fails; a per-stage override
+  // (bound x 10 on "out*": the mean error becomes 0.2 of it) lets it pass, and one on another
+  // stage does not.
+  const auto honest = check_with(kProfile, p, scene, {{"output", cpu.at("output")}}, true);
+  Image twice = output_plus_bound(honest.isolated.front(), cpu.at("output"), 2.0,
+                                  [](int, int, int) { return true; });
+  CHECK(check_with(kProfile, p, scene, {{"output", twice}}).verdict == Verdict::fail);
+  parity::DeviceProfile loose = kProfile;
+  loose.overrides.push_back({"blur.*", 10.0, 0.0, false, {}});
+  CHECK(check_with(loose, p, scene, {{"output", twice}}).verdict == Verdict::fail);
+  loose.overrides.insert(loose.overrides.begin(), {"out*", 10.0, 0.0, false, {}});
+  CHECK(check_with(loose, p, scene, {{"output", twice}}).verdict == Verdict::pass);
+  for (const char* name : {"llvmpipe", "nvidia", "vulkan", "mediump", "ldr8"})
+    CHECK(parity::profile_named(name).name == name);
+  CHECK_THROWS_AS(parity::profile_named("gles"), ParamError);
 }

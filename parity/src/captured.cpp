@@ -258,6 +258,13 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
       }
     }
     if (!inherited.empty()) add_into(bound, inherited);
+    const StageOverride* over = stage_override(profile, name);
+    auto overridden = [&](Image& b) {
+      if (over && (over->scale != 1.0 || over->absolute != 0.0))
+        for (std::size_t i = 0; i < b.values().size(); ++i)
+          b.values()[i] = static_cast<float>(b.values()[i] * over->scale + over->absolute);
+    };
+    const ImageGates& gates = over && over->has_gates ? over->gates : profile.gates;
 
     const auto cap = captured.find(name);
     if (cap != captured.end()) {
@@ -265,20 +272,29 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
       Image codes, codes_e2e;
       Image oracle_e2e;
       const Image* e2e_oracle = &c;
-      if (cs.code_bits > 0) {
-        codes = capture_codes(cs, oracle);
+      CapturedStage cs_bits = cs;  // the profile may say every capture holds 8-bit codes
+      cs_bits.code_bits = std::max(cs.code_bits, profile.capture_code_bits);
+      if (cs_bits.code_bits > 0) {
+        codes = capture_codes(cs_bits, oracle);
         add_into(bound, codes);
         oracle_e2e = c;
-        codes_e2e = capture_codes(cs, oracle_e2e);
+        codes_e2e = capture_codes(cs_bits, oracle_e2e);
         e2e_oracle = &oracle_e2e;
       }
       Image e_judged = e;
       if (!codes_e2e.empty()) add_into(e_judged, codes_e2e);
+      overridden(bound);
+      overridden(e_judged);
+      // The gates' allowance: the capture's own rounding; and with f16 storage, what stages
+      // without capture carry, which holds their roundings (llvmpipe's toward zero is biased:
+      // half an ULP a stage on average, as systematic as the offsets the gates look for).
       const ExtraTerms terms(*b, {{"carried from stages without capture", &inherited},
                                   {"8-bit capture: half a code", &codes}});
       const ExtraTerms terms_e2e(*b, {{"8-bit capture: half a code", &codes_e2e}});
       StageComparison iso = judge(name, cs.image, oracle.cview(), bound, terms, p.storage,
-                                  profile, opt, threads);
+                                  profile, opt, threads, &gates, codes.empty() ? nullptr : &codes,
+                                  p.storage == Storage::f16 && !inherited.empty() ? &inherited
+                                                                                  : nullptr);
       if (opt.causes && iso.verdict != Verdict::pass) {
         CauseContext cc{plan, sanitized.cview(), profile, rounding, threads,
                         [&](const std::string& n) { return V(n); },
@@ -290,7 +306,7 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
         // stages' longest chain, a 9-tap sum, rounds 2 x 9 + 3 times), and so is the oracle
         // itself for the baseline, so that a hypothesis equal to the oracle scores the same.
         auto score = [&](Image& variant) {
-          if (cs.code_bits > 0) capture_codes(cs, variant);
+          if (cs_bits.code_bits > 0) capture_codes(cs_bits, variant);
           Image relaxed = bound;
           for (std::size_t i = 0; i < relaxed.values().size(); ++i)
             relaxed.values()[i] += static_cast<float>(32 * kU * std::fabs(variant.values()[i]));

@@ -4,6 +4,7 @@
 #include <cfloat>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <mutex>
 #include <tuple>
@@ -70,16 +71,78 @@ void keep_worst(std::vector<WorstValue>& w, std::size_t n) {
 // Counts over a row range; merged by sums and maxima, so the result is thread-count independent.
 struct Tally {
   std::uint64_t values = 0, over = 0, mismatch = 0, beyond_tier = 0;
+  double excess = 0, base = 0;  // the image gates' sums (gate_sums): ratios, and their count
   double max_abs = 0, max_rel = 0, max_ulp16 = 0, max_ratio = 0;
   std::vector<std::uint64_t> hist = std::vector<std::uint64_t>(17, 0);
   std::vector<WorstValue> worst;
 };
 
+// What the image gates take off each value (judge.h): rounding from both error and bound,
+// slack from the error only.
+struct GateAllowance {
+  const Image* rounding = nullptr;
+  const Image* slack = nullptr;
+};
+
+// One value's part in the image gates: its error beyond the rounding it is allowed over its
+// bound beyond the same (at most 4: beyond, the value fails anyway), added to `sum`; `count`
+// counts the values with something to bound. A mean of these ratios, not a ratio of sums: the
+// bounds span many orders of magnitude (a light's edge against flat sky), and a ratio of sums
+// would only see the largest.
+inline void gate_sums(double err, double b, double o, Storage storage, const DeviceProfile& p,
+                      GateAllowance a, int x, int y, int c, double& sum, double& count) {
+  double r = storage_term(o, storage, p);
+  if (a.rounding) r += a.rounding->pixel(x, y)[c];
+  const double excess = std::max(0.0, err - r - (a.slack ? a.slack->pixel(x, y)[c] : 0.0f));
+  const double base = b - r;
+  if (!(base > 0)) return;
+  sum += std::min(excess / base, 4.0);
+  count += 1;
+}
+
+// The worst window's ratio of excess to bound, over non-overlapping n x n blocks (blocks with
+// nothing to bound left out), and its top-left texel; ties go to the first block in row order.
+double worst_window(ConstImageView gl, ConstImageView oracle, const Image& bound, Storage storage,
+                    const DeviceProfile& p, GateAllowance allowance, int n, int threads, int& wx,
+                    int& wy) {
+  const int bw = (gl.width + n - 1) / n, bh = (gl.height + n - 1) / n;
+  std::vector<double> ratio(std::size_t(bw) * bh, 0.0);
+  parallel_rows(bh, threads, [&](int b0, int b1) {
+    for (int by = b0; by < b1; ++by)
+      for (int bx = 0; bx < bw; ++bx) {
+        double excess = 0, base = 0;
+        for (int y = by * n; y < std::min(gl.height, (by + 1) * n); ++y)
+          for (int x = bx * n; x < std::min(gl.width, (bx + 1) * n); ++x)
+            for (int c = 0; c < 3; ++c) {
+              const double o = oracle.pixel(x, y)[c], g = gl.pixel(x, y)[c];
+              const double b = bound.pixel(x, y)[c];
+              // The values the main loop compares against their bound, no others.
+              if (!(b < INFINITY) || special_case(o, g, storage, p, b) != -1) continue;
+              gate_sums(std::fabs(g - o), b, o, storage, p, allowance, x, y, c, excess, base);
+            }
+        ratio[std::size_t(by) * bw + bx] = base > 0 ? excess / base : 0.0;  // sum / count
+      }
+  });
+  const auto it = std::max_element(ratio.begin(), ratio.end());
+  const std::size_t i = static_cast<std::size_t>(it - ratio.begin());
+  wx = static_cast<int>(i % bw) * n;
+  wy = static_cast<int>(i / bw) * n;
+  return *it;
+}
+
+std::string fixed3(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
+
 }  // namespace
 
 StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
                       const Image& bound, const StageBounds& terms, Storage storage,
-                      const DeviceProfile& p, const CompareOptions& opt, int threads) {
+                      const DeviceProfile& p, const CompareOptions& opt, int threads,
+                      const ImageGates* gates, const Image* allowance, const Image* slack) {
+  const GateAllowance ga{allowance, slack};
   const std::size_t n_worst = static_cast<std::size_t>(opt.worst_count);
   if (gl.width != oracle.width || gl.height != oracle.height) {
     StageComparison s;
@@ -113,6 +176,7 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
           }
           if (special == 1) continue;
           const double err = std::fabs(g - o);
+          if (gates) gate_sums(err, b, o, storage, p, ga, x, y, c, t.excess, t.base);
           if (err == 0) {
             t.hist[8]++;
             continue;
@@ -137,6 +201,8 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
     total.over += t.over;
     total.mismatch += t.mismatch;
     total.beyond_tier += t.beyond_tier;
+    total.excess += t.excess;
+    total.base += t.base;
     total.max_abs = std::max(total.max_abs, t.max_abs);
     total.max_rel = std::max(total.max_rel, t.max_rel);
     total.max_ulp16 = std::max(total.max_ulp16, t.max_ulp16);
@@ -161,6 +227,25 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
   for (WorstValue& w : worst) w.terms = terms.terms(w.x, w.y, w.channel);
   s.worst = std::move(worst);
 
+  if (gates) {
+    s.mean_excess = total.base > 0 ? total.excess / total.base : 0.0;  // sum / count
+    if (gates->window > 0 && gates->window_size > 0)
+      s.worst_window = worst_window(gl, oracle, bound, storage, p, ga, gates->window_size,
+                                    threads, s.worst_window_x, s.worst_window_y);
+    const double over = s.values ? double(s.over_bound) / double(s.values) : 0.0;
+    if (gates->mean > 0 && s.mean_excess > gates->mean)
+      s.gate = "the mean error is " + fixed3(s.mean_excess) + " of the bound beyond rounding (gate " +
+               fixed3(gates->mean) + ")";
+    else if (gates->window > 0 && s.worst_window > gates->window)
+      s.gate = "the " + std::to_string(gates->window_size) + "x" +
+               std::to_string(gates->window_size) + " window at (" +
+               std::to_string(s.worst_window_x) + ", " + std::to_string(s.worst_window_y) +
+               ") has a mean error of " + fixed3(s.worst_window) +
+               " of its bound beyond rounding (gate " + fixed3(gates->window) + ")";
+    else if (gates->over_fraction > 0 && over > gates->over_fraction)
+      s.gate = fixed3(100 * over) + "% of the values exceed their bound (gate " +
+               fixed3(100 * gates->over_fraction) + "%)";
+  }
   if (s.nonfinite_mismatch > 0 || warn_tier > 0) {
     s.verdict = Verdict::fail;
     s.reason = s.nonfinite_mismatch > 0
@@ -168,6 +253,9 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
                    : std::to_string(warn_tier) + " values exceed " +
                          std::to_string(static_cast<int>(kWarnTier)) +
                          "x their derived bound (worst " + std::to_string(s.max_ratio) + "x)";
+  } else if (!s.gate.empty()) {
+    s.verdict = Verdict::fail;
+    s.reason = "image gate: " + s.gate;
   } else if (s.over_bound > 0) {
     s.verdict = Verdict::warn;
     s.reason = std::to_string(s.over_bound) + " values exceed their derived bound, by at most " +

@@ -12,7 +12,8 @@
 // Per value the bound is the sum of named terms (tolerance.cpp says how each is derived).
 // PASS: every value within its bound. WARN: some values over it but none beyond 4x (the looser
 // quality tier; the reason says how many and by how much). FAIL: beyond 4x, or a NaN/Inf where
-// the other side has none.
+// the other side has none, or (isolated stages) an image gate of the profile exceeded: the
+// mean excess error, the worst window's, or the fraction of values over bound.
 #pragma once
 
 #include <cstdint>
@@ -67,6 +68,12 @@ struct StageComparison {
   std::vector<WorstValue> worst;         ///< the largest error / bound, with bound terms
   /// Signed f16-ULP differences (gl - oracle): bins -8..+8, [0] and [16] also hold the tails.
   std::vector<std::uint64_t> ulp_histogram;
+  /// Image gates (profile.h, ImageGates), isolated stages only: the excess error over the
+  /// whole image and over its worst window (ratios to the bound beyond rounding), where that
+  /// window starts, and the gate that failed ("" when none did).
+  double mean_excess = 0, worst_window = 0;
+  int worst_window_x = 0, worst_window_y = 0;
+  std::string gate;
   Image oracle, bound;                   ///< kept when CompareOptions::keep_images
   /// Fraction of the values within their bound (1 for PASS).
   double within() const {
