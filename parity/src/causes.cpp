@@ -436,24 +436,6 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
         ->sampling.wrap = Wrap::mirrored_repeat;
     add("nearest-filter", "GL_NEAREST instead of GL_LINEAR")->sampling.nearest = true;
   }
-  if (has(StageKind::composite))
-    if (const auto k = fit_bloom_scale(ctx, target)) {
-      Hypothesis* h = add("bloom-scaled",
-                          "bloom scaled (blur weights not summing to 1, or another strength)");
-      h->strength_scale = *k;
-      char b[96];
-      std::snprintf(b, sizeof b, "the bloom fits best scaled by %.6g", *k);
-      h->detail = b;
-    }
-  if (target.kind == StageKind::blur) {
-    const Kernel& k = kernel_for(p.kernel);
-    const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]);
-    if (auto w = fit_weights(src, ctx.view(target.name), target.axis, k, ctx.profile.subtexel_bits)) {
-      Hypothesis* h = add("wrong-weights", "wrong kernel weights");
-      h->weights = *w;
-      h->detail = "fitted weights " + weights_text(*w) + "; specified " + weights_text(k.weights_f32);
-    }
-  }
   if (target.kind == StageKind::blur && target.pass >= 3)
     add("pass-not-drawn", "blur pass not drawn (its ping-pong target still holds the pass before last)")
         ->stale = true;
@@ -475,6 +457,26 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   }
   if (p.storage == Storage::f32)
     add("f16-storage", "f16 storage where f32 was declared")->f16 = true;
+  // Fitted last: they can mimic a simpler cause (a copy of the input is weights {1, 0, ...}),
+  // and a tie goes to the hypothesis listed first.
+  if (has(StageKind::composite))
+    if (const auto k = fit_bloom_scale(ctx, target)) {
+      Hypothesis* h = add("bloom-scaled",
+                          "bloom scaled (blur weights not summing to 1, or another strength)");
+      h->strength_scale = *k;
+      char b[96];
+      std::snprintf(b, sizeof b, "the bloom fits best scaled by %.6g", *k);
+      h->detail = b;
+    }
+  if (target.kind == StageKind::blur) {
+    const Kernel& k = kernel_for(p.kernel);
+    const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]);
+    if (auto w = fit_weights(src, ctx.view(target.name), target.axis, k, ctx.profile.subtexel_bits)) {
+      Hypothesis* h = add("wrong-weights", "wrong kernel weights");
+      h->weights = *w;
+      h->detail = "fitted weights " + weights_text(*w) + "; specified " + weights_text(k.weights_f32);
+    }
+  }
   return out;
 }
 
