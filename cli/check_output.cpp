@@ -34,6 +34,8 @@ ordered_json stage_json(const parity::StageComparison& s) {
           {"max_abs", s.max_abs}, {"max_rel", s.max_rel}, {"max_f16_ulps", s.max_ulp16},
           {"max_error_over_bound", std::isfinite(s.max_ratio) ? ordered_json(s.max_ratio)
                                                               : ordered_json("infinite")},
+          {"mean_excess", s.mean_excess}, {"worst_window", s.worst_window},
+          {"worst_window_at", {s.worst_window_x, s.worst_window_y}}, {"gate", s.gate},
           {"ulp_histogram_minus8_to_plus8", s.ulp_histogram}, {"worst", worst}};
 }
 

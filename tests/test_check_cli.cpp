@@ -327,3 +327,27 @@ TEST_CASE("expectations: a known deviation is expected, and reported when fixed"
   CHECK(j["summary"]["fixed"] == 1);
   CHECK(r.out.find("FIXED") != std::string::npos);
 }
+
+TEST_CASE("a profile file: per-stage overrides; a bad field is exit 2 naming it", "[check-cli]") {
+  TempDir dir;
+  dump(dir, "d");
+  fs::create_directory(dir / "s");
+  fs::copy_file(dir / "d/blur.2.exr", dir / "s/blur.2.exr");
+  fs::copy_file(dir / "d/blur.2.exr", dir / "s/blur.3.exr");  // pass 3 did nothing
+  CHECK(run_cli(dir, "check " + kSize + " --stages s").code == 1);
+  bloomref::test::write_bytes(dir / "lenient.json", R"({"version": 1, "base": "vulkan",
+      "stages": [{"pattern": "blur.3", "scale": 1e9, "gates": {"mean": 0, "window": 0}}]})");
+  CliResult r = run_cli(dir, "check " + kSize + " --stages s --profile lenient.json --json r.json");
+  INFO(r.out << r.err);
+  CHECK(r.code == 0);
+  const json j = read_json(dir / "r.json");
+  CHECK(j["profile"]["name"] == "lenient");
+  CHECK(j["profile"]["subtexel_bits"] == 8);  // from the base, vulkan
+  bloomref::test::write_bytes(dir / "bad.json", R"({"version": 1, "subtexel": 8})");
+  r = run_cli(dir, "check " + kSize + " --stages s --profile bad.json");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("bad.json") != std::string::npos);
+  CHECK(r.err.find("subtexel") != std::string::npos);
+  r = run_cli(dir, "check " + kSize + " --stages s --profile nosuch");
+  CHECK(r.code == 2);
+}
