@@ -2,14 +2,15 @@
 // judged stage by stage against the CPU oracle (parity/), with the likely cause of a failure.
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <future>
+#include <map>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 #include <set>
-
-#include <tbb/parallel_for.h>
 
 #include "bloomref/error.h"
 #include "bloomref/io.h"
@@ -30,6 +31,7 @@ struct CheckArgs {
   std::string scene, stages_dir, manifest, profile = "nvidia";
   std::string json_path, junit_path, markdown_path, report_dir, expectations;
   std::string encoding = "auto", origin = "top", channels = "RGBA", raw_format = "f32";
+  std::string artifacts = "fail";
   DeviceKeys device;
   bool warn_as_error = false, quiet = false, no_causes = false;
   PipelineOptions pipeline;
@@ -93,39 +95,52 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
     files = find_stage_files(item.stages_dir, plan, item.defaults, item.aliases, r.ignored);
   }
   for (const StageFile& f : files) require_stage_in_plan(f, plan);
-  // Load every file on every thread; the first error (in file order) is the one reported.
-  std::vector<LoadedStage> loaded(files.size());
-  std::vector<std::string> errors(files.size());
-  tbb::parallel_for(std::size_t(0), files.size(), [&](std::size_t i) {
-    try {
-      int w = 0, h = 0;
-      stage_size(plan, files[i].stage, w, h);
-      loaded[i] = load_stage(files[i], w, h);
-    } catch (const InputError& e) {
-      errors[i] = e.what();
-    } catch (const std::exception& e) {
-      errors[i] = files[i].path + ": " + e.what();
-    }
-  });
-  for (const std::string& e : errors)
-    if (!e.empty()) throw Error(e);
-  parity::CapturedStages captured;
-  for (std::size_t i = 0; i < files.size(); ++i) {
-    captured[files[i].stage] = {loaded[i].image.cview(), loaded[i].code_bits, loaded[i].srgb};
-    r.file_of[files[i].stage] = files[i].path;
-  }
+  for (const StageFile& f : files) r.file_of[f.stage] = f.path;
   r.load_ms = ms_since(t0);
-  if (captured.empty()) return r;  // nothing compared: the caller says so
+  if (files.empty()) return r;  // nothing compared: the caller says so
+  // Files are read in plan order as the comparison reaches them, the next one on another
+  // thread meanwhile (OpenEXR decodes each on all threads), and released when no later stage
+  // reads them.
+  std::vector<std::string> names;
+  std::map<std::string, const StageFile*> by_stage;
+  for (const StageSpec& s : plan.stages)
+    for (const StageFile& f : files)
+      if (f.stage == s.name) {
+        names.push_back(s.name);
+        by_stage[s.name] = &f;
+      }
+  auto read = [&plan, &by_stage](const std::string& stage) {
+    int w = 0, h = 0;
+    stage_size(plan, stage, w, h);
+    return load_stage(*by_stage.at(stage), w, h);
+  };
+  std::map<std::string, std::future<LoadedStage>> ahead;
+  double load_ms = 0;
+  auto loader = [&](const std::string& stage) {
+    const auto t = std::chrono::steady_clock::now();
+    auto it = ahead.find(stage);
+    LoadedStage l = it != ahead.end() ? it->second.get() : read(stage);
+    if (it != ahead.end()) ahead.erase(it);
+    const auto next = std::find(names.begin(), names.end(), stage) + 1;
+    if (next != names.end() && !ahead.count(*next))
+      ahead[*next] = std::async(std::launch::async, read, *next);
+    load_ms += ms_since(t);
+    return parity::OwnedCapture{std::move(l.image), l.code_bits, l.srgb};
+  };
   parity::CompareOptions co;
   co.causes = causes;
-  co.keep_images = !a.report_dir.empty();
+  co.keep_images = !a.report_dir.empty() && a.artifacts != "none";
+  co.keep_failing_only = a.artifacts == "fail";
   const auto t1 = std::chrono::steady_clock::now();
-  r.parity = parity::check_with_oracle(plan, scene.image.cview(), captured, profile, co, &r.oracle_ms);
-  r.judge_ms = ms_since(t1) - r.oracle_ms;
+  r.parity = parity::compare_streamed(plan, scene.image.cview(), names, loader, profile, co,
+                                      &r.oracle_ms);
+  r.load_ms += load_ms;
+  r.judge_ms = ms_since(t1) - r.oracle_ms - load_ms;
   if (!a.report_dir.empty()) {
+    // The report shows the captures of the stages it holds images of: read again.
     StageTrace trace;
-    for (std::size_t i = 0; i < files.size(); ++i)
-      trace.stages.push_back({files[i].stage, std::move(loaded[i].image), 0, false});
+    for (const parity::StageComparison& s : r.parity.isolated)
+      if (!s.oracle.empty()) trace.stages.push_back({s.stage, read(s.stage).image, 0, false});
     const std::string dir = a.report_dir + (item.id.empty() ? "" : "/" + item.id);
     write_report(dir, source, "captured stages: " + (r.stages_from.empty() ? item.id : r.stages_from),
                  plan, trace, r.parity, "none");
@@ -167,6 +182,8 @@ void print_item(const ItemResult& r, const parity::DeviceProfile& profile) {
 }
 
 int check_cmd(CheckArgs& a) {
+  if (a.artifacts != "fail" && a.artifacts != "all" && a.artifacts != "none")
+    throw ParamError("--artifacts '" + a.artifacts + "' is not one of: fail, all, none");
   if (a.stages_dir.empty() == a.manifest.empty())
     throw ParamError("give one of --stages DIR or --manifest FILE");
   if (!a.manifest.empty() && !a.scene.empty())
@@ -287,6 +304,9 @@ std::function<int()> add_check(CLI::App& app) {
   sub->add_option("--junit", args->junit_path, "write JUnit XML (a testsuite per item)");
   sub->add_option("--markdown", args->markdown_path, "write a short Markdown summary (CI job summary)");
   sub->add_option("--report", args->report_dir, "write the HTML report (images, worst values) to DIR");
+  sub->add_option("--artifacts", args->artifacts,
+                  "with --report: images of the failing stages (fail), of every stage (all), or none")
+      ->capture_default_str();
   sub->add_option("--expectations", args->expectations,
                   "JSON file of known deviations (docs/check.md)");
   sub->add_option("--encoding", args->encoding,

@@ -506,3 +506,35 @@ TEST_CASE("profiles: ldr8 codes, mediump arithmetic, per-stage overrides", "[che
     CHECK(parity::profile_named(name).name == name);
   CHECK_THROWS_AS(parity::profile_named("gles"), ParamError);
 }
+
+TEST_CASE("the oracle computed stage by stage is the executor's, bit for bit", "[check]") {
+  // check_with_oracle computes the oracle's full run beside the comparison (not execute()): a
+  // trace of execute() with the same rounding must then be exactly the end-to-end oracle.
+  const Image scene = test_scene();
+  const parity::DeviceProfile profile = parity::profile_llvmpipe();  // f16: toward zero
+  for (Method method : {Method::gaussian, Method::mip})
+    for (Storage storage : {Storage::f32, Storage::f16})
+      for (bool karis : {false, true}) {
+        if (karis && method == Method::gaussian) continue;
+        BloomParams p = test_params();
+        p.method = method;
+        p.storage = storage;
+        p.karis = karis;
+        p.levels = 4;
+        const Plan plan = parity::plan_for_device(p, scene.cview(), profile);
+        ExecuteOptions eo;
+        eo.keep_all = true;
+        eo.half_rounding = HalfRounding::toward_zero;
+        const StageTrace t = execute(plan, scene.cview(), eo);
+        parity::CapturedStages captured;
+        for (const StageResult& s : t.stages) captured[s.name] = {s.image.cview()};
+        const auto r = parity::check_with_oracle(plan, scene.cview(), captured, profile);
+        INFO(to_string(method) << " " << to_string(storage) << (karis ? " karis" : ""));
+        CHECK(r.end_to_end.size() == t.stages.size());
+        for (const auto& e : r.end_to_end) {
+          INFO(e.stage);
+          CHECK(e.max_abs == 0);
+        }
+        CHECK(r.verdict == Verdict::pass);
+      }
+}

@@ -8,6 +8,8 @@
 // that read it add that error, propagated through them, to their isolated bounds. A capture
 // carries none: it is what the device had.
 #include <algorithm>
+#include <chrono>
+#include <functional>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -104,11 +106,120 @@ Image capture_codes(const CapturedStage& cap, Image& oracle) {
   return q;
 }
 
-}  // namespace
 
-ParityResult compare_captured(const Plan& plan, ConstImageView scene,
-                              const CapturedStages& captured, const StageTrace& cpu,
-                              const DeviceProfile& profile, const CompareOptions& opt) {
+// The images a comparison holds, each released once no later stage needs it: the captures
+// (loaded when reached), the stages without capture (the oracle's, stored) and the error they
+// carry, the oracle's full run and its end-to-end bounds.
+class Streams {
+ public:
+  Streams(const Plan& plan, const std::vector<std::string>& captured, bool causes) {
+    const auto& st = plan.stages;
+    for (std::size_t i = 0; i < st.size(); ++i) index_[st[i].name] = static_cast<int>(i);
+    for (const std::string& c : captured) captured_[c] = true;
+    // A stage is needed until the last stage that reads it; for the cause hypotheses, which
+    // recompute a failing stage from the captures before it, until the first capture
+    // downstream of each uncaptured reader has been judged, and pass k - 2 until pass k.
+    for (int i = static_cast<int>(st.size()) - 1; i >= 0; --i)
+      for (const std::string& in : stage_inputs(plan, st[i])) {
+        int until = i;
+        if (causes && !captured_.count(st[i].name)) until = std::max(until, need(st[i].name));
+        need_[in] = std::max(need(in), until);
+      }
+    if (causes)
+      for (const StageSpec& s : st)
+        if (s.kind == StageKind::blur && s.pass >= 3) {
+          const std::string back = s.pass == 3 ? "blur.1" : "blur." + std::to_string(s.pass - 2);
+          need_[back] = std::max(need(back), index_[s.name]);
+        }
+  }
+  int need(const std::string& n) const {
+    const auto it = need_.find(n);
+    return it == need_.end() ? -1 : it->second;
+  }
+  bool captured(const std::string& n) const { return captured_.count(n) > 0; }
+  /// Releases every image no stage after `done` (an index into the plan) needs.
+  template <class... Maps>
+  void release(int done, Maps&... maps) {
+    (release_in(done, maps), ...);
+  }
+
+ private:
+  template <class Map>
+  void release_in(int done, Map& m) {
+    for (auto it = m.begin(); it != m.end();)
+      it = need(it->first) <= done ? m.erase(it) : std::next(it);
+  }
+  std::map<std::string, int> index_, need_;
+  std::map<std::string, bool> captured_;
+};
+
+// The oracle's full run, stage by stage, as the CPU executor computes it: the same functions
+// (the fast blur and finishing stages give the reference's bits), stored after each stage.
+Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanitized,
+                   const std::vector<ConstImageView>& in, int subtexel_bits, HalfRounding rounding) {
+  const BloomParams& p = plan.params;
+  const int threads = p.threads;
+  Image out;
+  switch (spec.kind) {
+    case StageKind::input:
+      out = Image::uninitialised(sanitized.width, sanitized.height);
+      for (int y = 0; y < sanitized.height; ++y)
+        std::copy(sanitized.row(y), sanitized.row(y) + std::size_t(sanitized.width) * kChannels,
+                  out.view().row(y));
+      break;
+    case StageKind::bright:
+      out = Image::uninitialised(sanitized.width, sanitized.height);
+      extract_bright(sanitized, out.view(), p.threshold, threads);
+      break;
+    case StageKind::blur:
+      out = Image::uninitialised(in[0].width, in[0].height);
+      blur_pass_fast(in[0], out.view(), {spec.axis, &kernel_for(p.kernel), subtexel_bits}, threads);
+      break;
+    case StageKind::down: {
+      const LevelSize& l = plan.levels[spec.pass - 1];
+      out = Image::uninitialised(l.width, l.height);
+      const bool first = spec.pass == 1;
+      downsample(in[0], out.view(), {first, p.threshold, p.karis && first, subtexel_bits}, threads);
+      break;
+    }
+    case StageKind::up:
+    case StageKind::bloom: {
+      const bool up = spec.kind == StageKind::up;
+      out = up ? Image::uninitialised(in[1].width, in[1].height)
+               : Image::uninitialised(sanitized.width, sanitized.height);
+      upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads);
+      break;
+    }
+    case StageKind::composite:
+      out = Image::uninitialised(in[0].width, in[0].height);
+      composite(in[0], in[1], out.view(), p.strength, threads);
+      break;
+    case StageKind::tonemap:
+      out = Image::uninitialised(in[0].width, in[0].height);
+      tonemap_fast(in[0], out.view(), p.exposure, threads);
+      break;
+    case StageKind::output:
+      out = Image::uninitialised(in[0].width, in[0].height);
+      encode_output_fast(in[0], out.view(), p.gamma, threads);
+      break;
+  }
+  store(out.view(), p.storage, rounding, threads);
+  return out;
+}
+
+// A capture the comparison reads: a view of the caller's image, or one it loaded and owns.
+struct Held {
+  ConstImageView view;
+  Image owned;
+  int code_bits = 0;
+  bool srgb = false;
+};
+
+ParityResult compare_core(const Plan& plan, ConstImageView scene,
+                          const std::vector<std::string>& captured_names,
+                          const std::function<Held(const std::string&)>& load,
+                          const StageTrace* cpu, const DeviceProfile& profile,
+                          const CompareOptions& opt, double* oracle_ms) {
   const BloomParams& p = plan.params;
   const int threads = p.threads, w = scene.width, h = scene.height;
   const BoundContext ctx{&profile, p.storage, threads};
@@ -116,36 +227,51 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
   const HalfRounding rounding = half_rounding_for(profile);
   ParityResult result;
   result.profile = profile;
-  for (const auto& [name, cap] : captured)
+  for (const std::string& name : captured_names)
     if (!find_stage(plan, name))
       throw ParamError("no stage '" + name + "' in this plan (" + to_string(p.method) + ", " +
                        std::to_string(p.passes) + " passes)");
+  Streams streams(plan, captured_names, opt.causes);
+  double oracle_time = 0;
 
   // The sanitised scene (unrounded): what the input pass computes before storing.
   Image sanitized(w, h);
   sanitize(scene, sanitized.view(), p.nonfinite, p.storage, threads);
 
+  std::map<std::string, Held> captures;   // loaded when reached
   std::map<std::string, Image> computed;  // stages without capture: the oracle's, stored
   std::map<std::string, Image> carried;   // and the error each carries
-  std::map<std::string, Image> e2e;       // end-to-end bound of each stage, on the CPU's images
+  std::map<std::string, Image> full;      // the oracle's full run (when no trace is given)
+  std::map<std::string, Image> e2e;       // end-to-end bound of each stage, on the full run
   auto V = [&](const std::string& n) -> ConstImageView {
-    const auto c = captured.find(n);
-    return c != captured.end() ? c->second.image : computed.at(n).cview();
+    const auto c = captures.find(n);
+    if (c != captures.end()) return c->second.view;
+    const auto it = computed.find(n);
+    return it != computed.end() ? it->second.cview() : ConstImageView{};
   };
   auto E = [&](const std::string& n) -> const Image* {
     const auto it = carried.find(n);
     return it == carried.end() ? nullptr : &it->second;
   };
   auto C = [&](const std::string& n) -> const Image& {
-    const StageResult* r = cpu.find(n);
-    if (!r) throw ParamError("the CPU trace has no stage '" + n + "'");
+    if (!cpu) return full.at(n);
+    const StageResult* r = cpu->find(n);    if (!r) throw ParamError("the CPU trace has no stage '" + n + "'");
     return r->image;
   };
   const float strength = p.strength;
 
-  for (const StageSpec& spec : plan.stages) {
+  for (std::size_t index = 0; index < plan.stages.size(); ++index) {
+    const StageSpec& spec = plan.stages[index];
     const std::string& name = spec.name;
     const std::vector<std::string> in = stage_inputs(plan, spec);
+    if (!cpu) {
+      const auto t0 = std::chrono::steady_clock::now();
+      std::vector<ConstImageView> cin;
+      for (const std::string& n : in) cin.push_back(full.at(n).cview());
+      full[name] = oracle_stage(plan, spec, sanitized.cview(), cin, profile.subtexel_bits, rounding);
+      oracle_time += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    }
+    if (streams.captured(name)) captures[name] = load(name);
     const Image& c = C(name);
     Image oracle(c.width(), c.height()), bound(c.width(), c.height(), 0.0f);
     Image e(c.width(), c.height(), 0.0f);  // end-to-end bound
@@ -266,9 +392,9 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
     };
     const ImageGates& gates = over && over->has_gates ? over->gates : profile.gates;
 
-    const auto cap = captured.find(name);
-    if (cap != captured.end()) {
-      const CapturedStage& cs = cap->second;
+    const auto cap = captures.find(name);
+    if (cap != captures.end()) {
+      const CapturedStage cs{cap->second.view, cap->second.code_bits, cap->second.srgb};
       Image codes, codes_e2e;
       Image oracle_e2e;
       const Image* e2e_oracle = &c;
@@ -291,6 +417,11 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
       const ExtraTerms terms(*b, {{"carried from stages without capture", &inherited},
                                   {"8-bit capture: half a code", &codes}});
       const ExtraTerms terms_e2e(*b, {{"8-bit capture: half a code", &codes_e2e}});
+      if (cs.image.width != oracle.width() || cs.image.height != oracle.height())
+        throw InputError(name, "the capture is " + std::to_string(cs.image.width) + "x" +
+                                   std::to_string(cs.image.height) + ", the stage is " +
+                                   std::to_string(oracle.width()) + "x" +
+                                   std::to_string(oracle.height()));
       StageComparison iso = judge(name, cs.image, oracle.cview(), bound, terms, p.storage,
                                   profile, opt, threads, &gates, codes.empty() ? nullptr : &codes,
                                   p.storage == Storage::f16 && !inherited.empty() ? &inherited
@@ -298,7 +429,7 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
       if (opt.causes && iso.verdict != Verdict::pass) {
         CauseContext cc{plan, sanitized.cview(), profile, rounding, threads,
                         [&](const std::string& n) { return V(n); },
-                        [&](const std::string& n) { return captured.count(n) > 0; }};
+                        [&](const std::string& n) { return streams.captured(n); }};
         CompareOptions quick;
         quick.worst_count = 0;
         // A hypothesis changes the stage's arithmetic, which the bound was derived for: each
@@ -331,7 +462,9 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
       carried[name] = std::move(bound);
     }
     e2e[name] = std::move(e);
+    streams.release(static_cast<int>(index), captures, computed, carried, full, e2e);
   }
+  if (oracle_ms) *oracle_ms = oracle_time;
 
   for (const StageComparison& s : result.isolated) {
     if (s.verdict != Verdict::pass && !result.first_divergent_stage)
@@ -341,6 +474,42 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
   for (const StageComparison& s : result.end_to_end)
     result.verdict = std::max(result.verdict, s.verdict);
   return result;
+}
+
+}  // namespace
+
+ParityResult compare_captured(const Plan& plan, ConstImageView scene,
+                              const CapturedStages& captured, const StageTrace& cpu,
+                              const DeviceProfile& profile, const CompareOptions& opt) {
+  std::vector<std::string> names;
+  for (const auto& [name, c] : captured) names.push_back(name);
+  return compare_core(plan, scene, names, [&](const std::string& n) {
+    const CapturedStage& c = captured.at(n);
+    return Held{c.image, {}, c.code_bits, c.srgb};
+  }, &cpu, profile, opt, nullptr);
+}
+
+ParityResult check_with_oracle(const Plan& plan, ConstImageView scene,
+                               const CapturedStages& captured, const DeviceProfile& profile,
+                               const CompareOptions& opt, double* cpu_ms) {
+  std::vector<std::string> names;
+  for (const auto& [name, c] : captured) names.push_back(name);
+  return compare_core(plan, scene, names, [&](const std::string& n) {
+    const CapturedStage& c = captured.at(n);
+    return Held{c.image, {}, c.code_bits, c.srgb};
+  }, nullptr, profile, opt, cpu_ms);
+}
+
+ParityResult compare_streamed(const Plan& plan, ConstImageView scene,
+                              const std::vector<std::string>& captured, const CaptureLoader& load,
+                              const DeviceProfile& profile, const CompareOptions& opt,
+                              double* oracle_ms) {
+  return compare_core(plan, scene, captured, [&](const std::string& n) {
+    OwnedCapture o = load(n);
+    Held held{{}, std::move(o.image), o.code_bits, o.srgb};
+    held.view = held.owned.cview();
+    return held;
+  }, nullptr, profile, opt, oracle_ms);
 }
 
 }  // namespace bloomref::parity

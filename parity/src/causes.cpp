@@ -84,8 +84,8 @@ class Evaluator {
     const auto m = memo_.find(name);
     if (m != memo_.end()) return {m->second.cview(), true};
     if (name != target_.name && ctx_.captured(name)) {
-      if (!h_.transform_inputs || (!h_.flip && !h_.swap_rb)) return {ctx_.view(name), false};
-      Image img = copy(ctx_.view(name));
+      if (!h_.transform_inputs || (!h_.flip && !h_.swap_rb)) return {held(name), false};
+      Image img = copy(held(name));
       if (h_.flip) flip_vertically(img);
       if (h_.swap_rb) swap_red_blue(img);
       return keep(name, std::move(img));
@@ -96,10 +96,18 @@ class Evaluator {
       return keep(name, bloom_with_delta());
     bool changed = changes(h_, spec->kind, false);
     for (const std::string& in : stage_inputs(ctx_.plan, *spec)) changed |= value(in).changed;
-    if (!changed) return {ctx_.view(name), false};
+    if (!changed) return {held(name), false};
     Image img = compute(*spec, false);
     store_as_device(img);
     return keep(name, std::move(img));
+  }
+
+  // A stage as the isolated oracle reads it; one the comparison has released (it streams its
+  // images) makes the hypothesis not applicable.
+  ConstImageView held(const std::string& name) const {
+    const ConstImageView v = ctx_.view(name);
+    if (!v.data) throw NotApplicable{};
+    return v;
   }
 
   Val keep(const std::string& name, Image img) {
@@ -356,6 +364,7 @@ std::optional<float> fit_bloom_scale(const CauseContext& ctx, const StageSpec& t
   }
   const std::vector<std::string> in = stage_inputs(ctx.plan, *s);
   const ConstImageView user = ctx.view(target.name), base = ctx.view(in[0]), bloom = ctx.view(in[1]);
+  if (!user.data || !base.data || !bloom.data) return std::nullopt;
   double num = 0, den = 0;
   for (int y = 0; y < user.height; ++y)
     for (int x = 0; x < user.width; ++x)
@@ -471,7 +480,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   if (target.kind == StageKind::blur) {
     const Kernel& k = kernel_for(p.kernel);
     const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]);
-    if (auto w = fit_weights(src, ctx.view(target.name), target.axis, k, ctx.profile.subtexel_bits)) {
+    if (auto w = !src.data ? std::nullopt : fit_weights(src, ctx.view(target.name), target.axis, k, ctx.profile.subtexel_bits)) {
       Hypothesis* h = add("wrong-weights", "wrong kernel weights");
       h->weights = *w;
       h->detail = "fitted weights " + weights_text(*w) + "; specified " + weights_text(k.weights_f32);

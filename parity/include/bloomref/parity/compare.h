@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -98,6 +99,7 @@ struct ParityResult {
 
 struct CompareOptions {
   bool keep_images = false;
+  bool keep_failing_only = false;  ///< with keep_images: only of stages that are not PASS
   int worst_count = 8;
   bool causes = false;  ///< test the usual causes on every isolated stage that is not PASS
 };
@@ -124,11 +126,30 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
                               const CapturedStages& captured, const StageTrace& cpu,
                               const DeviceProfile& profile, const CompareOptions& opt = {});
 
+/// A captured stage the comparison owns: streamed, loaded when the comparison reaches it and
+/// released once no later stage reads it.
+struct OwnedCapture {
+  Image image;
+  int code_bits = 0;
+  bool srgb = false;
+};
+using CaptureLoader = std::function<OwnedCapture(const std::string& stage)>;
+
+/// compare_captured for captures loaded one by one (`load` is called once per name of
+/// `captured`, in plan order), with the oracle's full run computed stage by stage beside them:
+/// only the images later stages read are held (peak memory a few images, not the trace).
+/// `oracle_ms` (optional) receives the oracle's time.
+ParityResult compare_streamed(const Plan& plan, ConstImageView scene,
+                              const std::vector<std::string>& captured, const CaptureLoader& load,
+                              const DeviceProfile& profile, const CompareOptions& opt = {},
+                              double* oracle_ms = nullptr);
+
 /// The oracle's f16 rounding for a device: the mode it measured (toward zero where it allows
 /// it, else nearest-even, saturating where it saturates).
 HalfRounding half_rounding_for(const DeviceProfile& profile);
 
-/// compare_with_oracle for captures.
+/// compare_with_oracle for captures; the oracle's full run is computed stage by stage beside
+/// the comparison (compare_streamed), not kept whole. `cpu_ms` receives its time.
 ParityResult check_with_oracle(const Plan& plan, ConstImageView scene,
                                const CapturedStages& captured, const DeviceProfile& profile,
                                const CompareOptions& opt = {}, double* cpu_ms = nullptr);
@@ -138,8 +159,9 @@ ParityResult check_with_oracle(const Plan& plan, ConstImageView scene,
 Plan plan_for_device(BloomParams params, ConstImageView scene, const DeviceProfile& profile,
                      const std::string& source = "");
 
-/// Runs the CPU oracle for `plan` (every stage kept, f16 rounding as the profile measured) and
-/// compares `gl` with it. `cpu_ms` (optional) receives the oracle's wall time.
+/// Runs the CPU oracle for `plan` (f16 rounding as the profile measured) and compares `gl` with
+/// it (check_with_oracle with every stage of `gl` captured). `cpu_ms` (optional) receives the
+/// oracle's time.
 ParityResult compare_with_oracle(const Plan& plan, ConstImageView scene, const StageTrace& gl,
                                  const DeviceProfile& profile, const CompareOptions& opt = {},
                                  double* cpu_ms = nullptr);
