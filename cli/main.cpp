@@ -1,5 +1,5 @@
 // The bloomref command. Exit codes (DESIGN.md): 0 success, 1 parity FAIL, 2 bad usage or bad
-// input, 3 GL path unavailable, 4 internal error (a bug: please report it).
+// input, 3 GL path unavailable, 4 internal error (a bug: please report it), 5 nothing compared.
 #include <CLI/CLI.hpp>
 #include <iostream>
 
@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   auto scenes = bloomref::cli::add_scenes(app);
   auto gl_info = bloomref::cli::add_gl_info(app);
   auto compare = bloomref::cli::add_compare(app);
+  auto check = bloomref::cli::add_check(app);
   auto stability = bloomref::cli::add_stability(app);
   auto bench = bloomref::cli::add_bench(app);
   auto tradeoff = bloomref::cli::add_tradeoff(app);
@@ -28,7 +29,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    for (auto* cmd : {&run, &scenes, &gl_info, &compare, &stability, &bench, &tradeoff}) {
+    for (auto* cmd : {&run, &scenes, &gl_info, &compare, &check, &stability, &bench, &tradeoff}) {
       const int rc = (*cmd)();
       if (rc >= 0) return rc;
     }

@@ -4,6 +4,7 @@
 #include <cfloat>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <mutex>
 #include <tuple>
@@ -11,6 +12,7 @@
 #include "bloomref/error.h"
 #include "bloomref/mip.h"
 #include "bloomref/parallel.h"
+#include "judge.h"
 #include "tolerance.h"
 
 namespace bloomref::parity {
@@ -21,6 +23,7 @@ std::string to_string(Verdict v) {
   return v == Verdict::pass ? "PASS" : v == Verdict::warn ? "WARN" : "FAIL";
 }
 
+namespace detail {
 namespace {
 
 constexpr double kWarnTier = 4.0;  // over the derived bound but within 4x: WARN
@@ -68,14 +71,78 @@ void keep_worst(std::vector<WorstValue>& w, std::size_t n) {
 // Counts over a row range; merged by sums and maxima, so the result is thread-count independent.
 struct Tally {
   std::uint64_t values = 0, over = 0, mismatch = 0, beyond_tier = 0;
+  double excess = 0, base = 0;  // the image gates' sums (gate_sums): ratios, and their count
   double max_abs = 0, max_rel = 0, max_ulp16 = 0, max_ratio = 0;
   std::vector<std::uint64_t> hist = std::vector<std::uint64_t>(17, 0);
   std::vector<WorstValue> worst;
 };
 
+// What the image gates take off each value (judge.h): rounding from both error and bound,
+// slack from the error only.
+struct GateAllowance {
+  const Image* rounding = nullptr;
+  const Image* slack = nullptr;
+};
+
+// One value's part in the image gates: its error beyond the rounding it is allowed over its
+// bound beyond the same (at most 4: beyond, the value fails anyway), added to `sum`; `count`
+// counts the values with something to bound. A mean of these ratios, not a ratio of sums: the
+// bounds span many orders of magnitude (a light's edge against flat sky), and a ratio of sums
+// would only see the largest.
+inline void gate_sums(double err, double b, double o, Storage storage, const DeviceProfile& p,
+                      GateAllowance a, int x, int y, int c, double& sum, double& count) {
+  double r = storage_term(o, storage, p);
+  if (a.rounding) r += a.rounding->pixel(x, y)[c];
+  const double excess = std::max(0.0, err - r - (a.slack ? a.slack->pixel(x, y)[c] : 0.0f));
+  const double base = b - r;
+  if (!(base > 0)) return;
+  sum += std::min(excess / base, 4.0);
+  count += 1;
+}
+
+// The worst window's ratio of excess to bound, over non-overlapping n x n blocks (blocks with
+// nothing to bound left out), and its top-left texel; ties go to the first block in row order.
+double worst_window(ConstImageView gl, ConstImageView oracle, const Image& bound, Storage storage,
+                    const DeviceProfile& p, GateAllowance allowance, int n, int threads, int& wx,
+                    int& wy) {
+  const int bw = (gl.width + n - 1) / n, bh = (gl.height + n - 1) / n;
+  std::vector<double> ratio(std::size_t(bw) * bh, 0.0);
+  parallel_rows(bh, threads, [&](int b0, int b1) {
+    for (int by = b0; by < b1; ++by)
+      for (int bx = 0; bx < bw; ++bx) {
+        double excess = 0, base = 0;
+        for (int y = by * n; y < std::min(gl.height, (by + 1) * n); ++y)
+          for (int x = bx * n; x < std::min(gl.width, (bx + 1) * n); ++x)
+            for (int c = 0; c < 3; ++c) {
+              const double o = oracle.pixel(x, y)[c], g = gl.pixel(x, y)[c];
+              const double b = bound.pixel(x, y)[c];
+              // The values the main loop compares against their bound, no others.
+              if (!(b < INFINITY) || special_case(o, g, storage, p, b) != -1) continue;
+              gate_sums(std::fabs(g - o), b, o, storage, p, allowance, x, y, c, excess, base);
+            }
+        ratio[std::size_t(by) * bw + bx] = base > 0 ? excess / base : 0.0;  // sum / count
+      }
+  });
+  const auto it = std::max_element(ratio.begin(), ratio.end());
+  const std::size_t i = static_cast<std::size_t>(it - ratio.begin());
+  wx = static_cast<int>(i % bw) * n;
+  wy = static_cast<int>(i / bw) * n;
+  return *it;
+}
+
+std::string fixed3(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
+
+}  // namespace
+
 StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
                       const Image& bound, const StageBounds& terms, Storage storage,
-                      const DeviceProfile& p, const CompareOptions& opt, int threads) {
+                      const DeviceProfile& p, const CompareOptions& opt, int threads,
+                      const ImageGates* gates, const Image* allowance, const Image* slack) {
+  const GateAllowance ga{allowance, slack};
   const std::size_t n_worst = static_cast<std::size_t>(opt.worst_count);
   if (gl.width != oracle.width || gl.height != oracle.height) {
     StageComparison s;
@@ -109,6 +176,7 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
           }
           if (special == 1) continue;
           const double err = std::fabs(g - o);
+          if (gates) gate_sums(err, b, o, storage, p, ga, x, y, c, t.excess, t.base);
           if (err == 0) {
             t.hist[8]++;
             continue;
@@ -133,6 +201,8 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
     total.over += t.over;
     total.mismatch += t.mismatch;
     total.beyond_tier += t.beyond_tier;
+    total.excess += t.excess;
+    total.base += t.base;
     total.max_abs = std::max(total.max_abs, t.max_abs);
     total.max_rel = std::max(total.max_rel, t.max_rel);
     total.max_ulp16 = std::max(total.max_ulp16, t.max_ulp16);
@@ -151,11 +221,31 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
   s.max_ratio = total.max_ratio;
   s.ulp_histogram = total.hist;
   const std::uint64_t warn_tier = total.beyond_tier;
+  s.beyond_tier = total.beyond_tier;
   std::vector<WorstValue> worst = std::move(total.worst);
   keep_worst(worst, n_worst);
   for (WorstValue& w : worst) w.terms = terms.terms(w.x, w.y, w.channel);
   s.worst = std::move(worst);
 
+  if (gates) {
+    s.mean_excess = total.base > 0 ? total.excess / total.base : 0.0;  // sum / count
+    if (gates->window > 0 && gates->window_size > 0)
+      s.worst_window = worst_window(gl, oracle, bound, storage, p, ga, gates->window_size,
+                                    threads, s.worst_window_x, s.worst_window_y);
+    const double over = s.values ? double(s.over_bound) / double(s.values) : 0.0;
+    if (gates->mean > 0 && s.mean_excess > gates->mean)
+      s.gate = "the mean error is " + fixed3(s.mean_excess) + " of the bound beyond rounding (gate " +
+               fixed3(gates->mean) + ")";
+    else if (gates->window > 0 && s.worst_window > gates->window)
+      s.gate = "the " + std::to_string(gates->window_size) + "x" +
+               std::to_string(gates->window_size) + " window at (" +
+               std::to_string(s.worst_window_x) + ", " + std::to_string(s.worst_window_y) +
+               ") has a mean error of " + fixed3(s.worst_window) +
+               " of its bound beyond rounding (gate " + fixed3(gates->window) + ")";
+    else if (gates->over_fraction > 0 && over > gates->over_fraction)
+      s.gate = fixed3(100 * over) + "% of the values exceed their bound (gate " +
+               fixed3(100 * gates->over_fraction) + "%)";
+  }
   if (s.nonfinite_mismatch > 0 || warn_tier > 0) {
     s.verdict = Verdict::fail;
     s.reason = s.nonfinite_mismatch > 0
@@ -163,6 +253,9 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
                    : std::to_string(warn_tier) + " values exceed " +
                          std::to_string(static_cast<int>(kWarnTier)) +
                          "x their derived bound (worst " + std::to_string(s.max_ratio) + "x)";
+  } else if (!s.gate.empty()) {
+    s.verdict = Verdict::fail;
+    s.reason = "image gate: " + s.gate;
   } else if (s.over_bound > 0) {
     s.verdict = Verdict::warn;
     s.reason = std::to_string(s.over_bound) + " values exceed their derived bound, by at most " +
@@ -171,7 +264,7 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
     s.reason = "every value within its bound (largest error / bound " +
                std::to_string(s.max_ratio) + ")";
   }
-  if (opt.keep_images) {
+  if (opt.keep_images && !(opt.keep_failing_only && s.verdict == Verdict::pass)) {
     s.oracle = Image(gl.width, gl.height);
     for (int y = 0; y < gl.height; ++y)
       std::copy(oracle.row(y), oracle.row(y) + std::size_t(gl.width) * kChannels,
@@ -181,174 +274,18 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
   return s;
 }
 
-const Image& stage_image(const StageTrace& t, const std::string& name, const char* which) {
-  const StageResult* r = t.find(name);
-  if (!r) throw ParamError(std::string("the ") + which + " trace has no stage '" + name + "'");
-  return r->image;
-}
-
-}  // namespace
+}  // namespace detail
 
 ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& gl,
                      const StageTrace& cpu, const DeviceProfile& profile,
                      const CompareOptions& opt) {
-  const BloomParams& p = plan.params;
-  const int threads = p.threads, w = scene.width, h = scene.height;
-  const BoundContext ctx{&profile, p.storage, threads};
-  const Kernel& kernel = kernel_for(p.kernel);
-  const bool mip = p.method == Method::mip;
-  const bool after = mip && p.composite == CompositeOrder::after_tonemap;
-  const int top = static_cast<int>(plan.levels.size());
-  ParityResult result;
-  result.profile = profile;
-
-  // The sanitised scene (unrounded): what the input pass computes before storing.
-  Image sanitized(w, h);
-  sanitize(scene, sanitized.view(), p.nonfinite, p.storage, threads);
-
-  auto G = [&](const std::string& n) -> const Image& { return stage_image(gl, n, "GL"); };
-  auto C = [&](const std::string& n) -> const Image& { return stage_image(cpu, n, "CPU"); };
-  auto level = [](const char* kind, int k) { return std::string(kind) + "." + std::to_string(k); };
-  // The stage each one reads (its isolation input), by method and composite order.
-  const std::string bloom_stage = bloom_stage_name(plan);
-  const std::string composite_base = after ? "tonemap" : "input";
-  const std::string tonemap_src = after ? "input" : "composite";
-  const std::string output_src = after ? "composite" : "tonemap";
-  std::map<std::string, Image> e2e;  // end-to-end bound of each stage, on the CPU's images
-
+  CapturedStages captured;
   for (const StageSpec& spec : plan.stages) {
-    const std::string& name = spec.name;
-    const Image& g = G(name);
-    const Image& c = C(name);
-    Image oracle(c.width(), c.height()), bound(c.width(), c.height(), 0.0f);
-    Image e(c.width(), c.height(), 0.0f);  // end-to-end bound
-    std::unique_ptr<StageBounds> b;
-    auto add = [&](const Image& a, double scale) {
-      for (std::size_t i = 0; i < e.values().size(); ++i)
-        e.values()[i] += static_cast<float>(scale * a.values()[i]);
-    };
-    switch (spec.kind) {
-      case StageKind::input:
-        oracle = sanitized;
-        b = input_bounds(oracle.cview(), ctx);
-        b->fill(bound);
-        e = bound;
-        break;
-      case StageKind::bright:
-        extract_bright(sanitized.cview(), oracle.view(), p.threshold, threads);
-        b = bright_bounds(sanitized.cview(), p.threshold, ctx);
-        b->fill(bound);
-        e = bound;
-        break;
-      case StageKind::blur: {
-        const std::string prev = spec.pass == 1 ? "bright" : level("blur", spec.pass - 1);
-        const Image& src = G(prev);
-        blur_pass(src.cview(), oracle.view(), {spec.axis, &kernel, profile.subtexel_bits}, threads);
-        b = blur_bounds(src.cview(), oracle.cview(), spec.axis, kernel, ctx);
-        b->fill(bound);
-        e = propagate_blur(e2e.at(prev).cview(), spec.axis, kernel, threads);
-        add(bound, 1.0);
-        break;
-      }
-      case StageKind::down: {
-        const int k = spec.pass;
-        const std::string prev = k == 1 ? "input" : level("down", k - 1);
-        const Image& src = G(prev);
-        oracle = Image(plan.levels[k - 1].width, plan.levels[k - 1].height);
-        bound = Image(oracle.width(), oracle.height(), 0.0f);
-        const DownsampleOptions o{k == 1, p.threshold, p.karis && k == 1, profile.subtexel_bits};
-        downsample(src.cview(), oracle.view(), o, threads);
-        b = down_bounds(src.cview(), oracle.cview(), nullptr, k == 1, p.threshold, p.karis, ctx);
-        b->fill(bound);
-        down_bounds(C(prev).cview(), c.cview(), &e2e.at(prev), k == 1, p.threshold, p.karis, ctx)
-            ->fill(e);
-        break;
-      }
-      case StageKind::up:
-      case StageKind::bloom: {
-        const int k = spec.kind == StageKind::bloom ? 0 : spec.pass;
-        const std::string small = k + 1 == top ? level("down", top) : level("up", k + 1);
-        const std::string cur = k == 0 ? "" : level("down", k);
-        const BasicView<const float> none{};
-        const Image& gs = G(small);
-        if (k == 0) {
-          oracle = Image(w, h);
-        } else {
-          oracle = Image(G(cur).width(), G(cur).height());
-        }
-        bound = Image(oracle.width(), oracle.height(), 0.0f);
-        upsample_tent(gs.cview(), k ? G(cur).cview() : none, oracle.view(), profile.subtexel_bits,
-                      threads);
-        b = up_bounds(gs.cview(), k ? G(cur).cview() : none, oracle.cview(), nullptr, nullptr, ctx);
-        b->fill(bound);
-        up_bounds(C(small).cview(), k ? C(cur).cview() : none, c.cview(), &e2e.at(small),
-                  k ? &e2e.at(cur) : nullptr, ctx)
-            ->fill(e);
-        break;
-      }
-      case StageKind::composite: {
-        const Image& sc = G(composite_base);
-        const Image& bl = G(bloom_stage);
-        composite(sc.cview(), bl.cview(), oracle.view(), p.strength, threads);
-        b = composite_bounds(sc.cview(), bl.cview(), oracle.cview(), p.strength, ctx);
-        b->fill(bound);
-        e = e2e.at(composite_base);
-        add(e2e.at(bloom_stage), p.strength);
-        add(bound, 1.0);
-        break;
-      }
-      case StageKind::tonemap: {
-        const Image& hd = G(tonemap_src);
-        tonemap(hd.cview(), oracle.view(), p.exposure, threads);
-        b = tonemap_bounds(hd.cview(), oracle.cview(), p.exposure, ctx);
-        b->fill(bound);
-        const Image& ch = C(tonemap_src);
-        const Image& eh = e2e.at(tonemap_src);
-        for (std::size_t i = 0; i < e.values().size(); ++i) {
-          const double hv = ch.values()[i], ev = eh.values()[i];
-          // The slope of 1 - exp(-h k) is k exp(-h k): largest at the low end of h +- e.
-          e.values()[i] = std::isfinite(hv) && std::isfinite(ev)
-                              ? static_cast<float>(p.exposure * std::exp(-(hv - ev) * p.exposure) * ev)
-                              : INFINITY;
-        }
-        add(bound, 1.0);
-        break;
-      }
-      case StageKind::output: {
-        const Image& m = G(output_src);
-        encode_output(m.cview(), oracle.view(), p.gamma, threads);
-        b = output_bounds(m.cview(), oracle.cview(), p.gamma, ctx);
-        b->fill(bound);
-        const Image& cm = C(output_src);
-        const Image& em = e2e.at(output_src);
-        const double gexp = 1.0 / p.gamma;
-        for (std::size_t i = 0; i < e.values().size(); ++i) {
-          const double mv = cm.values()[i], ev = em.values()[i];
-          // Gamma's slope is unbounded near black: bound by the interval's image instead.
-          e.values()[i] = std::isfinite(mv) && std::isfinite(ev)
-                              ? static_cast<float>(std::pow(std::max(mv + ev, 0.0), gexp) -
-                                                   std::pow(std::max(mv - ev, 0.0), gexp))
-                              : INFINITY;
-        }
-        add(bound, 1.0);
-        break;
-      }
-    }
-    result.isolated.push_back(
-        judge(name, g.cview(), oracle.cview(), bound, *b, p.storage, profile, opt, threads));
-    result.end_to_end.push_back(
-        judge(name, g.cview(), c.cview(), e, *b, p.storage, profile, opt, threads));
-    e2e[name] = std::move(e);
+    const StageResult* r = gl.find(spec.name);
+    if (!r) throw ParamError("the GL trace has no stage '" + spec.name + "'");
+    captured[spec.name] = CapturedStage{r->image.cview()};
   }
-
-  for (const StageComparison& s : result.isolated) {
-    if (s.verdict != Verdict::pass && !result.first_divergent_stage)
-      result.first_divergent_stage = s.stage;
-    result.verdict = std::max(result.verdict, s.verdict);
-  }
-  for (const StageComparison& s : result.end_to_end)
-    result.verdict = std::max(result.verdict, s.verdict);
-  return result;
+  return compare_captured(plan, scene, captured, cpu, profile, opt);
 }
 
 Plan plan_for_device(BloomParams params, ConstImageView scene, const DeviceProfile& profile,
@@ -360,19 +297,23 @@ Plan plan_for_device(BloomParams params, ConstImageView scene, const DeviceProfi
   return make_plan(params, scene, source);
 }
 
+HalfRounding half_rounding_for(const DeviceProfile& profile) {
+  return !profile.half_nearest_even       ? HalfRounding::toward_zero
+         : profile.half_overflow_saturate ? HalfRounding::nearest_even_saturate
+                                          : HalfRounding::nearest_even;
+}
+
+
 ParityResult compare_with_oracle(const Plan& plan, ConstImageView scene, const StageTrace& gl,
                                  const DeviceProfile& profile, const CompareOptions& opt,
                                  double* cpu_ms) {
-  ExecuteOptions eo;
-  eo.keep_all = true;
-  eo.half_rounding = !profile.half_nearest_even       ? HalfRounding::toward_zero
-                     : profile.half_overflow_saturate ? HalfRounding::nearest_even_saturate
-                                                      : HalfRounding::nearest_even;
-  const auto t0 = std::chrono::steady_clock::now();
-  const StageTrace cpu = execute(plan, scene, eo);
-  if (cpu_ms)
-    *cpu_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  return compare(plan, scene, gl, cpu, profile, opt);
+  CapturedStages captured;
+  for (const StageSpec& spec : plan.stages) {
+    const StageResult* r = gl.find(spec.name);
+    if (!r) throw ParamError("the GL trace has no stage '" + spec.name + "'");
+    captured[spec.name] = CapturedStage{r->image.cview()};
+  }
+  return check_with_oracle(plan, scene, captured, profile, opt, cpu_ms);
 }
 
 }  // namespace bloomref::parity

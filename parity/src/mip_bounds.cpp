@@ -60,6 +60,7 @@ int base_texel(int x, int tw, int sw, int o) {
 std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView oracle,
                                          const Image* error, bool first, float threshold,
                                          bool karis, BoundContext ctx) {
+  const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   auto win = std::make_shared<Window2D>(window4x4(src, ctx.threads));
   auto ewin = error ? std::make_shared<Window2D>(window4x4(error->cview(), ctx.threads)) : nullptr;
   const double delta = coordinate_error(src.width, *ctx.profile) +
@@ -80,7 +81,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
           const double r = win->range.pixel(bx, by)[c], m = win->magnitude.pixel(bx, by)[c];
           const double e = ewin ? ewin->magnitude.pixel(bx, by)[c] : 0.0;
           coord += taps[i].weight * (delta * r + e);
-          arith += taps[i].weight * (3 + 2 * 13 + (use_karis ? 10 : 0)) * kU * m;
+          arith += taps[i].weight * (3 + 2 * 13 + (use_karis ? 10 : 0)) * U * m;
           // This tap's value and its error on every channel (for luminance and Karis).
           float q[3];
           mip_lookup(src, x, y, tw, th, taps[i].ox, taps[i].oy, ctx.profile->subtexel_bits, q);
@@ -89,12 +90,12 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
           for (int k = 0; k < 3; ++k) {
             const double rk = win->range.pixel(bx, by)[k];
             const double ek = ewin ? ewin->magnitude.pixel(bx, by)[k] : 0.0;
-            dmax = std::max(dmax, delta * rk + ek + 3 * kU * win->magnitude.pixel(bx, by)[k]);
+            dmax = std::max(dmax, delta * rk + ek + 3 * U * win->magnitude.pixel(bx, by)[k]);
             qmax[i] = std::max(qmax[i], std::fabs(double(q[k])));
           }
           dq[i] = dmax;
           lum[i] = luminance(q[0], q[1], q[2]);
-          lum_err[i] = dmax + 4 * kU * std::fabs(lum[i]);  // the weights sum to 1
+          lum_err[i] = dmax + 4 * U * std::fabs(lum[i]);  // the weights sum to 1
           if (first && std::fabs(lum[i] - threshold) <= lum_err[i])
             thresh += taps[i].weight * qmax[i];
         }
@@ -106,7 +107,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
             double lo = INFINITY, hi = -INFINITY, rel = 0, dmax = 0;
             for (int i : groups[g]) {
               const double denom = 1 + std::max(lum[i] - lum_err[i], 0.0);  // w uses max(L, 0)
-              rel = std::max(rel, denom > 0 ? lum_err[i] / denom + 6 * kU : INFINITY);
+              rel = std::max(rel, denom > 0 ? lum_err[i] / denom + 6 * U : INFINITY);
               lo = std::min(lo, -qmax[i]);
               hi = std::max(hi, qmax[i]);
               dmax = std::max(dmax, dq[i]);
@@ -126,6 +127,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
 std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView current,
                                        ConstImageView oracle, const Image* small_error,
                                        const Image* current_error, BoundContext ctx) {
+  const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   auto win = std::make_shared<Window2D>(window4x4(small, ctx.threads));
   auto ewin = small_error ? std::make_shared<Window2D>(window4x4(small_error->cview(), ctx.threads))
                           : nullptr;
@@ -142,10 +144,10 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
           const int by = base_texel(y, th, small.height, t.oy);
           coord += t.weight * (delta * win->range.pixel(bx, by)[c] +
                                (ewin ? ewin->magnitude.pixel(bx, by)[c] : 0.0));
-          arith += t.weight * (3 + 2 * 9) * kU * win->magnitude.pixel(bx, by)[c];
+          arith += t.weight * (3 + 2 * 9) * U * win->magnitude.pixel(bx, by)[c];
         }
         const double cur = current.empty() ? 0.0 : std::fabs(current.pixel(x, y)[c]);
-        arith += 9 * kU * cur;
+        arith += 9 * U * cur;
         const double ecur = current_error ? current_error->pixel(x, y)[c] : 0.0;
         const double v = oracle.pixel(x, y)[c];
         return Values{coord, arith, ecur,

@@ -1,5 +1,7 @@
 #include "bloomref/parity/profile.h"
 
+#include <fnmatch.h>
+
 #include "bloomref/error.h"
 
 namespace bloomref::parity {
@@ -27,10 +29,47 @@ DeviceProfile profile_nvidia_like() {
   return p;
 }
 
+DeviceProfile profile_vulkan() {
+  DeviceProfile p;
+  p.name = "vulkan";
+  p.source = "device class: Vulkan 1.3 minimum limits (subTexelPrecisionBits >= 4), sampled at 8";
+  p.subtexel_bits = 8;
+  p.subtexel_bits_min = 4;
+  return p;
+}
+
+DeviceProfile profile_mediump() {
+  DeviceProfile p;
+  p.name = "mediump";
+  p.source = "device class: GLSL ES 3.00 mediump (relative precision 2^-10), 8-bit filtering";
+  p.subtexel_bits = 8;
+  p.unit_roundoff = 0x1p-11;
+  return p;
+}
+
+DeviceProfile profile_ldr8() {
+  DeviceProfile p = profile_nvidia_like();
+  p.name = "ldr8";
+  p.source = "8-bit captures: half a code per value, nvidia-like sampling";
+  p.capture_code_bits = 8;
+  return p;
+}
+
+const StageOverride* stage_override(const DeviceProfile& p, const std::string& stage) {
+  for (const StageOverride& o : p.overrides)
+    if (fnmatch(o.pattern.c_str(), stage.c_str(), 0) == 0) return &o;
+  return nullptr;
+}
+
 DeviceProfile profile_named(const std::string& name) {
   if (name == "llvmpipe") return profile_llvmpipe();
   if (name == "nvidia") return profile_nvidia_like();
-  throw ParamError("--profile '" + name + "' is not one of: llvmpipe, nvidia");
+  if (name == "vulkan") return profile_vulkan();
+  if (name == "mediump") return profile_mediump();
+  if (name == "ldr8") return profile_ldr8();
+  throw ParamError("--profile '" + name + "' is not one of: " + profile_names());
 }
+
+std::string profile_names() { return "llvmpipe, nvidia, vulkan, mediump, ldr8"; }
 
 }  // namespace bloomref::parity

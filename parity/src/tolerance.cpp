@@ -1,4 +1,5 @@
-// The per-value bounds. Notation: u = 2^-24 (f32 unit roundoff), ULP of a float y <= 2^-23 |y|.
+// The per-value bounds. Notation: U = the profile's unit roundoff (2^-24 for f32 arithmetic,
+// kU; 2^-11 for mediump), ULP of a float y <= 2^-23 |y|.
 #include "tolerance.h"
 
 #include <algorithm>
@@ -150,6 +151,7 @@ std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ct
 
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,
                                            BoundContext ctx) {
+  const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   return make_bounds(
       {"threshold within luminance rounding (either side is right)", "storage"},
       [=](int x, int y, int c) {
@@ -159,7 +161,7 @@ std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float thres
                             std::fabs(0.0722 * s[2]);
         const double l = luminance(s[0], s[1], s[2]);
         const bool tie = !ctx.profile->precise_luminance &&
-                         std::fabs(l - threshold) <= 4 * kU * mags + denormal_floor(*ctx.profile);
+                         std::fabs(l - threshold) <= 4 * U * mags + denormal_floor(*ctx.profile);
         const double v = s[c];
         return Values{tie ? std::max({std::fabs(s[0]), std::fabs(s[1]), std::fabs(s[2])}) : 0.0,
                       storage_term(v, ctx.storage, *ctx.profile)};
@@ -169,6 +171,7 @@ std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float thres
 
 std::unique_ptr<StageBounds> blur_bounds(ConstImageView src, ConstImageView oracle, Axis axis,
                                          const Kernel& k, BoundContext ctx) {
+  const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   const bool hz = axis == Axis::horizontal;
   const int n_along = hz ? src.width : src.height, n_across = hz ? src.height : src.width;
   const Window win = window_stats(src, axis, ctx.threads);
@@ -187,7 +190,7 @@ std::unique_ptr<StageBounds> blur_bounds(ConstImageView src, ConstImageView orac
       [=](int x, int y, int c) {
         // The filter's lerp (3 roundings) and the tap sums (2 per tap): (3 + 2 T) u |t|.
         return Values{delta * range->pixel(x, y)[c],
-                      (3 + 2 * taps) * kU * magnitude->pixel(x, y)[c],
+                      (3 + 2 * taps) * U * magnitude->pixel(x, y)[c],
                       storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
                       denormal_floor(*ctx.profile)};
       },
@@ -197,11 +200,12 @@ std::unique_ptr<StageBounds> blur_bounds(ConstImageView src, ConstImageView orac
 std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageView bloom,
                                               ConstImageView oracle, float strength,
                                               BoundContext ctx) {
+  const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   return make_bounds(
       {"product and sum rounding", "storage", "denormal flush"},
       [=](int x, int y, int c) {
         const double s = scene.pixel(x, y)[c], b = bloom.pixel(x, y)[c];
-        return Values{2 * kU * (std::fabs(s) + std::fabs(strength * b)),
+        return Values{2 * U * (std::fabs(s) + std::fabs(strength * b)),
                       storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
                       denormal_floor(*ctx.profile)};
       },
@@ -210,6 +214,7 @@ std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageVi
 
 std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView oracle,
                                             float exposure, BoundContext ctx) {
+  const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   return make_bounds(
       {"exp: (3 + 2|x|) ULP (GLSL 4.50)", "argument rounding (x = -hdr * exposure)",
        "1 - e rounding (series below |x| = 0.5)", "storage", "denormal flush"},
@@ -220,12 +225,12 @@ std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView o
           // The series path (stages.cpp): 7 Horner steps of 3 roundings each, and the rounding
           // of the argument (slope ~1 there). Both sides run it `precise`, so usually 0.
           const double m = -std::expm1(a);
-          return Values{0, std::fabs(a) * kU * 1.7, (3 * 7 + 1) * kU * std::fabs(m),
+          return Values{0, std::fabs(a) * U * 1.7, (3 * 7 + 1) * U * std::fabs(m),
                         storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
                         denormal_floor(*ctx.profile)};
         }
         const double e = std::exp(a);
-        return Values{e * (3 + 2 * std::fabs(a)) * 2 * kU, e * std::fabs(a) * kU, (1 + e) * kU,
+        return Values{e * (3 + 2 * std::fabs(a)) * 2 * U, e * std::fabs(a) * U, (1 + e) * U,
                       storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
                       denormal_floor(*ctx.profile)};
       },
@@ -234,6 +239,7 @@ std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView o
 
 std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView oracle,
                                            float gamma, BoundContext ctx) {
+  const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   return make_bounds(
       {"pow at 0 or a denormal (Inf: max(NaN, 0) is not pinned)", "log2: 3 ULP, 2^-21 absolute in [0.5, 2] (GLSL 4.50)",
        "1/gamma and g * log2 rounding", "exp2: (3 + 2|x|) ULP", "storage"},
@@ -253,10 +259,10 @@ std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView
         if (ctx.profile->flush_denormals && m < 0x1p-126)
           return Values{std::pow(0x1p-126, g), 0, 0, 0, storage};
         const double l = std::log2(m), t = g * l, o = std::exp2(t);
-        const double dl = (m >= 0.5 && m <= 2.0) ? std::ldexp(1.0, -21) : 3 * 2 * kU * std::fabs(l);
+        const double dl = (m >= 0.5 && m <= 2.0) ? std::ldexp(1.0, -21) * (U / kU) : 3 * 2 * U * std::fabs(l);
         return Values{0, o * std::log(2.0) * g * dl,
-                      o * std::log(2.0) * std::fabs(t) * (1 + ctx.profile->division_ulps) * kU,
-                      o * (3 + 2 * std::fabs(t)) * 2 * kU, storage};
+                      o * std::log(2.0) * std::fabs(t) * (1 + ctx.profile->division_ulps) * U,
+                      o * (3 + 2 * std::fabs(t)) * 2 * U, storage};
       },
       ctx.threads);
 }

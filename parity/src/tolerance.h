@@ -34,10 +34,11 @@ struct StageBounds {
 /// Sub-texel coordinate error of a lookup on an axis of n texels, in texels: the shader's
 /// s = (x + 0.5) / n and d = 1 / n (division_ulps each), d * o and s +- d o (one rounding each),
 /// then the sampler's u = s * n - 0.5 (two roundings of values below n); plus one weight quantum
-/// when the device uses fixed-point weights (it may round where the oracle truncates).
+/// when the device uses fixed-point weights (it may round where the oracle truncates; the
+/// coarsest quantum it may use, subtexel_bits_min).
 inline double coordinate_error(int n, const DeviceProfile& p) {
-  return n * kU * (2 * p.division_ulps + 4) +
-         (p.subtexel_bits > 0 ? std::ldexp(1.0, -p.subtexel_bits) : 0.0);
+  const int bits = p.subtexel_bits_min > 0 ? p.subtexel_bits_min : p.subtexel_bits;
+  return n * p.unit_roundoff * (2 * p.division_ulps + 4) + (bits > 0 ? std::ldexp(1.0, -bits) : 0.0);
 }
 
 /// Fills an image's RGB by a per-value function, in parallel.

@@ -1,17 +1,24 @@
 // bloomref parity — two traces in, a verdict out.
 //
-// Stage isolation: each GL stage is judged against the CPU stage recomputed (f32, the shaders'
-// order) from GL's own readback of the stage before it, so an error is charged to the stage that
-// made it. End to end: each GL stage against the CPU's full run, with bounds propagated through
-// the pipeline (the blur of the previous bound, the tone map's and gamma's slopes).
+// Stage isolation: each captured stage is judged against the CPU stage recomputed (f32, the
+// shaders' order) from the capture of the stage before it, so an error is charged to the stage
+// that made it. The captures may be any subset of the plan's stages (a GL trace holds them all;
+// a user's dump may hold only `output`): a stage with no capture is recomputed by the oracle from
+// the last captures before it (or the scene), and its own bound is carried into the bounds of
+// the stages that read it. End to end: each captured stage against the CPU's full run, with
+// bounds propagated through the pipeline (the blur of the previous bound, the tone map's and
+// gamma's slopes).
 //
 // Per value the bound is the sum of named terms (tolerance.cpp says how each is derived).
 // PASS: every value within its bound. WARN: some values over it but none beyond 4x (the looser
 // quality tier; the reason says how many and by how much). FAIL: beyond 4x, or a NaN/Inf where
-// the other side has none.
+// the other side has none, or (isolated stages) an image gate of the profile exceeded: the
+// mean excess error, the worst window's, or the fraction of values over bound.
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -36,12 +43,25 @@ struct WorstValue {
   std::vector<Term> terms;
 };
 
+/// A one-change variant of the oracle that explains a failing stage (causes.cpp): the stage
+/// recomputed with that change, judged against the same bound.
+struct CauseFit {
+  std::string id;           ///< stable name: "flipped-vertically", "rb-swapped", ...
+  std::string description;  ///< in words, e.g. "image flipped vertically (bottom row first)"
+  std::string detail;       ///< what was fitted or changed, e.g. the fitted kernel weights
+  /// Fraction of values within bound under this hypothesis (the stage's bound plus the
+  /// hypothesis's own rounding: captured.cpp says how much).
+  double within = 0;
+  double oracle_within = 0;  ///< the same measure of the oracle as specified
+};
+
 struct StageComparison {
   std::string stage;
   Verdict verdict = Verdict::pass;
   std::string reason;
   std::uint64_t values = 0;              ///< RGB values compared
   std::uint64_t over_bound = 0;          ///< values with error > bound
+  std::uint64_t beyond_tier = 0;         ///< values with error > 4x bound (FAIL)
   std::uint64_t nonfinite_mismatch = 0;  ///< NaN/Inf on one side only
   double max_abs = 0, max_rel = 0;       ///< largest |gl - oracle|, and relative to |oracle|
   double max_ulp16 = 0;                  ///< largest error in f16 ULPs of the oracle
@@ -49,7 +69,24 @@ struct StageComparison {
   std::vector<WorstValue> worst;         ///< the largest error / bound, with bound terms
   /// Signed f16-ULP differences (gl - oracle): bins -8..+8, [0] and [16] also hold the tails.
   std::vector<std::uint64_t> ulp_histogram;
+  /// Image gates (profile.h, ImageGates), isolated stages only: the excess error over the
+  /// whole image and over its worst window (ratios to the bound beyond rounding), where that
+  /// window starts, and the gate that failed ("" when none did).
+  double mean_excess = 0, worst_window = 0;
+  int worst_window_x = 0, worst_window_y = 0;
+  std::string gate;
   Image oracle, bound;                   ///< kept when CompareOptions::keep_images
+  /// Fraction of the values within their bound (1 for PASS).
+  double within() const {
+    return values ? double(values - over_bound - nonfinite_mismatch) / double(values) : 1.0;
+  }
+  /// Fraction of the values within the WARN tier (4x their bound): those that do not fail.
+  double within_tier() const {
+    return values ? double(values - beyond_tier - nonfinite_mismatch) / double(values) : 1.0;
+  }
+  /// Isolated stages not PASS, when CompareOptions::causes: the hypotheses that bring more
+  /// values within bound than the oracle as specified, best first.
+  std::vector<CauseFit> causes;
 };
 
 struct ParityResult {
@@ -62,8 +99,20 @@ struct ParityResult {
 
 struct CompareOptions {
   bool keep_images = false;
+  bool keep_failing_only = false;  ///< with keep_images: only of stages that are not PASS
   int worst_count = 8;
+  bool causes = false;  ///< test the usual causes on every isolated stage that is not PASS
 };
+
+/// A stage image from outside the CPU oracle: a GL readback, or a user's file.
+struct CapturedStage {
+  ConstImageView image;
+  /// 0: float values. 8: stored as 8-bit codes (PNG): each value may be half a code off, and
+  /// values beyond [0, 1] were clamped, so the oracle is clamped to [0, 1] before judging.
+  int code_bits = 0;
+  bool srgb = false;  ///< the 8-bit codes are sRGB-encoded (a code's step measured decoded)
+};
+using CapturedStages = std::map<std::string, CapturedStage>;
 
 /// `gl` and `cpu` are traces of `plan` on `scene` with every stage kept (keep_all); `cpu` is
 /// the f32 CPU oracle run with the profile's sub-texel bits.
@@ -71,13 +120,48 @@ ParityResult compare(const Plan& plan, ConstImageView scene, const StageTrace& g
                      const StageTrace& cpu, const DeviceProfile& profile,
                      const CompareOptions& opt = {});
 
+/// compare's general form: `captured` holds any subset of the plan's stages (at least one;
+/// ParamError for a name the plan lacks); only those are judged. `cpu` as for compare.
+ParityResult compare_captured(const Plan& plan, ConstImageView scene,
+                              const CapturedStages& captured, const StageTrace& cpu,
+                              const DeviceProfile& profile, const CompareOptions& opt = {});
+
+/// A captured stage the comparison owns: streamed, loaded when the comparison reaches it and
+/// released once no later stage reads it.
+struct OwnedCapture {
+  Image image;
+  int code_bits = 0;
+  bool srgb = false;
+};
+using CaptureLoader = std::function<OwnedCapture(const std::string& stage)>;
+
+/// compare_captured for captures loaded one by one (`load` is called once per name of
+/// `captured`, in plan order), with the oracle's full run computed stage by stage beside them:
+/// only the images later stages read are held (peak memory a few images, not the trace).
+/// `oracle_ms` (optional) receives the oracle's time.
+ParityResult compare_streamed(const Plan& plan, ConstImageView scene,
+                              const std::vector<std::string>& captured, const CaptureLoader& load,
+                              const DeviceProfile& profile, const CompareOptions& opt = {},
+                              double* oracle_ms = nullptr);
+
+/// The oracle's f16 rounding for a device: the mode it measured (toward zero where it allows
+/// it, else nearest-even, saturating where it saturates).
+HalfRounding half_rounding_for(const DeviceProfile& profile);
+
+/// compare_with_oracle for captures; the oracle's full run is computed stage by stage beside
+/// the comparison (compare_streamed), not kept whole. `cpu_ms` receives its time.
+ParityResult check_with_oracle(const Plan& plan, ConstImageView scene,
+                               const CapturedStages& captured, const DeviceProfile& profile,
+                               const CompareOptions& opt = {}, double* cpu_ms = nullptr);
+
 /// The plan both backends run: `params` with the profile's sub-texel bits (the oracle samples as
 /// the device does) and f32 precision.
 Plan plan_for_device(BloomParams params, ConstImageView scene, const DeviceProfile& profile,
                      const std::string& source = "");
 
-/// Runs the CPU oracle for `plan` (every stage kept, f16 rounding as the profile measured) and
-/// compares `gl` with it. `cpu_ms` (optional) receives the oracle's wall time.
+/// Runs the CPU oracle for `plan` (f16 rounding as the profile measured) and compares `gl` with
+/// it (check_with_oracle with every stage of `gl` captured). `cpu_ms` (optional) receives the
+/// oracle's time.
 ParityResult compare_with_oracle(const Plan& plan, ConstImageView scene, const StageTrace& gl,
                                  const DeviceProfile& profile, const CompareOptions& opt = {},
                                  double* cpu_ms = nullptr);

@@ -6,8 +6,32 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 namespace bloomref::parity {
+
+/// Image-level gates beside the per-value bounds (compare.h): each value may be within its
+/// bound while the image as a whole is not right (a uniform offset just under the bound, a
+/// sampling error spread over a region). Each value's excess ratio is its error beyond the
+/// rounding it is allowed (its storage, a capture's codes; with f16 storage what stages without
+/// capture carry) over the rest of its bound, at most 4; the gates bound its mean. An honest
+/// device's ratios are near 0 (its largest error / bound on the corpus is ~1e-3 on llvmpipe
+/// beyond rounding). 0 turns a gate off.
+struct ImageGates {
+  double mean = 0.25;          ///< mean excess ratio over the image
+  double window = 0.5;         ///< the same over each window_size x window_size block
+  int window_size = 8;
+  double over_fraction = 0.01; ///< fraction of values over their bound (each within the WARN tier)
+};
+
+/// A per-stage change of the tolerance: stages matching `pattern` (a shell pattern: "blur.*")
+/// get bound * scale + absolute, and their own gates.
+struct StageOverride {
+  std::string pattern;
+  double scale = 1.0, absolute = 0.0;
+  bool has_gates = false;
+  ImageGates gates;
+};
 
 struct DeviceProfile {
   std::string name;
@@ -23,6 +47,17 @@ struct DeviceProfile {
   /// The luminance is computed `precise` (source order, no fusion, correctly rounded + and *,
   /// GLSL 4.00+), so it equals the CPU's bit for bit and the threshold has no rounding band.
   bool precise_luminance = true;
+  /// Relative rounding of one shader operation: 2^-24 for highp (IEEE binary32); 2^-11 for
+  /// GLSL ES mediump (GLSL ES 3.00, 4.5.2: relative precision 2^-10, i.e. half an ULP of 2^-10).
+  double unit_roundoff = 0x1p-24;
+  /// The coarsest bilinear weight precision the device may use (0: subtexel_bits). Vulkan
+  /// requires subTexelPrecisionBits >= 4 (Vulkan 1.3, Table 53 "Required Limits"); the oracle
+  /// samples with subtexel_bits and the bound allows one quantum of 2^-subtexel_bits_min.
+  int subtexel_bits_min = 0;
+  /// Every capture holds 8-bit codes (0: as each file says): PNG screenshots saved as EXR.
+  int capture_code_bits = 0;
+  ImageGates gates;
+  std::vector<StageOverride> overrides;  ///< the first matching pattern applies
 };
 
 /// Mesa llvmpipe, from the facts `bloomref gl-info` measured (README, "GL facts"): float
@@ -33,7 +68,25 @@ DeviceProfile profile_llvmpipe();
 /// NVIDIA-like hardware: 8-bit fixed-point bilinear weights, either half rounding, FMA.
 DeviceProfile profile_nvidia_like();
 
-/// "llvmpipe" or "nvidia"; throws ParamError otherwise.
+/// Vulkan-class hardware: 4 to 8 sub-texel bits (the oracle samples at 8), either half
+/// rounding, FMA, flushed denormals.
+DeviceProfile profile_vulkan();
+
+/// Mobile GLSL ES mediump: every operation to 2^-11 relative, 8-bit filtering, either half
+/// rounding.
+DeviceProfile profile_mediump();
+
+/// 8-bit captures (PNG screenshots, however saved): nvidia-like sampling, every captured value
+/// allowed half a code.
+DeviceProfile profile_ldr8();
+
+/// The override of `stage` (the first whose pattern matches), or nullptr.
+const StageOverride* stage_override(const DeviceProfile& p, const std::string& stage);
+
+/// A profile by name (profile_names()); throws ParamError otherwise.
 DeviceProfile profile_named(const std::string& name);
+
+/// The names profile_named accepts, comma-separated.
+std::string profile_names();
 
 }  // namespace bloomref::parity

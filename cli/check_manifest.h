@@ -1,0 +1,42 @@
+// bloomref check's input files: the manifest (docs/schemas/check-manifest.v1.json) and the
+// expectations (known deviations), and the verdict once expectations are applied.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+#include "check_types.h"
+#include "options.h"
+
+namespace bloomref::cli {
+
+struct Manifest {
+  DeviceKeys device;
+  std::vector<CheckItem> items;
+};
+
+/// Reads a manifest: its "params" are applied to `pipeline` except the options given on the
+/// command line of `sub`, which win. InputError naming the file and the field for anything
+/// malformed: a missing path, an unknown stage name, a bad encoding.
+Manifest read_manifest(const std::string& path, const CLI::App& sub, PipelineOptions& pipeline);
+
+/// Reads an expectations file: {"version": 1, "expectations": [{"item", "stage", "device",
+/// "reason"}]}. InputError naming the file and the field.
+std::vector<Expectation> read_expectations(const std::string& path);
+
+/// Reads a profile file (docs/check.md, "Profiles"): {"version": 1, "base": NAME, "name",
+/// device fields, "gates", "stages": [{"pattern", "scale", "absolute", "gates"}]}. InputError
+/// naming the file and the field.
+parity::DeviceProfile read_profile_file(const std::string& path);
+
+/// Fills r.outcomes and r.verdict: each isolated stage's status after the expectations that
+/// match it (item and stage as shell patterns, device as a substring of any device key).
+void apply_expectations(ItemResult& r, std::vector<Expectation>& expectations,
+                        const DeviceKeys& device);
+
+/// The run's verdict and exit code: FAIL (1) when a stage fails (or warns, with warn_as_error)
+/// without an expectation; NOTHING (5) when no item compared a stage; else WARN or PASS (0).
+void finish_run(CheckRun& run);
+
+}  // namespace bloomref::cli

@@ -1,0 +1,261 @@
+#include "check_output.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "json_out.h"
+
+namespace fs = std::filesystem;
+using nlohmann::ordered_json;
+
+namespace bloomref::cli {
+namespace {
+
+std::string percent(double f) {
+  char b[32];
+  std::snprintf(b, sizeof b, f >= 0.9995 && f < 1 ? "%.3f%%" : "%.1f%%", 100 * f);
+  return b;
+}
+
+ordered_json stage_json(const parity::StageComparison& s) {
+  ordered_json worst = ordered_json::array();
+  for (const parity::WorstValue& w : s.worst) {
+    ordered_json terms = ordered_json::object();
+    for (const parity::Term& t : w.terms) terms[t.name] = t.value;
+    worst.push_back({{"x", w.x}, {"y", w.y}, {"channel", std::string(1, "RGB"[w.channel])},
+                     {"oracle", w.oracle}, {"captured", w.gl},
+                     {"error", std::isfinite(w.error) ? ordered_json(w.error) : ordered_json("non-finite")},
+                     {"bound", w.bound}, {"terms", terms}});
+  }
+  return {{"verdict", parity::to_string(s.verdict)}, {"reason", s.reason},
+          {"values", s.values}, {"over_bound", s.over_bound},
+          {"nonfinite_mismatch", s.nonfinite_mismatch}, {"within_fraction", s.within()},
+          {"max_abs", s.max_abs}, {"max_rel", s.max_rel}, {"max_f16_ulps", s.max_ulp16},
+          {"max_error_over_bound", std::isfinite(s.max_ratio) ? ordered_json(s.max_ratio)
+                                                              : ordered_json("infinite")},
+          {"mean_excess", s.mean_excess}, {"worst_window", s.worst_window},
+          {"worst_window_at", {s.worst_window_x, s.worst_window_y}}, {"gate", s.gate},
+          {"ulp_histogram_minus8_to_plus8", s.ulp_histogram}, {"worst", worst}};
+}
+
+ordered_json cause_json(const parity::CauseFit& c) {
+  return {{"id", c.id}, {"description", c.description}, {"detail", c.detail},
+          {"within_fraction", c.within}, {"oracle_within_fraction", c.oracle_within}};
+}
+
+ordered_json device_json(const DeviceKeys& d) {
+  return {{"api", d.api}, {"vendor", d.vendor}, {"renderer", d.renderer}, {"driver", d.driver}};
+}
+
+std::string xml(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    switch (c) {
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '&': o += "&amp;"; break;
+      case '"': o += "&quot;"; break;
+      case '\n': o += "&#10;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
+
+std::string md(const std::string& s) {
+  std::string o;
+  for (char c : s) o += c == '|' ? std::string("\\|") : std::string(1, c);
+  return o;
+}
+
+// The cause of an item's first divergent stage, if one was found.
+const parity::StageComparison* first_divergent(const ItemResult& r) {
+  if (!r.parity.first_divergent_stage) return nullptr;
+  for (const auto& s : r.parity.isolated)
+    if (s.stage == *r.parity.first_divergent_stage) return &s;
+  return nullptr;
+}
+
+struct Counts {
+  int stages = 0, pass = 0, warn = 0, fail = 0, expected = 0, fixed = 0;
+};
+
+Counts count(const CheckRun& run) {
+  Counts c;
+  for (const ItemResult& r : run.items)
+    for (const StageOutcome& o : r.outcomes) {
+      ++c.stages;
+      if (o.status == "pass") ++c.pass;
+      else if (o.status == "warn") ++c.warn;
+      else if (o.status == "fail") ++c.fail;
+      else if (o.status == "expected-fail") ++c.expected;
+      else if (o.status == "fixed") ++c.fixed;
+    }
+  return c;
+}
+
+}  // namespace
+
+std::string cause_line(const parity::StageComparison& s) {
+  if (s.causes.empty()) return s.verdict == parity::Verdict::pass ? "" : "no usual cause explains it";
+  const parity::CauseFit& c = s.causes.front();
+  std::string line = (c.within >= 0.999 ? "likely cause: " : "best partial explanation: ") +
+                     c.description + " (brings " + percent(c.within) +
+                     " of values within bound; as specified " + percent(c.oracle_within) + ")";
+  if (!c.detail.empty()) line += "; " + c.detail;
+  return line;
+}
+
+ordered_json check_json(const CheckRun& run) {
+  const Counts n = count(run);
+  ordered_json items = ordered_json::array();
+  for (const ItemResult& r : run.items) {
+    ordered_json stages = ordered_json::array();
+    for (std::size_t i = 0; i < r.parity.isolated.size(); ++i) {
+      const auto& s = r.parity.isolated[i];
+      const StageOutcome& o = r.outcomes[i];
+      ordered_json causes = ordered_json::array();
+      for (const parity::CauseFit& c : s.causes) causes.push_back(cause_json(c));
+      const auto f = r.file_of.find(s.stage);
+      stages.push_back(
+          {{"stage", s.stage},
+           {"file", f == r.file_of.end() ? ordered_json(nullptr) : ordered_json(f->second)},
+           {"status", o.status},
+           {"expectation", o.expectation ? ordered_json({{"item", o.expectation->item},
+                                                         {"stage", o.expectation->stage},
+                                                         {"device", o.expectation->device},
+                                                         {"reason", o.expectation->reason}})
+                                         : ordered_json(nullptr)},
+           {"isolated", stage_json(s)},
+           {"end_to_end", stage_json(r.parity.end_to_end[i])},
+           {"cause", s.causes.empty() ? ordered_json(nullptr) : cause_json(s.causes.front())},
+           {"causes", causes}});
+    }
+    const parity::StageComparison* first = first_divergent(r);
+    items.push_back(
+        {{"id", r.id}, {"scene", r.source},
+         {"stages_from", r.stages_from.empty() ? ordered_json(nullptr) : ordered_json(r.stages_from)},
+         {"width", r.width}, {"height", r.height}, {"verdict", r.verdict},
+         {"first_divergent_stage", r.parity.first_divergent_stage
+                                       ? ordered_json(*r.parity.first_divergent_stage)
+                                       : ordered_json(nullptr)},
+         {"first_divergent_cause", first && !first->causes.empty()
+                                       ? cause_json(first->causes.front())
+                                       : ordered_json(nullptr)},
+         {"ignored_files", r.ignored},
+         {"timings_ms", {{"load", r.load_ms}, {"oracle", r.oracle_ms}, {"judge", r.judge_ms}}},
+         {"stages", stages}});
+  }
+  const parity::DeviceProfile& p = run.profile;
+  return {{"version", 1},
+          {"tool", "bloomref check"},
+          {"verdict", run.verdict},
+          {"exit_code", run.exit_code},
+          {"warn_as_error", run.warn_as_error},
+          {"params", params_json(run.params)},
+          {"profile", {{"name", p.name}, {"source", p.source},
+                       {"subtexel_bits", p.subtexel_bits},
+                       {"half_nearest_even", p.half_nearest_even},
+                       {"half_toward_zero", p.half_toward_zero},
+                       {"flush_denormals", p.flush_denormals}, {"fma", p.fma}}},
+          {"device", device_json(run.device)},
+          {"expectations_file", run.expectations_file ? ordered_json(*run.expectations_file)
+                                                      : ordered_json(nullptr)},
+          {"summary", {{"items", run.items.size()}, {"stages", n.stages}, {"pass", n.pass},
+                       {"warn", n.warn}, {"fail", n.fail}, {"expected_fail", n.expected},
+                       {"fixed", n.fixed}}},
+          {"items", items}};
+}
+
+std::string junit_xml(const CheckRun& run) {
+  const Counts n = count(run);
+  auto failed = [&](const std::string& status) {
+    return status == "fail" || (status == "warn" && run.warn_as_error);
+  };
+  std::string out = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
+  out += "<testsuites name=\"bloomref check\" tests=\"" + std::to_string(n.stages) +
+         "\" failures=\"" + std::to_string(n.fail + (run.warn_as_error ? n.warn : 0)) +
+         "\" errors=\"0\" skipped=\"" + std::to_string(n.expected) + "\">\n";
+  for (const ItemResult& r : run.items) {
+    int fails = 0, skipped = 0;
+    for (const StageOutcome& o : r.outcomes) {
+      fails += failed(o.status);
+      skipped += o.status == "expected-fail";
+    }
+    const double seconds = (r.load_ms + r.oracle_ms + r.judge_ms) / 1000;
+    out += "  <testsuite name=\"" + xml(r.id) + "\" tests=\"" + std::to_string(r.outcomes.size()) +
+           "\" failures=\"" + std::to_string(fails) + "\" errors=\"0\" skipped=\"" +
+           std::to_string(skipped) + "\" time=\"" + std::to_string(seconds) + "\">\n";
+    out += "    <properties>\n";
+    const std::pair<const char*, std::string> props[] = {
+        {"scene", r.source},         {"profile", run.profile.name},
+        {"device.api", run.device.api}, {"device.vendor", run.device.vendor},
+        {"device.renderer", run.device.renderer}, {"device.driver", run.device.driver}};
+    for (const auto& [k, v] : props)
+      out += "      <property name=\"" + std::string(k) + "\" value=\"" + xml(v) + "\"/>\n";
+    out += "    </properties>\n";
+    if (r.outcomes.empty()) {
+      out += "    <testcase classname=\"bloomref.check." + xml(r.id) +
+             "\" name=\"stages\"><failure message=\"nothing compared: no stage image\" "
+             "type=\"nothing\"/></testcase>\n";
+    }
+    for (std::size_t i = 0; i < r.outcomes.size(); ++i) {
+      const auto& s = r.parity.isolated[i];
+      const StageOutcome& o = r.outcomes[i];
+      out += "    <testcase classname=\"bloomref.check." + xml(r.id) + "\" name=\"" + xml(s.stage) +
+             "\">";
+      const std::string cause = cause_line(s);
+      const std::string line = s.stage + " " + parity::to_string(s.verdict) + ": " + s.reason +
+                               (cause.empty() ? "" : "; " + cause);
+      if (failed(o.status)) {
+        out += "\n      <failure message=\"" + xml(line) + "\" type=\"" +
+               parity::to_string(s.verdict) + "\">" +
+               xml("end to end: " + r.parity.end_to_end[i].reason) + "</failure>";
+      } else if (o.status == "expected-fail") {
+        out += "\n      <skipped message=\"" + xml("expected failure: " + o.expectation->reason +
+                                                    " (" + line + ")") + "\"/>";
+      } else if (o.status == "warn" || o.status == "fixed") {
+        out += "\n      <system-out>" +
+               xml(o.status == "fixed" ? "a known deviation (" + o.expectation->reason +
+                                             ") now passes: remove the expectation"
+                                       : line) +
+               "</system-out>";
+      }
+      if (s.verdict != parity::Verdict::pass && !s.oracle.empty())
+        out += "\n      <system-out>[[ATTACHMENT|" + xml(r.id + "/" + s.stage + ".ratio.png") +
+               "]]</system-out>";
+      out += "</testcase>\n";
+    }
+    out += "  </testsuite>\n";
+  }
+  return out + "</testsuites>\n";
+}
+
+std::string markdown_summary(const CheckRun& run) {
+  const Counts n = count(run);
+  const char* icon = run.verdict == "PASS" ? ":white_check_mark:" : run.verdict == "WARN" ? ":warning:" : ":x:";
+  std::string out = "### bloomref check: " + std::string(icon) + " " + run.verdict + "\n\n";
+  out += std::to_string(run.items.size()) + " item(s), " + std::to_string(n.stages) +
+         " stage(s): " + std::to_string(n.pass) + " pass, " + std::to_string(n.warn) + " warn, " +
+         std::to_string(n.fail) + " fail";
+  if (n.expected) out += ", " + std::to_string(n.expected) + " expected failure(s)";
+  if (n.fixed) out += ", " + std::to_string(n.fixed) + " known deviation(s) now passing";
+  out += ". Profile `" + run.profile.name + "`";
+  if (run.device.any()) {
+    std::string d;
+    for (const std::string& k : {run.device.api, run.device.vendor, run.device.renderer, run.device.driver})
+      if (!k.empty()) d += (d.empty() ? "" : ", ") + k;
+    out += ", device " + md(d);
+  }
+  out += ".\n\n| item | verdict | first divergent stage | likely cause |\n|---|---|---|---|\n";
+  for (const ItemResult& r : run.items) {
+    const parity::StageComparison* first = first_divergent(r);
+    out += "| " + md(r.id) + " | " + r.verdict + " | " +
+           (r.parity.first_divergent_stage ? "`" + *r.parity.first_divergent_stage + "`" : "-") +
+           " | " + (first ? md(cause_line(*first)) : "-") + " |\n";
+  }
+  return out;
+}
+
+}  // namespace bloomref::cli

@@ -1,0 +1,71 @@
+// bloomref check: what one run judges and what it found, shared by the command, the manifest
+// reader and the writers of its results (console, JSON, JUnit, Markdown).
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bloomref/params.h"
+#include "bloomref/parity/compare.h"
+#include "stage_images.h"
+
+namespace bloomref::cli {
+
+/// What the results say ran the images (recorded, never used to judge).
+struct DeviceKeys {
+  std::string api, vendor, renderer, driver;
+  bool any() const { return !(api.empty() && vendor.empty() && renderer.empty() && driver.empty()); }
+};
+
+/// One scene and its captured stages.
+struct CheckItem {
+  std::string id;
+  std::string scene;       ///< image path; empty: the built-in --scene
+  std::string stages_dir;  ///< a folder of <stage>.<ext> files, or
+  std::vector<StageFile> files;  ///< the files one by one (a manifest's stage map)
+  StageFile defaults;      ///< encoding, origin, channels for a folder's files
+  std::map<std::string, std::string> aliases;  ///< a folder's file names -> stage names
+};
+
+/// A known deviation (--expectations): stages matching `stage` in items matching `item`
+/// (shell patterns), on devices whose key contains `device` (empty: any), are expected to fail.
+struct Expectation {
+  std::string item = "*", stage = "*", device, reason;
+  bool used = false;
+};
+
+/// The outcome of one stage after expectations: pass, warn, fail, expected-fail (failed as a
+/// known deviation says), fixed (a known deviation that now passes: reported, not a failure).
+struct StageOutcome {
+  std::string status;
+  const Expectation* expectation = nullptr;
+};
+
+struct ItemResult {
+  std::string id, source, stages_from;
+  int width = 0, height = 0;
+  std::map<std::string, std::string> file_of;  ///< stage -> the file it came from
+  std::vector<std::string> ignored;            ///< files of the folder that are no stage
+  parity::ParityResult parity;
+  std::vector<StageOutcome> outcomes;          ///< per isolated stage, after expectations
+  std::string verdict;                         ///< PASS, WARN, FAIL (after expectations)
+  double load_ms = 0, oracle_ms = 0, judge_ms = 0;
+};
+
+struct CheckRun {
+  BloomParams params;
+  parity::DeviceProfile profile;
+  DeviceKeys device;
+  bool warn_as_error = false;
+  std::vector<ItemResult> items;
+  std::string verdict;  ///< PASS, WARN, FAIL, or NOTHING (nothing compared)
+  int exit_code = 0;
+  std::optional<std::string> expectations_file;
+};
+
+/// The best-supported cause of a stage's failure, in one line ("" when none was found).
+std::string cause_line(const parity::StageComparison& s);
+
+}  // namespace bloomref::cli

@@ -1,0 +1,520 @@
+// The usual causes of a bloom stage that fails, each tested as the oracle run with that one
+// change (DESIGN.md, "Anyone's GPU"). The failing stage is recomputed from the same captures as
+// its isolated oracle, through the stages without capture between them, with the change; the
+// hypothesis's score is the fraction of values it brings within the stage's bound.
+//
+// Flipping and the R/B exchange are taken as properties of every capture (a readback's row
+// order and channel order are the same for all the images one tool saved): the captures the
+// stage reads are turned back before the stage is recomputed, and the result turned as the
+// capture was.
+#include "causes.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <optional>
+
+#include "bloomref/mip.h"
+#include "bloomref/parity/variants.h"
+#include "bloomref/stages.h"
+#include "chain.h"
+
+namespace bloomref::parity::detail {
+namespace {
+
+struct Hypothesis {
+  std::string id, description, detail;
+  bool flip = false, swap_rb = false;
+  bool transform_inputs = true;  // flip / swap_rb hold for every capture, not the target alone
+  bool stale = false;            // the pass was not drawn: its target holds the pass before last
+  bool along_x = false;          // a vertical pass offsets along x (seed 001)
+  Sampling sampling;  // its subtexel bits are the profile's
+  const Kernel* kernel = nullptr;  // another kernel for every blur pass
+  std::vector<float> weights;      // fitted weights, for the target pass only
+  int pass_delta = 0;              // blur passes left out (-1) or added (+1)
+  float strength_scale = 1.0f;     // the composite adds strength * scale * bloom
+  bool ge = false, clamp_bright = false, f16 = false, no_exposure = false;
+  int gamma_times = 1;
+  bool sampled() const { return !sampling.is_default(); }
+};
+
+struct NotApplicable {};
+
+bool changes(const Hypothesis& h, StageKind k, bool is_target) {
+  switch (k) {
+    case StageKind::input: return h.f16;
+    case StageKind::bright: return h.ge || h.clamp_bright || h.f16;
+    case StageKind::blur:
+      return h.sampled() || h.kernel ||
+             (is_target && (!h.weights.empty() || h.stale || h.along_x)) || h.f16;
+    case StageKind::down: return h.sampled() || h.ge || h.f16;
+    case StageKind::up:
+    case StageKind::bloom: return h.sampled() || h.f16;
+    case StageKind::composite: return h.f16 || h.strength_scale != 1.0f;
+    case StageKind::tonemap: return h.no_exposure || h.f16;
+    case StageKind::output: return h.gamma_times != 1 || h.f16;
+  }
+  return false;
+}
+
+// Evaluates the target stage under one hypothesis; stages it does not change are read from the
+// isolated oracle's own images.
+class Evaluator {
+ public:
+  Evaluator(const CauseContext& ctx, const Hypothesis& h, const StageSpec& target)
+      : ctx_(ctx), p_(ctx.plan.params), h_(h), target_(target) {}
+
+  Image target() {
+    Image out = compute(target_, true);
+    if (h_.f16) store(out.view(), Storage::f16, ctx_.rounding, ctx_.threads);
+    if (h_.flip) flip_vertically(out);
+    if (h_.swap_rb) swap_red_blue(out);
+    return out;
+  }
+
+ private:
+  struct Val {
+    ConstImageView view;
+    bool changed;
+  };
+
+  Val value(const std::string& name) {
+    const auto m = memo_.find(name);
+    if (m != memo_.end()) return {m->second.cview(), true};
+    if (name != target_.name && ctx_.captured(name)) {
+      if (!h_.transform_inputs || (!h_.flip && !h_.swap_rb)) return {held(name), false};
+      Image img = copy(held(name));
+      if (h_.flip) flip_vertically(img);
+      if (h_.swap_rb) swap_red_blue(img);
+      return keep(name, std::move(img));
+    }
+    const StageSpec* spec = find_stage(ctx_.plan, name);
+    if (h_.pass_delta != 0 && spec->kind == StageKind::blur && target_.kind != StageKind::blur &&
+        name == bloom_stage_name(ctx_.plan))
+      return keep(name, bloom_with_delta());
+    bool changed = changes(h_, spec->kind, false);
+    for (const std::string& in : stage_inputs(ctx_.plan, *spec)) changed |= value(in).changed;
+    if (!changed) return {held(name), false};
+    Image img = compute(*spec, false);
+    store_as_device(img);
+    return keep(name, std::move(img));
+  }
+
+  // A stage as the isolated oracle reads it; one the comparison has released (it streams its
+  // images) makes the hypothesis not applicable.
+  ConstImageView held(const std::string& name) const {
+    const ConstImageView v = ctx_.view(name);
+    if (!v.data) throw NotApplicable{};
+    return v;
+  }
+
+  Val keep(const std::string& name, Image img) {
+    auto it = memo_.insert_or_assign(name, std::move(img)).first;
+    return {it->second.cview(), true};
+  }
+
+  static Image copy(ConstImageView v) {
+    Image out(v.width, v.height);
+    for (int y = 0; y < v.height; ++y)
+      std::copy(v.row(y), v.row(y) + std::size_t(v.width) * kChannels, out.view().row(y));
+    return out;
+  }
+
+  void store_as_device(Image& img) const {
+    store(img.view(), p_.storage, ctx_.rounding, ctx_.threads);
+    if (h_.f16) store(img.view(), Storage::f16, ctx_.rounding, ctx_.threads);
+  }
+
+  Image blur(ConstImageView src, Axis axis, bool is_target) const {
+    Image out(src.width, src.height);
+    const Kernel& plan_kernel = kernel_for(p_.kernel);
+    const Kernel& k = h_.kernel ? *h_.kernel : plan_kernel;
+    Sampling smp = h_.sampling;
+    smp.subtexel_bits = ctx_.profile.subtexel_bits;
+    if (is_target && !h_.weights.empty())
+      blur_pass_variant(src, out.view(), axis, plan_kernel.offsets_f32, h_.weights, smp,
+                        ctx_.threads);
+    else if (h_.sampled() || h_.kernel)
+      blur_pass_variant(src, out.view(), axis, k.offsets_f32, k.weights_f32, smp, ctx_.threads);
+    else
+      blur_pass_fast(src, out.view(), {axis, &k, ctx_.profile.subtexel_bits}, ctx_.threads);
+    return out;
+  }
+
+  static Axis axis_of(int pass) { return pass % 2 == 1 ? Axis::horizontal : Axis::vertical; }
+
+  // The bloom of a plan with one pass fewer or more: from the last captured pass (or bright).
+  Image bloom_with_delta() {
+    const int n = p_.passes;
+    int j = n;
+    while (j > 0 && !ctx_.captured("blur." + std::to_string(j))) --j;
+    if (j == n || n + h_.pass_delta < j) throw NotApplicable{};
+    Image cur = copy(value(j == 0 ? "bright" : "blur." + std::to_string(j)).view);
+    for (int k = j + 1; k <= n + h_.pass_delta; ++k) {
+      cur = blur(cur.cview(), axis_of(k), false);
+      store_as_device(cur);
+    }
+    return cur;
+  }
+
+  Image compute(const StageSpec& spec, bool is_target) {
+    const std::vector<std::string> names = stage_inputs(ctx_.plan, spec);
+    std::vector<ConstImageView> in;
+    for (const std::string& n : names) in.push_back(value(n).view);
+    const int threads = ctx_.threads;
+    Sampling smp = h_.sampling;
+    smp.subtexel_bits = ctx_.profile.subtexel_bits;
+    switch (spec.kind) {
+      case StageKind::input:
+        return copy(ctx_.sanitized);
+      case StageKind::bright: {
+        Image out(ctx_.sanitized.width, ctx_.sanitized.height);
+        if (h_.ge || h_.clamp_bright)
+          extract_bright_variant(ctx_.sanitized, out.view(), p_.threshold, h_.ge, h_.clamp_bright,
+                                 threads);
+        else
+          extract_bright(ctx_.sanitized, out.view(), p_.threshold, threads);
+        return out;
+      }
+      case StageKind::blur: {
+        if (is_target && h_.pass_delta < 0) return copy(in[0]);
+        if (is_target && h_.stale) return copy(value("blur." + std::to_string(spec.pass - 2)).view);
+        if (is_target && h_.along_x) {
+          const Kernel& k = kernel_for(p_.kernel);
+          Image out(in[0].width, in[0].height);
+          Sampling plain;
+          plain.subtexel_bits = ctx_.profile.subtexel_bits;
+          blur_pass_variant(in[0], out.view(), Axis::horizontal, k.offsets_f32, k.weights_f32, plain,
+                            threads, 1.0f / static_cast<float>(in[0].height));
+          return out;
+        }
+        Image out = blur(in[0], spec.axis, true);
+        if (is_target && h_.pass_delta > 0) {
+          store_as_device(out);
+          out = blur(out.cview(), axis_of(spec.pass + 1), false);
+        }
+        return out;
+      }
+      case StageKind::down: {
+        const LevelSize& l = ctx_.plan.levels[spec.pass - 1];
+        Image out(l.width, l.height);
+        const bool first = spec.pass == 1;
+        if (h_.sampled() || h_.ge)
+          downsample_variant(in[0], out.view(), first, p_.threshold, p_.karis && first, !h_.ge,
+                             smp, threads);
+        else
+          downsample(in[0], out.view(),
+                     {first, p_.threshold, p_.karis && first, ctx_.profile.subtexel_bits}, threads);
+        return out;
+      }
+      case StageKind::up:
+      case StageKind::bloom: {
+        const bool up = spec.kind == StageKind::up;
+        const ConstImageView cur = up ? in[1] : ConstImageView{};
+        Image out = up ? Image(cur.width, cur.height)
+                       : Image(ctx_.sanitized.width, ctx_.sanitized.height);
+        if (h_.sampled())
+          upsample_variant(in[0], cur, out.view(), smp, threads);
+        else
+          upsample_tent(in[0], cur, out.view(), ctx_.profile.subtexel_bits, threads);
+        return out;
+      }
+      case StageKind::composite: {
+        Image out(in[0].width, in[0].height);
+        composite(in[0], in[1], out.view(), p_.strength * h_.strength_scale, threads);
+        return out;
+      }
+      case StageKind::tonemap: {
+        Image out(in[0].width, in[0].height);
+        tonemap(in[0], out.view(), h_.no_exposure ? 1.0f : p_.exposure, threads);
+        return out;
+      }
+      case StageKind::output: {
+        Image out(in[0].width, in[0].height);
+        if (h_.gamma_times == 0) return copy(in[0]);
+        encode_output(in[0], out.view(), p_.gamma, threads);
+        for (int t = 1; t < h_.gamma_times; ++t) {
+          Image again(out.width(), out.height());
+          encode_output(out.cview(), again.view(), p_.gamma, threads);
+          out = std::move(again);
+        }
+        return out;
+      }
+    }
+    return {};
+  }
+
+  const CauseContext& ctx_;
+  const BloomParams& p_;
+  const Hypothesis& h_;
+  const StageSpec& target_;
+  std::map<std::string, Image> memo_;
+};
+
+// The stages the target is recomputed through: itself and, up to the captures, the stages it
+// reads.
+std::vector<std::string> segment(const CauseContext& ctx, const StageSpec& target) {
+  std::vector<std::string> names;
+  std::vector<std::string> todo{target.name};
+  std::vector<std::string> seen;
+  while (!todo.empty()) {
+    const std::string n = todo.back();
+    todo.pop_back();
+    if (std::find(seen.begin(), seen.end(), n) != seen.end()) continue;
+    seen.push_back(n);
+    if (n != target.name && ctx.captured(n)) continue;
+    names.push_back(n);
+    for (const std::string& in : stage_inputs(ctx.plan, *find_stage(ctx.plan, n)))
+      todo.push_back(in);
+  }
+  return names;
+}
+
+// Solves the m x m system a x = b (row-major) by Gaussian elimination with partial pivoting;
+// nothing when a pivot is negligible against the matrix's scale.
+std::optional<std::vector<double>> solve(std::vector<double> a, std::vector<double> b, int m) {
+  double scale = 0;
+  for (double v : a) scale = std::max(scale, std::fabs(v));
+  if (!(scale > 0)) return std::nullopt;
+  for (int col = 0; col < m; ++col) {
+    int piv = col;
+    for (int r = col + 1; r < m; ++r)
+      if (std::fabs(a[r * m + col]) > std::fabs(a[piv * m + col])) piv = r;
+    if (std::fabs(a[piv * m + col]) < 1e-13 * scale) return std::nullopt;
+    for (int c = 0; c < m; ++c) std::swap(a[col * m + c], a[piv * m + c]);
+    std::swap(b[col], b[piv]);
+    for (int r = col + 1; r < m; ++r) {
+      const double f = a[r * m + col] / a[col * m + col];
+      for (int c = col; c < m; ++c) a[r * m + c] -= f * a[col * m + c];
+      b[r] -= f * b[col];
+    }
+  }
+  std::vector<double> x(m);
+  for (int r = m - 1; r >= 0; --r) {
+    double s = b[r];
+    for (int c = r + 1; c < m; ++c) s -= a[r * m + c] * x[c];
+    x[r] = s / a[r * m + r];
+  }
+  return x;
+}
+
+// The weights w (the kernel's count, symmetric pairs) that best explain `out` as a blur of
+// `src` with the kernel's offsets, by least squares over every finite RGB value: out = w0 s0 +
+// sum_i w_i (s+i + s-i), the samples taken as the specification's lookups take them.
+std::optional<std::vector<float>> fit_weights(ConstImageView src, ConstImageView out, Axis axis,
+                                              const Kernel& k, int subtexel_bits) {
+  const bool hz = axis == Axis::horizontal;
+  const int n = hz ? src.width : src.height, m = static_cast<int>(k.weights_f32.size());
+  if (out.width != src.width || out.height != src.height) return std::nullopt;
+  const float d = 1.0f / static_cast<float>(n);
+  std::vector<double> ata(std::size_t(m) * m, 0.0), atb(m, 0.0);
+  std::vector<double> r(m);
+  for (int y = 0; y < src.height; ++y)
+    for (int x = 0; x < src.width; ++x) {
+      const int pos = hz ? x : y;
+      const float uv = texel_centre(pos, n);
+      const AxisTap<float> other =
+          gl_axis_tap(texel_centre(hz ? y : x, hz ? src.height : src.width),
+                      hz ? src.height : src.width, subtexel_bits);
+      auto sample = [&](float s, float v[3]) {
+        const AxisTap<float> t = gl_axis_tap(s, n, subtexel_bits);
+        if (hz) sample_rgb(src, t, other, v);
+        else sample_rgb(src, other, t, v);
+      };
+      float s0[3], sp[3], sm[3];
+      sample(uv, s0);
+      std::vector<std::array<float, 3>> pairs(m);
+      for (int i = 1; i < m; ++i) {
+        sample(uv + d * k.offsets_f32[i], sp);
+        sample(uv - d * k.offsets_f32[i], sm);
+        for (int c = 0; c < 3; ++c) pairs[i][c] = sp[c] + sm[c];
+      }
+      for (int c = 0; c < 3; ++c) {
+        const double o = out.pixel(x, y)[c];
+        r[0] = s0[c];
+        for (int i = 1; i < m; ++i) r[i] = pairs[i][c];
+        bool finite = std::isfinite(o);
+        for (double v : r) finite &= std::isfinite(v);
+        if (!finite) continue;
+        for (int i = 0; i < m; ++i) {
+          atb[i] += r[i] * o;
+          for (int j = 0; j < m; ++j) ata[std::size_t(i) * m + j] += r[i] * r[j];
+        }
+      }
+    }
+  const auto w = solve(ata, atb, m);
+  if (!w) return std::nullopt;
+  return std::vector<float>(w->begin(), w->end());
+}
+
+// The factor k that best explains the target as the composite of the same scene and k times the
+// bloom (least squares over the composite's values): a per-pass weight sum s != 1 scales the
+// bloom of N passes by s^N. The target is taken back to the composite through the stages
+// between (gamma: v^gamma; tone map: -ln(1 - v) / exposure, where v < 1).
+std::optional<float> fit_bloom_scale(const CauseContext& ctx, const StageSpec& target) {
+  const BloomParams& p = ctx.plan.params;
+  std::vector<const StageSpec*> chain;  // target back to (not including) the composite
+  const StageSpec* s = &target;
+  while (s->kind != StageKind::composite) {
+    if (s->kind != StageKind::output && s->kind != StageKind::tonemap) return std::nullopt;
+    chain.push_back(s);
+    s = find_stage(ctx.plan, stage_inputs(ctx.plan, *s)[0]);
+  }
+  const std::vector<std::string> in = stage_inputs(ctx.plan, *s);
+  const ConstImageView user = ctx.view(target.name), base = ctx.view(in[0]), bloom = ctx.view(in[1]);
+  if (!user.data || !base.data || !bloom.data) return std::nullopt;
+  double num = 0, den = 0;
+  for (int y = 0; y < user.height; ++y)
+    for (int x = 0; x < user.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        double v = user.pixel(x, y)[c];
+        for (const StageSpec* t : chain) {
+          if (t->kind == StageKind::output) v = std::pow(std::max(v, 0.0), double(p.gamma));
+          else v = v < 1 - 1e-6 ? -std::log1p(-v) / p.exposure : NAN;
+        }
+        const double b = double(p.strength) * bloom.pixel(x, y)[c];
+        const double r = v - base.pixel(x, y)[c];
+        if (!std::isfinite(r) || !std::isfinite(b) || b == 0) continue;
+        num += r * b;
+        den += b * b;
+      }
+  if (!(den > 0)) return std::nullopt;
+  const double k = num / den;
+  if (!std::isfinite(k) || k <= 0 || std::fabs(k - 1) < 1e-4) return std::nullopt;
+  return static_cast<float>(k);
+}
+
+std::string weights_text(const std::vector<float>& w) {
+  std::string s = "{";
+  double sum = 0;
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%s%.6g", i ? ", " : "", w[i]);
+    s += b;
+    sum += (i ? 2.0 : 1.0) * w[i];
+  }
+  char b[48];
+  std::snprintf(b, sizeof b, "} (sum over the taps %.6g)", sum);
+  return s + b;
+}
+
+std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& target) {
+  const BloomParams& p = ctx.plan.params;
+  const std::vector<std::string> names = segment(ctx, target);
+  std::vector<StageKind> kinds;
+  for (const std::string& n : names) kinds.push_back(find_stage(ctx.plan, n)->kind);
+  auto has = [&](StageKind k) { return std::find(kinds.begin(), kinds.end(), k) != kinds.end(); };
+  const bool sampled = has(StageKind::blur) || has(StageKind::down) || has(StageKind::up) ||
+                       has(StageKind::bloom);
+  std::vector<Hypothesis> out;
+  auto add = [&](std::string id, std::string words) {
+    Hypothesis h;
+    h.id = std::move(id);
+    h.description = std::move(words);
+    out.push_back(h);
+    return &out.back();
+  };
+  // Flip and swap: of every capture (a readback's order), or of this stage's output alone.
+  for (bool every : {true, false}) {
+    Hypothesis* h = add("flipped-vertically",
+                        every ? "images flipped vertically (bottom row first, as glReadPixels "
+                                "returns them)"
+                              : "image flipped vertically (this stage's output)");
+    h->flip = true;
+    h->transform_inputs = every;
+    h = add("rb-swapped", every ? "R and B swapped (BGRA read as RGBA)"
+                                : "R and B swapped (this stage's output)");
+    h->swap_rb = true;
+    h->transform_inputs = every;
+  }
+  if (has(StageKind::output)) {
+    add("gamma-missing", "gamma not applied")->gamma_times = 0;
+    add("gamma-twice", "gamma applied twice")->gamma_times = 2;
+  }
+  if (has(StageKind::tonemap) && p.exposure != 1.0f)
+    add("exposure-ignored", "exposure ignored (tone map with exposure 1)")->no_exposure = true;
+  if (sampled) {
+    add("half-texel-shift", "half-texel shift (lookups at texel corners, +0.5 texel)")
+        ->sampling.shift = 0.5f;
+    add("half-texel-shift", "half-texel shift (lookups at texel corners, -0.5 texel)")
+        ->sampling.shift = -0.5f;
+    add("wrap-repeat", "GL_REPEAT instead of GL_CLAMP_TO_EDGE")->sampling.wrap = Wrap::repeat;
+    add("wrap-mirrored-repeat", "GL_MIRRORED_REPEAT instead of GL_CLAMP_TO_EDGE")
+        ->sampling.wrap = Wrap::mirrored_repeat;
+    add("nearest-filter", "GL_NEAREST instead of GL_LINEAR")->sampling.nearest = true;
+  }
+  if (target.kind == StageKind::blur && target.pass >= 3)
+    add("pass-not-drawn", "blur pass not drawn (its ping-pong target still holds the pass before last)")
+        ->stale = true;
+  if (target.kind == StageKind::blur && target.axis == Axis::vertical)
+    add("offsets-along-x", "vertical pass offsets along x (the bug in seed 001's blur shader)")
+        ->along_x = true;
+  // A blur pass in the segment: the bloom is not captured (or the target is a pass).
+  if (p.method == Method::gaussian && p.passes > 0 && has(StageKind::blur)) {
+    add("pass-skipped", "one blur pass too few")->pass_delta = -1;
+    add("pass-added", "one blur pass too many")->pass_delta = 1;
+  }
+  if (has(StageKind::bright)) {
+    add("threshold-ge", "`>=` instead of `>` at the threshold")->ge = true;
+    add("bright-clamped", "bright pass clamped to [0, 1] (an 8-bit target or saturate())")
+        ->clamp_bright = true;
+  } else if (std::find(names.begin(), names.end(), "down.1") != names.end()) {
+    add("threshold-ge", "threshold tie on the other side (`>` where the specification keeps ties)")
+        ->ge = true;
+  }
+  if (p.storage == Storage::f32)
+    add("f16-storage", "f16 storage where f32 was declared")->f16 = true;
+  // Fitted last: they can mimic a simpler cause (a copy of the input is weights {1, 0, ...}),
+  // and a tie goes to the hypothesis listed first.
+  if (has(StageKind::composite))
+    if (const auto k = fit_bloom_scale(ctx, target)) {
+      Hypothesis* h = add("bloom-scaled",
+                          "bloom scaled (blur weights not summing to 1, or another strength)");
+      h->strength_scale = *k;
+      char b[96];
+      std::snprintf(b, sizeof b, "the bloom fits best scaled by %.6g", *k);
+      h->detail = b;
+    }
+  if (target.kind == StageKind::blur) {
+    const Kernel& k = kernel_for(p.kernel);
+    const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]);
+    if (auto w = !src.data ? std::nullopt : fit_weights(src, ctx.view(target.name), target.axis, k, ctx.profile.subtexel_bits)) {
+      Hypothesis* h = add("wrong-weights", "wrong kernel weights");
+      h->weights = *w;
+      h->detail = "fitted weights " + weights_text(*w) + "; specified " + weights_text(k.weights_f32);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<CauseFit> test_causes(const CauseContext& ctx, const StageSpec& target,
+                                  double oracle_within,
+                                  const std::function<double(Image&)>& within) {
+  std::vector<CauseFit> fits;
+  for (const Hypothesis& h : hypotheses(ctx, target)) {
+    Image img;
+    try {
+      img = Evaluator(ctx, h, target).target();
+    } catch (const NotApplicable&) {
+      continue;
+    }
+    const double f = within(img);
+    if (!(f > oracle_within)) continue;
+    // Two hypotheses of one id (the half-texel shift's two signs): keep the better.
+    auto same = std::find_if(fits.begin(), fits.end(), [&](const CauseFit& c) { return c.id == h.id; });
+    if (same != fits.end()) {
+      if (f > same->within) *same = {h.id, h.description, h.detail, f, oracle_within};
+      continue;
+    }
+    fits.push_back({h.id, h.description, h.detail, f, oracle_within});
+  }
+  std::stable_sort(fits.begin(), fits.end(),
+                   [](const CauseFit& a, const CauseFit& b) { return a.within > b.within; });
+  return fits;
+}
+
+}  // namespace bloomref::parity::detail

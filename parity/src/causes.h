@@ -1,0 +1,33 @@
+// The cause hypotheses of a failing stage (internal to parity; compare.h, CauseFit).
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "bloomref/half.h"
+#include "bloomref/parity/compare.h"
+#include "bloomref/plan.h"
+
+namespace bloomref::parity::detail {
+
+struct CauseContext {
+  const Plan& plan;
+  ConstImageView sanitized;  ///< the scene after the non-finite policy, unrounded
+  const DeviceProfile& profile;
+  HalfRounding rounding;     ///< how the oracle stores f16
+  int threads;
+  /// A stage as the isolated oracle reads it: the capture, or the oracle's recomputation.
+  std::function<ConstImageView(const std::string&)> view;
+  std::function<bool(const std::string&)> captured;
+};
+
+/// Recomputes `target` once per hypothesis (the oracle with one change, from the same captures)
+/// and scores each with `within` (which may adjust the image, e.g. clamp it as an 8-bit capture
+/// was, and returns the fraction of values within the stage's bound). Returns the hypotheses
+/// that score above `oracle_within`, best first (ties: the simpler, listed first).
+std::vector<CauseFit> test_causes(const CauseContext& ctx, const StageSpec& target,
+                                  double oracle_within,
+                                  const std::function<double(Image&)>& within);
+
+}  // namespace bloomref::parity::detail

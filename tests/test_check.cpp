@@ -1,0 +1,540 @@
+// Stage images from outside judged against the oracle (compare_captured): the CPU's own stages
+// pass in any subset, and each usual bloom bug, injected into a trace by code written here
+// (plain double loops, or the reference run with the changed parameter), fails at the stage it
+// was injected in and is named as the cause.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <string>
+
+#include "bloomref/error.h"
+#include "bloomref/executor.h"
+#include "bloomref/parity/compare.h"
+#include "bloomref/parity/variants.h"
+#include "bloomref/stages.h"
+
+using namespace bloomref;
+using parity::Verdict;
+
+namespace {
+
+constexpr int kW = 40, kH = 32;
+
+// A dark gradient with coloured lights (R != B), placed asymmetrically and near the left,
+// right and bottom edges (so a flip, an R/B exchange and the wrap modes all show), and a 3x3
+// block of grey 2 whose luminance is the threshold `tie_threshold()` (ties at the threshold).
+Image test_scene() {
+  Image img(kW, kH);
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      float* p = img.pixel(x, y);
+      p[0] = 0.02f + 0.01f * x / kW;
+      p[1] = 0.03f + 0.02f * y / kH;
+      p[2] = 0.05f;
+      p[3] = 1.0f;
+    }
+  auto light = [&](int x, int y, float r, float g, float b) {
+    float* p = img.pixel(x, y);
+    p[0] = r, p[1] = g, p[2] = b;
+  };
+  light(1, 5, 9.0f, 3.0f, 0.5f);    // near the left edge
+  light(38, 9, 0.4f, 2.0f, 12.0f);  // near the right edge
+  light(20, 30, 6.0f, 6.0f, 1.0f);  // near the bottom
+  light(12, 14, 3.0f, 0.2f, 7.0f);
+  light(27, 4, 15.0f, 1.0f, 2.0f);
+  for (int y = 20; y < 23; ++y)
+    for (int x = 6; x < 9; ++x) light(x, y, 2.0f, 2.0f, 2.0f);
+  return img;
+}
+
+float tie_threshold() { return luminance(2.0f, 2.0f, 2.0f); }
+
+BloomParams test_params() {
+  BloomParams p;
+  p.passes = 4;
+  p.exposure = 1.5f;
+  p.threads = 2;
+  p.plan = PlanMode::full;
+  return p;
+}
+
+const parity::DeviceProfile kProfile = parity::profile_nvidia_like();
+
+// A reference run of `p` (with the profile's sub-texel bits, as the oracle samples) keeping
+// every stage.
+std::map<std::string, Image> trace_of(BloomParams p, const Image& scene) {
+  p.subtexel_bits = kProfile.subtexel_bits;
+  ExecuteOptions eo;
+  eo.keep_all = true;
+  const StageTrace t = execute(make_plan(p, scene.cview()), scene.cview(), eo);
+  std::map<std::string, Image> out;
+  for (const StageResult& s : t.stages) out[s.name] = s.image;
+  return out;
+}
+
+parity::ParityResult check(const BloomParams& p, const Image& scene,
+                           const std::map<std::string, Image>& user) {
+  const Plan plan = parity::plan_for_device(p, scene.cview(), kProfile);
+  parity::CapturedStages captured;
+  for (const auto& [name, img] : user) captured[name] = {img.cview()};
+  parity::CompareOptions co;
+  co.causes = true;
+  return parity::check_with_oracle(plan, scene.cview(), captured, kProfile, co);
+}
+
+const parity::StageComparison& stage(const parity::ParityResult& r, const std::string& name) {
+  for (const auto& s : r.isolated)
+    if (s.stage == name) return s;
+  FAIL("no stage " << name);
+  return r.isolated.front();
+}
+
+std::string best_cause(const parity::StageComparison& s) {
+  return s.causes.empty() ? "none" : s.causes.front().id;
+}
+
+// Texel (x, y) of `img` with the coordinates wrapped as `wrap` says (written out here, not
+// parity's wrap_index): clamp, repeat, or mirrored repeat.
+const float* texel(const Image& img, int x, int y, char wrap) {
+  auto w = [&](int i, int n) {
+    if (wrap == 'c') return std::min(std::max(i, 0), n - 1);
+    if (wrap == 'r') return ((i % n) + n) % n;
+    int m = ((i % (2 * n)) + 2 * n) % (2 * n);
+    return m < n ? m : 2 * n - 1 - m;
+  };
+  return img.pixel(w(x, img.width()), w(y, img.height()));
+}
+
+// Bilinear RGB at texel-space position (u, v) (u = 0 is texel 0's centre), clamped, in double.
+void bilinear(const Image& img, double u, double v, double out[3]) {
+  const int x0 = static_cast<int>(std::floor(u)), y0 = static_cast<int>(std::floor(v));
+  const double a = u - x0, b = v - y0;
+  for (int c = 0; c < 3; ++c)
+    out[c] = (1 - a) * (1 - b) * texel(img, x0, y0, 'c')[c] + a * (1 - b) * texel(img, x0 + 1, y0, 'c')[c] +
+             (1 - a) * b * texel(img, x0, y0 + 1, 'c')[c] + a * b * texel(img, x0 + 1, y0 + 1, 'c')[c];
+}
+
+// A discrete9 pass over `src` with weights `w` (horizontal, or vertical with `vertical`), its
+// taps on texel centres read with the wrap mode `wrap`; or, with `shift`, every lookup at +shift
+// texels on both axes (bilinear).
+Image blur_h(const Image& src, const double w[5], char wrap, double shift = 0, bool vertical = false) {
+  Image out(src.width(), src.height());
+  for (int y = 0; y < src.height(); ++y)
+    for (int x = 0; x < src.width(); ++x) {
+      double r[3] = {0, 0, 0}, s[3];
+      for (int i = -4; i <= 4; ++i) {
+        const int dx = vertical ? 0 : i, dy = vertical ? i : 0;
+        if (shift != 0) {
+          bilinear(src, x + dx + shift, y + dy + shift, s);
+        } else {
+          const float* t = texel(src, x + dx, y + dy, wrap);
+          for (int c = 0; c < 3; ++c) s[c] = t[c];
+        }
+        for (int c = 0; c < 3; ++c) r[c] += w[std::abs(i)] * s[c];
+      }
+      float* o = out.pixel(x, y);
+      for (int c = 0; c < 3; ++c) o[c] = static_cast<float>(r[c]);
+      o[3] = 1;
+    }
+  return out;
+}
+
+// LearnOpenGL's weights (seed 004), 924, 792, 495, 220, 66 over 4070.
+const double kD9[5] = {924.0 / 4070, 792.0 / 4070, 495.0 / 4070, 220.0 / 4070, 66.0 / 4070};
+
+bool same_bits(const Image& a, const Image& b) {
+  return a.width() == b.width() && a.height() == b.height() &&
+         std::memcmp(a.data(), b.data(), a.values().size() * sizeof(float)) == 0;
+}
+
+void flip(Image& img) {
+  for (int y = 0; y < img.height() / 2; ++y)
+    for (int x = 0; x < img.width(); ++x)
+      for (int c = 0; c < 4; ++c) std::swap(img.pixel(x, y)[c], img.pixel(x, img.height() - 1 - y)[c]);
+}
+
+}  // namespace
+
+TEST_CASE("the CPU's own stages pass in any subset", "[check]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto cpu = trace_of(p, scene);
+  const std::vector<std::vector<std::string>> subsets = {
+      {"input", "bright", "blur.1", "blur.2", "blur.3", "blur.4", "composite", "tonemap", "output"},
+      {"output"},
+      {"bright", "blur.2", "output"},
+      {"blur.4", "tonemap"}};
+  for (const auto& names : subsets) {
+    std::map<std::string, Image> user;
+    for (const auto& n : names) user[n] = cpu.at(n);
+    const auto r = check(p, scene, user);
+    INFO("first stage " << names.front() << ", " << names.size() << " stages");
+    CHECK(r.verdict == Verdict::pass);
+    CHECK(!r.first_divergent_stage);
+    CHECK(r.isolated.size() == names.size());
+  }
+}
+
+TEST_CASE("a flipped or R/B-swapped dump fails at its first stage, cause named", "[check]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  for (const char* change : {"flip", "swap"}) {
+    auto user = trace_of(p, scene);
+    user.erase("input");
+    for (auto& [n, img] : user) {
+      if (std::string(change) == "flip") flip(img);
+      else
+        for (std::size_t i = 0; i < img.pixel_count(); ++i) std::swap(img.data()[4 * i], img.data()[4 * i + 2]);
+    }
+    const auto r = check(p, scene, user);
+    INFO(change);
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == "bright");
+    const std::string want = std::string(change) == "flip" ? "flipped-vertically" : "rb-swapped";
+    CHECK(best_cause(stage(r, "bright")) == want);
+    CHECK(stage(r, "bright").causes.front().within == 1.0);
+    // The composite reads the scene (not flipped) and a flipped bloom: it fails too, same cause.
+    CHECK(stage(r, "composite").verdict == Verdict::fail);
+    CHECK(best_cause(stage(r, "composite")) == want);
+  }
+}
+
+TEST_CASE("a blur pass with a wrong weight fails there, the weights are fitted", "[check]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  auto user = trace_of(p, scene);
+  double w[5] = {kD9[0], 0.25, kD9[2], kD9[3], kD9[4]};
+  user["blur.3"] = blur_h(user["blur.2"], w, 'c');
+  user["blur.4"] = blur_h(user["blur.3"], kD9, 'c', 0, true);  // the user's pass 4 reads it
+  const auto r = check(p, scene, user);
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "blur.3");
+  CHECK(stage(r, "blur.4").verdict == Verdict::pass);  // judged from the user's blur.3
+  const auto& s = stage(r, "blur.3");
+  REQUIRE(best_cause(s) == "wrong-weights");
+  CHECK(s.causes.front().within > 0.999);
+  CHECK(s.causes.front().detail.find("0.25") != std::string::npos);
+}
+
+TEST_CASE("sampling bugs in a blur pass are named", "[check]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  struct Case {
+    char wrap;
+    double shift;
+    const char* cause;
+  };
+  for (const Case c : {Case{'r', 0, "wrap-repeat"}, Case{'m', 0, "wrap-mirrored-repeat"},
+                       Case{'c', 0.5, "half-texel-shift"}}) {
+    auto user = trace_of(p, scene);
+    user["blur.1"] = blur_h(user["bright"], kD9, c.wrap, c.shift);
+    const auto r = check(p, scene, user);
+    INFO(c.cause);
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == "blur.1");
+    CHECK(best_cause(stage(r, "blur.1")) == c.cause);
+    CHECK(stage(r, "blur.1").causes.front().within > 0.999);
+  }
+}
+
+TEST_CASE("GL_NEAREST under the linear5 kernel is named", "[check]") {
+  const Image scene = test_scene();
+  BloomParams p = test_params();
+  p.kernel = KernelName::linear5;
+  auto user = trace_of(p, scene);
+  // linear5 (rastergrid): offsets 0, 1 + 495/1287, 3 + 66/286; weights 924/4070,
+  // (792 + 495)/4070, (220 + 66)/4070. NEAREST reads texel floor(x + 0.5 +- o).
+  const double off[3] = {0, 1 + 495.0 / 1287, 3 + 66.0 / 286};
+  const double w[3] = {924.0 / 4070, 1287.0 / 4070, 286.0 / 4070};
+  const Image& src = user["bright"];
+  Image out(kW, kH);
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      double r[3] = {0, 0, 0};
+      for (int i = 0; i < 3; ++i)
+        for (int side : {1, -1}) {
+          if (i == 0 && side < 0) continue;
+          const float* t = texel(src, static_cast<int>(std::floor(x + 0.5 + side * off[i])), y, 'c');
+          for (int c = 0; c < 3; ++c) r[c] += w[i] * t[c];
+        }
+      for (int c = 0; c < 3; ++c) out.pixel(x, y)[c] = static_cast<float>(r[c]);
+      out.pixel(x, y)[3] = 1;
+    }
+  user["blur.1"] = out;
+  const auto r = check(p, scene, user);
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "blur.1");
+  CHECK(best_cause(stage(r, "blur.1")) == "nearest-filter");
+}
+
+TEST_CASE("bugs of the bright pass are named", "[check]") {
+  const Image scene = test_scene();
+  BloomParams p = test_params();
+  p.threshold = tie_threshold();
+  for (const char* bug : {"ge", "clamp"}) {
+    auto user = trace_of(p, scene);
+    Image& b = user["bright"];
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x) {
+        const float* s = scene.pixel(x, y);
+        float* d = b.pixel(x, y);
+        const float l = luminance(s[0], s[1], s[2]);
+        const bool bright = std::string(bug) == "ge" ? l >= p.threshold : l > p.threshold;
+        for (int c = 0; c < 3; ++c)
+          d[c] = bright ? (std::string(bug) == "clamp" ? std::min(s[c], 1.0f) : s[c]) : 0.0f;
+      }
+    user.erase("input");
+    const auto r = check(p, scene, user);
+    INFO(bug);
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == "bright");
+    CHECK(best_cause(stage(r, "bright")) == (std::string(bug) == "ge" ? "threshold-ge" : "bright-clamped"));
+    CHECK(stage(r, "bright").causes.front().within == 1.0);
+  }
+}
+
+TEST_CASE("bugs of the finishing stages are named, also from the output alone", "[check]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto cpu = trace_of(p, scene);
+  BloomParams no_exposure = p;
+  no_exposure.exposure = 1.0f;
+  const auto exposure_bug = trace_of(no_exposure, scene);
+  Image twice = cpu.at("output");
+  for (std::size_t i = 0; i < twice.values().size(); ++i)
+    if (i % 4 != 3) twice.values()[i] = static_cast<float>(std::pow(double(twice.values()[i]), 1 / 2.2));
+  struct Case {
+    const char* cause;
+    Image output;
+  };
+  for (const Case& c : {Case{"gamma-missing", cpu.at("tonemap")}, Case{"gamma-twice", twice},
+                        Case{"exposure-ignored", exposure_bug.at("output")}}) {
+    const auto r = check(p, scene, {{"output", c.output}});
+    INFO(c.cause);
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == "output");
+    CHECK(best_cause(stage(r, "output")) == c.cause);
+    CHECK(stage(r, "output").causes.front().within > 0.999);
+  }
+}
+
+TEST_CASE("a pass too few or too many, a scaled bloom, f16 storage are named", "[check]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  BloomParams fewer = p, more = p, scaled = p, f16 = p;
+  fewer.passes = 3;
+  more.passes = 5;
+  // Weights summing to 1.05 in each of 4 passes scale the bloom by 1.05^4: as a strength would.
+  scaled.strength = static_cast<float>(std::pow(1.05, 4));
+  f16.storage = Storage::f16;
+  struct Case {
+    BloomParams bug;
+    std::vector<std::string> stages;
+    const char* first;
+    const char* cause;
+  };
+  for (const Case& c : {Case{fewer, {"composite", "output"}, "composite", "pass-skipped"},
+                        Case{more, {"output"}, "output", "pass-added"},
+                        Case{scaled, {"output"}, "output", "bloom-scaled"},
+                        Case{f16, {"bright", "blur.1", "output"}, "bright", "f16-storage"}}) {
+    const auto bug = trace_of(c.bug, scene);
+    std::map<std::string, Image> user;
+    for (const auto& n : c.stages) user[n] = bug.at(n);
+    const auto r = check(p, scene, user);
+    INFO(c.cause);
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == c.first);
+    CHECK(best_cause(stage(r, c.first)) == c.cause);
+  }
+}
+
+TEST_CASE("the variants with nothing changed give the reference stages' bits", "[check]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto cpu = trace_of(p, scene);
+  for (const KernelName kn : {KernelName::discrete9, KernelName::linear5})
+    for (int bits : {0, 8})
+      for (const Axis axis : {Axis::horizontal, Axis::vertical}) {
+        const Kernel& k = kernel_for(kn);
+        Image a(kW, kH), b(kW, kH);
+        blur_pass(cpu.at("bright").cview(), a.view(), {axis, &k, bits}, 1);
+        parity::Sampling smp;
+        smp.subtexel_bits = bits;
+        parity::blur_pass_variant(cpu.at("bright").cview(), b.view(), axis, k.offsets_f32,
+                                  k.weights_f32, smp, 1);
+        CHECK(same_bits(a, b));
+      }
+  const LevelSize l1{kW / 2, kH / 2};
+  Image down_ref(l1.width, l1.height), down_var(l1.width, l1.height);
+  for (bool karis : {false, true}) {
+    downsample(scene.cview(), down_ref.view(), {true, 1.0f, karis, 8}, 1);
+    parity::Sampling smp;
+    smp.subtexel_bits = 8;
+    parity::downsample_variant(scene.cview(), down_var.view(), true, 1.0f, karis, true, smp, 1);
+    CHECK(same_bits(down_ref, down_var));
+  }
+  Image up_ref(kW, kH), up_var(kW, kH);
+  upsample_tent(down_ref.cview(), {}, up_ref.view(), 8, 1);
+  parity::upsample_variant(down_ref.cview(), {}, up_var.view(), parity::Sampling{false, parity::Wrap::clamp_to_edge, 0, 8}, 1);
+  CHECK(same_bits(up_ref, up_var));
+}
+
+TEST_CASE("wrap modes follow GL's definitions", "[check]") {
+  using parity::Wrap;
+  // GL 4.6, 8.14.2: repeat takes i mod n; mirrored repeat mirrors every other period.
+  CHECK(parity::wrap_index(-1, 5, Wrap::clamp_to_edge) == 0);
+  CHECK(parity::wrap_index(7, 5, Wrap::clamp_to_edge) == 4);
+  CHECK(parity::wrap_index(-1, 5, Wrap::repeat) == 4);
+  CHECK(parity::wrap_index(6, 5, Wrap::repeat) == 1);
+  CHECK(parity::wrap_index(-1, 5, Wrap::mirrored_repeat) == 0);
+  CHECK(parity::wrap_index(-2, 5, Wrap::mirrored_repeat) == 1);
+  CHECK(parity::wrap_index(5, 5, Wrap::mirrored_repeat) == 4);
+  CHECK(parity::wrap_index(9, 5, Wrap::mirrored_repeat) == 0);
+  CHECK(parity::wrap_index(10, 5, Wrap::mirrored_repeat) == 0);
+}
+
+namespace {
+
+parity::ParityResult check_with(const parity::DeviceProfile& profile, const BloomParams& p,
+                                const Image& scene, const std::map<std::string, Image>& user,
+                                bool keep_images = false, int code_bits = 0) {
+  const Plan plan = parity::plan_for_device(p, scene.cview(), profile);
+  parity::CapturedStages captured;
+  for (const auto& [name, img] : user) captured[name] = {img.cview(), code_bits};
+  parity::CompareOptions co;
+  co.keep_images = keep_images;
+  return parity::check_with_oracle(plan, scene.cview(), captured, profile, co);
+}
+
+// The output with `fraction` x its isolated bound added, on the values `where` selects.
+template <class Where>
+Image output_plus_bound(const parity::StageComparison& s, const Image& output, double fraction,
+                        Where where) {
+  Image out = output;
+  for (int y = 0; y < out.height(); ++y)
+    for (int x = 0; x < out.width(); ++x)
+      for (int c = 0; c < 3; ++c)
+        if (where(x, y, c))
+          out.pixel(x, y)[c] = static_cast<float>(s.oracle.pixel(x, y)[c] + fraction * s.bound.pixel(x, y)[c]);
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("image gates catch an error each value's bound lets through", "[check][gates]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto cpu = trace_of(p, scene);
+  const parity::DeviceProfile gated = kProfile;
+  parity::DeviceProfile ungated = kProfile;
+  ungated.gates = parity::ImageGates{0, 0, 8, 0};
+  const auto honest = check_with(gated, p, scene, {{"output", cpu.at("output")}}, true);
+  REQUIRE(honest.verdict == Verdict::pass);
+  const parity::StageComparison& s = honest.isolated.front();
+  CHECK(s.mean_excess < 0.01);
+  auto all = [](int, int, int) { return true; };
+
+  // 0.6 of the bound everywhere: every value within it, the mean gate (0.25) fails.
+  Image offset = output_plus_bound(s, cpu.at("output"), 0.6, all);
+  auto r = check_with(gated, p, scene, {{"output", offset}});
+  CHECK(r.verdict == Verdict::fail);
+  CHECK(r.isolated.front().over_bound == 0);
+  CHECK(r.isolated.front().reason.find("mean error") != std::string::npos);
+  CHECK(r.isolated.front().mean_excess == Approx(0.6).epsilon(0.05));
+  CHECK(check_with(ungated, p, scene, {{"output", offset}}).verdict == Verdict::pass);
+
+  // 0.9 of the bound in the 8x8 window at (16, 8) only: the window gate (0.5) fails there.
+  Image region = output_plus_bound(s, cpu.at("output"), 0.9,
+                                   [](int x, int y, int) { return x >= 16 && x < 24 && y >= 8 && y < 16; });
+  r = check_with(gated, p, scene, {{"output", region}});
+  CHECK(r.verdict == Verdict::fail);
+  INFO(r.isolated.front().reason << " window " << r.isolated.front().worst_window << " mean " << r.isolated.front().mean_excess);
+  CHECK(r.isolated.front().worst_window_x == 16);
+  CHECK(r.isolated.front().worst_window_y == 8);
+  CHECK(r.isolated.front().reason.find("window at (16, 8)") != std::string::npos);
+
+  // 1.5 of the bound on every 20th value: WARN by value (within 4x), 5% over bound fails the
+  // fraction gate (1%).
+  Image sparse = output_plus_bound(s, cpu.at("output"), 1.5,
+                                   [](int x, int y, int c) { return (x + 3 * y + c) % 20 == 0; });
+  CHECK(check_with(ungated, p, scene, {{"output", sparse}}).verdict == Verdict::warn);
+  r = check_with(gated, p, scene, {{"output", sparse}});
+  CHECK(r.verdict == Verdict::fail);
+  INFO(r.isolated.front().reason);
+  CHECK(r.isolated.front().reason.find("exceed their bound (gate 1%)") != std::string::npos);
+}
+
+TEST_CASE("profiles: ldr8 codes, mediump arithmetic, per-stage overrides", "[check][profiles]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto cpu = trace_of(p, scene);
+  // The output as 8-bit codes, kept as floats (a PNG screenshot saved as EXR).
+  Image codes = cpu.at("output");
+  for (std::size_t i = 0; i < codes.values().size(); ++i)
+    if (i % 4 != 3) codes.values()[i] = std::round(std::clamp(codes.values()[i], 0.0f, 1.0f) * 255) / 255;
+  CHECK(check_with(kProfile, p, scene, {{"output", codes}}).verdict == Verdict::fail);
+  CHECK(check_with(parity::profile_ldr8(), p, scene, {{"output", codes}}).verdict == Verdict::pass);
+  CHECK(check_with(kProfile, p, scene, {{"output", codes}}, false, 8).verdict == Verdict::pass);
+  // One code more everywhere: beyond half a code.
+  Image off = codes;
+  for (std::size_t i = 0; i < off.values().size(); ++i)
+    if (i % 4 != 3) off.values()[i] = std::min(1.0f, off.values()[i] + 1.0f / 255);
+  CHECK(check_with(parity::profile_ldr8(), p, scene, {{"output", off}}).verdict == Verdict::fail);
+
+  // A relative error of 2^-12 on the output: far beyond f32 arithmetic's bound, within
+  // mediump's (2^-11 per operation, GLSL ES 3.00).
+  Image rel = cpu.at("output");
+  for (std::size_t i = 0; i < rel.values().size(); ++i)
+    if (i % 4 != 3) rel.values()[i] *= 1.0f + 0x1p-12f;
+  CHECK(check_with(kProfile, p, scene, {{"output", rel}}).verdict == Verdict::fail);
+  CHECK(check_with(parity::profile_mediump(), p, scene, {{"output", rel}}).verdict == Verdict::pass);
+
+  // Twice the bound everywhere: WARN by value, the mean gate fails; a per-stage override
+  // (bound x 10 on "out*": the mean error becomes 0.2 of it) lets it pass, and one on another
+  // stage does not.
+  const auto honest = check_with(kProfile, p, scene, {{"output", cpu.at("output")}}, true);
+  Image twice = output_plus_bound(honest.isolated.front(), cpu.at("output"), 2.0,
+                                  [](int, int, int) { return true; });
+  CHECK(check_with(kProfile, p, scene, {{"output", twice}}).verdict == Verdict::fail);
+  parity::DeviceProfile loose = kProfile;
+  loose.overrides.push_back({"blur.*", 10.0, 0.0, false, {}});
+  CHECK(check_with(loose, p, scene, {{"output", twice}}).verdict == Verdict::fail);
+  loose.overrides.insert(loose.overrides.begin(), {"out*", 10.0, 0.0, false, {}});
+  CHECK(check_with(loose, p, scene, {{"output", twice}}).verdict == Verdict::pass);
+  for (const char* name : {"llvmpipe", "nvidia", "vulkan", "mediump", "ldr8"})
+    CHECK(parity::profile_named(name).name == name);
+  CHECK_THROWS_AS(parity::profile_named("gles"), ParamError);
+}
+
+TEST_CASE("the oracle computed stage by stage is the executor's, bit for bit", "[check]") {
+  // check_with_oracle computes the oracle's full run beside the comparison (not execute()): a
+  // trace of execute() with the same rounding must then be exactly the end-to-end oracle.
+  const Image scene = test_scene();
+  const parity::DeviceProfile profile = parity::profile_llvmpipe();  // f16: toward zero
+  for (Method method : {Method::gaussian, Method::mip})
+    for (Storage storage : {Storage::f32, Storage::f16})
+      for (bool karis : {false, true}) {
+        if (karis && method == Method::gaussian) continue;
+        BloomParams p = test_params();
+        p.method = method;
+        p.storage = storage;
+        p.karis = karis;
+        p.levels = 4;
+        const Plan plan = parity::plan_for_device(p, scene.cview(), profile);
+        ExecuteOptions eo;
+        eo.keep_all = true;
+        eo.half_rounding = HalfRounding::toward_zero;
+        const StageTrace t = execute(plan, scene.cview(), eo);
+        parity::CapturedStages captured;
+        for (const StageResult& s : t.stages) captured[s.name] = {s.image.cview()};
+        const auto r = parity::check_with_oracle(plan, scene.cview(), captured, profile);
+        INFO(to_string(method) << " " << to_string(storage) << (karis ? " karis" : ""));
+        CHECK(r.end_to_end.size() == t.stages.size());
+        for (const auto& e : r.end_to_end) {
+          INFO(e.stage);
+          CHECK(e.max_abs == 0);
+        }
+        CHECK(r.verdict == Verdict::pass);
+      }
+}

@@ -1,0 +1,342 @@
+// bloomref check as a CI job runs it (a separate process, BLOOMREF_EXE, in a temporary folder):
+// bloomref's own dumped stages pass; the same flipped, R/B-swapped, or with a wrong blur weight
+// fail at the right stage with the cause named; declared row and channel order are honoured;
+// exit codes 5 (nothing compared) and 2 (wrong size, corrupt file, unknown stage, unwritable
+// destination, manifest errors) name the file; JSON, JUnit, Markdown, manifest, expectations.
+#include <sys/wait.h>
+
+#include <Imath/half.h>
+
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "bloomref/io.h"
+#include "io_test_util.h"
+#include "test_util.h"
+
+using bloomref::test::TempDir;
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+using bloomref::test::CliResult;
+
+CliResult run_cli(const TempDir& cwd, const std::string& args) {
+  return bloomref::test::run_cli(args, "", cwd.path());
+}
+
+const std::string kSize = "--size 48x40";
+
+// bloomref's own CPU stages of the demo scene at 48x40, dumped into dir/name.
+void dump(const TempDir& dir, const std::string& name, const std::string& extra = "",
+          const std::string& size = kSize) {
+  const CliResult r = run_cli(dir, "run " + size + " --plan full --dump-stages " + name + " " + extra);
+  REQUIRE(r.code == 0);
+}
+
+// Rewrites every EXR of a folder through `change` (load_image / save_exr: the I/O library, not
+// the code under test).
+template <class F>
+void rewrite_all(const std::string& dir, F change) {
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().extension() != ".exr") continue;
+    bloomref::Image img = bloomref::load_image(e.path().string()).image;
+    change(img);
+    bloomref::save_exr(e.path().string(), img.cview());
+  }
+}
+
+void flip(bloomref::Image& img) {
+  for (int y = 0; y < img.height() / 2; ++y)
+    for (int x = 0; x < img.width(); ++x)
+      for (int c = 0; c < 4; ++c) std::swap(img.pixel(x, y)[c], img.pixel(x, img.height() - 1 - y)[c]);
+}
+
+void swap_rb(bloomref::Image& img) {
+  for (std::size_t i = 0; i < img.pixel_count(); ++i) std::swap(img.data()[4 * i], img.data()[4 * i + 2]);
+}
+
+json read_json(const std::string& path) { return json::parse(bloomref::test::read_bytes(path)); }
+
+std::size_t count(const std::string& s, const std::string& what) {
+  std::size_t n = 0;
+  for (auto at = s.find(what); at != std::string::npos; at = s.find(what, at + 1)) ++n;
+  return n;
+}
+
+}  // namespace
+
+TEST_CASE("bloomref's own dumped stages pass; results are written", "[check-cli]") {
+  TempDir dir;
+  dump(dir, "d");
+  const CliResult r = run_cli(dir, "check " + kSize + " --stages d --json r.json --junit r.xml "
+                                   "--markdown r.md --device-vendor Mesa --device-api 'OpenGL 4.5'");
+  INFO(r.out << r.err);
+  REQUIRE(r.code == 0);
+  CHECK(r.out.find("verdict PASS") != std::string::npos);
+  const json j = read_json(dir / "r.json");
+  CHECK(j["version"] == 1);
+  CHECK(j["verdict"] == "PASS");
+  CHECK(j["exit_code"] == 0);
+  CHECK(j["device"]["vendor"] == "Mesa");
+  CHECK(j["device"]["api"] == "OpenGL 4.5");
+  REQUIRE(j["items"].size() == 1);
+  const json& stages = j["items"][0]["stages"];
+  CHECK(stages.size() == 15);  // input, bright, blur.1..10, composite, tonemap, output
+  for (const json& s : stages) CHECK(s["status"] == "pass");
+  CHECK(j["items"][0]["first_divergent_stage"].is_null());
+  const std::string xml = bloomref::test::read_bytes(dir / "r.xml");
+  CHECK(count(xml, "<testcase ") == 15);
+  CHECK(count(xml, "<failure") == 0);
+  CHECK(count(xml, "<testsuite ") == 1);
+  CHECK(xml.find("name=\"device.vendor\" value=\"Mesa\"") != std::string::npos);
+  CHECK(bloomref::test::read_bytes(dir / "r.md").find("PASS") != std::string::npos);
+}
+
+TEST_CASE("a flipped or R/B-swapped dump fails at its first stage; declared, it passes", "[check-cli]") {
+  struct Case {
+    void (*change)(bloomref::Image&);
+    const char* declared;
+    const char* cause;
+  };
+  for (const Case c : {Case{flip, "--origin bottom", "flipped-vertically"},
+                       Case{swap_rb, "--channels BGRA", "rb-swapped"}}) {
+    TempDir dir;
+    dump(dir, "d");
+    rewrite_all(dir / "d", c.change);
+    CliResult r = run_cli(dir, "check " + kSize + " --stages d --json r.json --junit r.xml");
+    INFO(c.cause << "\n" << r.out << r.err);
+    CHECK(r.code == 1);
+    const json j = read_json(dir / "r.json");
+    CHECK(j["items"][0]["first_divergent_stage"] == "input");
+    CHECK(j["items"][0]["first_divergent_cause"]["id"] == c.cause);
+    const std::string xml = bloomref::test::read_bytes(dir / "r.xml");
+    CHECK(xml.find("likely cause: ") != std::string::npos);
+    CHECK(xml.find(c.change == flip ? "flipped vertically" : "R and B swapped") != std::string::npos);
+    r = run_cli(dir, "check " + kSize + " --stages d " + c.declared);
+    CHECK(r.code == 0);
+  }
+}
+
+TEST_CASE("a blur pass with a wrong weight fails there, and says so", "[check-cli]") {
+  TempDir dir;
+  dump(dir, "d");
+  // blur.3 (horizontal) recomputed from blur.2 with the second weight 0.25 instead of 792/4070:
+  // discrete9's taps sit on texel centres, so a plain sum of clamped texels.
+  const bloomref::Image b2 = bloomref::load_image(dir / "d/blur.2.exr").image;
+  bloomref::Image b3(b2.width(), b2.height());
+  const double w[5] = {924.0 / 4070, 0.25, 495.0 / 4070, 220.0 / 4070, 66.0 / 4070};
+  for (int y = 0; y < b2.height(); ++y)
+    for (int x = 0; x < b2.width(); ++x) {
+      for (int c = 0; c < 3; ++c) {
+        double s = 0;
+        for (int i = -4; i <= 4; ++i)
+          s += w[std::abs(i)] * b2.pixel(std::clamp(x + i, 0, b2.width() - 1), y)[c];
+        b3.pixel(x, y)[c] = static_cast<float>(s);
+      }
+      b3.pixel(x, y)[3] = 1;
+    }
+  bloomref::save_exr(dir / "d/blur.3.exr", b3.cview());
+  for (const char* later : {"blur.4", "blur.5", "blur.6", "blur.7", "blur.8", "blur.9", "blur.10",
+                            "composite", "tonemap", "output"})
+    fs::remove(dir / (std::string("d/") + later + ".exr"));
+  const CliResult r = run_cli(dir, "check " + kSize + " --stages d --json r.json");
+  INFO(r.out << r.err);
+  CHECK(r.code == 1);
+  const json j = read_json(dir / "r.json");
+  CHECK(j["items"][0]["first_divergent_stage"] == "blur.3");
+  CHECK(j["items"][0]["first_divergent_cause"]["id"] == "wrong-weights");
+  CHECK(r.out.find("likely cause: wrong kernel weights") != std::string::npos);
+}
+
+TEST_CASE("only the output (composite, tone map and gamma in one pass) is judged", "[check-cli]") {
+  TempDir dir;
+  dump(dir, "d");
+  fs::create_directory(dir / "only");
+  fs::copy_file(dir / "d/output.exr", dir / "only/output.exr");
+  CliResult r = run_cli(dir, "check " + kSize + " --stages only --json r.json");
+  INFO(r.out << r.err);
+  CHECK(r.code == 0);
+  CHECK(read_json(dir / "r.json")["items"][0]["stages"].size() == 1);
+  // The output as an 8-bit PNG (what `run -o out.png` writes): judged with half a code.
+  fs::remove(dir / "only/output.exr");
+  REQUIRE(run_cli(dir, "run " + kSize + " -o only/output.png").code == 0);
+  r = run_cli(dir, "check " + kSize + " --stages only");
+  CHECK(r.code == 0);
+  // With the gamma left out, it fails and says so.
+  fs::remove(dir / "only/output.png");
+  fs::copy_file(dir / "d/tonemap.exr", dir / "only/output.exr");
+  r = run_cli(dir, "check " + kSize + " --stages only");
+  CHECK(r.code == 1);
+  CHECK(r.out.find("likely cause: gamma not applied") != std::string::npos);
+}
+
+TEST_CASE("nothing compared is exit 5", "[check-cli]") {
+  TempDir dir;
+  fs::create_directory(dir / "empty");
+  CliResult r = run_cli(dir, "check " + kSize + " --stages empty --json r.json --junit r.xml");
+  CHECK(r.code == 5);
+  CHECK(r.err.find("nothing compared") != std::string::npos);
+  CHECK(read_json(dir / "r.json")["verdict"] == "NOTHING");
+  bloomref::test::write_bytes(dir / "empty/notes.txt", "no stages here");
+  r = run_cli(dir, "check " + kSize + " --stages empty");
+  CHECK(r.code == 5);
+  CHECK(r.out.find("notes.txt") != std::string::npos);  // listed as ignored
+}
+
+TEST_CASE("bad stage files are exit 2 naming the file; nothing is written", "[check-cli]") {
+  struct Case {
+    const char* file;
+    void (*make)(const TempDir&);
+    const char* says;
+  };
+  const Case cases[] = {
+      {"bright.exr", [](const TempDir& d) {
+         fs::copy_file(d / "small/bright.exr", d / "d/bright.exr", fs::copy_options::overwrite_existing);
+       }, "32x24"},
+      {"blur.99.exr", [](const TempDir& d) { fs::copy_file(d / "d/blur.1.exr", d / "d/blur.99.exr"); },
+       "blur.99"},
+      {"output.exr", [](const TempDir& d) { bloomref::test::write_bytes(d / "d/output.exr", "not an image"); },
+       "output.exr"},
+      {"down.1.exr", [](const TempDir& d) { fs::copy_file(d / "d/blur.1.exr", d / "d/down.1.exr"); },
+       "down.1"}};
+  for (const Case& c : cases) {
+    TempDir dir;
+    dump(dir, "d");
+    dump(dir, "small", "", "--size 32x24");
+    c.make(dir);
+    const auto before = dir.listing();
+    const CliResult r = run_cli(dir, "check " + kSize + " --stages d --json r.json");
+    INFO(c.file << ": " << r.err);
+    CHECK(r.code == 2);
+    CHECK(r.err.find(c.file) != std::string::npos);
+    CHECK(r.err.find(c.says) != std::string::npos);
+    CHECK(dir.listing() == before);  // no r.json
+  }
+}
+
+TEST_CASE("destinations are checked before any work", "[check-cli]") {
+  TempDir dir;
+  dump(dir, "d");
+  CliResult r = run_cli(dir, "check " + kSize + " --stages d --json no/such/folder/r.json --junit r.xml");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("no/such/folder/r.json") != std::string::npos);
+  CHECK(!fs::exists(dir / "r.xml"));
+  r = run_cli(dir, "check " + kSize + " --stages d --junit d");
+  CHECK(r.code == 2);
+  r = run_cli(dir, "check " + kSize + " --stages d --json d/output.exr");  // an input
+  CHECK(r.code == 2);
+}
+
+TEST_CASE("a manifest: raw half, bottom row first, BGRA, aliases, device keys", "[check-cli]") {
+  TempDir dir;
+  dump(dir, "d", "--storage f16");  // RGBA16F targets: a raw save holds their bits
+  REQUIRE(run_cli(dir, "scenes demo " + kSize + " -o scene.exr").code == 0);
+  // The output as RenderDoc's raw save of a GL texture might hold it: f16, BGRA, bottom row
+  // first, written here byte by byte.
+  const bloomref::Image out = bloomref::load_image(dir / "d/output.exr").image;
+  std::string bytes;
+  for (int y = out.height() - 1; y >= 0; --y)
+    for (int x = 0; x < out.width(); ++x)
+      for (int c : {2, 1, 0, 3}) {
+        const std::uint16_t h = Imath::half(out.pixel(x, y)[c]).bits();
+        bytes.append(reinterpret_cast<const char*>(&h), 2);
+      }
+  fs::create_directory(dir / "cap");
+  bloomref::test::write_bytes(dir / "cap/final.raw", bytes);
+  fs::copy_file(dir / "d/blur.10.exr", dir / "cap/BloomBlur.exr");
+  const std::string manifest = R"({
+    "version": 1,
+    "params": {"passes": 10, "storage": "f16"},
+    "device": {"api": "OpenGL 4.6", "vendor": "ExampleVendor", "renderer": "X", "driver": "1.0"},
+    "items": [
+      {"id": "frame1", "scene": "scene.exr",
+       "stages": {"final": {"path": "cap/final.raw", "encoding": "raw", "format": "f16",
+                            "origin": "bottom", "channels": "BGRA", "width": 48, "height": 40},
+                  "BloomBlur": "cap/BloomBlur.exr"},
+       "aliases": {"final": "output", "BloomBlur": "blur.10"}},
+      {"id": "frame1-dir", "scene": "scene.exr", "stages": "d"}
+    ]})";
+  bloomref::test::write_bytes(dir / "m.json", manifest);
+  CliResult r = run_cli(dir, "check --manifest m.json --json r.json --junit r.xml --device-driver 2.0");
+  INFO(r.out << r.err);
+  CHECK(r.code == 0);
+  const json j = read_json(dir / "r.json");
+  CHECK(j["items"].size() == 2);
+  CHECK(j["items"][0]["stages"].size() == 2);
+  CHECK(j["device"]["vendor"] == "ExampleVendor");
+  CHECK(j["device"]["driver"] == "2.0");  // the command line wins
+  CHECK(count(bloomref::test::read_bytes(dir / "r.xml"), "<testsuite ") == 2);
+
+  // A missing file, an unknown stage name, a bad encoding: exit 2 naming the manifest's field.
+  const std::pair<std::string, std::string> broken[] = {
+      {R"("cap/BloomBlur.exr")", R"("cap/missing.exr")"},
+      {R"("BloomBlur": "blur.10")", R"("BloomBlur": "blurry")"},
+      {R"("encoding": "raw")", R"("encoding": "jpeg")"}};
+  for (const auto& [from, to] : broken) {
+    std::string m = manifest;
+    m.replace(m.find(from), from.size(), to);
+    bloomref::test::write_bytes(dir / "bad.json", m);
+    r = run_cli(dir, "check --manifest bad.json");
+    INFO(to << ": " << r.err);
+    CHECK(r.code == 2);
+    CHECK(r.err.find("bad.json") != std::string::npos);
+    CHECK(r.err.find("items[0]") != std::string::npos);
+  }
+}
+
+TEST_CASE("expectations: a known deviation is expected, and reported when fixed", "[check-cli]") {
+  TempDir dir;
+  dump(dir, "d");
+  dump(dir, "ok");
+  rewrite_all(dir / "d", flip);
+  bloomref::test::write_bytes(dir / "x.json", R"({"version": 1, "expectations": [
+      {"item": "d", "stage": "*", "device": "Mesa", "reason": "readback not flipped yet"},
+      {"item": "ok", "stage": "output", "reason": "was broken once"}]})");
+  CliResult r = run_cli(dir, "check " + kSize + " --stages d --expectations x.json "
+                             "--device-vendor Mesa --json r.json --junit r.xml");
+  INFO(r.out << r.err);
+  CHECK(r.code == 0);
+  json j = read_json(dir / "r.json");
+  CHECK(j["summary"]["expected_fail"].get<int>() > 0);
+  CHECK(j["summary"]["fail"] == 0);
+  CHECK(bloomref::test::read_bytes(dir / "r.xml").find("<skipped") != std::string::npos);
+  // On another device the expectation does not apply.
+  r = run_cli(dir, "check " + kSize + " --stages d --expectations x.json --device-vendor Other");
+  CHECK(r.code == 1);
+  // A known deviation that now passes is reported as fixed (and does not fail the run).
+  r = run_cli(dir, "check " + kSize + " --stages ok --expectations x.json --json r2.json");
+  CHECK(r.code == 0);
+  j = read_json(dir / "r2.json");
+  CHECK(j["summary"]["fixed"] == 1);
+  CHECK(r.out.find("FIXED") != std::string::npos);
+}
+
+TEST_CASE("a profile file: per-stage overrides; a bad field is exit 2 naming it", "[check-cli]") {
+  TempDir dir;
+  dump(dir, "d");
+  fs::create_directory(dir / "s");
+  fs::copy_file(dir / "d/blur.2.exr", dir / "s/blur.2.exr");
+  fs::copy_file(dir / "d/blur.2.exr", dir / "s/blur.3.exr");  // pass 3 did nothing
+  CHECK(run_cli(dir, "check " + kSize + " --stages s").code == 1);
+  bloomref::test::write_bytes(dir / "lenient.json", R"({"version": 1, "base": "vulkan",
+      "stages": [{"pattern": "blur.3", "scale": 1e9, "gates": {"mean": 0, "window": 0}}]})");
+  CliResult r = run_cli(dir, "check " + kSize + " --stages s --profile lenient.json --json r.json");
+  INFO(r.out << r.err);
+  CHECK(r.code == 0);
+  const json j = read_json(dir / "r.json");
+  CHECK(j["profile"]["name"] == "lenient");
+  CHECK(j["profile"]["subtexel_bits"] == 8);  // from the base, vulkan
+  bloomref::test::write_bytes(dir / "bad.json", R"({"version": 1, "subtexel": 8})");
+  r = run_cli(dir, "check " + kSize + " --stages s --profile bad.json");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("bad.json") != std::string::npos);
+  CHECK(r.err.find("subtexel") != std::string::npos);
+  r = run_cli(dir, "check " + kSize + " --stages s --profile nosuch");
+  CHECK(r.code == 2);
+}
