@@ -17,6 +17,7 @@
 #include "bloomref/parity/compare.h"
 #include "check_manifest.h"
 #include "check_output.h"
+#include "check_shaders.h"
 #include "check_types.h"
 #include "commands.h"
 #include "options.h"
@@ -35,6 +36,7 @@ struct CheckArgs {
   DeviceKeys device;
   bool warn_as_error = false, quiet = false, no_causes = false;
   PipelineOptions pipeline;
+  ShaderArgs shaders;
   CLI::App* sub = nullptr;
 };
 
@@ -184,14 +186,15 @@ void print_item(const ItemResult& r, const parity::DeviceProfile& profile) {
 int check_cmd(CheckArgs& a) {
   if (a.artifacts != "fail" && a.artifacts != "all" && a.artifacts != "none")
     throw ParamError("--artifacts '" + a.artifacts + "' is not one of: fail, all, none");
-  if (a.stages_dir.empty() == a.manifest.empty())
-    throw ParamError("give one of --stages DIR or --manifest FILE");
+  if (int(!a.stages_dir.empty()) + int(!a.manifest.empty()) + int(a.shaders.any()) != 1)
+    throw ParamError("give one of --stages DIR, --manifest FILE or --shaders learnopengl");
   if (!a.manifest.empty() && !a.scene.empty())
     throw ParamError("with --manifest the scenes are the manifest's items; give no SCENE");
   const bool profile_file = a.profile.size() > 5 && a.profile.substr(a.profile.size() - 5) == ".json";
-  const parity::DeviceProfile profile =
+  parity::DeviceProfile profile =
       profile_file ? read_profile_file(a.profile) : parity::profile_named(a.profile);
 
+  std::unique_ptr<ScratchDir> scratch;  // --shaders: the passes the user's shaders drew
   CheckRun run;
   run.warn_as_error = a.warn_as_error;
   run.device = a.device;
@@ -210,6 +213,28 @@ int check_cmd(CheckArgs& a) {
       if (!a.device.driver.empty()) d.driver = a.device.driver;
       run.device = d;
     }
+  } else if (a.shaders.any()) {
+    // The user's shaders run first (refusals: exit 2, no GL: exit 3); what they drew is then
+    // checked as captured stages.
+    if (!a.report_dir.empty()) require_writable_dir(a.report_dir, "--report");
+    for (const std::string* p : {&a.json_path, &a.junit_path, &a.markdown_path})
+      if (!p->empty()) require_writable_file(*p, "output");
+    scratch = std::make_unique<ScratchDir>();
+    bool software = false;
+    const std::string gl =
+        run_user_shaders(a.shaders, a.scene, a.pipeline, scratch->path(), software);
+    // Without --profile, the device's own: llvmpipe's measured facts, or NVIDIA-like hardware.
+    if (a.sub->count("--profile") == 0) {
+      profile = software ? parity::profile_llvmpipe() : parity::profile_nvidia_like();
+      run.profile = profile;
+    }
+    if (run.device.renderer.empty()) run.device.renderer = gl;
+    if (run.device.api.empty()) run.device.api = "OpenGL (headless EGL)";
+    CheckItem item;
+    item.scene = a.scene;
+    item.stages_dir = scratch->path().string();
+    item.id = "learnopengl";
+    items.push_back(item);
   } else {
     CheckItem item;
     item.scene = a.scene;
@@ -296,6 +321,19 @@ std::function<int()> add_check(CLI::App& app) {
   sub->add_option("--stages", args->stages_dir,
                   "folder of stage images named as --dump-stages names them (any subset)");
   sub->add_option("--manifest", args->manifest, "JSON manifest of items (docs/check.md)");
+  sub->add_option("--shaders", args->shaders.preset,
+                  "run your own GLSL headless the way a preset's host code does: learnopengl");
+  sub->add_option("--blur-fs", args->shaders.blur_fs, "--shaders: the blur fragment shader");
+  sub->add_option("--final-fs", args->shaders.final_fs, "--shaders: the final (composite) fragment shader");
+  sub->add_option("--blur-vs", args->shaders.blur_vs, "--shaders: the blur vertex shader (default: a pass-through quad)");
+  sub->add_option("--final-vs", args->shaders.final_vs, "--shaders: the final vertex shader");
+  sub->add_option("--bright-fs", args->shaders.bright_fs,
+                  "--shaders: your bright-pass fragment shader (default: the oracle's bright image)");
+  sub->add_option("--target-format", args->shaders.target_format,
+                  "--shaders: render targets RGBA16F | RGB16F | RGBA32F (default: from --storage)");
+  sub->add_option("--filter", args->shaders.filter, "--shaders: texture filter linear | nearest");
+  sub->add_option("--wrap", args->shaders.wrap,
+                  "--shaders: texture wrap clamp-to-edge | repeat | mirrored-repeat");
   sub->add_option("--profile", args->profile,
                   "device precision profile: " + parity::profile_names() +
                       ", or a profile file NAME.json (docs/check.md)")
