@@ -1,5 +1,7 @@
 #include "check_output.h"
 
+#include <sys/resource.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -162,6 +164,11 @@ ordered_json check_json(const CheckRun& run) {
           {"device", device_json(run.device)},
           {"expectations_file", run.expectations_file ? ordered_json(*run.expectations_file)
                                                       : ordered_json(nullptr)},
+          {"peak_rss_bytes", [] {
+             rusage u{};
+             getrusage(RUSAGE_SELF, &u);
+             return static_cast<long long>(u.ru_maxrss) * 1024;  // Linux: KiB
+           }()},
           {"summary", {{"items", run.items.size()}, {"stages", n.stages}, {"pass", n.pass},
                        {"warn", n.warn}, {"fail", n.fail}, {"expected_fail", n.expected},
                        {"fixed", n.fixed}}},

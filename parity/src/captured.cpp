@@ -116,40 +116,49 @@ class Streams {
     const auto& st = plan.stages;
     for (std::size_t i = 0; i < st.size(); ++i) index_[st[i].name] = static_cast<int>(i);
     for (const std::string& c : captured) captured_[c] = true;
-    // A stage is needed until the last stage that reads it; for the cause hypotheses, which
-    // recompute a failing stage from the captures before it, until the first capture
-    // downstream of each uncaptured reader has been judged, and pass k - 2 until pass k.
+    // A stage is needed until the last stage that reads it. The isolated chain (captures,
+    // recomputed stages) is kept longer for the cause hypotheses, which recompute a failing
+    // stage from the captures before it: until the first capture downstream of each uncaptured
+    // reader has been judged, and pass k - 2 until pass k.
     for (int i = static_cast<int>(st.size()) - 1; i >= 0; --i)
       for (const std::string& in : stage_inputs(plan, st[i])) {
+        read_[in] = std::max(get(read_, in), i);
         int until = i;
-        if (causes && !captured_.count(st[i].name)) until = std::max(until, need(st[i].name));
-        need_[in] = std::max(need(in), until);
+        if (causes && !captured_.count(st[i].name)) until = std::max(until, get(chain_, st[i].name));
+        chain_[in] = std::max(get(chain_, in), until);
       }
     if (causes)
       for (const StageSpec& s : st)
         if (s.kind == StageKind::blur && s.pass >= 3) {
-          const std::string back = s.pass == 3 ? "blur.1" : "blur." + std::to_string(s.pass - 2);
-          need_[back] = std::max(need(back), index_[s.name]);
+          const std::string back = "blur." + std::to_string(s.pass - 2);
+          chain_[back] = std::max(get(chain_, back), index_[s.name]);
         }
   }
-  int need(const std::string& n) const {
-    const auto it = need_.find(n);
-    return it == need_.end() ? -1 : it->second;
-  }
   bool captured(const std::string& n) const { return captured_.count(n) > 0; }
-  /// Releases every image no stage after `done` (an index into the plan) needs.
+  /// Releases every image of the isolated chain no stage after `done` (an index into the plan)
+  /// needs.
   template <class... Maps>
-  void release(int done, Maps&... maps) {
-    (release_in(done, maps), ...);
+  void release_chain(int done, Maps&... maps) {
+    (release_in(chain_, done, maps), ...);
+  }
+  /// The same for the oracle's full run and its bounds, which only the stages that read them
+  /// need.
+  template <class... Maps>
+  void release_read(int done, Maps&... maps) {
+    (release_in(read_, done, maps), ...);
   }
 
  private:
-  template <class Map>
-  void release_in(int done, Map& m) {
-    for (auto it = m.begin(); it != m.end();)
-      it = need(it->first) <= done ? m.erase(it) : std::next(it);
+  static int get(const std::map<std::string, int>& m, const std::string& n) {
+    const auto it = m.find(n);
+    return it == m.end() ? -1 : it->second;
   }
-  std::map<std::string, int> index_, need_;
+  template <class Map>
+  static void release_in(const std::map<std::string, int>& need, int done, Map& m) {
+    for (auto it = m.begin(); it != m.end();)
+      it = get(need, it->first) <= done ? m.erase(it) : std::next(it);
+  }
+  std::map<std::string, int> index_, read_, chain_;
   std::map<std::string, bool> captured_;
 };
 
@@ -407,7 +416,17 @@ ParityResult compare_core(const Plan& plan, ConstImageView scene,
         codes_e2e = capture_codes(cs_bits, oracle_e2e);
         e2e_oracle = &oracle_e2e;
       }
-      Image e_judged = e;
+      // The end-to-end bound as judged (plus the capture's codes, the override): in place when
+      // no later stage reads it, else a copy.
+      const bool e_read_later = std::any_of(plan.stages.begin() + index + 1, plan.stages.end(),
+                                            [&](const StageSpec& later) {
+                                              const auto li = stage_inputs(plan, later);
+                                              return std::find(li.begin(), li.end(), name) != li.end();
+                                            });
+      const bool e_changes = !codes_e2e.empty() || (over && (over->scale != 1.0 || over->absolute != 0.0));
+      Image e_copy;
+      if (e_changes && e_read_later) e_copy = e;
+      Image& e_judged = e_changes && e_read_later ? e_copy : e;
       if (!codes_e2e.empty()) add_into(e_judged, codes_e2e);
       overridden(bound);
       overridden(e_judged);
@@ -462,7 +481,8 @@ ParityResult compare_core(const Plan& plan, ConstImageView scene,
       carried[name] = std::move(bound);
     }
     e2e[name] = std::move(e);
-    streams.release(static_cast<int>(index), captures, computed, carried, full, e2e);
+    streams.release_chain(static_cast<int>(index), captures, computed, carried);
+    streams.release_read(static_cast<int>(index), full, e2e);
   }
   if (oracle_ms) *oracle_ms = oracle_time;
 
