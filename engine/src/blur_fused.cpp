@@ -227,319 +227,447 @@ void row_runs(const detail::RowTaps& rt, int x0, int x1, int cin, int w, Runs& s
   if (done < x1) gaps.push_back({done, x1});
 }
 
+// The kernels a run calls, for one instruction set.
+struct FusedKernels {
+  detail::TileKernel tile;
+  // The exact horizontal passes into rings along their rows (blur_rows_exact_avx512 and, for
+  // their inexact rows, blur_row_inexact_avx512), from a ring or the RGBA source, where the CPU
+  // has AVX-512F; the tile kernel does the image's edges and the rest, and everything elsewhere.
+  // With AVX2 only the inexact rows between rings go along their rows (blur_row_inexact_avx2).
+  detail::RowKernels rows;
+  detail::InexactKernels inexact;
+  // The approximate blur (blur_pass_approx's stencil) in the same strips and rings.
+  bool approx;
+  void (*approx_rows)(const detail::ApproxRowsJob&, int, int);
+  const std::vector<float>* approx_weights;
+  int approx_reach;  // make_pass: texels +- approx_reach of each tap, 0 for the exact blur
+};
+
+FusedKernels fused_kernels(BlurIsa isa, BlurImpl impl) {
+  FusedKernels k;
+  k.tile = detail::tile_kernel_for(isa);
+  k.rows = detail::row_kernels_for(isa);
+  k.inexact = detail::inexact_kernels_for(isa);
+  k.approx = impl == BlurImpl::approx;
+  k.approx_rows = detail::approx_kernels_for(isa).rows;
+  k.approx_weights = &detail::approx_weights();
+  k.approx_reach = k.approx ? static_cast<int>(k.approx_weights->size()) - 1 : 0;
+  return k;
+}
+
+// The column strips of a run and the order they are taken in.
+struct Strips {
+  int count = 0, width = 0;
+  std::vector<Columns> columns;  // what each pass computes for strip si (strip_columns)
+  std::vector<int> order;        // the most expensive first (strip_cost)
+  int x0(int si) const { return si * width; }
+  int x1(int si, int w) const { return std::min(w, (si + 1) * width); }
+};
+
+// Strips of equal width, a whole number per thread (3840 columns on two threads: 8 strips of
+// 480, not 7 of 512 and one of 256, which left one thread half a strip of work more), at most
+// kStripWidth wide, and at least kMinStripWidth where the image allows (narrower strips
+// recompute more columns beside them, but a 256-texel-wide image on one thread would leave the
+// other idle).
+Strips make_strips(const std::vector<Pass>& passes, int w, int nthreads, int approx_reach) {
+  Strips s;
+  int nstrips = (w + kStripWidth - 1) / kStripWidth;
+  nstrips = (nstrips + nthreads - 1) / nthreads * nthreads;
+  nstrips = std::max(1, std::min(nstrips, w / kMinStripWidth));
+  s.width = (w + nstrips - 1) / nstrips;
+  s.count = (w + s.width - 1) / s.width;
+  s.columns.resize(s.count);
+  std::vector<std::int64_t> cost(s.count);
+  for (int si = 0; si < s.count; ++si) {
+    s.columns[si] = strip_columns(passes, s.x0(si), s.x1(si, w), w, approx_reach);
+    cost[si] = strip_cost(passes, s.columns[si]);
+  }
+  s.order.resize(s.count);
+  std::iota(s.order.begin(), s.order.end(), 0);
+  std::stable_sort(s.order.begin(), s.order.end(), [&](int a, int b) { return cost[a] > cost[b]; });
+  return s;
+}
+
+// blur_bright_fused: the bright values of the columns beside each strip that its bright pass
+// reads, taken before any sink writes the scene: strip si's left ones, then its right ones, row
+// by row.
+struct Beside {
+  std::vector<PixelBuffer<float>> values;
+  std::vector<int> width;
+};
+
+Beside bright_beside(BasicView<const float> scene, const Strips& strips, float threshold,
+                     int threads) {
+  const int w = scene.width, h = scene.height;
+  Beside b{std::vector<PixelBuffer<float>>(strips.count), std::vector<int>(strips.count)};
+  parallel_rows(strips.count, threads, [&](int s0, int s1) {
+    for (int si = s0; si < s1; ++si) {
+      const Columns& c = strips.columns[si];
+      const int sx0 = strips.x0(si), sx1 = strips.x1(si, w);
+      const int left = sx0 - c.x0[0], right = c.x1[0] - sx1;
+      const int bw = left + right;
+      b.width[si] = bw;
+      if (bw == 0) continue;
+      b.values[si] = PixelBuffer<float>(std::size_t(h) * bw * kRingChannels);
+      for (int y = 0; y < h; ++y) {
+        float* d = b.values[si].data() + std::size_t(y) * bw * kRingChannels;
+        detail::bright_rgb_row(scene.row(y) + std::size_t(c.x0[0]) * kChannels, d, left, threshold);
+        detail::bright_rgb_row(scene.row(y) + std::size_t(sx1) * kChannels,
+                               d + std::size_t(left) * kRingChannels, right, threshold);
+      }
+    }
+  });
+  return b;
+}
+
+// What every strip of one run shares. With `threshold`, src is the scene and pass 0 is stage
+// bright of it (blur_bright_fused); with `sink`, the last pass's rows go to it, not to dst.
+struct FusedRun {
+  BasicView<const float> src;
+  const FusedBlurSink* sink;
+  std::optional<float> threshold;
+  int w, h;
+  int n;  // passes, the bright one included
+  FusedKernels kernels;
+  std::vector<Pass> passes;
+  std::vector<int> ring;  // ring_rows
+  const std::vector<float>* weights;
+  std::vector<const float*> src_rows;
+  std::vector<float*> dst_rows;  // without a sink
+  int tiles_h;                   // horizontal tiles per row block
+  int chunks;                    // row blocks of kChunk
+  bool stream_out;               // TileJob::stream_dst for the last pass
+  Strips strips;
+  Beside beside;  // blur_bright_fused
+
+  bool bright() const { return threshold.has_value(); }
+};
+
+// One worker's strips, taken one by one: pass by pass, chunk by chunk, each pass asking the one
+// before it for the rows it reads.
+class StripWorker {
+ public:
+  explicit StripWorker(const FusedRun& run) : r_(run), rings_(run.n) {}
+
+  void run_strip(int si) {
+    si_ = si;
+    sx0_ = r_.strips.x0(si);
+    sx1_ = r_.strips.x1(si, r_.w);
+    strip_ = &r_.strips.columns[si];
+    out_rows_.assign(r_.n, {});
+    bind_rings();
+    if (r_.sink) bind_block();
+    produced_.assign(r_.n, 0);
+    // The approximate kernel's row before it is converted (ApproxRowsJob::scratch): pass 0
+    // computes the most columns.
+    approx_scratch_ = PixelBuffer<float>(
+        r_.kernels.approx ? std::size_t(strip_->x1[0] - strip_->x0[0]) * kChannels : 0);
+    ensure(r_.n - 1, r_.h);
+    // The strip's block and scratch go with it; the rings stay.
+    block_ = PixelBuffer<float>();
+    approx_scratch_ = PixelBuffer<float>();
+  }
+
+ private:
+  // One pass's rows [r0, r1) over columns [x0, x1), from `in` (cin floats a texel) into `out`.
+  struct Chunk {
+    int k, r0, r1, x0, x1, cin, cout;
+    const float* const* in;
+    float* const* out;
+  };
+
+  // Pass k's output rows for the intermediate passes: a ring (row r in slot r mod ring[k],
+  // columns x0[k] ... x1[k] - 1). A worker's rings are kept from strip to strip (grown where a
+  // strip needs more): made anew for every strip, ~9 x 0.4 MB were freed to the system and
+  // faulted in again each time (ten fused passes at 1920x1080, 20 runs: 26281 -> 19988 page
+  // faults on one thread).
+  void bind_rings() {
+    for (int k = 0; k + 1 < r_.n; ++k) {
+      // Rows whole 64-byte cache lines apart: the vertical passes' loads of a row start on one
+      // and never straddle two (ten fused one-thread vertical passes at 3840x2160, 8-bit
+      // weights: 103.8 -> 90.1 ms). The exact passes' rings start at a column that is a
+      // multiple of 16, so that float 0 of a row (3 floats a texel) starts a line: the row
+      // kernel's vectors are whole lines. The approximate passes' rings all start at pass 0's
+      // first column (the widest), so that a column sits at the same place in every ring's
+      // 64-byte lines: a vertical pass then reads and writes whole lines
+      // (ApproxRowsJob::whole_lines).
+      const bool approx = r_.kernels.approx;
+      const int first = approx ? strip_->x0[0] : strip_->x0[k] / 16 * 16;
+      const int last = approx ? strip_->x1[0] : strip_->x1[k];
+      const std::size_t row_floats =
+          detail::round_up(std::size_t(last - first) * kRingChannels, kRowAlign);
+      const std::size_t floats =
+          kRingFront + std::size_t(r_.ring[k]) * row_floats + std::max(kRingPad, kRingBack);
+      if (rings_[k].size() < floats) rings_[k] = PixelBuffer<float>(floats);
+      out_rows_[k].resize(r_.h);
+      for (int r = 0; r < r_.h; ++r)
+        out_rows_[k][r] =
+            shifted(rings_[k].data() + kRingFront + (r % r_.ring[k]) * row_floats, first);
+    }
+  }
+
+  // With a sink, the last pass's rows: a block of kChunk rows of the strip (RGBA), row r in
+  // slot r mod kChunk (the last pass computes whole blocks from a multiple of kChunk).
+  void bind_block() {
+    const std::size_t row_floats = std::size_t(sx1_ - sx0_) * kChannels;
+    block_ = PixelBuffer<float>(std::size_t(kChunk) * row_floats + kRingPad);
+    block_rows_.assign(r_.h, nullptr);
+    for (int r = 0; r < r_.h; ++r)
+      block_rows_[r] = shifted(block_.data() + (r % kChunk) * row_floats, sx0_, kChannels);
+    handed_.assign(kChunk, nullptr);
+    for (int i = 0; i < kChunk; ++i) handed_[i] = block_.data() + i * row_floats;
+  }
+
+  // Pass k computes its rows up to `upto`, asking pass k - 1 for what each chunk reads.
+  void ensure(int k, int upto) {
+    while (produced_[k] < upto) {
+      const int r0 = produced_[k], r1 = std::min(r0 + kChunk, r_.h);
+      if (k > 0) ensure(k - 1, input_rows(r_.passes[k], r0, r1).hi);
+      compute_chunk(k, r0, r1);
+      if (r_.sink && k + 1 == r_.n) (*r_.sink)(sx0_, sx1_, r0, r1, handed_.data());
+      produced_[k] = r1;
+    }
+  }
+
+  // Rows [r0, r1) of pass k over the strip's columns for that pass.
+  void compute_chunk(int k, int r0, int r1) {
+    if (r_.bright() && k == 0) return bright_chunk(r0, r1);
+    const bool reads_src = k == 0 && !r_.bright();
+    Chunk c;
+    c.k = k;
+    c.r0 = r0;
+    c.r1 = r1;
+    c.x0 = strip_->x0[k];
+    c.x1 = strip_->x1[k];
+    c.in = reads_src ? r_.src_rows.data() : out_rows_[k - 1].data();
+    c.out = k + 1 < r_.n ? out_rows_[k].data() : r_.sink ? block_rows_.data() : r_.dst_rows.data();
+    c.cin = reads_src ? kChannels : kRingChannels;
+    c.cout = k + 1 == r_.n ? kChannels : kRingChannels;
+    const detail::PassTables& t = *r_.passes[k].t;
+    if (r_.kernels.approx) return approx_chunk(t, c);
+    if (t.horizontal) return horizontal_chunk(t, c);
+    vertical_chunk(t, c);
+  }
+
+  // Stage bright of rows [r0, r1): the strip's own columns from the scene (its sink writes them
+  // only after this pass has read them: a block of the last pass is computed from rows of this
+  // one at and below it), the others from `beside`.
+  void bright_chunk(int r0, int r1) {
+    const int x0 = strip_->x0[0], left = sx0_ - x0, bw = r_.beside.width[si_];
+    for (int r = r0; r < r1; ++r) {
+      float* d = out_rows_[0][r] + std::size_t(x0) * kRingChannels;  // column x0
+      const float* b = r_.beside.values[si_].data() + std::size_t(r) * bw * kRingChannels;
+      std::copy(b, b + std::size_t(left) * kRingChannels, d);
+      detail::bright_rgb_row(r_.src.row(r) + std::size_t(sx0_) * kChannels,
+                             d + std::size_t(left) * kRingChannels, sx1_ - sx0_, *r_.threshold);
+      std::copy(b + std::size_t(left) * kRingChannels, b + std::size_t(bw) * kRingChannels,
+                d + std::size_t(left + sx1_ - sx0_) * kRingChannels);
+    }
+  }
+
+  void approx_chunk(const detail::PassTables& t, const Chunk& c) {
+    detail::ApproxRowsJob job;
+    job.src_rows = c.in;
+    job.dst_rows = c.out;
+    job.src_channels = c.cin;
+    job.dst_channels = c.cout;
+    job.horizontal = t.horizontal;
+    job.width = r_.w;
+    job.height = r_.h;
+    job.x0 = c.x0;
+    job.x1 = c.x1;
+    job.weights = r_.kernels.approx_weights->data();
+    job.n_weights = static_cast<int>(r_.kernels.approx_weights->size());
+    job.scratch = approx_scratch_.data();
+    job.whole_lines = c.k > 0 && c.k + 1 < r_.n;  // ring to ring
+    job.stream_dst = c.k + 1 == r_.n && r_.stream_out;
+    r_.kernels.approx_rows(job, c.r0, c.r1);
+  }
+
+  detail::TileJob tile_job(const detail::PassTables& t, const Chunk& c) const {
+    detail::TileJob job;
+    job.src_channels = c.cin;
+    job.dst_channels = c.cout;
+    job.stream_dst = c.k + 1 == r_.n && !t.horizontal && r_.stream_out;
+    job.src_rows = c.in;
+    job.dst_rows = c.out;
+    job.horizontal = t.horizontal;
+    detail::set_tables(job, t);
+    job.weights = r_.weights->data();
+    job.width = r_.w;
+    return job;
+  }
+
+  // Along = rows, block r0 / kChunk; across = columns [x0, x1).
+  void vertical_chunk(const detail::PassTables& t, const Chunk& c) {
+    detail::TileJob job = tile_job(t, c);
+    job.n_along = r_.h;
+    job.n_across = r_.w;
+    job.tile_along = kChunk;
+    job.tile_across = kTileAcrossV;
+    job.tiles_along = r_.chunks;
+    job.across_lo = c.x0;
+    job.across_hi = c.x1;
+    for (int col = c.x0 / kTileAcrossV; col * kTileAcrossV < c.x1; ++col) {
+      const int tile = col * r_.chunks + c.r0 / kChunk;
+      r_.kernels.tile(job, tile, tile + 1);
+    }
+    detail::blur_inexact_lines(t, c.in, c.out, *r_.weights, c.r0, c.r1, c.x0, c.x1, nullptr, r_.w,
+                               false, c.cin, c.cout, r_.kernels.inexact);
+  }
+
+  // Along = columns [x0, x1); across = rows, this chunk is across-block r0 / kChunk.
+  void horizontal_chunk(const detail::PassTables& t, const Chunk& c) {
+    detail::TileJob job = tile_job(t, c);
+    job.n_along = r_.w;
+    job.n_across = r_.h;
+    job.tile_along = kTileAlongH;
+    job.tile_across = kChunk;
+    job.tiles_along = r_.tiles_h;
+    job.along_lo = c.x0;
+    job.along_hi = c.x1;
+    const detail::RowKernels& rk = r_.kernels.rows;
+    if (t.row_taps && c.cout == 3 && (rk.exact || (rk.inexact && c.cin == 3)))
+      return horizontal_rows(t, c, job);
+    tiles(job, c, c.x0, c.x1);
+    detail::blur_inexact_lines(t, c.in, c.out, *r_.weights, c.x0, c.x1, c.r0, c.r1, nullptr, r_.w,
+                               false, c.cin, c.cout, r_.kernels.inexact);
+  }
+
+  // The tile kernel over columns [a0, a1) of the chunk's row block.
+  void tiles(detail::TileJob& job, const Chunk& c, int a0, int a1) const {
+    if (a0 >= a1) return;
+    const int t0 = (c.r0 / kChunk) * r_.tiles_h;
+    job.along_lo = a0;
+    job.along_hi = a1;
+    r_.kernels.tile(job, t0 + a0 / kTileAlongH, t0 + (a1 + kTileAlongH - 1) / kTileAlongH);
+  }
+
+  // A row kernel's job over the runs of ok vectors (row_runs): what both kernels share set once.
+  template <class Job, class RowKernel>
+  void along_rows(Job& job, const Chunk& c, const detail::RowTaps& rt, RowKernel&& kernel) const {
+    job.src_channels = c.cin;
+    job.taps = &rt;
+    job.weights = r_.weights->data();
+    job.f0 = 3 * c.x0;
+    job.f1 = 3 * c.x1;
+    for (const auto& [v, e] : segments_) {
+      job.v0 = v;
+      job.v1 = e;
+      kernel(job);
+    }
+  }
+
+  // Along the rows where the row kernel's vectors fit (every one that holds a float of the
+  // strip's columns [x0, x1) and is ok: away from the image's edges), storing only the floats of
+  // those columns; the tile kernel elsewhere, after it (its whole texels over the vectors' part
+  // texels). A stored lane reads only the input columns the pass needs (strip_columns); the
+  // others read whatever lies beside them, inside the ring's row or its neighbours' or the pads
+  // around the ring (kRingFront, kRingBack). The first pass reads the source's RGBA rows, all of
+  // whose columns it may read, as far as the kernel's packing loads stay inside them
+  // (RowsExactJob).
+  void horizontal_rows(const detail::PassTables& t, const Chunk& c, detail::TileJob& job) {
+    const detail::RowTaps& rt = *t.row_taps;
+    const detail::RowKernels& rk = r_.kernels.rows;
+    row_runs(rt, c.x0, c.x1, c.cin, r_.w, segments_, gaps_);
+    if (rk.exact) {
+      detail::RowsExactJob rj;
+      rj.src_rows = c.in;
+      rj.dst_rows = c.out;
+      along_rows(rj, c, rt, [&](const detail::RowsExactJob& j) { rk.exact(j, c.r0, c.r1); });
+      for (const auto& [a0, a1] : gaps_) tiles(job, c, a0, a1);
+    } else {
+      tiles(job, c, c.x0, c.x1);  // AVX2: only the inexact rows go along their rows
+    }
+    inexact_rows(t, c);
+  }
+
+  // The inexact rows (the kernels above computed them as if exact; leaving them out of those
+  // calls gained nothing measurable) along their rows too (blur_row_inexact_avx512 or _avx2),
+  // where every 2-D weight is nonzero as its terms assume (weights are >= 0: the least across
+  // weight times the least along one), their gaps then per texel; the others all per texel.
+  void inexact_rows(const detail::PassTables& t, const Chunk& c) {
+    const detail::RowTaps& rt = *t.row_taps;
+    const auto first = std::lower_bound(t.inexact.begin(), t.inexact.end(), c.r0);
+    for (auto it = first; it != t.inexact.end() && *it < c.r1; ++it) {
+      const int b = *it;
+      const AxisTap<float>& o = t.across[b];
+      if (std::min(o.w0, o.w1) * rt.min_weight == 0.0f) {
+        detail::blur_inexact_lines(t, c.in, c.out, *r_.weights, c.x0, c.x1, b, b + 1, nullptr, r_.w,
+                                   false, c.cin, c.cout, r_.kernels.inexact);
+        continue;
+      }
+      detail::RowInexactJob ij;
+      ij.a = c.in[o.i0];
+      ij.b = c.in[o.i1];
+      ij.dst = c.out[b];
+      ij.wa = o.w0;
+      ij.wb = o.w1;
+      along_rows(ij, c, rt, r_.kernels.rows.inexact);
+      for (const auto& [a0, a1] : gaps_)
+        detail::blur_inexact_lines(t, c.in, c.out, *r_.weights, a0, a1, b, b + 1, nullptr, r_.w,
+                                   false, c.cin, c.cout, r_.kernels.inexact);
+    }
+  }
+
+  const FusedRun& r_;
+  std::vector<PixelBuffer<float>> rings_;  // kept from strip to strip
+  // The strip being computed.
+  int si_ = 0, sx0_ = 0, sx1_ = 0;
+  const Columns* strip_ = nullptr;
+  std::vector<std::vector<float*>> out_rows_;
+  PixelBuffer<float> block_;
+  std::vector<float*> block_rows_;
+  std::vector<const float*> handed_;
+  std::vector<int> produced_;
+  Runs segments_, gaps_;  // the row kernels', per chunk (row_runs)
+  PixelBuffer<float> approx_scratch_;
+};
+
 // The entry points: the last pass writes into dst, or (sink given) into a block of kChunk rows
 // of the strip handed to the sink as each is done; with `threshold`, src is the scene and pass 0
 // is stage bright of it (blur_bright_fused).
 void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink* sink,
            const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits, int threads,
            BlurIsa isa, BlurImpl impl, std::optional<float> threshold = std::nullopt) {
-  const int w = src.width, h = src.height;
-  const bool bright = threshold.has_value();
-  const int n = static_cast<int>(axes.size()) + (bright ? 1 : 0);
+  FusedRun r;
+  r.src = src;
+  r.sink = sink;
+  r.threshold = threshold;
+  r.w = src.width;
+  r.h = src.height;
+  r.n = static_cast<int>(axes.size()) + (r.bright() ? 1 : 0);
   if (axes.empty()) throw ParamError("blur_passes_fused: no passes");
-  if (!sink && (dst.width != w || dst.height != h))
+  if (!sink && (dst.width != r.w || dst.height != r.h))
     throw ParamError("blur_passes_fused: source and destination sizes differ");
-  const detail::TileKernel tile_kernel = detail::tile_kernel_for(isa);
-  // The exact horizontal passes into rings along their rows (blur_rows_exact_avx512 and, for
-  // their inexact rows, blur_row_inexact_avx512), from a ring or the RGBA source, where the CPU
-  // has AVX-512F; the tile kernel does the image's edges and the rest, and everything elsewhere.
-  // With AVX2 only the inexact rows between rings go along their rows (blur_row_inexact_avx2).
-  const detail::RowKernels row_kernels = detail::row_kernels_for(isa);
-  const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
-  // The approximate blur (blur_pass_approx's stencil) in the same strips and rings.
-  const bool approx = impl == BlurImpl::approx;
-  const auto approx_kernel = detail::approx_kernels_for(isa).rows;
-  const std::vector<float>& approx_weights = detail::approx_weights();
-  const int approx_reach = approx ? static_cast<int>(approx_weights.size()) - 1 : 0;
-  if (w == 0 || h == 0) return;  // nothing to write (and no strip width to divide by)
-  std::vector<Pass> passes;
-  passes.reserve(n);
-  if (bright) passes.push_back(bright_pass(h));
-  for (Axis a : axes) passes.push_back(make_pass(a, w, h, kernel, subtexel_bits, approx_reach));
-  const std::vector<int> ring = ring_rows(passes, h);
-  const std::vector<float>& weights = kernel.weights_f32;
-
-  std::vector<const float*> src_rows(h);
-  std::vector<float*> dst_rows(sink ? 0 : h);
+  r.kernels = fused_kernels(isa, impl);
+  if (r.w == 0 || r.h == 0) return;  // nothing to write (and no strip width to divide by)
+  const int w = r.w, h = r.h;
+  r.passes.reserve(r.n);
+  if (r.bright()) r.passes.push_back(bright_pass(h));
+  for (Axis a : axes)
+    r.passes.push_back(make_pass(a, w, h, kernel, subtexel_bits, r.kernels.approx_reach));
+  r.ring = ring_rows(r.passes, h);
+  r.weights = &kernel.weights_f32;
+  r.src_rows.resize(h);
+  r.dst_rows.resize(sink ? 0 : h);
   for (int y = 0; y < h; ++y) {
-    src_rows[y] = src.row(y);
-    if (!sink) dst_rows[y] = dst.row(y);
+    r.src_rows[y] = src.row(y);
+    if (!sink) r.dst_rows[y] = dst.row(y);
   }
-  const int tiles_h = (w + kTileAlongH - 1) / kTileAlongH;  // horizontal tiles per row block
+  r.tiles_h = (w + kTileAlongH - 1) / kTileAlongH;
   // (A sink's block stays in cache for it: never streamed.)
-  const bool stream_out = !sink && std::size_t(w) * std::size_t(h) * kChannels * sizeof(float) >=
-                                       kStreamOutBytes;
-  const int chunks = (h + kChunk - 1) / kChunk;
-
-  // Strips of equal width, a whole number per thread (3840 columns on two threads: 8 strips
-  // of 480, not 7 of 512 and one of 256, which left one thread half a strip of work more), at
-  // most kStripWidth wide, and at least kMinStripWidth where the image allows (narrower strips
-  // recompute more columns beside them, but a 256-texel-wide image on one thread would leave
-  // the other idle).
+  r.stream_out =
+      !sink && std::size_t(w) * std::size_t(h) * kChannels * sizeof(float) >= kStreamOutBytes;
+  r.chunks = (h + kChunk - 1) / kChunk;
   const int nthreads = resolve_threads(threads);
-  int nstrips = (w + kStripWidth - 1) / kStripWidth;
-  nstrips = (nstrips + nthreads - 1) / nthreads * nthreads;
-  nstrips = std::max(1, std::min(nstrips, w / kMinStripWidth));
-  const int strip_width = (w + nstrips - 1) / nstrips;
-  nstrips = (w + strip_width - 1) / strip_width;
-  std::vector<Columns> strips(nstrips);
-  std::vector<std::int64_t> cost(nstrips);
-  for (int si = 0; si < nstrips; ++si) {
-    strips[si] = strip_columns(passes, si * strip_width, std::min(w, (si + 1) * strip_width), w,
-                               approx_reach);
-    cost[si] = strip_cost(passes, strips[si]);
-  }
-  // The bright values of the columns beside each strip that its bright pass reads, taken before
-  // any sink writes the scene: strip si's left ones, then its right ones, row by row.
-  std::vector<PixelBuffer<float>> beside(bright ? nstrips : 0);
-  std::vector<int> beside_width(bright ? nstrips : 0);
-  if (bright) {
-    parallel_rows(nstrips, threads, [&](int s0, int s1) {
-      for (int si = s0; si < s1; ++si) {
-        const int sx0 = si * strip_width, sx1 = std::min(w, sx0 + strip_width);
-        const int left = sx0 - strips[si].x0[0], right = strips[si].x1[0] - sx1;
-        const int bw = left + right;
-        beside_width[si] = bw;
-        if (bw == 0) continue;
-        beside[si] = PixelBuffer<float>(std::size_t(h) * bw * kRingChannels);
-        for (int y = 0; y < h; ++y) {
-          float* d = beside[si].data() + std::size_t(y) * bw * kRingChannels;
-          detail::bright_rgb_row(src.row(y) + std::size_t(strips[si].x0[0]) * kChannels, d, left,
-                                 *threshold);
-          detail::bright_rgb_row(src.row(y) + std::size_t(sx1) * kChannels,
-                                 d + std::size_t(left) * kRingChannels, right, *threshold);
-        }
-      }
-    });
-  }
-  std::vector<int> order(nstrips);
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return cost[a] > cost[b]; });
+  r.strips = make_strips(r.passes, w, nthreads, r.kernels.approx_reach);
+  if (r.bright()) r.beside = bright_beside(src, r.strips, *threshold, threads);
   std::atomic<int> next{0};
-  parallel_rows(std::min(nthreads, nstrips), threads, [&](int, int) {
-    // A worker's rings, kept from strip to strip (grown where a strip needs more): made anew
-    // for every strip, ~9 x 0.4 MB were freed to the system and faulted in again each time
-    // (ten fused passes at 1920x1080, 20 runs: 26281 -> 19988 page faults on one thread, 36497
-    // -> 25691 on two; in-process alternation, per pair 0.996 and 0.978 of the time).
-    std::vector<PixelBuffer<float>> rings(n);
-    for (int taken; (taken = next.fetch_add(1)) < nstrips;) {
-      const int si = order[taken];
-      const int sx0 = si * strip_width, sx1 = std::min(w, sx0 + strip_width);
-      const Columns& strip = strips[si];
-
-      // Pass k's output rows: a ring for the intermediate passes (row r in slot r mod ring[k],
-      // columns x0[k] ... x1[k] - 1), dst for the last.
-      std::vector<std::vector<float*>> out_rows(n);
-      for (int k = 0; k + 1 < n; ++k) {
-        // Rows whole 64-byte cache lines apart: the vertical passes' loads of a row start on
-        // one and never straddle two. Ten fused one-thread vertical passes at 3840x2160, 8-bit
-        // weights (harness, medians of 5 alternated rounds): 103.8 -> 90.1 ms.
-        // The exact passes' rings start at a column that is a multiple of 16, so that float 0
-        // of a row (3 floats a texel) starts a line: the row kernel's vectors are whole lines.
-        // The approximate passes' rings all start at pass 0's first column (the widest), so
-        // that a column sits at the same place in every ring's 64-byte lines: a vertical pass
-        // then reads and writes whole lines (ApproxRowsJob::whole_lines).
-        const int first = approx ? strip.x0[0] : strip.x0[k] / 16 * 16;
-        const int last = approx ? strip.x1[0] : strip.x1[k];
-        const std::size_t row_floats =
-            detail::round_up(std::size_t(last - first) * kRingChannels, kRowAlign);
-        const std::size_t floats =
-            kRingFront + std::size_t(ring[k]) * row_floats + std::max(kRingPad, kRingBack);
-        if (rings[k].size() < floats) rings[k] = PixelBuffer<float>(floats);
-        out_rows[k].resize(h);
-        for (int r = 0; r < h; ++r)
-          out_rows[k][r] =
-              shifted(rings[k].data() + kRingFront + (r % ring[k]) * row_floats, first);
-      }
-      // With a sink, the last pass's rows: a block of kChunk rows of the strip (RGBA), row r
-      // in slot r mod kChunk (the last pass computes whole blocks from a multiple of kChunk).
-      PixelBuffer<float> block;
-      std::vector<float*> block_rows;
-      std::vector<const float*> handed(sink ? kChunk : 0);
-      if (sink) {
-        const std::size_t row_floats = std::size_t(sx1 - sx0) * kChannels;
-        block = PixelBuffer<float>(std::size_t(kChunk) * row_floats + kRingPad);
-        block_rows.resize(h);
-        for (int r = 0; r < h; ++r)
-          block_rows[r] = shifted(block.data() + (r % kChunk) * row_floats, sx0, kChannels);
-        for (int i = 0; i < kChunk; ++i) handed[i] = block.data() + i * row_floats;
-      }
-      std::vector<int> produced(n, 0);
-      Runs segments, gaps;  // the row kernels', per chunk (row_runs)
-      // The approximate kernel's row before it is converted (ApproxRowsJob::scratch): pass 0
-      // computes the most columns.
-      PixelBuffer<float> approx_scratch(
-          approx ? std::size_t(strip.x1[0] - strip.x0[0]) * kChannels : 0);
-
-      auto compute_chunk = [&](int k, int r0, int r1) {
-        const int x0 = strip.x0[k], x1 = strip.x1[k];
-        if (bright && k == 0) {
-          // Stage bright of rows [r0, r1): the strip's own columns from the scene (its sink
-          // writes them only after this pass has read them: a block of the last pass is
-          // computed from rows of this one at and below it), the others from `beside`.
-          const int left = sx0 - x0, bw = beside_width[si];
-          for (int r = r0; r < r1; ++r) {
-            float* d = out_rows[0][r] + std::size_t(x0) * kRingChannels;  // column x0
-            const float* b = beside[si].data() + std::size_t(r) * bw * kRingChannels;
-            std::copy(b, b + std::size_t(left) * kRingChannels, d);
-            detail::bright_rgb_row(src.row(r) + std::size_t(sx0) * kChannels,
-                                   d + std::size_t(left) * kRingChannels, sx1 - sx0, *threshold);
-            std::copy(b + std::size_t(left) * kRingChannels, b + std::size_t(bw) * kRingChannels,
-                      d + std::size_t(left + sx1 - sx0) * kRingChannels);
-          }
-          return;
-        }
-        const detail::PassTables& t = *passes[k].t;
-        const bool reads_src = k == 0 && !bright;
-        const float* const* in = reads_src ? src_rows.data() : out_rows[k - 1].data();
-        float* const* out = k + 1 < n ? out_rows[k].data()
-                            : sink  ? block_rows.data()
-                                    : dst_rows.data();
-        const int cin = reads_src ? kChannels : kRingChannels;
-        const int cout = k + 1 == n ? kChannels : kRingChannels;
-        if (approx) {
-          detail::ApproxRowsJob job;
-          job.src_rows = in;
-          job.dst_rows = out;
-          job.src_channels = cin;
-          job.dst_channels = cout;
-          job.horizontal = t.horizontal;
-          job.width = w;
-          job.height = h;
-          job.x0 = x0;
-          job.x1 = x1;
-          job.weights = approx_weights.data();
-          job.n_weights = static_cast<int>(approx_weights.size());
-          job.scratch = approx_scratch.data();
-          job.whole_lines = k > 0 && k + 1 < n;  // ring to ring
-          job.stream_dst = k + 1 == n && stream_out;
-          approx_kernel(job, r0, r1);
-          return;
-        }
-        detail::TileJob job;
-        job.src_channels = cin;
-        job.dst_channels = cout;
-        job.stream_dst = k + 1 == n && !t.horizontal && stream_out;
-        job.src_rows = in;
-        job.dst_rows = out;
-        job.horizontal = t.horizontal;
-        detail::set_tables(job, t);
-        job.weights = weights.data();
-        job.width = w;
-        if (t.horizontal) {
-          // Along = columns [x0, x1); across = rows, this chunk is across-block r0 / kChunk.
-          job.n_along = w;
-          job.n_across = h;
-          job.tile_along = kTileAlongH;
-          job.tile_across = kChunk;
-          job.tiles_along = tiles_h;
-          job.along_lo = x0;
-          job.along_hi = x1;
-          const int t0 = (r0 / kChunk) * tiles_h;
-          auto tiles = [&](int a0, int a1) {
-            if (a0 >= a1) return;
-            job.along_lo = a0;
-            job.along_hi = a1;
-            tile_kernel(job, t0 + a0 / kTileAlongH, t0 + (a1 + kTileAlongH - 1) / kTileAlongH);
-          };
-          if (t.row_taps && cout == 3 &&
-              (row_kernels.exact || (row_kernels.inexact && cin == 3))) {
-            // Along the rows where the row kernel's vectors fit (every one that holds a float
-            // of the strip's columns [x0, x1) and is ok: away from the image's edges), storing
-            // only the floats of those columns; the tile kernel elsewhere, after it (its whole
-            // texels over the vectors' part texels). A stored lane reads only the input columns
-            // the pass needs (strip_columns); the others read whatever lies beside them, inside
-            // the ring's row or its neighbours' or the pads around the ring (kRingFront,
-            // kRingBack). The first pass reads the source's RGBA rows, all of whose columns it
-            // may read, as far as the kernel's packing loads stay inside them (RowsExactJob).
-            const detail::RowTaps& rt = *t.row_taps;
-            row_runs(rt, x0, x1, cin, w, segments, gaps);
-            // A row kernel's job over the runs of ok vectors: what both kernels share set once.
-            auto along_rows = [&](auto& job, auto&& kernel) {
-              job.src_channels = cin;
-              job.taps = &rt;
-              job.weights = weights.data();
-              job.f0 = 3 * x0;
-              job.f1 = 3 * x1;
-              for (const auto& [v, e] : segments) {
-                job.v0 = v;
-                job.v1 = e;
-                kernel(job);
-              }
-            };
-            if (row_kernels.exact) {
-              detail::RowsExactJob rj;
-              rj.src_rows = in;
-              rj.dst_rows = out;
-              along_rows(rj,
-                         [&](const detail::RowsExactJob& job) { row_kernels.exact(job, r0, r1); });
-              for (const auto& [a0, a1] : gaps) tiles(a0, a1);
-            } else {
-              tiles(x0, x1);  // AVX2: only the inexact rows go along their rows
-            }
-            // The inexact rows (the kernels above computed them as if exact; leaving them out
-            // of those calls, 85 of 2160 rows at 3840x2160, gained nothing measurable: with
-            // them in, 0.995-0.997 of the time, in-process alternation) along their rows too
-            // (blur_row_inexact_avx512 or _avx2), where every 2-D weight is nonzero as its terms
-            // assume (weights are >= 0: the least across weight times the least along one),
-            // their gaps then per texel; the others all per texel. At 3840x2160 the group
-            // kernel made them ~18% of ten fused passes with AVX-512, ~22% with AVX2 (README,
-            // stop 33).
-            const auto first = std::lower_bound(t.inexact.begin(), t.inexact.end(), r0);
-            for (auto it = first; it != t.inexact.end() && *it < r1; ++it) {
-              const int b = *it;
-              const AxisTap<float>& o = t.across[b];
-              if (std::min(o.w0, o.w1) * rt.min_weight == 0.0f) {
-                detail::blur_inexact_lines(t, in, out, weights, x0, x1, b, b + 1, nullptr, w,
-                                           false, cin, cout, inexact_kernels);
-                continue;
-              }
-              detail::RowInexactJob ij;
-              ij.a = in[o.i0];
-              ij.b = in[o.i1];
-              ij.dst = out[b];
-              ij.wa = o.w0;
-              ij.wb = o.w1;
-              along_rows(ij, row_kernels.inexact);
-              for (const auto& [a0, a1] : gaps)
-                detail::blur_inexact_lines(t, in, out, weights, a0, a1, b, b + 1, nullptr, w,
-                                           false, cin, cout, inexact_kernels);
-            }
-            return;
-          }
-          tiles(x0, x1);
-          detail::blur_inexact_lines(t, in, out, weights, x0, x1, r0, r1, nullptr, w, false, cin,
-                                     cout, inexact_kernels);
-        } else {
-          // Along = rows, block r0 / kChunk; across = columns [x0, x1).
-          job.n_along = h;
-          job.n_across = w;
-          job.tile_along = kChunk;
-          job.tile_across = kTileAcrossV;
-          job.tiles_along = chunks;
-          job.across_lo = x0;
-          job.across_hi = x1;
-          for (int c = x0 / kTileAcrossV; c * kTileAcrossV < x1; ++c) {
-            const int tile = c * chunks + r0 / kChunk;
-            tile_kernel(job, tile, tile + 1);
-          }
-          detail::blur_inexact_lines(t, in, out, weights, r0, r1, x0, x1, nullptr, w, false, cin,
-                                     cout, inexact_kernels);
-        }
-      };
-
-      // Pass k computes its rows up to `upto`, asking pass k - 1 for what each chunk reads.
-      std::function<void(int, int)> ensure = [&](int k, int upto) {
-        while (produced[k] < upto) {
-          const int r0 = produced[k], r1 = std::min(r0 + kChunk, h);
-          if (k > 0) ensure(k - 1, input_rows(passes[k], r0, r1).hi);
-          compute_chunk(k, r0, r1);
-          if (sink && k + 1 == n) (*sink)(sx0, sx1, r0, r1, handed.data());
-          produced[k] = r1;
-        }
-      };
-      ensure(n - 1, h);
-    }
+  parallel_rows(std::min(nthreads, r.strips.count), threads, [&](int, int) {
+    StripWorker worker(r);
+    for (int taken; (taken = next.fetch_add(1)) < r.strips.count;)
+      worker.run_strip(r.strips.order[taken]);
   });
 }
 
