@@ -19,10 +19,9 @@ namespace {
 
 // Faults in a buffer about to be written whole, the threads taking equal parts (detail::prefault):
 // the dense plan's bright image and blur target. In parts because first-touch faults are taken
-// by every writing thread, a single call by one (README, stop 17: `bloomref run --size
-// 3840x2160 --plan full`, medians 947 / 898 ms against 1048 / 1069 on one thread, 530 / 548
-// against 585 / 587 on two; one unsplit call made two threads slower). Buffers under 8 MiB are
-// left to fault as they are written.
+// by every writing thread, a single call by one (`bloomref run --size 3840x2160 --plan full` on
+// the 2-core AMD EPYC: median 548 ms split against 587 ms unsplit on two threads; one unsplit
+// call made two threads slower). Buffers under 8 MiB are left to fault as they are written.
 template <class T>
 void prefault_image(BasicImage<T>& img, int threads) {
   const std::size_t bytes = img.values().size() * sizeof(T);
@@ -39,7 +38,7 @@ void prefault_image(BasicImage<T>& img, int threads) {
 // memset of its resident pages or a fault for every page a run touches (about 1.3 us a page on
 // this project's machine); the blur of a sparse support writes only its support (and its
 // tiles), so a kept image is zeroed again over that support alone: StarField.exr, 2 threads,
-// the runs after the first 20.1-22.6 -> 17.0-18.1 ms (README, stop 20). At most kKeep images
+// the runs after the first about 21 -> 17.5 ms on the 2-core AMD EPYC. At most kKeep images
 // are kept (the oldest go first); release_scratch_images() frees them.
 // A kept image is +0 in R, G and B everywhere; its alpha may be 1 where a tile was computed
 // around the support (nothing reads the bright image's or the bloom's alpha).
