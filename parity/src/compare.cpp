@@ -91,8 +91,7 @@ struct GateAllowance {
 // would only see the largest.
 inline void gate_sums(double err, double b, double o, Storage storage, const DeviceProfile& p,
                       GateAllowance a, int x, int y, int c, double& sum, double& count) {
-  double r = storage_term(o, storage, p);
-  if (a.rounding) r += a.rounding->pixel(x, y)[c];
+  const double r = a.rounding ? a.rounding->pixel(x, y)[c] : storage_term(o, storage, p);
   const double excess = std::max(0.0, err - r - (a.slack ? a.slack->pixel(x, y)[c] : 0.0f));
   const double base = b - r;
   if (!(base > 0)) return;
