@@ -251,17 +251,17 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
                    ? std::to_string(s.nonfinite_mismatch) + " values are NaN/Inf on one side only"
                    : std::to_string(warn_tier) + " values exceed " +
                          std::to_string(static_cast<int>(kWarnTier)) +
-                         "x their derived bound (worst " + std::to_string(s.max_ratio) + "x)";
+                         "x their derived bound (worst " + fixed3(s.max_ratio) + "x)";
   } else if (!s.gate.empty()) {
     s.verdict = Verdict::fail;
     s.reason = "image gate: " + s.gate;
   } else if (s.over_bound > 0) {
     s.verdict = Verdict::warn;
     s.reason = std::to_string(s.over_bound) + " values exceed their derived bound, by at most " +
-               std::to_string(s.max_ratio) + "x (within the 4x quality tier)";
+               fixed3(s.max_ratio) + "x (within the 4x quality tier)";
   } else {
     s.reason = "every value within its bound (largest error / bound " +
-               std::to_string(s.max_ratio) + ")";
+               fixed3(s.max_ratio) + ")";
   }
   if (opt.keep_images && !(opt.keep_failing_only && s.verdict == Verdict::pass)) {
     s.oracle = Image(gl.width, gl.height);
