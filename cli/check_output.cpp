@@ -222,16 +222,19 @@ std::string junit_xml(const CheckRun& run) {
       } else if (o.status == "expected-fail") {
         out += "\n      <skipped message=\"" + xml("expected failure: " + o.expectation->reason +
                                                     " (" + line + ")") + "\"/>";
-      } else if (o.status == "warn" || o.status == "fixed") {
-        out += "\n      <system-out>" +
-               xml(o.status == "fixed" ? "a known deviation (" + o.expectation->reason +
-                                             ") now passes: remove the expectation"
-                                       : line) +
-               "</system-out>";
       }
-      if (s.verdict != parity::Verdict::pass && !s.oracle.empty())
-        out += "\n      <system-out>[[ATTACHMENT|" + xml(r.id + "/" + s.stage + ".ratio.png") +
-               "]]</system-out>";
+      // One <system-out> per testcase: a WARN's or a fixed deviation's note, then one
+      // attachment line per image of a failing stage (the Jenkins JUnit attachments convention).
+      std::string system_out;
+      if (o.status == "warn") system_out = line + "\n";
+      if (o.status == "fixed")
+        system_out = "a known deviation (" + o.expectation->reason +
+                     ") now passes: remove the expectation\n";
+      if (s.verdict != parity::Verdict::pass && !s.oracle.empty() && !run.report_dir.empty())
+        for (const char* image : {".ratio.png", ".diff.png", ".mask.png"})
+          system_out += "[[ATTACHMENT|" +
+                        (fs::path(run.report_dir) / r.id / (s.stage + image)).string() + "]]\n";
+      if (!system_out.empty()) out += "\n      <system-out>" + xml(system_out) + "</system-out>";
       out += "</testcase>\n";
     }
     out += "  </testsuite>\n";

@@ -63,6 +63,7 @@ struct CheckRun {
   std::string verdict;  ///< PASS, WARN, FAIL, or NOTHING (nothing compared)
   int exit_code = 0;
   std::optional<std::string> expectations_file;
+  std::string report_dir;  ///< --report, where the failing stages' images are
 };
 
 /// The best-supported cause of a stage's failure, in one line ("" when none was found).

@@ -206,6 +206,7 @@ int check_cmd(CheckArgs& a) {
   run.warn_as_error = a.warn_as_error;
   run.device = a.device;
   run.profile = profile;
+  run.report_dir = a.report_dir;
   std::vector<CheckItem> items;
   if (!a.manifest.empty()) {
     const Manifest m = read_manifest(a.manifest, *a.sub, a.pipeline);

@@ -36,6 +36,7 @@ struct ExtraTerms : StageBounds {
   ExtraTerms(const StageBounds& b, std::vector<std::pair<std::string, const Image*>> e)
       : inner(b), extra(std::move(e)) {}
   void fill(Image& bound) const override { inner.fill(bound); }
+  void fill_rounding(Image& r) const override { inner.fill_rounding(r); }
   std::vector<Term> terms(int x, int y, int c) const override {
     std::vector<Term> t = inner.terms(x, y, c);
     for (const auto& [name, img] : extra)
@@ -441,8 +442,15 @@ ParityResult compare_core(const Plan& plan, ConstImageView scene,
                                    std::to_string(cs.image.height) + ", the stage is " +
                                    std::to_string(oracle.width()) + "x" +
                                    std::to_string(oracle.height()));
+      // The gates measure the error beyond rounding: the stage's own (its storage and
+      // arithmetic terms, scaled as an override scales the bound) and the capture's codes.
+      Image own_rounding(oracle.width(), oracle.height(), 0.0f);
+      b->fill_rounding(own_rounding);
+      if (over && over->scale != 1.0)
+        for (float& v : own_rounding.values()) v = static_cast<float>(v * over->scale);
+      if (!codes.empty()) add_into(own_rounding, codes);
       StageComparison iso = judge(name, cs.image, oracle.cview(), bound, terms, p.storage,
-                                  profile, opt, threads, &gates, codes.empty() ? nullptr : &codes,
+                                  profile, opt, threads, &gates, &own_rounding,
                                   p.storage == Storage::f16 && !inherited.empty() ? &inherited
                                                                                   : nullptr);
       if (opt.causes && iso.verdict != Verdict::pass) {

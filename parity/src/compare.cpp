@@ -91,8 +91,7 @@ struct GateAllowance {
 // would only see the largest.
 inline void gate_sums(double err, double b, double o, Storage storage, const DeviceProfile& p,
                       GateAllowance a, int x, int y, int c, double& sum, double& count) {
-  double r = storage_term(o, storage, p);
-  if (a.rounding) r += a.rounding->pixel(x, y)[c];
+  const double r = a.rounding ? a.rounding->pixel(x, y)[c] : storage_term(o, storage, p);
   const double excess = std::max(0.0, err - r - (a.slack ? a.slack->pixel(x, y)[c] : 0.0f));
   const double base = b - r;
   if (!(base > 0)) return;
@@ -252,17 +251,17 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
                    ? std::to_string(s.nonfinite_mismatch) + " values are NaN/Inf on one side only"
                    : std::to_string(warn_tier) + " values exceed " +
                          std::to_string(static_cast<int>(kWarnTier)) +
-                         "x their derived bound (worst " + std::to_string(s.max_ratio) + "x)";
+                         "x their derived bound (worst " + fixed3(s.max_ratio) + "x)";
   } else if (!s.gate.empty()) {
     s.verdict = Verdict::fail;
     s.reason = "image gate: " + s.gate;
   } else if (s.over_bound > 0) {
     s.verdict = Verdict::warn;
     s.reason = std::to_string(s.over_bound) + " values exceed their derived bound, by at most " +
-               std::to_string(s.max_ratio) + "x (within the 4x quality tier)";
+               fixed3(s.max_ratio) + "x (within the 4x quality tier)";
   } else {
     s.reason = "every value within its bound (largest error / bound " +
-               std::to_string(s.max_ratio) + ")";
+               fixed3(s.max_ratio) + ")";
   }
   if (opt.keep_images && !(opt.keep_failing_only && s.verdict == Verdict::pass)) {
     s.oracle = Image(gl.width, gl.height);

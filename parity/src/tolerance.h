@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "bloomref/kernel.h"
@@ -28,8 +29,21 @@ struct StageBounds {
   /// Fills `bound` with the isolated bound of each value; `terms` (optional) for one value.
   virtual void fill(Image& bound) const = 0;
   virtual std::vector<Term> terms(int x, int y, int c) const = 0;
+  /// Fills `rounding` with the part of each value's bound that rounding makes (storage, the
+  /// arithmetic's ULPs): the rest is what sampling may change (coordinates, a threshold's
+  /// band, Karis weights). The image gates measure errors beyond the rounding.
+  virtual void fill_rounding(Image& rounding) const = 0;
   virtual ~StageBounds() = default;
 };
+
+/// Whether a term named `name` is rounding (StageBounds::fill_rounding), by the names the
+/// bounds give their terms: the sampling terms are the coordinates', the threshold's and the
+/// Karis weights'.
+inline bool rounding_term(const char* name) {
+  const std::string n(name);
+  return n.find("coordinate") == std::string::npos && n.find("threshold") == std::string::npos &&
+         n.find("Karis") == std::string::npos;
+}
 
 /// Sub-texel coordinate error of a lookup on an axis of n texels, in texels: the shader's
 /// s = (x + 0.5) / n and d = 1 / n (division_ulps each), d * o and s +- d o (one rounding each),
@@ -74,6 +88,17 @@ struct TermBounds : StageBounds {
     std::vector<Term> out;
     for (std::size_t i = 0; i < names.size(); ++i) out.push_back({names[i], v[i]});
     return out;
+  }
+  void fill_rounding(Image& rounding) const override {
+    std::array<bool, 5> mask{};
+    for (std::size_t i = 0; i < names.size(); ++i) mask[i] = rounding_term(names[i]);
+    fill_values(rounding, threads, [&](int x, int y, int c) {
+      const Values v = f(x, y, c);
+      double s = 0;
+      for (std::size_t i = 0; i < names.size(); ++i)
+        if (mask[i]) s += v[i];
+      return s;
+    });
   }
 };
 

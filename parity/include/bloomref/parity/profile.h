@@ -13,10 +13,14 @@ namespace bloomref::parity {
 /// Image-level gates beside the per-value bounds (compare.h): each value may be within its
 /// bound while the image as a whole is not right (a uniform offset just under the bound, a
 /// sampling error spread over a region). Each value's excess ratio is its error beyond the
-/// rounding it is allowed (its storage, a capture's codes; with f16 storage what stages without
-/// capture carry) over the rest of its bound, at most 4; the gates bound its mean. An honest
-/// device's ratios are near 0 (its largest error / bound on the corpus is ~1e-3 on llvmpipe
-/// beyond rounding). 0 turns a gate off.
+/// rounding it is allowed (the stage's storage and arithmetic terms, a capture's codes; with
+/// f16 storage what stages without capture carry) over the rest of its bound (what sampling
+/// may change: coordinates, a threshold's band, Karis weights; and what stages without capture
+/// carry), at most 4; the gates bound its mean. Rounding is left out because an honest device's
+/// rounding is as uniform as its image (a constant scene's tone map errs by the same 0.3 of its
+/// bound everywhere on llvmpipe), while the sampling terms are far from tight. A stage whose
+/// bound is all rounding (composite, tonemap, output judged from captures) has nothing to gate.
+/// 0 turns a gate off.
 struct ImageGates {
   double mean = 0.25;          ///< mean excess ratio over the image
   double window = 0.5;         ///< the same over each window_size x window_size block
