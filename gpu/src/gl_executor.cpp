@@ -163,212 +163,316 @@ class StageRunner {
   GLuint vao_ = 0;
 };
 
-}  // namespace
+// ---- How to schedule it --------------------------------------------------------------------
 
-StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
-                      const GlOptions& opt) {
+struct GlSchedule {
+  bool compute = false;        // compute shaders (image stores), else fragment shaders (draws)
+  GLenum format = GL_RGBA32F;  // every stage's textures: RGBA16F for f16 storage
+  // Adaptive gaussian plan: each blur pass only inside the 64x64 tiles its texel support reaches
+  // (as on the CPU): scissor rectangles for fragment shaders, one dispatch each for compute
+  // shaders. Not for a dense scene (Plan::dense_scene): its support reaches most tiles at once.
+  bool scissor = false;
+  // Adaptive mip plan: where no lookup of down.1 can reach the threshold (the CPU's own test,
+  // mip.h), every chain stage is exactly (0, 0, 0, 1): cleared instead of drawn, both shader
+  // kinds (the CPU plan leaves the same stages out).
+  bool may_skip_mip = false;
+};
+
+GlSchedule choose_gl_schedule(const Plan& plan, const GlOptions& opt) {
   const BloomParams& p = plan.params;
-  if (p.precision != Precision::f32)
-    throw ParamError("--precision f64 is the CPU truth; the GL path computes in f32");
-  const int w = scene.width, h = scene.height;
-  GLint max_size = 0;
-  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
-  if (w > max_size || h > max_size)
-    throw GlError("the image is " + std::to_string(w) + "x" + std::to_string(h) +
-                  ", beyond this GL device's largest texture (" + std::to_string(max_size) + ")");
-  const bool compute = opt.shaders == ShaderKind::compute;
+  // Faults run every stage whole.
+  const bool adaptive = p.plan == PlanMode::adaptive && opt.fault == Fault::none;
+  GlSchedule s;
+  s.compute = opt.shaders == ShaderKind::compute;
   const bool f16 = p.storage == Storage::f16 || opt.fault == Fault::f16_storage;
-  const GLenum fmt = f16 ? GL_RGBA16F : GL_RGBA32F;
-  const std::vector<std::string> defs = defines_for(p, opt.fault, fmt);
+  s.format = f16 ? GL_RGBA16F : GL_RGBA32F;
+  s.scissor = adaptive && p.method == Method::gaussian && !plan.dense_scene;
+  s.may_skip_mip = adaptive && p.method == Method::mip;
+  return s;
+}
 
-  const Program extract = build_program(compute, "extract_bright.glsl", defs);
-  const Program blur = build_program(compute, "blur_pass.glsl", defs);
-  const Program comp = build_program(compute, "composite.glsl", defs);
-  const Program tone = build_program(compute, "tonemap.glsl", defs);
-  const Program encode = build_program(compute, "encode_output.glsl", defs);
-  const bool mip = p.method == Method::mip;
-  Program down_p, up_p;
-  if (mip) {
-    down_p = build_program(compute, "downsample.glsl", defs);
-    up_p = build_program(compute, "upsample_tent.glsl", defs);
-    down_p.set("src", 0);
-    down_p.set("karis", p.karis ? 1 : 0);
-    down_p.set("threshold", p.threshold);
-    up_p.set("small", 0);
-    up_p.set("current", 1);
+// ---- The stages' programs and textures -----------------------------------------------------
+
+struct StagePrograms {
+  Program extract, blur, composite, tonemap, encode;
+  Program down, up;  // method mip
+};
+
+// Compiles the stages' programs and sets the uniforms that stay fixed for the run.
+StagePrograms build_programs(GlContext& ctx, const BloomParams& p, const GlSchedule& s,
+                             Fault fault) {
+  const std::vector<std::string> defs = defines_for(p, fault, s.format);
+  StagePrograms g;
+  g.extract = build_program(s.compute, "extract_bright.glsl", defs);
+  g.blur = build_program(s.compute, "blur_pass.glsl", defs);
+  g.composite = build_program(s.compute, "composite.glsl", defs);
+  g.tonemap = build_program(s.compute, "tonemap.glsl", defs);
+  g.encode = build_program(s.compute, "encode_output.glsl", defs);
+  if (p.method == Method::mip) {
+    g.down = build_program(s.compute, "downsample.glsl", defs);
+    g.up = build_program(s.compute, "upsample_tent.glsl", defs);
+    g.down.set("src", 0);
+    g.down.set("karis", p.karis ? 1 : 0);
+    g.down.set("threshold", p.threshold);
+    g.up.set("small", 0);
+    g.up.set("current", 1);
   }
   ctx.check("building the stage programs");
 
-  extract.set("raw", 0);
-  extract.set("threshold", p.threshold);
-  extract.set("policy", policy_code(p.nonfinite));
-  extract.set("storage_max", static_cast<float>(storage_max(f16 ? Storage::f16 : Storage::f32)));
-  extract.set("range_guard", static_cast<float>(kRangeGuard));
-  blur.set("image", 0);
-  comp.set("scene", 0);
-  comp.set("bloom", 1);
-  comp.set("strength", p.strength);
-  tone.set("hdr", 0);
-  tone.set("exposure", p.exposure);
-  encode.set("mapped", 0);
-  encode.set("gamma", p.gamma);
+  g.extract.set("raw", 0);
+  g.extract.set("threshold", p.threshold);
+  g.extract.set("policy", policy_code(p.nonfinite));
+  const bool f16 = s.format == GL_RGBA16F;
+  g.extract.set("storage_max", static_cast<float>(storage_max(f16 ? Storage::f16 : Storage::f32)));
+  g.extract.set("range_guard", static_cast<float>(kRangeGuard));
+  g.blur.set("image", 0);
+  g.composite.set("scene", 0);
+  g.composite.set("bloom", 1);
+  g.composite.set("strength", p.strength);
+  g.tonemap.set("hdr", 0);
+  g.tonemap.set("exposure", p.exposure);
+  g.encode.set("mapped", 0);
+  g.encode.set("gamma", p.gamma);
+  return g;
+}
 
+struct StageTextures {
+  Texture raw;  // the user's scene as given (RGBA32F)
+  Texture scene, bright, hdr, mapped, out;
+  Texture ping[2];                // blur pass k writes ping[k % 2]
+  std::vector<Texture> down, up;  // method mip: index k - 1 holds level k
+  Texture bloom;                  // method mip
+};
+
+StageTextures make_textures(GlContext& ctx, const Plan& plan, ConstImageView scene, GLenum fmt,
+                            Fault fault) {
+  const int w = scene.width, h = scene.height;
   // The scene goes up as the user's floats (RGBA32F), tightly packed.
   std::vector<float> packed(static_cast<std::size_t>(w) * h * kChannels);
   for (int y = 0; y < h; ++y)
     std::copy(scene.row(y), scene.row(y) + std::size_t(w) * kChannels,
               packed.begin() + std::size_t(y) * w * kChannels);
-  Texture raw(w, h, GL_RGBA32F, packed.data());
-  raw.set_sampling(GL_NEAREST, GL_CLAMP_TO_EDGE);
-  Texture scene_t(w, h, fmt), bright_t(w, h, fmt), hdr_t(w, h, fmt), mapped_t(w, h, fmt),
-      out_t(w, h, fmt);
-  Texture ping[2] = {Texture(w, h, fmt), Texture(w, h, fmt)};
-  std::vector<Texture> down_t, up_t;  // index k - 1 holds level k
-  Texture bloom_t;
-  if (mip) {
+  StageTextures t;
+  t.raw = Texture(w, h, GL_RGBA32F, packed.data());
+  t.raw.set_sampling(GL_NEAREST, GL_CLAMP_TO_EDGE);
+  for (Texture* x : {&t.scene, &t.bright, &t.hdr, &t.mapped, &t.out, &t.ping[0], &t.ping[1]})
+    *x = Texture(w, h, fmt);
+  if (plan.params.method == Method::mip) {
     for (std::size_t k = 0; k < plan.levels.size(); ++k) {
-      const int extra = opt.fault == Fault::level_size && k == 1 ? 1 : 0;
-      down_t.emplace_back(plan.levels[k].width + extra, plan.levels[k].height, fmt);
-      up_t.emplace_back(plan.levels[k].width + extra, plan.levels[k].height, fmt);
+      const int extra = fault == Fault::level_size && k == 1 ? 1 : 0;
+      t.down.emplace_back(plan.levels[k].width + extra, plan.levels[k].height, fmt);
+      t.up.emplace_back(plan.levels[k].width + extra, plan.levels[k].height, fmt);
     }
-    bloom_t = Texture(w, h, fmt);
+    t.bloom = Texture(w, h, fmt);
   }
   ctx.check("allocating the stage textures");
+  return t;
+}
 
-  StageRunner runner(compute, fmt);
-  StageTrace trace;
-  // The adaptive plan's texel support, as on the CPU, turned into rectangles of 64x64 tiles:
-  // scissor rectangles for fragment shaders, one dispatch each for compute shaders. Faults run
-  // whole.
-  // Not for a dense scene (Plan::dense_scene): its support reaches most tiles at once.
-  const bool scissor =
-      p.plan == PlanMode::adaptive && !mip && opt.fault == Fault::none && !plan.dense_scene;
-  constexpr int kScissorTile = 64;
-  // Above half the image the readback, support and many draws cost more than the texels
-  // saved (BrightRingsNanInf: 148 ms unscissored, 186 ms scissored on llvmpipe).
-  BlurSupportTracker support(w, h, 0.5);
-  // Method mip, adaptive plan: where no lookup of down.1 can reach the threshold (the CPU's own
-  // test, mip.h), every chain stage is exactly (0, 0, 0, 1): cleared instead of drawn, both
-  // shader kinds (the CPU plan leaves the same stages out). Faults run the whole chain.
-  // The test is made on GL's own stored scene, as the CPU makes it on its stored scene; the
-  // readback is done only where the user's scene passes it with a 2x margin (f16 storage
-  // rounds by up to 2^-11, sanitising only removes what fails it anyway).
-  const bool may_skip_mip = mip && p.plan == PlanMode::adaptive && opt.fault == Fault::none;
-  bool mip_dark = false;  // decided by the input stage
-  trace.nonfinite = plan.facts.nonfinite;
-  const Texture* bloom = &bright_t;
-  auto finish = [&](const std::string& name, const Texture& t, Clock::time_point t0,
-                    bool skipped = false) {
+// ---- The algorithm: one function per stage -------------------------------------------------
+
+class GlExecutor {
+ public:
+  GlExecutor(GlContext& ctx, const Plan& plan, ConstImageView scene, const GlOptions& opt)
+      : ctx_(ctx),
+        plan_(plan),
+        p_(plan.params),
+        opt_(opt),
+        scene_(scene),
+        w_(scene.width),
+        h_(scene.height),
+        sched_(choose_gl_schedule(plan, opt)),
+        progs_(build_programs(ctx, plan.params, sched_, opt.fault)),
+        tex_(make_textures(ctx, plan, scene, sched_.format, opt.fault)),
+        runner_(sched_.compute, sched_.format),
+        support_(scene.width, scene.height, 0.5) {}
+
+  StageTrace run() {
+    trace_.nonfinite = plan_.facts.nonfinite;
+    for (const StageSpec& s : plan_.stages) {
+      const auto t0 = Clock::now();
+      switch (s.kind) {
+        case StageKind::input:
+          input(s, t0);
+          break;
+        case StageKind::bright:  // written by the input stage's draw
+          finish(s.name, tex_.bright, t0);
+          break;
+        case StageKind::blur:
+          blur(s, t0);
+          break;
+        case StageKind::down:
+          down(s, t0);
+          break;
+        case StageKind::up:
+          up(s, t0);
+          break;
+        case StageKind::bloom:
+          mip_bloom(s, t0);
+          break;
+        case StageKind::composite:
+          composite(s, t0);
+          break;
+        case StageKind::tonemap:
+          tonemap(s, t0);
+          break;
+        case StageKind::output:
+          output(s, t0);
+          break;
+      }
+    }
+    // The plan's scan of the scene (on the CPU) is part of the run, as in the CPU executor.
+    trace_.timings.insert(trace_.timings.begin(), {"plan", plan_.facts.scan_ms});
+    for (const auto& [name, ms] : trace_.timings) trace_.total_ms += ms;  // readbacks excluded
+    return std::move(trace_);
+  }
+
+ private:
+  static constexpr int kScissorTile = 64;
+
+  // Ends a stage: its time (after glFinish; readbacks excluded) and, when kept, its image.
+  void finish(const std::string& name, const Texture& t, Clock::time_point t0,
+              bool skipped = false) {
     glFinish();
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-    ctx.check(name.c_str());
-    if (!skipped) trace.timings.emplace_back(name, ms);
-    if (opt.keep_all || name == "output") trace.stages.push_back({name, to_image(t), ms, skipped});
-  };
-
-  // A chain stage under mip_dark: its target cleared, the stage listed as skipped.
-  auto cleared_dark = [&](const std::string& name, const Texture& target) {
-    if (!mip_dark) return false;
-    runner.clear(target);
-    trace.skipped_fraction.emplace_back(name, 1.0);
-    return true;
-  };
-
-  for (const StageSpec& s : plan.stages) {
-    const auto t0 = Clock::now();
-    switch (s.kind) {
-      case StageKind::input:
-        runner.run(extract, {&raw}, scene_t, &bright_t);
-        mip_dark = may_skip_mip && mip_nothing_bright(scene, 0.5 * double(p.threshold), 0) &&
-                   mip_nothing_bright(to_image(scene_t).cview(), double(p.threshold), 0);
-        finish(s.name, scene_t, t0);
-        break;
-      case StageKind::bright:  // written by the input stage's draw
-        finish(s.name, bright_t, t0);
-        break;
-      case StageKind::blur: {
-        if (s.skipped) {
-          if (opt.keep_all) finish(s.name, *bloom, t0, true);
-          break;
-        }
-        Texture& target = ping[s.pass % 2];
-        const Texture* src = bloom;
-        std::vector<Rect> rects;
-        const std::uint8_t* active = nullptr;
-        if (scissor && !support.dense()) {
-          // The CPU plan's texel support (stages.h), from GL's own bright image.
-          if (!support.started()) support.start(to_image(bright_t).cview(), 0);
-          const BlurPassOptions bo{s.axis, &kernel_for(p.kernel), p.subtexel_bits};
-          active = support.advance<float>(bo, 0);
-          std::size_t area = 0;
-          if (active) rects = active_rects(active, w, h, kScissorTile, area);
-          trace.skipped_fraction.emplace_back(
-              s.name, active ? 1.0 - double(area) / (double(w) * h) : 0.0);
-        }
-        if (!(opt.fault == Fault::skip_pass && s.pass == 3)) {
-          src->set_sampling(GL_LINEAR,
-                            opt.fault == Fault::repeat_wrap ? GL_REPEAT : GL_CLAMP_TO_EDGE);
-          blur.set("horizontal", s.axis == Axis::horizontal ? 1 : 0);
-          runner.run(blur, {src}, target, nullptr, active ? &rects : nullptr);
-        }
-        bloom = &target;
-        finish(s.name, target, t0);
-        break;
-      }
-      case StageKind::down: {
-        const int k = s.pass;
-        if (!cleared_dark(s.name, down_t[k - 1])) {
-          down_p.set("first_level", k == 1 ? 1 : 0);
-          runner.run(down_p, {k == 1 ? &scene_t : &down_t[k - 2]}, down_t[k - 1]);
-        }
-        finish(s.name, down_t[k - 1], t0);
-        break;
-      }
-      case StageKind::up: {
-        const int k = s.pass, top = static_cast<int>(plan.levels.size());
-        const Texture& small = k + 1 == top ? down_t[top - 1] : up_t[k];
-        if (!cleared_dark(s.name, up_t[k - 1])) {
-          up_p.set("has_current", 1);
-          runner.run(up_p, {&small, &down_t[k - 1]}, up_t[k - 1]);
-        }
-        finish(s.name, up_t[k - 1], t0);
-        break;
-      }
-      case StageKind::bloom: {
-        const Texture& small = plan.levels.size() == 1 ? down_t[0] : up_t[0];
-        if (!cleared_dark(s.name, bloom_t)) {
-          up_p.set("has_current", 0);
-          runner.run(up_p, {&small, &small}, bloom_t);
-        }
-        bloom = &bloom_t;
-        finish(s.name, bloom_t, t0);
-        break;
-      }
-      case StageKind::composite: {
-        const bool after = mip && p.composite == CompositeOrder::after_tonemap;
-        runner.run(comp, {after ? &mapped_t : &scene_t, bloom}, hdr_t);
-        finish(s.name, hdr_t, t0);
-        break;
-      }
-      case StageKind::tonemap:
-        if (mip && p.composite == CompositeOrder::after_tonemap) {
-          runner.run(tone, {&scene_t}, mapped_t);
-        } else {
-          runner.run(tone, {&hdr_t}, mapped_t);
-        }
-        finish(s.name, mapped_t, t0);
-        break;
-      case StageKind::output:
-        runner.run(encode, {mip && p.composite == CompositeOrder::after_tonemap ? &hdr_t : &mapped_t},
-                   out_t);
-        finish(s.name, out_t, t0);
-        break;
-    }
+    ctx_.check(name.c_str());
+    if (!skipped) trace_.timings.emplace_back(name, ms);
+    if (opt_.keep_all || name == "output")
+      trace_.stages.push_back({name, to_image(t), ms, skipped});
   }
-  // The plan's scan of the scene (on the CPU) is part of the run, as in the CPU executor.
-  trace.timings.insert(trace.timings.begin(), {"plan", plan.facts.scan_ms});
-  for (const auto& [name, ms] : trace.timings) trace.total_ms += ms;  // readbacks excluded
-  return trace;
+
+  // Stage input (and bright, the same draw's second target). The mip chain's dark test is made
+  // on GL's own stored scene, as the CPU makes it on its stored scene; the readback is done only
+  // where the user's scene passes it with a 2x margin (f16 storage rounds by up to 2^-11,
+  // sanitising only removes what fails it anyway).
+  void input(const StageSpec& s, Clock::time_point t0) {
+    runner_.run(progs_.extract, {&tex_.raw}, tex_.scene, &tex_.bright);
+    mip_dark_ = sched_.may_skip_mip && mip_nothing_bright(scene_, 0.5 * double(p_.threshold), 0) &&
+                mip_nothing_bright(to_image(tex_.scene).cview(), double(p_.threshold), 0);
+    finish(s.name, tex_.scene, t0);
+  }
+
+  void blur(const StageSpec& s, Clock::time_point t0) {
+    if (s.skipped) {
+      if (opt_.keep_all) finish(s.name, *bloom_, t0, true);
+      return;
+    }
+    Texture& target = tex_.ping[s.pass % 2];
+    std::vector<Rect> rects;
+    const bool scissored = sched_.scissor && !support_.dense() && support_rects(s, rects);
+    if (!(opt_.fault == Fault::skip_pass && s.pass == 3)) {
+      bloom_->set_sampling(GL_LINEAR,
+                           opt_.fault == Fault::repeat_wrap ? GL_REPEAT : GL_CLAMP_TO_EDGE);
+      progs_.blur.set("horizontal", s.axis == Axis::horizontal ? 1 : 0);
+      runner_.run(progs_.blur, {bloom_}, target, nullptr, scissored ? &rects : nullptr);
+    }
+    bloom_ = &target;
+    finish(s.name, target, t0);
+  }
+
+  // The CPU plan's texel support of this pass (stages.h), from GL's own bright image, as
+  // rectangles of tiles; false (draw it all) once it covers half the image, where the readback,
+  // support and many draws cost more than the texels saved (BrightRingsNanInf: 148 ms
+  // unscissored, 186 ms scissored on llvmpipe).
+  bool support_rects(const StageSpec& s, std::vector<Rect>& rects) {
+    if (!support_.started()) support_.start(to_image(tex_.bright).cview(), 0);
+    const BlurPassOptions bo{s.axis, &kernel_for(p_.kernel), p_.subtexel_bits};
+    const std::uint8_t* active = support_.advance<float>(bo, 0);
+    std::size_t area = 0;
+    if (active) rects = active_rects(active, w_, h_, kScissorTile, area);
+    trace_.skipped_fraction.emplace_back(s.name,
+                                         active ? 1.0 - double(area) / (double(w_) * h_) : 0.0);
+    return active != nullptr;
+  }
+
+  // A mip chain stage under mip_dark_: its target cleared, the stage listed as skipped.
+  bool cleared_dark(const std::string& name, const Texture& target) {
+    if (!mip_dark_) return false;
+    runner_.clear(target);
+    trace_.skipped_fraction.emplace_back(name, 1.0);
+    return true;
+  }
+
+  void down(const StageSpec& s, Clock::time_point t0) {
+    const int k = s.pass;
+    if (!cleared_dark(s.name, tex_.down[k - 1])) {
+      progs_.down.set("first_level", k == 1 ? 1 : 0);
+      runner_.run(progs_.down, {k == 1 ? &tex_.scene : &tex_.down[k - 2]}, tex_.down[k - 1]);
+    }
+    finish(s.name, tex_.down[k - 1], t0);
+  }
+
+  void up(const StageSpec& s, Clock::time_point t0) {
+    const int k = s.pass, top = static_cast<int>(plan_.levels.size());
+    const Texture& small = k + 1 == top ? tex_.down[top - 1] : tex_.up[k];
+    if (!cleared_dark(s.name, tex_.up[k - 1])) {
+      progs_.up.set("has_current", 1);
+      runner_.run(progs_.up, {&small, &tex_.down[k - 1]}, tex_.up[k - 1]);
+    }
+    finish(s.name, tex_.up[k - 1], t0);
+  }
+
+  void mip_bloom(const StageSpec& s, Clock::time_point t0) {
+    const Texture& small = plan_.levels.size() == 1 ? tex_.down[0] : tex_.up[0];
+    if (!cleared_dark(s.name, tex_.bloom)) {
+      progs_.up.set("has_current", 0);
+      runner_.run(progs_.up, {&small, &small}, tex_.bloom);
+    }
+    bloom_ = &tex_.bloom;
+    finish(s.name, tex_.bloom, t0);
+  }
+
+  // Method mip, after-tonemap (seed 003): the bloom is added to the tone-mapped scene and the
+  // output encodes that sum.
+  bool after_tonemap() const {
+    return p_.method == Method::mip && p_.composite == CompositeOrder::after_tonemap;
+  }
+
+  void composite(const StageSpec& s, Clock::time_point t0) {
+    runner_.run(progs_.composite, {after_tonemap() ? &tex_.mapped : &tex_.scene, bloom_}, tex_.hdr);
+    finish(s.name, tex_.hdr, t0);
+  }
+
+  void tonemap(const StageSpec& s, Clock::time_point t0) {
+    runner_.run(progs_.tonemap, {after_tonemap() ? &tex_.scene : &tex_.hdr}, tex_.mapped);
+    finish(s.name, tex_.mapped, t0);
+  }
+
+  void output(const StageSpec& s, Clock::time_point t0) {
+    runner_.run(progs_.encode, {after_tonemap() ? &tex_.hdr : &tex_.mapped}, tex_.out);
+    finish(s.name, tex_.out, t0);
+  }
+
+  GlContext& ctx_;
+  const Plan& plan_;
+  const BloomParams& p_;
+  const GlOptions& opt_;
+  const ConstImageView scene_;
+  const int w_, h_;
+  const GlSchedule sched_;
+  const StagePrograms progs_;
+  StageTextures tex_;
+  StageRunner runner_;
+  StageTrace trace_;
+  BlurSupportTracker support_;  // adaptive plan (sched_.scissor): the blur's texel support
+  bool mip_dark_ = false;       // decided by the input stage
+  // What the composite adds: the last blur pass, the mip chain's bloom, or (no pass ran) bright.
+  const Texture* bloom_ = &tex_.bright;
+};
+
+}  // namespace
+
+StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
+                      const GlOptions& opt) {
+  if (plan.params.precision != Precision::f32)
+    throw ParamError("--precision f64 is the CPU truth; the GL path computes in f32");
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+  if (scene.width > max_size || scene.height > max_size)
+    throw GlError("the image is " + std::to_string(scene.width) + "x" +
+                  std::to_string(scene.height) + ", beyond this GL device's largest texture (" +
+                  std::to_string(max_size) + ")");
+  return GlExecutor(ctx, plan, scene, opt).run();
 }
 
 }  // namespace bloomref::gpu
