@@ -137,6 +137,20 @@ std::string fixed3(double v) {
 
 }  // namespace
 
+// Whether every texel's RGB equals the first texel's (bit for bit, NaN never equal): on such an
+// image every value has the same error, so a mean or a window mean is one sample of it, not an
+// average over independent roundings, and the image gates would only tighten the per-value bound.
+bool uniform_rgb(ConstImageView img) {
+  if (img.width <= 0 || img.height <= 0) return true;
+  const float* first = img.pixel(0, 0);
+  for (int y = 0; y < img.height; ++y) {
+    const float* p = img.row(y);
+    for (int x = 0; x < img.width; ++x, p += kChannels)
+      if (!(p[0] == first[0] && p[1] == first[1] && p[2] == first[2])) return false;
+  }
+  return true;
+}
+
 StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
                       const Image& bound, const StageBounds& terms, Storage storage,
                       const DeviceProfile& p, const CompareOptions& opt, int threads,
@@ -226,7 +240,7 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
   for (WorstValue& w : worst) w.terms = terms.terms(w.x, w.y, w.channel);
   s.worst = std::move(worst);
 
-  if (gates) {
+  if (gates && !uniform_rgb(oracle)) {
     s.mean_excess = total.base > 0 ? total.excess / total.base : 0.0;  // sum / count
     if (gates->window > 0 && gates->window_size > 0)
       s.worst_window = worst_window(gl, oracle, bound, storage, p, ga, gates->window_size,
