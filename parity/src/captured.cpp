@@ -437,11 +437,6 @@ ParityResult compare_core(const Plan& plan, ConstImageView scene,
       const ExtraTerms terms(*b, {{"carried from stages without capture", &inherited},
                                   {"8-bit capture: half a code", &codes}});
       const ExtraTerms terms_e2e(*b, {{"8-bit capture: half a code", &codes_e2e}});
-      if (cs.image.width != oracle.width() || cs.image.height != oracle.height())
-        throw InputError(name, "the capture is " + std::to_string(cs.image.width) + "x" +
-                                   std::to_string(cs.image.height) + ", the stage is " +
-                                   std::to_string(oracle.width()) + "x" +
-                                   std::to_string(oracle.height()));
       // The gates measure the error beyond rounding: the stage's own (its storage and
       // arithmetic terms, scaled as an override scales the bound) and the capture's codes.
       Image own_rounding(oracle.width(), oracle.height(), 0.0f);
