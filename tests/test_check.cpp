@@ -13,6 +13,7 @@
 #include "bloomref/parity/compare.h"
 #include "bloomref/parity/variants.h"
 #include "bloomref/stages.h"
+#include "test_util.h"
 
 using namespace bloomref;
 using parity::Verdict;
@@ -143,10 +144,7 @@ Image blur_h(const Image& src, const double w[5], char wrap, double shift = 0, b
 // LearnOpenGL's weights (seed 004), 924, 792, 495, 220, 66 over 4070.
 const double kD9[5] = {924.0 / 4070, 792.0 / 4070, 495.0 / 4070, 220.0 / 4070, 66.0 / 4070};
 
-bool same_bits(const Image& a, const Image& b) {
-  return a.width() == b.width() && a.height() == b.height() &&
-         std::memcmp(a.data(), b.data(), a.values().size() * sizeof(float)) == 0;
-}
+bool same_bits(const Image& a, const Image& b) { return test::bit_identical(a.cview(), b.cview()); }
 
 void flip(Image& img) {
   for (int y = 0; y < img.height() / 2; ++y)
