@@ -1,4 +1,4 @@
-#include "check_manifest.h"
+#include "check/manifest.h"
 
 #include <fnmatch.h>
 

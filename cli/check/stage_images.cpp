@@ -1,4 +1,4 @@
-#include "stage_images.h"
+#include "check/stage_images.h"
 
 #include <Imath/half.h>
 

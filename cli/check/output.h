@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "check_types.h"
+#include "check/types.h"
 
 namespace bloomref::cli {
 

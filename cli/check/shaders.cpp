@@ -1,4 +1,4 @@
-#include "check_shaders.h"
+#include "check/shaders.h"
 
 #include <unistd.h>
 

@@ -1,4 +1,4 @@
-#include "check_output.h"
+#include "check/output.h"
 
 #include <sys/resource.h>
 

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "check_types.h"
+#include "check/types.h"
 #include "options.h"
 
 namespace bloomref::cli {

@@ -16,10 +16,10 @@
 #include "bloomref/error.h"
 #include "bloomref/io.h"
 #include "bloomref/parity/compare.h"
-#include "check_manifest.h"
-#include "check_output.h"
-#include "check_shaders.h"
-#include "check_types.h"
+#include "check/manifest.h"
+#include "check/output.h"
+#include "check/shaders.h"
+#include "check/types.h"
 #include "commands.h"
 #include "options.h"
 #include "report.h"
@@ -75,6 +75,10 @@ void require_writable_dir(const std::string& path, const char* option) {
   if (!fs::is_directory(parent, ec) || ::access(parent.c_str(), W_OK) != 0)
     throw InputError(path, std::string("cannot be created (") + option + "): " + parent.string() +
                                " is not a writable folder");
+}
+
+bool is_profile_file(const CheckArgs& a) {
+  return a.profile.size() > 5 && a.profile.substr(a.profile.size() - 5) == ".json";
 }
 
 double ms_since(std::chrono::steady_clock::time_point t0) {
@@ -184,6 +188,94 @@ void print_item(const ItemResult& r, const parity::DeviceProfile& profile) {
               r.parity.first_divergent_stage ? r.parity.first_divergent_stage->c_str() : "none");
 }
 
+parity::DeviceProfile chosen_profile(const CheckArgs& a) {
+  return is_profile_file(a) ? read_profile_file(a.profile) : parity::profile_named(a.profile);
+}
+
+// Keys given on the command line win over the manifest's, one by one.
+DeviceKeys merged_device(const DeviceKeys& manifest, const DeviceKeys& cli) {
+  DeviceKeys d = manifest;
+  if (!cli.api.empty()) d.api = cli.api;
+  if (!cli.vendor.empty()) d.vendor = cli.vendor;
+  if (!cli.renderer.empty()) d.renderer = cli.renderer;
+  if (!cli.driver.empty()) d.driver = cli.driver;
+  return d;
+}
+
+// --shaders: the user's shaders run first (refusals: exit 2, no GL: exit 3); what they drew is
+// then checked as captured stages from the scratch folder.
+CheckItem shaders_item(CheckArgs& a, CheckRun& run, ScratchDir& scratch) {
+  if (!a.report_dir.empty()) require_writable_dir(a.report_dir, "--report");
+  for (const std::string* p : {&a.json_path, &a.junit_path, &a.markdown_path})
+    if (!p->empty()) require_writable_file(*p, "output");
+  bool software = false;
+  const std::string gl = run_user_shaders(a.shaders, a.scene, a.pipeline, scratch.path(), software);
+  // Without --profile, the device's own: llvmpipe's measured facts, or NVIDIA-like hardware.
+  if (a.sub->count("--profile") == 0)
+    run.profile = software ? parity::profile_llvmpipe() : parity::profile_nvidia_like();
+  if (run.device.renderer.empty()) run.device.renderer = gl;
+  if (run.device.api.empty()) run.device.api = "OpenGL (headless EGL)";
+  CheckItem item;
+  item.scene = a.scene;
+  item.stages_dir = scratch.path().string();
+  item.id = "learnopengl";
+  return item;
+}
+
+CheckItem folder_item(const CheckArgs& a) {
+  CheckItem item;
+  item.scene = a.scene;
+  item.stages_dir = a.stages_dir;
+  item.id = fs::path(a.stages_dir).lexically_normal().filename().string();
+  if (item.id.empty() || item.id == ".") item.id = "stages";
+  item.defaults.encoding = parse_encoding(a.encoding);
+  item.defaults.origin = parse_origin(a.origin);
+  item.defaults.channels = parse_channel_order(a.channels);
+  item.defaults.format = parse_raw_format(a.raw_format);
+  return item;
+}
+
+// Every destination is checked before any work, and none may be an input.
+void require_destinations(const CheckArgs& a, const std::vector<CheckItem>& items) {
+  std::vector<std::string> inputs;
+  for (const CheckItem& it : items) {
+    if (!it.scene.empty()) inputs.push_back(it.scene);
+    for (const StageFile& f : it.files) inputs.push_back(f.path);
+    if (it.stages_dir.empty()) continue;
+    std::error_code ec;  // a folder's files are inputs too, whatever their names
+    for (const auto& e : fs::directory_iterator(it.stages_dir, ec)) inputs.push_back(e.path().string());
+  }
+  for (const std::string* in : {&a.manifest, &a.expectations})
+    if (!in->empty()) inputs.push_back(*in);
+  if (is_profile_file(a)) inputs.push_back(a.profile);
+  const std::pair<const std::string*, const char*> outs[] = {
+      {&a.json_path, "--json"}, {&a.junit_path, "--junit"}, {&a.markdown_path, "--markdown"}};
+  std::set<fs::path> seen;
+  for (const auto& [path, option] : outs) {
+    if (path->empty()) continue;
+    require_writable_file(*path, option);
+    for (const std::string& in : inputs) refuse_overwrite(*path, in);
+    std::error_code ec;
+    if (!seen.insert(fs::weakly_canonical(*path, ec)).second)
+      throw InputError(*path, "is named twice as an output");
+  }
+  if (!a.report_dir.empty()) require_writable_dir(a.report_dir, "--report");
+}
+
+void print_run(const CheckArgs& a, const CheckRun& run, const std::vector<Expectation>& expectations) {
+  if (a.quiet) return;
+  for (const Expectation& e : expectations)
+    if (!e.used)
+      std::printf("note: expectation (item %s, stage %s) matched no stage\n", e.item.c_str(),
+                  e.stage.c_str());
+  for (const ItemResult& r : run.items) print_item(r, run.profile);
+  if (run.verdict == "NOTHING")
+    std::printf("nothing compared: no stage image found (names as --dump-stages writes them: "
+                "bright.exr, blur.1.exr ... output.exr)\n");
+  else if (run.items.size() > 1)
+    std::printf("%zu items: verdict %s\n", run.items.size(), run.verdict.c_str());
+}
+
 int check_cmd(CheckArgs& a) {
   // Stage-sized buffers are allocated and freed stage after stage. glibc's dynamic mmap
   // threshold rises to the largest block freed (up to 32 MiB), after which images just below
@@ -197,63 +289,23 @@ int check_cmd(CheckArgs& a) {
     throw ParamError("give one of --stages DIR, --manifest FILE or --shaders learnopengl");
   if (!a.manifest.empty() && !a.scene.empty())
     throw ParamError("with --manifest the scenes are the manifest's items; give no SCENE");
-  const bool profile_file = a.profile.size() > 5 && a.profile.substr(a.profile.size() - 5) == ".json";
-  parity::DeviceProfile profile =
-      profile_file ? read_profile_file(a.profile) : parity::profile_named(a.profile);
 
-  std::unique_ptr<ScratchDir> scratch;  // --shaders: the passes the user's shaders drew
   CheckRun run;
   run.warn_as_error = a.warn_as_error;
   run.device = a.device;
-  run.profile = profile;
+  run.profile = chosen_profile(a);
   run.report_dir = a.report_dir;
+  std::unique_ptr<ScratchDir> scratch;  // --shaders: the passes the user's shaders drew
   std::vector<CheckItem> items;
   if (!a.manifest.empty()) {
     const Manifest m = read_manifest(a.manifest, *a.sub, a.pipeline);
     items = m.items;
-    if (!run.device.any()) run.device = m.device;
-    else {
-      // Keys given on the command line win, one by one.
-      DeviceKeys d = m.device;
-      if (!a.device.api.empty()) d.api = a.device.api;
-      if (!a.device.vendor.empty()) d.vendor = a.device.vendor;
-      if (!a.device.renderer.empty()) d.renderer = a.device.renderer;
-      if (!a.device.driver.empty()) d.driver = a.device.driver;
-      run.device = d;
-    }
+    run.device = a.device.any() ? merged_device(m.device, a.device) : m.device;
   } else if (a.shaders.any()) {
-    // The user's shaders run first (refusals: exit 2, no GL: exit 3); what they drew is then
-    // checked as captured stages.
-    if (!a.report_dir.empty()) require_writable_dir(a.report_dir, "--report");
-    for (const std::string* p : {&a.json_path, &a.junit_path, &a.markdown_path})
-      if (!p->empty()) require_writable_file(*p, "output");
     scratch = std::make_unique<ScratchDir>();
-    bool software = false;
-    const std::string gl =
-        run_user_shaders(a.shaders, a.scene, a.pipeline, scratch->path(), software);
-    // Without --profile, the device's own: llvmpipe's measured facts, or NVIDIA-like hardware.
-    if (a.sub->count("--profile") == 0) {
-      profile = software ? parity::profile_llvmpipe() : parity::profile_nvidia_like();
-      run.profile = profile;
-    }
-    if (run.device.renderer.empty()) run.device.renderer = gl;
-    if (run.device.api.empty()) run.device.api = "OpenGL (headless EGL)";
-    CheckItem item;
-    item.scene = a.scene;
-    item.stages_dir = scratch->path().string();
-    item.id = "learnopengl";
-    items.push_back(item);
+    items.push_back(shaders_item(a, run, *scratch));
   } else {
-    CheckItem item;
-    item.scene = a.scene;
-    item.stages_dir = a.stages_dir;
-    item.id = fs::path(a.stages_dir).lexically_normal().filename().string();
-    if (item.id.empty() || item.id == ".") item.id = "stages";
-    item.defaults.encoding = parse_encoding(a.encoding);
-    item.defaults.origin = parse_origin(a.origin);
-    item.defaults.channels = parse_channel_order(a.channels);
-    item.defaults.format = parse_raw_format(a.raw_format);
-    items.push_back(item);
+    items.push_back(folder_item(a));
   }
   run.params = a.pipeline.params;
   std::vector<Expectation> expectations;
@@ -261,54 +313,15 @@ int check_cmd(CheckArgs& a) {
     expectations = read_expectations(a.expectations);
     run.expectations_file = a.expectations;
   }
-
-  // Every destination is checked before any work, and none may be an input.
-  std::vector<std::string> inputs;
-  for (const CheckItem& it : items) {
-    if (!it.scene.empty()) inputs.push_back(it.scene);
-    for (const StageFile& f : it.files) inputs.push_back(f.path);
-  }
-  for (const CheckItem& it : items)  // a folder's files are inputs too, whatever their names
-    if (!it.stages_dir.empty()) {
-      std::error_code ec;
-      for (const auto& e : fs::directory_iterator(it.stages_dir, ec))
-        inputs.push_back(e.path().string());
-    }
-  if (!a.manifest.empty()) inputs.push_back(a.manifest);
-  if (!a.expectations.empty()) inputs.push_back(a.expectations);
-  if (profile_file) inputs.push_back(a.profile);
-  const std::pair<const std::string*, const char*> outs[] = {
-      {&a.json_path, "--json"}, {&a.junit_path, "--junit"}, {&a.markdown_path, "--markdown"}};
-  std::set<fs::path> seen;
-  for (const auto& [path, option] : outs) {
-    if (path->empty()) continue;
-    require_writable_file(*path, option);
-    for (const std::string& in : inputs) refuse_overwrite(*path, in);
-    std::error_code ec;
-    if (!seen.insert(fs::weakly_canonical(*path, ec)).second)
-      throw InputError(*path, "is named twice as an output");
-  }
-  if (!a.report_dir.empty()) require_writable_dir(a.report_dir, "--report");
+  require_destinations(a, items);
 
   for (const CheckItem& item : items) {
-    ItemResult r = check_item(item, a, profile, !a.no_causes);
+    ItemResult r = check_item(item, a, run.profile, !a.no_causes);
     apply_expectations(r, expectations, run.device);
     run.items.push_back(std::move(r));
   }
   finish_run(run);
-  for (const Expectation& e : expectations)
-    if (!e.used && !a.quiet)
-      std::printf("note: expectation (item %s, stage %s) matched no stage\n", e.item.c_str(),
-                  e.stage.c_str());
-
-  if (!a.quiet) {
-    for (const ItemResult& r : run.items) print_item(r, profile);
-    if (run.verdict == "NOTHING")
-      std::printf("nothing compared: no stage image found (names as --dump-stages writes them: "
-                  "bright.exr, blur.1.exr ... output.exr)\n");
-    else if (run.items.size() > 1)
-      std::printf("%zu items: verdict %s\n", run.items.size(), run.verdict.c_str());
-  }
+  print_run(a, run, expectations);
   if (run.verdict == "NOTHING")
     std::fprintf(stderr, "bloomref: nothing compared: no stage image matched in %s\n",
                  a.manifest.empty() ? a.stages_dir.c_str() : a.manifest.c_str());

@@ -9,7 +9,7 @@
 
 #include "bloomref/params.h"
 #include "bloomref/parity/compare.h"
-#include "stage_images.h"
+#include "check/stage_images.h"
 
 namespace bloomref::cli {
 
