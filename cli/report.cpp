@@ -191,7 +191,147 @@ std::string histogram_svg(const std::vector<std::uint64_t>& h) {
   return s + "</svg>";
 }
 
+const char* kStyle =
+    "body{font:14px sans-serif;margin:20px;background:#fafafa}"
+    "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 6px;"
+    "text-align:right}th{background:#eee}.PASS{color:#070}.WARN{color:#a60}.FAIL{color:#c00;"
+    "font-weight:bold}img{image-rendering:pixelated;border:1px solid #999;max-width:384px}"
+    "figure{display:inline-block;margin:4px;vertical-align:top}figcaption{font-size:12px}"
+    "section{background:#fff;border:1px solid #ddd;padding:10px;margin:12px 0}"
+    ".first{border:3px solid #c00}.cause{background:#fff4e0;padding:6px}";
+
+std::string percent(double f) {
+  char b[32];
+  std::snprintf(b, sizeof b, f >= 0.9995 && f < 1 ? "%.3f%%" : "%.1f%%", 100 * f);
+  return b;
+}
+
+void write_head(std::ostringstream& html, const std::string& source, const std::string& renderer,
+                const Plan& plan, const parity::ParityResult& r, const std::string& fault) {
+  const std::string first = r.first_divergent_stage.value_or("");
+  html << "<!doctype html><html><head><meta charset='utf-8'><title>bloomref: " << esc(source)
+       << "</title><style>" << kStyle << "</style></head><body>";
+  html << "<h1>bloomref: " << esc(source) << "</h1><p>" << esc(renderer) << "<br>profile "
+       << esc(r.profile.name) << " (" << esc(r.profile.source) << ")<br>"
+       << plan.facts.width << "x" << plan.facts.height << ", " << plan.params.passes << " passes, "
+       << to_string(plan.params.kernel) << ", storage " << to_string(plan.params.storage)
+       << (fault == "none" ? std::string() : ", injected fault <b>" + esc(fault) + "</b>")
+       << "</p><h2 class='" << parity::to_string(r.verdict) << "'>verdict "
+       << parity::to_string(r.verdict) << "; first divergent stage: "
+       << (first.empty() ? "none" : "<a href='#stage-" + first + "'>" + first + "</a>")
+       << "</h2>";
+}
+
+void write_summary(std::ostringstream& html, const parity::ParityResult& r) {
+  html << "<table><tr><th>stage</th><th>isolated</th><th>max |err|</th><th>max f16 ULP</th>"
+          "<th>largest err/bound</th><th>values over bound</th><th>end to end</th>"
+          "<th>largest err/bound</th><th style='text-align:left'>cause</th></tr>";
+  for (std::size_t i = 0; i < r.isolated.size(); ++i) {
+    const auto& s = r.isolated[i];
+    const auto& e = r.end_to_end[i];
+    html << "<tr><td><a href='#stage-" << s.stage << "'>" << s.stage << "</a></td><td class='"
+         << parity::to_string(s.verdict) << "'>" << parity::to_string(s.verdict) << "</td><td>"
+         << num(s.max_abs) << "</td><td>" << num(s.max_ulp16) << "</td><td>" << num(s.max_ratio)
+         << "</td><td>" << s.over_bound + s.nonfinite_mismatch << "</td><td class='"
+         << parity::to_string(e.verdict) << "'>" << parity::to_string(e.verdict) << "</td><td>"
+         << num(e.max_ratio) << "</td><td style='text-align:left'>" << esc(cause_line(s))
+         << "</td></tr>";
+  }
+  html << "</table><p>Isolated: each stage against the CPU stage recomputed from the previous "
+          "stage under test. Heat maps: error/bound, black 0, yellow 1, red to white above 1, "
+          "magenta NaN/Inf on one side only. Previews keep each block's peak; full-size PNG and "
+          "raw EXR files are beside this page.</p>";
+}
+
+// Every hypothesis tried on a failing stage, best first: the oracle run with that one change,
+// and the fraction of the stage's values it brings within bound.
+void write_causes(std::ostringstream& html, const parity::StageComparison& s) {
+  if (s.verdict == parity::Verdict::pass) return;
+  html << "<p class='cause'>" << esc(cause_line(s)) << "</p>";
+  if (s.causes.empty()) return;
+  html << "<h3>causes tested (the oracle with one change)</h3><table><tr><th>hypothesis</th>"
+          "<th>values within bound</th><th>as specified</th><th style='text-align:left'>detail"
+          "</th></tr>";
+  for (const parity::CauseFit& c : s.causes)
+    html << "<tr><td style='text-align:left'>" << esc(c.description) << "</td><td>"
+         << percent(c.within) << "</td><td>" << percent(c.oracle_within)
+         << "</td><td style='text-align:left'>" << esc(c.detail) << "</td></tr>";
+  html << "</table>";
+}
+
+void write_worst(std::ostringstream& html, const parity::StageComparison& s) {
+  html << "<h3>worst values (largest error / bound)</h3><table><tr><th>x</th><th>y</th><th>ch</th>"
+          "<th>oracle</th><th>GL</th><th>|err|</th><th>bound</th><th>err/bound</th>"
+          "<th style='text-align:left'>bound terms</th></tr>";
+  for (const auto& w : s.worst) {
+    std::string terms;
+    for (const auto& t : w.terms)
+      if (t.value != 0) terms += esc(t.name) + " = " + num(t.value) + "<br>";
+    html << "<tr><td>" << w.x << "</td><td>" << w.y << "</td><td>" << "RGB"[w.channel]
+         << "</td><td>" << num(w.oracle) << "</td><td>" << num(w.gl) << "</td><td>"
+         << (std::isfinite(w.error) ? num(w.error) : "non-finite") << "</td><td>" << num(w.bound)
+         << "</td><td>" << (std::isfinite(w.error) && w.bound > 0 ? num(w.error / w.bound) : "-")
+         << "</td><td style='text-align:left'>" << terms << "</td></tr>";
+  }
+  html << "</table><h3>signed f16-ULP differences (GL - oracle), log scale</h3>"
+       << histogram_svg(s.ulp_histogram);
+}
+
+// One stage's section: the full-size files beside the page, previews, the causes, the worst
+// values and the ULP histogram.
+void write_stage(std::ostringstream& html, const fs::path& root, const parity::StageComparison& s,
+                 const parity::StageComparison& end_to_end, const Image& captured, bool first) {
+  const bool scene_referred = s.stage != "tonemap" && s.stage != "output";
+  double scale = 0;
+  Image raw, heat, mask;
+  ratio_images(captured, s.oracle, s.bound, raw, heat, mask);
+  const Image diff = signed_diff(captured, s.oracle, scale);
+  Image signed_raw(captured.width(), captured.height());
+  for (std::size_t k = 0; k < signed_raw.values().size(); ++k)
+    signed_raw.values()[k] = k % 4 == 3 ? 1.0f : captured.values()[k] - s.oracle.values()[k];
+  const std::string base = (root / s.stage).string();
+  save_exr(base + ".oracle.exr", s.oracle.cview());
+  save_exr(base + ".gl.exr", captured.cview());
+  save_exr(base + ".diff.exr", signed_raw.cview());
+  save_exr(base + ".ratio.exr", raw.cview());
+  const Image d_or = display(s.oracle, scene_referred), d_gl = display(captured, scene_referred);
+  save_png(base + ".oracle.png", d_or.cview());
+  save_png(base + ".gl.png", d_gl.cview());
+  save_png(base + ".diff.png", diff.cview());
+  save_png(base + ".ratio.png", heat.cview());
+  save_png(base + ".mask.png", mask.cview());
+
+  html << "<section id='stage-" << s.stage << "'" << (first ? " class='first'" : "") << "><h2>"
+       << s.stage << ": <span class='" << parity::to_string(s.verdict) << "'>"
+       << parity::to_string(s.verdict) << "</span>" << (first ? " (first divergent)" : "")
+       << "</h2><p>" << esc(s.reason) << "; end to end " << parity::to_string(end_to_end.verdict)
+       << ": " << esc(end_to_end.reason) << "</p>";
+  write_causes(html, s);
+  const std::pair<const Image*, std::string> figs[] = {
+      {&d_or, "oracle (CPU from the previous stage under test)"},
+      {&d_gl, "under test"},
+      {&diff, "under test - oracle, full scale " + num(scale)},
+      {&heat, "error / bound"},
+      {&mask, "pass (green) / fail (red)"}};
+  const fs::path tmp = root / ".preview.png";
+  for (const auto& [img, caption] : figs)
+    html << "<figure><img src='" << png_data_uri(preview(*img, img != &d_or && img != &d_gl), tmp)
+         << "'><figcaption>" << esc(caption) << "</figcaption></figure>";
+  write_worst(html, s);
+  html << "</section>";
+}
+
 }  // namespace
+
+std::string cause_line(const parity::StageComparison& s) {
+  if (s.causes.empty()) return s.verdict == parity::Verdict::pass ? "" : "no usual cause explains it";
+  const parity::CauseFit& c = s.causes.front();
+  std::string line = (c.within >= 0.999 ? "likely cause: " : "best partial explanation: ") +
+                     c.description + " (brings " + percent(c.within) +
+                     " of values within bound; as specified " + percent(c.oracle_within) + ")";
+  if (!c.detail.empty()) line += "; " + c.detail;
+  return line;
+}
 
 void write_report(const std::string& dir, const std::string& source, const std::string& renderer,
                   const Plan& plan, const StageTrace& gl, const parity::ParityResult& r,
@@ -202,101 +342,18 @@ void write_report(const std::string& dir, const std::string& source, const std::
   const fs::path root(dir);
   const std::string first = r.first_divergent_stage.value_or("");
   std::ostringstream html;
-  html << "<!doctype html><html><head><meta charset='utf-8'><title>bloomref compare: "
-       << esc(source) << "</title><style>body{font:14px sans-serif;margin:20px;background:#fafafa}"
-          "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 6px;"
-          "text-align:right}th{background:#eee}.PASS{color:#070}.WARN{color:#a60}.FAIL{color:#c00;"
-          "font-weight:bold}img{image-rendering:pixelated;border:1px solid #999;max-width:384px}"
-          "figure{display:inline-block;margin:4px;vertical-align:top}figcaption{font-size:12px}"
-          "section{background:#fff;border:1px solid #ddd;padding:10px;margin:12px 0}"
-          ".first{border:3px solid #c00}</style></head><body>";
-  html << "<h1>bloomref compare: " << esc(source) << "</h1><p>" << esc(renderer) << "<br>profile "
-       << esc(r.profile.name) << " (" << esc(r.profile.source) << ")<br>"
-       << plan.facts.width << "x" << plan.facts.height << ", " << plan.params.passes << " passes, "
-       << to_string(plan.params.kernel) << ", storage " << to_string(plan.params.storage)
-       << (fault == "none" ? std::string() : ", injected fault <b>" + esc(fault) + "</b>")
-       << "</p><h2 class='" << parity::to_string(r.verdict) << "'>verdict "
-       << parity::to_string(r.verdict) << "; first divergent stage: "
-       << (first.empty() ? "none" : "<a href='#stage-" + first + "'>" + first + "</a>")
-       << "</h2>";
-  html << "<table><tr><th>stage</th><th>isolated</th><th>max |err|</th><th>max f16 ULP</th>"
-          "<th>largest err/bound</th><th>values over bound</th><th>end to end</th>"
-          "<th>largest err/bound</th></tr>";
-  for (std::size_t i = 0; i < r.isolated.size(); ++i) {
-    const auto& s = r.isolated[i];
-    const auto& e = r.end_to_end[i];
-    html << "<tr><td><a href='#stage-" << s.stage << "'>" << s.stage << "</a></td><td class='"
-         << parity::to_string(s.verdict) << "'>" << parity::to_string(s.verdict) << "</td><td>"
-         << num(s.max_abs) << "</td><td>" << num(s.max_ulp16) << "</td><td>" << num(s.max_ratio)
-         << "</td><td>" << s.over_bound + s.nonfinite_mismatch << "</td><td class='"
-         << parity::to_string(e.verdict) << "'>" << parity::to_string(e.verdict) << "</td><td>"
-         << num(e.max_ratio) << "</td></tr>";
-  }
-  html << "</table><p>Isolated: each GL stage against the CPU stage recomputed from GL's own "
-          "previous stage. Heat maps: error/bound, black 0, yellow 1, red to white above 1, "
-          "magenta NaN/Inf on one side only. Previews keep each block's peak; full-size PNG and "
-          "raw EXR files are beside this page.</p>";
-
+  write_head(html, source, renderer, plan, r, fault);
+  write_summary(html, r);
   // Sections: the first divergent stage first, then the pipeline order.
   std::vector<std::size_t> order;
   for (std::size_t i = 0; i < r.isolated.size(); ++i)
     if (r.isolated[i].stage == first) order.push_back(i);
   for (std::size_t i = 0; i < r.isolated.size(); ++i)
     if (r.isolated[i].stage != first) order.push_back(i);
-  const fs::path tmp = root / ".preview.png";
   for (std::size_t i : order) {
     const auto& s = r.isolated[i];
     const StageResult* g = gl.find(s.stage);
-    if (!g || s.oracle.empty()) continue;
-    const bool scene_referred = s.stage != "tonemap" && s.stage != "output";
-    double scale = 0;
-    Image raw, heat, mask;
-    ratio_images(g->image, s.oracle, s.bound, raw, heat, mask);
-    const Image diff = signed_diff(g->image, s.oracle, scale);
-    Image signed_raw(g->image.width(), g->image.height());
-    for (std::size_t k = 0; k < signed_raw.values().size(); ++k)
-      signed_raw.values()[k] = k % 4 == 3 ? 1.0f : g->image.values()[k] - s.oracle.values()[k];
-    const std::string base = (root / s.stage).string();
-    save_exr(base + ".oracle.exr", s.oracle.cview());
-    save_exr(base + ".gl.exr", g->image.cview());
-    save_exr(base + ".diff.exr", signed_raw.cview());
-    save_exr(base + ".ratio.exr", raw.cview());
-    const Image d_or = display(s.oracle, scene_referred), d_gl = display(g->image, scene_referred);
-    save_png(base + ".oracle.png", d_or.cview());
-    save_png(base + ".gl.png", d_gl.cview());
-    save_png(base + ".diff.png", diff.cview());
-    save_png(base + ".ratio.png", heat.cview());
-    save_png(base + ".mask.png", mask.cview());
-
-    html << "<section id='stage-" << s.stage << "'" << (s.stage == first ? " class='first'" : "")
-         << "><h2>" << s.stage << ": <span class='" << parity::to_string(s.verdict) << "'>"
-         << parity::to_string(s.verdict) << "</span>" << (s.stage == first ? " (first divergent)" : "")
-         << "</h2><p>" << esc(s.reason) << "; end to end " << parity::to_string(r.end_to_end[i].verdict)
-         << ": " << esc(r.end_to_end[i].reason) << "</p>";
-    const std::pair<const Image*, std::string> figs[] = {
-        {&d_or, "oracle (CPU from GL's previous stage)"},
-        {&d_gl, "GL"},
-        {&diff, "GL - oracle, full scale " + num(scale)},
-        {&heat, "error / bound"},
-        {&mask, "pass (green) / fail (red)"}};
-    for (const auto& [img, caption] : figs)
-      html << "<figure><img src='" << png_data_uri(preview(*img, img != &d_or && img != &d_gl), tmp)
-           << "'><figcaption>" << esc(caption) << "</figcaption></figure>";
-    html << "<h3>worst values (largest error / bound)</h3><table><tr><th>x</th><th>y</th><th>ch</th>"
-            "<th>oracle</th><th>GL</th><th>|err|</th><th>bound</th><th>err/bound</th>"
-            "<th style='text-align:left'>bound terms</th></tr>";
-    for (const auto& w : s.worst) {
-      std::string terms;
-      for (const auto& t : w.terms)
-        if (t.value != 0) terms += esc(t.name) + " = " + num(t.value) + "<br>";
-      html << "<tr><td>" << w.x << "</td><td>" << w.y << "</td><td>" << "RGB"[w.channel]
-           << "</td><td>" << num(w.oracle) << "</td><td>" << num(w.gl) << "</td><td>"
-           << (std::isfinite(w.error) ? num(w.error) : "non-finite") << "</td><td>" << num(w.bound)
-           << "</td><td>" << (std::isfinite(w.error) && w.bound > 0 ? num(w.error / w.bound) : "-")
-           << "</td><td style='text-align:left'>" << terms << "</td></tr>";
-    }
-    html << "</table><h3>signed f16-ULP differences (GL - oracle), log scale</h3>"
-         << histogram_svg(s.ulp_histogram) << "</section>";
+    if (g && !s.oracle.empty()) write_stage(html, root, s, r.end_to_end[i], g->image, s.stage == first);
   }
   html << "<script>if(!location.hash&&'" << first << "')location.hash='stage-" << first
        << "';</script></body></html>\n";

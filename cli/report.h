@@ -1,6 +1,6 @@
 // bloomref compare --report DIR: per-stage images (oracle, GL, signed difference, error/bound
 // heat map, pass/fail mask; PNG for the eye, EXR for the numbers), worst values with their bound
-// terms, f16-ULP histograms, and one self-contained index.html opening on the first divergent
+// terms, the causes tested on a failing stage, f16-ULP histograms, and one self-contained index.html opening on the first divergent
 // stage.
 #pragma once
 
@@ -10,6 +10,9 @@
 #include "bloomref/parity/compare.h"
 
 namespace bloomref::cli {
+
+/// The best-supported cause of a stage's failure, in one line ("" when the stage passed).
+std::string cause_line(const parity::StageComparison& s);
 
 void write_report(const std::string& dir, const std::string& source, const std::string& renderer,
                   const Plan& plan, const StageTrace& gl, const parity::ParityResult& r,

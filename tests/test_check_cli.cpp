@@ -145,13 +145,21 @@ TEST_CASE("a blur pass with a wrong weight fails there, and says so", "[check-cl
   for (const char* later : {"blur.4", "blur.5", "blur.6", "blur.7", "blur.8", "blur.9", "blur.10",
                             "composite", "tonemap", "output"})
     fs::remove(dir / (std::string("d/") + later + ".exr"));
-  const CliResult r = run_cli(dir, "check " + kSize + " --stages d --json r.json");
+  const CliResult r = run_cli(dir, "check " + kSize + " --stages d --json r.json --report rep");
   INFO(r.out << r.err);
   CHECK(r.code == 1);
   const json j = read_json(dir / "r.json");
   CHECK(j["items"][0]["first_divergent_stage"] == "blur.3");
   CHECK(j["items"][0]["first_divergent_cause"]["id"] == "wrong-weights");
   CHECK(r.out.find("likely cause: wrong kernel weights") != std::string::npos);
+  // The HTML report names the cause and lists the hypotheses tried; with the default
+  // --artifacts fail it holds the failing stage's images only.
+  const std::string html = bloomref::test::read_bytes(dir / "rep/d/index.html");
+  CHECK(html.find("likely cause: wrong kernel weights") != std::string::npos);
+  CHECK(html.find("causes tested") != std::string::npos);
+  CHECK(fs::exists(dir / "rep/d/blur.3.diff.exr"));
+  CHECK_FALSE(fs::exists(dir / "rep/d/blur.2.diff.exr"));
+  CHECK_FALSE(fs::exists(dir / "rep/d/bright.diff.exr"));
 }
 
 TEST_CASE("only the output (composite, tone map and gamma in one pass) is judged", "[check-cli]") {

@@ -82,11 +82,3 @@ TEST_CASE("the weight faults scale weight[1] of both blur kernels", "[faults]") 
   CHECK(occurrences(p, "0.1945945946 * 1.001,") == 1);  // discrete9
   CHECK(occurrences(p, "0.3162162162 * 1.001,") == 1);  // linear5
 }
-
-TEST_CASE("the executor's fault defines name the faults", "[faults]") {
-  CHECK(gpu::fault_of_define("FAULT_WEIGHT_SCALE 1.01") == Fault::weight_1pct);
-  CHECK(gpu::fault_of_define("FAULT_WEIGHT_SCALE 1.0001") == Fault::weight_0_01pct);
-  CHECK(gpu::fault_of_define("FAULT_NO_EXPOSURE 1") == Fault::exposure_ignored);
-  CHECK(gpu::fault_of_define("KERNEL_LINEAR5 1") == Fault::none);
-  CHECK_THROWS_AS(gpu::fault_of_define("FAULT_SOMETHING_ELSE 1"), std::logic_error);
-}

@@ -7,18 +7,13 @@
 #include <filesystem>
 
 #include "json_out.h"
+#include "report.h"
 
 namespace fs = std::filesystem;
 using nlohmann::ordered_json;
 
 namespace bloomref::cli {
 namespace {
-
-std::string percent(double f) {
-  char b[32];
-  std::snprintf(b, sizeof b, f >= 0.9995 && f < 1 ? "%.3f%%" : "%.1f%%", 100 * f);
-  return b;
-}
 
 ordered_json stage_json(const parity::StageComparison& s) {
   ordered_json worst = ordered_json::array();
@@ -98,16 +93,6 @@ Counts count(const CheckRun& run) {
 }
 
 }  // namespace
-
-std::string cause_line(const parity::StageComparison& s) {
-  if (s.causes.empty()) return s.verdict == parity::Verdict::pass ? "" : "no usual cause explains it";
-  const parity::CauseFit& c = s.causes.front();
-  std::string line = (c.within >= 0.999 ? "likely cause: " : "best partial explanation: ") +
-                     c.description + " (brings " + percent(c.within) +
-                     " of values within bound; as specified " + percent(c.oracle_within) + ")";
-  if (!c.detail.empty()) line += "; " + c.detail;
-  return line;
-}
 
 ordered_json check_json(const CheckRun& run) {
   const Counts n = count(run);

@@ -66,7 +66,4 @@ struct CheckRun {
   std::string report_dir;  ///< --report, where the failing stages' images are
 };
 
-/// The best-supported cause of a stage's failure, in one line ("" when none was found).
-std::string cause_line(const parity::StageComparison& s);
-
 }  // namespace bloomref::cli

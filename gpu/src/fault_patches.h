@@ -27,8 +27,4 @@ const std::vector<SourcePatch>& fault_patches(Fault f);
 /// once.
 std::string apply_fault(Fault f, const std::string& file, std::string source);
 
-/// The fault a build define names ("FAULT_..." as the executor passes it), Fault::none for any
-/// other define; throws std::logic_error for an unknown "FAULT_" define.
-Fault fault_of_define(const std::string& define);
-
 }  // namespace bloomref::gpu

@@ -131,24 +131,4 @@ std::string apply_fault(Fault f, const std::string& file, std::string source) {
   return source;
 }
 
-Fault fault_of_define(const std::string& define) {
-  static const std::map<std::string, Fault> by_define = {
-      {"FAULT_VERTICAL_ALONG_X 1", Fault::vertical_offsets_x},
-      {"FAULT_HALF_TEXEL 1", Fault::half_texel_shift},
-      {"FAULT_THRESHOLD_GE 1", Fault::threshold_ge},
-      {"FAULT_WEIGHT_SCALE 1.01", Fault::weight_1pct},
-      {"FAULT_WEIGHT_SCALE 1.001", Fault::weight_0_1pct},
-      {"FAULT_WEIGHT_SCALE 1.0001", Fault::weight_0_01pct},
-      {"FAULT_GAMMA_TWICE 1", Fault::gamma_twice},
-      {"FAULT_SWAP_RB 1", Fault::swap_rb},
-      {"FAULT_NO_EXPOSURE 1", Fault::exposure_ignored},
-      {"FAULT_TAP_OFFSET 1", Fault::tap_offset},
-      {"FAULT_KARIS_UNNORMALISED 1", Fault::karis_unnormalised},
-  };
-  if (define.rfind("FAULT_", 0) != 0) return Fault::none;
-  const auto it = by_define.find(define);
-  if (it == by_define.end()) throw std::logic_error("no fault is named by the define '" + define + "'");
-  return it->second;
-}
-
 }  // namespace bloomref::gpu

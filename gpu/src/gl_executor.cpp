@@ -23,24 +23,10 @@ int policy_code(NonFinite n) {
   return 0;
 }
 
-std::vector<std::string> defines_for(const BloomParams& p, Fault fault, GLenum format) {
+std::vector<std::string> defines_for(const BloomParams& p, GLenum format) {
   std::vector<std::string> d;
   d.push_back(std::string("STORAGE_FORMAT ") + (format == GL_RGBA16F ? "rgba16f" : "rgba32f"));
   if (p.kernel == KernelName::linear5) d.push_back("KERNEL_LINEAR5 1");
-  switch (fault) {
-    case Fault::vertical_offsets_x: d.push_back("FAULT_VERTICAL_ALONG_X 1"); break;
-    case Fault::half_texel_shift: d.push_back("FAULT_HALF_TEXEL 1"); break;
-    case Fault::threshold_ge: d.push_back("FAULT_THRESHOLD_GE 1"); break;
-    case Fault::weight_1pct: d.push_back("FAULT_WEIGHT_SCALE 1.01"); break;
-    case Fault::weight_0_1pct: d.push_back("FAULT_WEIGHT_SCALE 1.001"); break;
-    case Fault::weight_0_01pct: d.push_back("FAULT_WEIGHT_SCALE 1.0001"); break;
-    case Fault::gamma_twice: d.push_back("FAULT_GAMMA_TWICE 1"); break;
-    case Fault::swap_rb: d.push_back("FAULT_SWAP_RB 1"); break;
-    case Fault::exposure_ignored: d.push_back("FAULT_NO_EXPOSURE 1"); break;
-    case Fault::tap_offset: d.push_back("FAULT_TAP_OFFSET 1"); break;
-    case Fault::karis_unnormalised: d.push_back("FAULT_KARIS_UNNORMALISED 1"); break;
-    default: break;
-  }
   return d;
 }
 
@@ -201,16 +187,16 @@ struct StagePrograms {
 // Compiles the stages' programs and sets the uniforms that stay fixed for the run.
 StagePrograms build_programs(GlContext& ctx, const BloomParams& p, const GlSchedule& s,
                              Fault fault) {
-  const std::vector<std::string> defs = defines_for(p, fault, s.format);
+  const std::vector<std::string> defs = defines_for(p, s.format);
   StagePrograms g;
-  g.extract = build_program(s.compute, "extract_bright.glsl", defs);
-  g.blur = build_program(s.compute, "blur_pass.glsl", defs);
-  g.composite = build_program(s.compute, "composite.glsl", defs);
-  g.tonemap = build_program(s.compute, "tonemap.glsl", defs);
-  g.encode = build_program(s.compute, "encode_output.glsl", defs);
+  g.extract = build_program(s.compute, "extract_bright.glsl", defs, fault);
+  g.blur = build_program(s.compute, "blur_pass.glsl", defs, fault);
+  g.composite = build_program(s.compute, "composite.glsl", defs, fault);
+  g.tonemap = build_program(s.compute, "tonemap.glsl", defs, fault);
+  g.encode = build_program(s.compute, "encode_output.glsl", defs, fault);
   if (p.method == Method::mip) {
-    g.down = build_program(s.compute, "downsample.glsl", defs);
-    g.up = build_program(s.compute, "upsample_tent.glsl", defs);
+    g.down = build_program(s.compute, "downsample.glsl", defs, fault);
+    g.up = build_program(s.compute, "upsample_tent.glsl", defs, fault);
     g.down.set("src", 0);
     g.down.set("karis", p.karis ? 1 : 0);
     g.down.set("threshold", p.threshold);

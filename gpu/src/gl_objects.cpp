@@ -115,13 +115,7 @@ GLuint compile(GLenum type, const std::string& text, const std::string& name) {
 Program build_program(bool compute, const std::string& stage_file,
                       const std::vector<std::string>& defines, Fault fault) {
   std::string head = "#version 430 core\n";
-  for (const std::string& d : defines) {
-    const Fault named = fault_of_define(d);
-    if (named == Fault::none)
-      head += "#define " + d + "\n";
-    else
-      fault = named;
-  }
+  for (const std::string& d : defines) head += "#define " + d + "\n";
   const std::string text = head + source(compute ? "compute_main.glsl" : "fragment_main.glsl") +
                            source("common.glsl") + apply_fault(fault, stage_file, source(stage_file));
   Program prog;

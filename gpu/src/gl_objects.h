@@ -49,8 +49,7 @@ struct Program {
 
 /// Compiles a stage: the entry file (fragment_main.glsl or compute_main.glsl), common.glsl and
 /// the stage file, after `#version 430 core` and `defines` (one "NAME VALUE" per entry), with
-/// `fault`'s source edits applied to the stage file (fault_patches.h). A "FAULT_..." entry of
-/// `defines` names a fault the same way (fault_of_define) and is not emitted as a #define.
+/// `fault`'s source edits applied to the stage file (fault_patches.h).
 Program build_program(bool compute, const std::string& stage_file,
                       const std::vector<std::string>& defines, Fault fault = Fault::none);
 

@@ -307,110 +307,152 @@ std::vector<ProgramInterface> check_learnopengl(GlContext& ctx, const LearnOpenG
   return interfaces(build_programs(ctx, shaders, opt));
 }
 
-UserPipelineRun run_learnopengl(GlContext& ctx, ConstImageView scene,
-                                const LearnOpenGLShaders& shaders, const UserPipelineOptions& opt) {
-  validate(opt);
-  const auto t_start = Clock::now();
-  const int w = scene.width, h = scene.height;
-  GLint max_size = 0;
-  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
-  if (w <= 0 || h <= 0 || w > max_size || h > max_size)
-    throw ParamError("a " + std::to_string(w) + "x" + std::to_string(h) +
-                     " scene does not fit this GL's textures (GL_MAX_TEXTURE_SIZE " +
-                     std::to_string(max_size) + ")");
-  Programs prog = build_programs(ctx, shaders, opt);
-  UserPipelineRun run;
-  run.programs = interfaces(prog);
-  run.bright_source = shaders.bright_fs ? shaders.bright_fs->path : "oracle";
-  StageTrace& trace = run.trace;
-  auto add = [&](const std::string& name, Image&& img, double ms) {
-    trace.stages.push_back({name, std::move(img), ms, false});
-    trace.timings.emplace_back(name, ms);
-  };
+namespace {
+
+// The tutorial's host code (src/5.advanced_lighting/7.bloom/bloom.cpp), one method per step:
+// the scene in its target, the bright pass, the ping-pong blur, the final pass. Every pass is
+// read back into the trace.
+class LearnOpenGLHost {
+ public:
+  LearnOpenGLHost(GlContext& ctx, ConstImageView scene, const LearnOpenGLShaders& shaders,
+                  const UserPipelineOptions& opt)
+      : ctx_(ctx), scene_(scene), opt_(opt), w_(scene.width), h_(scene.height),
+        format_(gl_format(opt.format)), prog_(build_programs(ctx, shaders, opt)) {
+    run_.programs = interfaces(prog_);
+    run_.bright_source = shaders.bright_fs ? shaders.bright_fs->path : "oracle";
+  }
+
+  UserPipelineRun run() {
+    const auto t_start = Clock::now();
+    const auto t0 = Clock::now();
+    upload_scene();
+    const double input_ms = ms_since(t0);
+    bright_pass(input_ms);
+    const Texture* bloom = blur_passes();
+    final_pass(*bloom);
+    run_.trace.total_ms = ms_since(t_start);
+    return std::move(run_);
+  }
+
+ private:
+  void add(const std::string& name, Image&& img, double ms) {
+    run_.trace.stages.push_back({name, std::move(img), ms, false});
+    run_.trace.timings.emplace_back(name, ms);
+  }
+
+  Texture upload(const Image& img) const {
+    if (opt_.rows != RowOrder::flipped) return Texture(w_, h_, format_, img.data());
+    const Image f = flipped_rows(img.cview());
+    return Texture(w_, h_, format_, f.data());
+  }
+
+  Image read_back(const Texture& t) const {
+    Image img = Image::uninitialised(w_, h_);
+    t.read(img.data());
+    return opt_.rows == RowOrder::flipped ? flipped_rows(img.cview()) : img;
+  }
+
+  Texture target() const {
+    Texture t(w_, h_, format_);
+    sample(t);
+    return t;
+  }
+
+  void sample(const Texture& t) const { t.set_sampling(gl_filter(opt_.filter), gl_wrap(opt_.wrap)); }
 
   // The scene as the user's renderer leaves it in its target: the oracle's input stage
   // (non-finite policy, then the target's storage), which both sides then read.
-  const Storage storage = storage_of(opt.format);
-  auto t0 = Clock::now();
-  Image sanitized(w, h);
-  trace.nonfinite = sanitize(scene, sanitized.view(), opt.nonfinite, storage, opt.threads);
-  if (opt.nonfinite == NonFinite::error && trace.nonfinite.total() > 0)
-    throw ParamError("the scene holds " + std::to_string(trace.nonfinite.total()) +
-                     " NaN or infinite values, refused under --nonfinite error");
-  Image input = sanitized;
-  store(input.view(), storage, opt.half_rounding, opt.threads);
+  void upload_scene() {
+    sanitized_ = Image(w_, h_);
+    run_.trace.nonfinite =
+        sanitize(scene_, sanitized_.view(), opt_.nonfinite, storage_of(opt_.format), opt_.threads);
+    if (opt_.nonfinite == NonFinite::error && run_.trace.nonfinite.total() > 0)
+      throw ParamError("the scene holds " + std::to_string(run_.trace.nonfinite.total()) +
+                       " NaN or infinite values, refused under --nonfinite error");
+    Image input = sanitized_;
+    store(input.view(), storage_of(opt_.format), opt_.half_rounding, opt_.threads);
+    scene_tex_ = upload(input);
+    sample(scene_tex_);
+    bright_tex_ = target();
+    ctx_.check("uploading the scene");
+  }
 
-  const GLenum format = gl_format(opt.format);
-  const bool flip = opt.rows == RowOrder::flipped;
-  auto upload = [&](const Image& img) {
-    if (!flip) return Texture(w, h, format, img.data());
-    const Image f = flipped_rows(img.cview());
-    return Texture(w, h, format, f.data());
-  };
-  auto read_back = [&](const Texture& t) {
-    Image img = Image::uninitialised(w, h);
-    t.read(img.data());
-    return flip ? flipped_rows(img.cview()) : img;
-  };
-  auto sample = [&](const Texture& t) { t.set_sampling(gl_filter(opt.filter), gl_wrap(opt.wrap)); };
-
-  QuadState quad;
-  Texture scene_tex = upload(input);
-  sample(scene_tex);
-  Texture bright_tex(w, h, format);
-  sample(bright_tex);
-  ctx.check("uploading the scene");
-  double input_ms = ms_since(t0);
-
-  if (!prog.bright) {
-    t0 = Clock::now();
-    Image bright(w, h);
-    extract_bright(sanitized.cview(), bright.view(), opt.threshold, opt.threads);
-    store(bright.view(), storage, opt.half_rounding, opt.threads);
-    bright_tex = upload(bright);
-    sample(bright_tex);
-    ctx.check("uploading the oracle's bright image");
-    add("input", read_back(scene_tex), input_ms);
-    add("bright", read_back(bright_tex), ms_since(t0));
-  } else if (prog.bright->has_output(1)) {
-    // The tutorial's MRT form: location 0 is the scene the final pass reads.
-    Texture scene_out(w, h, format);
-    sample(scene_out);
-    const double ms = quad.draw(ctx, *prog.bright, {&scene_tex}, scene_out, &bright_tex,
-                                opt.clear_colour, "the user's bright pass");
-    scene_tex = std::move(scene_out);
-    add("input", read_back(scene_tex), input_ms);
-    add("bright", read_back(bright_tex), ms);
-  } else {
-    const double ms = quad.draw(ctx, *prog.bright, {&scene_tex}, bright_tex, nullptr,
-                                opt.clear_colour, "the user's bright pass");
-    add("input", read_back(scene_tex), input_ms);
-    add("bright", read_back(bright_tex), ms);
+  // The oracle's bright image, or the user's bright pass (the tutorial's MRT form writes the
+  // scene the final pass reads to location 0 and the bright image to location 1).
+  void bright_pass(double input_ms) {
+    double ms = 0;
+    if (!prog_.bright) {
+      const auto t0 = Clock::now();
+      Image bright(w_, h_);
+      extract_bright(sanitized_.cview(), bright.view(), opt_.threshold, opt_.threads);
+      store(bright.view(), storage_of(opt_.format), opt_.half_rounding, opt_.threads);
+      bright_tex_ = upload(bright);
+      sample(bright_tex_);
+      ctx_.check("uploading the oracle's bright image");
+      ms = ms_since(t0);
+    } else if (prog_.bright->has_output(1)) {
+      Texture scene_out = target();
+      ms = quad_.draw(ctx_, *prog_.bright, {&scene_tex_}, scene_out, &bright_tex_,
+                      opt_.clear_colour, "the user's bright pass");
+      scene_tex_ = std::move(scene_out);
+    } else {
+      ms = quad_.draw(ctx_, *prog_.bright, {&scene_tex_}, bright_tex_, nullptr, opt_.clear_colour,
+                      "the user's bright pass");
+    }
+    add("input", read_back(scene_tex_), input_ms);
+    add("bright", read_back(bright_tex_), ms);
   }
 
   // bloom.cpp's loop: pingpong[horizontal] is drawn from the bright image on the first
   // iteration, else from pingpong[!horizontal]; the bloom is pingpong[!horizontal] after it.
-  Texture ping[2] = {Texture(w, h, format), Texture(w, h, format)};
-  sample(ping[0]);
-  sample(ping[1]);
-  bool horizontal = true;
-  for (int k = 1; k <= opt.passes; ++k) {
-    const Texture& src = k == 1 ? bright_tex : ping[horizontal ? 0 : 1];
-    prog.blur.set_flag("horizontal", horizontal);
-    const std::string name = "blur." + std::to_string(k);
-    const double ms = quad.draw(ctx, prog.blur, {&src}, ping[horizontal ? 1 : 0], nullptr,
-                                opt.clear_colour, ("the user's blur pass " + name).c_str());
-    add(name, read_back(ping[horizontal ? 1 : 0]), ms);
-    horizontal = !horizontal;
+  const Texture* blur_passes() {
+    ping_[0] = target();
+    ping_[1] = target();
+    bool horizontal = true;
+    for (int k = 1; k <= opt_.passes; ++k) {
+      const Texture& src = k == 1 ? bright_tex_ : ping_[horizontal ? 0 : 1];
+      prog_.blur.set_flag("horizontal", horizontal);
+      const std::string name = "blur." + std::to_string(k);
+      const double ms = quad_.draw(ctx_, prog_.blur, {&src}, ping_[horizontal ? 1 : 0], nullptr,
+                                   opt_.clear_colour, ("the user's blur pass " + name).c_str());
+      add(name, read_back(ping_[horizontal ? 1 : 0]), ms);
+      horizontal = !horizontal;
+    }
+    return opt_.passes > 0 ? &ping_[horizontal ? 0 : 1] : &bright_tex_;
   }
-  const Texture& bloom = opt.passes > 0 ? ping[horizontal ? 0 : 1] : bright_tex;
 
-  Texture out(w, h, format);
-  const double ms = quad.draw(ctx, prog.final, {&scene_tex, &bloom}, out, nullptr, opt.clear_colour,
-                              "the user's final pass");
-  add("output", read_back(out), ms);
-  trace.total_ms = ms_since(t_start);
-  return run;
+  void final_pass(const Texture& bloom) {
+    Texture out(w_, h_, format_);
+    const double ms = quad_.draw(ctx_, prog_.final, {&scene_tex_, &bloom}, out, nullptr,
+                                 opt_.clear_colour, "the user's final pass");
+    add("output", read_back(out), ms);
+  }
+
+  GlContext& ctx_;
+  ConstImageView scene_;
+  const UserPipelineOptions& opt_;
+  int w_, h_;
+  GLenum format_;
+  Programs prog_;
+  QuadState quad_;
+  Image sanitized_;
+  Texture scene_tex_, bright_tex_;
+  Texture ping_[2];
+  UserPipelineRun run_;
+};
+
+}  // namespace
+
+UserPipelineRun run_learnopengl(GlContext& ctx, ConstImageView scene,
+                                const LearnOpenGLShaders& shaders, const UserPipelineOptions& opt) {
+  validate(opt);
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+  if (scene.width <= 0 || scene.height <= 0 || scene.width > max_size || scene.height > max_size)
+    throw ParamError("a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +
+                     " scene does not fit this GL's textures (GL_MAX_TEXTURE_SIZE " +
+                     std::to_string(max_size) + ")");
+  return LearnOpenGLHost(ctx, scene, shaders, opt).run();
 }
 
 }  // namespace bloomref::gpu
