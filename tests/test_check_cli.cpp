@@ -348,3 +348,30 @@ TEST_CASE("a profile file: per-stage overrides; a bad field is exit 2 naming it"
   r = run_cli(dir, "check " + kSize + " --stages s --profile nosuch");
   CHECK(r.code == 2);
 }
+
+TEST_CASE("warn as error: a stage over its bound but within the warning tier fails", "[check-cli]") {
+  // One output value is raised step by step (x1.5) until the check reports WARN for it: some
+  // step lands its error/bound ratio between 1 and the FAIL tier. That same input then passes
+  // with exit 0 and fails with --warn-as-error.
+  TempDir dir;
+  dump(dir, "d");
+  const bloomref::Image original = bloomref::load_image(dir / "d/output.exr").image;
+  bool warned = false;
+  for (double delta = 1e-7; delta < 0.1 && !warned; delta *= 1.5) {
+    bloomref::Image out = original;
+    out.pixel(20, 20)[0] += static_cast<float>(delta);
+    bloomref::save_exr(dir / "d/output.exr", out.cview());
+    const CliResult r = run_cli(dir, "check " + kSize + " --stages d --json r.json");
+    REQUIRE((r.code == 0 || r.code == 1));
+    const json j = read_json(dir / "r.json");
+    if (j["verdict"] == "FAIL") break;
+    warned = j["verdict"] == "WARN";
+    if (warned) CHECK(r.code == 0);
+  }
+  REQUIRE(warned);
+  const CliResult r = run_cli(dir, "check " + kSize + " --stages d --warn-as-error --json r.json --junit r.xml");
+  INFO(r.out << r.err);
+  CHECK(r.code == 1);
+  CHECK(read_json(dir / "r.json")["exit_code"] == 1);
+  CHECK(count(bloomref::test::read_bytes(dir / "r.xml"), "<failure") == 1);
+}

@@ -45,6 +45,8 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
       INFO(r.out << r.err);
       CHECK((r.code == 0 || r.code == 1));
       const json j = json::parse(test::read_bytes(dir / "r.json"));
+      // The stages come from the user's shaders, not from a folder of theirs.
+      CHECK(j["items"][0]["stages_from"] == "the passes of blur.fs and final.fs");
       int blurs = 0;
       for (const json& st : j["items"][0]["stages"]) {
         const std::string name = st["stage"];

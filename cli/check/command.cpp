@@ -98,7 +98,7 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
   r.height = plan.facts.height;
   std::vector<StageFile> files = item.files;
   if (!item.stages_dir.empty()) {
-    r.stages_from = item.stages_dir;
+    r.stages_from = item.from.empty() ? item.stages_dir : item.from;
     files = find_stage_files(item.stages_dir, plan, item.defaults, item.aliases, r.ignored);
   }
   for (const StageFile& f : files) require_stage_in_plan(f, plan);
@@ -218,6 +218,7 @@ CheckItem shaders_item(CheckArgs& a, CheckRun& run, ScratchDir& scratch) {
   CheckItem item;
   item.scene = a.scene;
   item.stages_dir = scratch.path().string();
+  item.from = "the passes of " + a.shaders.blur_fs + " and " + a.shaders.final_fs;
   item.id = "learnopengl";
   return item;
 }

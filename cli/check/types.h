@@ -24,6 +24,7 @@ struct CheckItem {
   std::string id;
   std::string scene;       ///< image path; empty: the built-in --scene
   std::string stages_dir;  ///< a folder of <stage>.<ext> files, or
+  std::string from;        ///< what the results call the stages' origin (default: stages_dir)
   std::vector<StageFile> files;  ///< the files one by one (a manifest's stage map)
   StageFile defaults;      ///< encoding, origin, channels for a folder's files
   std::map<std::string, std::string> aliases;  ///< a folder's file names -> stage names
