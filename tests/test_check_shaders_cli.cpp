@@ -57,6 +57,20 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
       CHECK(blurs == 10);
     }
   }
+  SECTION("an 8-bit final target, as the tutorial's window: the output's codes are judged") {
+    const test::CliResult r = test::run_cli(
+        kArgs + "--blur-fs blur.fs --final-fs final.fs --storage f16 --final-target rgba8 --json r.json",
+        "", dir.path());
+    INFO(r.out << r.err);
+    CHECK(r.code == 0);
+    const json j = json::parse(test::read_bytes(dir / "r.json"));
+    CHECK(j["items"][0]["stages"].back()["stage"] == "output");
+    CHECK(j["items"][0]["stages"].back()["isolated"]["verdict"] == "PASS");
+    const std::string file = j["items"][0]["stages"].back()["file"];
+    CHECK(file.substr(file.size() - 4) == ".png");  // 8-bit codes, loaded as png-linear
+    CHECK(test::run_cli(kArgs + "--blur-fs blur.fs --final-fs final.fs --final-target rgb565", "",
+                        dir.path()).code == 2);
+  }
   SECTION("a blur weight 1% too large fails at blur.1") {
     const test::CliResult r = test::run_cli(
         kArgs + "--blur-fs broken_blur.fs --final-fs final.fs --storage f32 --json r.json", "",

@@ -432,3 +432,30 @@ TEST_CASE("no blur passes: the final pass reads the bright image", "[user-shader
   REQUIRE(errors.back().stage == "output");  // from the input and the bright image
   CHECK(errors.back().max_ratio <= 1.0);
 }
+
+TEST_CASE("an 8-bit final target: codes, within half a code of the CPU's output", "[user-shaders]") {
+  gpu::GlContext* ctx = test::gl_context();
+  if (!ctx) return;
+  UserPipelineOptions opt;
+  opt.format = gpu::TargetFormat::rgba32f;
+  opt.final_target = gpu::FinalTarget::rgba8;
+  opt.passes = 4;
+  const Image scene = test_scene(40, 24);
+  const auto run = gpu::run_learnopengl(*ctx, scene.cview(), own_shaders(), opt);
+  CHECK(run.output_code_bits == 8);
+  // A UNORM8 target holds k / 255 (GL 4.6, 2.3.5.2: conversion to normalized fixed point).
+  const Image& out = run.trace.find("output")->image;
+  double worst_code_offset = 0;
+  for (float v : out.values()) worst_code_offset = std::max(worst_code_offset, std::abs(v * 255.0 - std::round(v * 255.0)));
+  CHECK(worst_code_offset < 1e-4);
+  // The stages before it are unchanged, and the output is the CPU's rounded to a code: the
+  // f32 output tolerance plus half a code.
+  for (const test::StageError& e :
+       test::isolated_errors(scene, run.trace, opt, opt.half_rounding, blur_tolerance(opt.format),
+                             test::Tolerance{0, 1e-4 + 0.5 / 255, 0})) {
+    INFO(e.stage << ": max |d| " << e.max_abs << ", worst ratio " << e.max_ratio);
+    CHECK(e.max_ratio <= 1.0);
+  }
+  CHECK(gpu::parse_final_target("GL_RGBA8") == gpu::FinalTarget::rgba8);
+  CHECK_THROWS_AS(gpu::parse_final_target("rgb565"), ParamError);
+}

@@ -356,6 +356,10 @@ std::function<int()> add_check(CLI::App& app) {
   sub->add_option("--filter", args->shaders.filter, "--shaders: texture filter linear | nearest");
   sub->add_option("--wrap", args->shaders.wrap,
                   "--shaders: texture wrap clamp-to-edge | repeat | mirrored-repeat");
+  sub->add_option("--final-target", args->shaders.final_target,
+                  "--shaders: the final pass draws into a target like the others (same) or an "
+                  "8-bit one like the tutorial's window (rgba8)")
+      ->capture_default_str();
   sub->add_option("--profile", args->profile,
                   "device precision profile: " + parity::profile_names() +
                       ", or a profile file NAME.json (docs/check.md)")

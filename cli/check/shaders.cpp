@@ -63,6 +63,7 @@ std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
   if (!s.target_format.empty()) opt.format = gpu::parse_target_format(s.target_format);
   opt.filter = gpu::parse_texture_filter(s.filter);
   opt.wrap = gpu::parse_texture_wrap(s.wrap);
+  opt.final_target = gpu::parse_final_target(s.final_target);
   std::string source;
   const LoadedImage scene = pipeline.load_input(scene_path, source);
   auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3
@@ -74,7 +75,11 @@ std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
     // bright shader made it) the bright image are the oracle's.
     const bool theirs = st.name.rfind("blur.", 0) == 0 || st.name == "output" ||
                         (st.name == "bright" && run.bright_source != "oracle");
-    if (theirs) save_exr((dir / (st.name + ".exr")).string(), st.image.cview());
+    if (!theirs) continue;
+    if (st.name == "output" && run.output_code_bits == 8)
+      save_png((dir / "output.png").string(), st.image.cview());  // codes / 255: exact
+    else
+      save_exr((dir / (st.name + ".exr")).string(), st.image.cview());
   }
   const gpu::ContextInfo& d = ctx->info();
   software = d.software;

@@ -12,7 +12,7 @@ namespace bloomref::cli {
 struct ShaderArgs {
   std::string preset;  ///< "learnopengl"
   std::string blur_fs, final_fs, blur_vs, final_vs, bright_fs;
-  std::string target_format, filter = "linear", wrap = "clamp-to-edge";
+  std::string target_format, filter = "linear", wrap = "clamp-to-edge", final_target = "same";
   bool any() const { return !preset.empty(); }
 };
 
@@ -32,8 +32,9 @@ class ScratchDir {
 
 /// Loads the user's shader files (InputError naming a missing one), runs them on `scene` through
 /// the preset in a headless GL context (GlUnavailable where there is none: exit 3), and writes
-/// every pass the user's shaders drew (blur.1 ... blur.N, output) into `dir` as float EXR, named
-/// as --dump-stages names them. Returns a one-line description of the GL device; `software`
+/// every pass the user's shaders drew (blur.1 ... blur.N, output) into `dir` as float EXR (an
+/// 8-bit final target's output as an 8-bit linear PNG: its codes), named as --dump-stages names
+/// them. Returns a one-line description of the GL device; `software`
 /// says whether it is a software renderer (llvmpipe).
 std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
                              const PipelineOptions& pipeline, const std::filesystem::path& dir,

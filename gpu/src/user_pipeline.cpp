@@ -37,6 +37,8 @@ constexpr Named<TextureWrap> kWraps[] = {
     {TextureWrap::clamp_to_edge, "clamp-to-edge", "GL_CLAMP_TO_EDGE"},
     {TextureWrap::repeat, "repeat", "GL_REPEAT"},
     {TextureWrap::mirrored_repeat, "mirrored-repeat", "GL_MIRRORED_REPEAT"}};
+constexpr Named<FinalTarget> kFinalTargets[] = {{FinalTarget::same, "same", "same"},
+                                                {FinalTarget::rgba8, "rgba8", "GL_RGBA8"}};
 constexpr Named<RowOrder> kRows[] = {{RowOrder::same, "same", "same"},
                                      {RowOrder::flipped, "flipped", "flipped"}};
 
@@ -271,6 +273,12 @@ TextureWrap parse_texture_wrap(const std::string& s) {
 RowOrder parse_row_order(const std::string& s) {
   return parse(kRows, "row order", s);
 }
+std::string to_string(FinalTarget t) {
+  return name_of(kFinalTargets, t);
+}
+FinalTarget parse_final_target(const std::string& s) {
+  return parse(kFinalTargets, "final target", s);
+}
 
 Storage storage_of(TargetFormat f) {
   return f == TargetFormat::rgba32f ? Storage::f32 : Storage::f16;
@@ -422,7 +430,9 @@ class LearnOpenGLHost {
   }
 
   void final_pass(const Texture& bloom) {
-    Texture out(w_, h_, format_);
+    const bool unorm8 = opt_.final_target == FinalTarget::rgba8;
+    Texture out(w_, h_, unorm8 ? GL_RGBA8 : format_);
+    run_.output_code_bits = unorm8 ? 8 : 0;
     const double ms = quad_.draw(ctx_, prog_.final, {&scene_tex_, &bloom}, out, nullptr,
                                  opt_.clear_colour, "the user's final pass");
     add("output", read_back(out), ms);

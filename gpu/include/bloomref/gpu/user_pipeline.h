@@ -65,17 +65,22 @@ enum class TargetFormat { rgba16f, rgb16f, rgba32f };
 enum class TextureFilter { linear, nearest };
 enum class TextureWrap { clamp_to_edge, repeat, mirrored_repeat };
 enum class RowOrder { same, flipped };
+/// Where the final pass draws: a target of `format` like every other pass, or an 8-bit UNORM
+/// target as the tutorial's window (default framebuffer) is, whose codes are then what is judged.
+enum class FinalTarget { same, rgba8 };
 
 std::string to_string(TargetFormat f);
 std::string to_string(TextureFilter f);
 std::string to_string(TextureWrap w);
 std::string to_string(RowOrder r);
+std::string to_string(FinalTarget t);
 // parse_* accept the names to_string gives (and GL's: "GL_RGBA16F", "GL_LINEAR",
 // "GL_CLAMP_TO_EDGE", ...); they throw ParamError listing the accepted names.
 TargetFormat parse_target_format(const std::string& s);
 TextureFilter parse_texture_filter(const std::string& s);
 TextureWrap parse_texture_wrap(const std::string& s);
 RowOrder parse_row_order(const std::string& s);
+FinalTarget parse_final_target(const std::string& s);
 /// f16 for the half formats, f32 for RGBA32F: the storage the oracle must be run with.
 Storage storage_of(TargetFormat f);
 
@@ -118,6 +123,7 @@ struct UserPipelineOptions {
   /// device profile).
   HalfRounding half_rounding = HalfRounding::nearest_even_saturate;
   RowOrder rows = RowOrder::same;
+  FinalTarget final_target = FinalTarget::same;
   int threads = 0;  ///< CPU threads for the oracle's input and bright stages
 };
 
@@ -150,6 +156,7 @@ struct UserPipelineRun {
   StageTrace trace;
   std::vector<ProgramInterface> programs;
   std::string bright_source;  ///< "oracle" or the bright shader's file
+  int output_code_bits = 0;   ///< 8 when the final pass drew into an 8-bit target
 };
 
 /// Compiles, links and checks the user's programs against the preset without drawing: the
