@@ -66,7 +66,7 @@ constexpr std::size_t kRowAlign = 16;  // floats: a ring row's stride is a multi
 
 // The last pass stores its rows past the cache (TileJob::stream_dst) from this output size on:
 // twice the 32 MB last-level cache of the machine measured. Ten fused passes at 3840x2160
-// (133 MB), one thread, AVX-512, medians of 6 alternated: see README "The fused blur".
+// (133 MB), one thread, AVX-512, medians of 6 alternated (docs/design.md, "CPU engine").
 constexpr std::size_t kStreamOutBytes = std::size_t(64) << 20;
 
 // One pass's tables (blur_pass_fast's) and, per output row, the input rows it reads. The bright

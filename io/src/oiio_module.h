@@ -4,7 +4,7 @@
 //
 // Why a module: linking OpenImageIO 2.4 (Debian 12) loads ~260 shared libraries (OpenCV,
 // FFmpeg, GDAL, DCMTK, ...) into the process, and relocating them took 0.3-0.4 s at every start
-// of `bloomref`, whatever the command (README: start-up and output). EXR input and PNG output do
+// of `bloomref`, whatever the command (docs/design.md, I/O). EXR input and PNG output do
 // not need OIIO; only Radiance .hdr, TIFF, PNG input and the other formats do, and they now pay
 // that cost when they are read, once per process.
 //

@@ -9,7 +9,7 @@ namespace bloomref::parity {
 DeviceProfile profile_llvmpipe() {
   DeviceProfile p;
   p.name = "llvmpipe";
-  p.source = "measured with `bloomref gl-info` on Mesa 22.3.6 llvmpipe (README, GL facts)";
+  p.source = "measured with `bloomref gl-info` on Mesa 22.3.6 llvmpipe (docs/design.md, GL path)";
   p.subtexel_bits = 0;           // 1024 distinct results in a 1024-sample sweep
   p.half_nearest_even = false;   // writes round toward zero ...
   p.half_toward_zero = true;

@@ -326,7 +326,7 @@ inline void pow_blocks(const PowF32<N>& pow, float* p, std::size_t n) {
 /// rounds to 1 and the result to 0, where the truth is 1e-10; the gamma curve then turns a 6e-8
 /// error into 5e-4). Truncation a^8/9! < 1e-8 relative; the 1/k are the same float constants
 /// as in tonemap.glsl, multiplications and subtractions only (correctly rounded in GLSL).
-/// Measured effect: README, "Stiff and extreme inputs".
+/// Reason and measured effect: docs/design.md, "The tone map has no cancellation".
 ///
 /// tonemap_series is the series for any float vector F (or float), with the mask of the lanes
 /// that take it; tonemap_f32 adds exp's lanes. The fast kernel runs the series on wider vectors

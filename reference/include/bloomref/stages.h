@@ -40,7 +40,7 @@ struct NonFiniteCounts {
 };
 
 /// The largest magnitude the pipeline carries: 2^120. Finite input beyond it is clamped to it
-/// (and counted), under every policy. Measured reason (README, "Stiff and extreme inputs"):
+/// (and counted), under every policy. Reason (docs/design.md, "Range guard"):
 /// values near FLT_MAX (scale.hdr, WideFloatRange.exr: 1.7e38) overflow to Inf inside GL's
 /// bilinear filter and in the mip chain's sums, and llvmpipe's filter turns Inf texels into
 /// NaN. 2^8 of headroom covers every sum the stages form (four bilinear texels, up to 17
@@ -182,7 +182,7 @@ void composite(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> 
 /// its bits are the same on every machine and in every vector lane (the C library's expf is
 /// not correctly rounded and differs between libraries). Within 1e-15 relative of e^x before
 /// the rounding, so it returns the correctly rounded float except where e^x lies that close to
-/// a rounding boundary (measured: README, "The f32 oracle's exp and pow are its own"; tested in
+/// a rounding boundary (docs/design.md, "Specification"; tested in
 /// tests/test_oracle_math.cpp). Method: reference/src/oracle_math.h.
 float oracle_exp(float x);
 /// The f32 oracle's pow for x >= 0 (or NaN), the same way; IEEE pow's special cases for those x

@@ -64,9 +64,10 @@ struct DeviceProfile {
   std::vector<StageOverride> overrides;  ///< the first matching pattern applies
 };
 
-/// Mesa llvmpipe, from the facts `bloomref gl-info` measured (README, "GL facts"): float
-/// bilinear weights, half writes toward zero saturating at 65504, shader arithmetic flushes
-/// denormals, no FMA contraction observed (allowed anyway: a driver update may fuse).
+/// Mesa llvmpipe, from the facts `bloomref gl-info` measured (docs/design.md, "What llvmpipe
+/// does where GL leaves it open"): float bilinear weights, half writes toward zero saturating
+/// at 65504, shader arithmetic flushes denormals, no FMA contraction observed (allowed anyway:
+/// a driver update may fuse).
 DeviceProfile profile_llvmpipe();
 
 /// NVIDIA-like hardware: 8-bit fixed-point bilinear weights, either half rounding, FMA.
