@@ -21,8 +21,8 @@ using detail::TapTable;
 using detail::centre_tap;
 using detail::make_taps;
 
-const std::vector<float>& weights(const Kernel& k, float) { return k.weights_f32; }
-const std::vector<double>& weights(const Kernel& k, double) { return k.weights_f64; }
+inline const std::vector<float>& weights(const Kernel& k, float) { return k.weights_f32; }
+inline const std::vector<double>& weights(const Kernel& k, double) { return k.weights_f64; }
 
 // Two texels along one axis, in sample_rgb's order, zero weights left out.
 template <class T>
