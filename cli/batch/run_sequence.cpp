@@ -173,6 +173,7 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
                            {"wall_ms", o.ms},
                            {"error", o.status == ItemOutcome::Status::error ? ordered_json(o.message)
                                                                             : ordered_json(nullptr)}};
+      if (o.status == ItemOutcome::Status::error) item["exit_code"] = o.exit_code;
       for (const auto& [k, v] : o.record.items()) item[k] = v;
       items.push_back(std::move(item));
     }

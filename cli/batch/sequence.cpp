@@ -110,15 +110,18 @@ std::vector<int> sequence_frames(const SequenceOptions& o, const batch::FramePat
   if (!o.frames.empty()) return batch::parse_frame_list(o.frames);
   if (!pattern.has_wildcard())
     throw ParamError("--frames is needed: " + what + " names no frame sequence");
-  // No --frames: the frames whose files exist, as oiiotool finds them.
-  const fs::path p(pattern.text());
+  // No --frames: the frames whose files (or folders) exist, as oiiotool finds them.
+  std::string text = pattern.text();
+  while (text.size() > 1 && text.back() == '/') text.pop_back();
+  const batch::FramePattern scan = batch::FramePattern::parse(text);
+  const fs::path p(text);
   const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
   std::vector<int> frames;
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     const std::string name = p.has_parent_path() ? (dir / e.path().filename()).string()
                                                   : e.path().filename().string();
-    if (const auto f = pattern.frame_of(name)) frames.push_back(*f);
+    if (const auto f = scan.frame_of(name)) frames.push_back(*f);
   }
   if (frames.empty())
     throw ParamError("no file matches " + what + " '" + pattern.text() +
