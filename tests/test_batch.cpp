@@ -1,8 +1,11 @@
 // cli/batch/ without files: frame patterns and lists as oiiotool writes them, shard selection from
-// an environment map for every engine --shard auto reads. Expected values are written out by hand.
+// an environment map for every engine --shard auto reads, the progress line, and merging results
+// documents written here by hand. Expected values are written out by hand.
 #include <catch2/catch.hpp>
 
 #include "batch/frames.h"
+#include "batch/merge.h"
+#include "batch/progress.h"
 #include "batch/shard.h"
 #include "bloomref/error.h"
 
@@ -189,4 +192,193 @@ TEST_CASE("--shard auto: Kubernetes, GitLab, Bazel, GoogleTest, Buildkite, Circl
   CHECK_THAT(error_of([] { resolve_shard("auto", 2, {{"CI_NODE_INDEX", "1"}, {"CI_NODE_TOTAL", "3"}}); }),
              Catch::Contains("contradicts GitLab"));
   CHECK(resolve_shard("auto", 3, {{"CI_NODE_INDEX", "1"}, {"CI_NODE_TOTAL", "3"}})->label() == "1/3");
+}
+
+// --- progress ---
+
+TEST_CASE("progress: durations and the bar", "[batch]") {
+  CHECK(format_duration(0.44) == "0.4s");
+  CHECK(format_duration(12.4) == "12s");
+  CHECK(format_duration(185) == "3m05s");
+  CHECK(format_duration(7620) == "2h07m");
+  // 37 of 240 in 15.35 s: 2.4104/s, 203 left / 2.4104 = 84.2 s; a 40-column bar 37/240 full = 6.
+  CHECK(progress_bar(37, 240, 15.35, 80) ==
+        "[======>" + std::string(33, ' ') + "]  37/240 frames  2.41/s  1m24s left");
+  CHECK(progress_bar(0, 10, 0, 80) == "[>" + std::string(39, ' ') + "]  0/10 frames  --/s  -- left");
+  CHECK(progress_bar(10, 10, 5, 80) == "[" + std::string(40, '=') + "]  10/10 frames  2.00/s  0.0s left");
+  CHECK(progress_bar(37, 240, 15.35, 30) == "37/240 frames  2.41/s  1m24s left");  // no room for a bar
+  CHECK(progress_bar(3, 4, 1, 80, "items") == "[" + std::string(30, '=') + ">" + std::string(9, ' ') +
+                                                  "]  3/4 items  3.00/s  0.3s left");
+}
+
+// --- merge ---
+
+namespace {
+
+using nlohmann::ordered_json;
+
+ordered_json run_item(const std::string& id, const std::string& status = "done") {
+  return {{"id", id}, {"status", status}, {"wall_ms", 10.0}};
+}
+
+ordered_json run_doc(const std::string& label, ordered_json items, bool finished = true,
+                     int threads = 2, int passes = 10) {
+  return {{"version", 1}, {"tool", "bloomref run"}, {"kind", "sequence"},
+          {"params", {{"passes", passes}, {"threads", threads}}},
+          {"batch", {{"item_ids", {"1", "2", "3"}}, {"shard", {{"label", label}, {"source", "test"}}},
+                     {"finished", finished}, {"interrupted", !finished}}},
+          {"exit_code", 0}, {"items", items}};
+}
+
+ordered_json check_item(const std::string& id, const std::string& verdict,
+                        std::vector<std::string> stage_statuses) {
+  ordered_json stages = ordered_json::array();
+  for (const std::string& s : stage_statuses)
+    stages.push_back({{"stage", "blur.1"}, {"status", s}, {"isolated", {{"reason", "r"}}}});
+  return {{"id", id}, {"verdict", verdict}, {"error", nullptr}, {"stages", stages}};
+}
+
+ordered_json check_doc(ordered_json items, bool warn_as_error = false) {
+  return {{"version", 1}, {"tool", "bloomref check"}, {"verdict", "PASS"}, {"exit_code", 0},
+          {"warn_as_error", warn_as_error}, {"params", {{"passes", 10}}},
+          {"batch", {{"item_ids", {"a", "b"}}, {"shard", nullptr}, {"finished", true}}},
+          {"items", items}};
+}
+
+std::vector<std::string> ids_of(const ordered_json& doc) {
+  std::vector<std::string> v;
+  for (const auto& it : doc["items"]) v.push_back(it["id"]);
+  return v;
+}
+
+template <class F>
+std::string input_error_of(F f) {
+  try {
+    f();
+  } catch (const bloomref::InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST_CASE("merge: every item once gives the items in list order", "[batch]") {
+  // Shard 1/2 ran items 1 and 3, shard 2/2 item 2, on a machine with another thread count.
+  const Merged m = merge_results({{"r1.json", run_doc("1/2", {run_item("1"), run_item("3", "resumed")})},
+                                  {"r2.json", run_doc("2/2", {run_item("2")}, true, 16)}});
+  CHECK(m.exit_code == 0);
+  CHECK(m.problems.empty());
+  CHECK(ids_of(m.doc) == std::vector<std::string>{"1", "2", "3"});
+  CHECK(m.doc["items"][1]["shard"] == "2/2");
+  CHECK(m.doc["items"][1]["results_file"] == "r2.json");
+  CHECK(m.doc["summary"]["done"] == 2);
+  CHECK(m.doc["summary"]["resumed"] == 1);
+  CHECK(m.doc["batch"]["complete"] == true);
+  CHECK(m.doc["batch"]["shards"].size() == 2);
+}
+
+TEST_CASE("merge: a missing item, an item run twice, an unfinished shard", "[batch]") {
+  const Merged missing = merge_results({{"r1.json", run_doc("1/2", {run_item("1"), run_item("3")})}});
+  CHECK(missing.exit_code == 2);
+  CHECK(missing.missing == std::vector<std::string>{"2"});
+  REQUIRE_FALSE(missing.problems.empty());
+  CHECK(missing.problems[0] == "1 of 3 items missing: 2");
+  CHECK(missing.doc["batch"]["complete"] == false);
+
+  const Merged twice = merge_results({{"r1.json", run_doc("1/2", {run_item("1"), run_item("3")})},
+                                      {"r2.json", run_doc("2/2", {run_item("2"), run_item("3")})}});
+  CHECK(twice.exit_code == 2);
+  CHECK(twice.duplicates == std::vector<std::string>{"3"});
+  CHECK(twice.missing.empty());
+  REQUIRE(twice.problems.size() == 1);
+  CHECK(twice.problems[0] == "item 3 was run 2 times (r1.json, r2.json)");
+
+  const Merged unfinished = merge_results({{"r1.json", run_doc("1/1", {run_item("1"), run_item("2"),
+                                                                          run_item("3")}, false)}});
+  CHECK(unfinished.exit_code == 2);
+  REQUIRE(unfinished.problems.size() == 1);
+  CHECK_THAT(unfinished.problems[0], Catch::Contains("did not finish (interrupted)"));
+}
+
+TEST_CASE("merge: run items' errors decide the exit code", "[batch]") {
+  ordered_json bad = run_item("2", "error");
+  bad["error"] = "in.0002.exr: no such file";
+  bad["exit_code"] = 2;
+  ordered_json internal = run_item("3", "error");
+  internal["exit_code"] = 4;
+  const Merged m = merge_results({{"r.json", run_doc("1/1", {run_item("1"), bad, internal})}});
+  CHECK(m.problems.empty());
+  CHECK(m.exit_code == 4);
+  CHECK(m.doc["summary"]["error"] == 2);
+  const std::string junit = merged_junit(m);
+  CHECK_THAT(junit, Catch::Contains("tests=\"3\" failures=\"0\" errors=\"1\""));  // item 3 has no message
+  CHECK_THAT(junit, Catch::Contains("<error message=\"in.0002.exr: no such file\""));
+}
+
+TEST_CASE("merge: check verdicts and counts over all shards", "[batch]") {
+  const Merged pass = merge_results({{"a.json", check_doc({check_item("a", "PASS", {"pass", "pass"})})},
+                                     {"b.json", check_doc({check_item("b", "WARN", {"pass", "warn"})})}});
+  CHECK(pass.exit_code == 0);
+  CHECK(pass.doc["verdict"] == "WARN");
+  CHECK(pass.doc["summary"]["stages"] == 4);
+  CHECK(pass.doc["summary"]["pass"] == 3);
+  CHECK(pass.doc["summary"]["warn"] == 1);
+
+  const Merged strict = merge_results({{"a.json", check_doc({check_item("a", "PASS", {"pass"}),
+                                                             check_item("b", "WARN", {"warn"})}, true)}});
+  CHECK(strict.doc["verdict"] == "FAIL");
+  CHECK(strict.exit_code == 1);
+
+  ordered_json error = check_item("b", "ERROR", {});
+  error["error"] = "st.0002/: is not a folder";
+  const Merged err = merge_results({{"a.json", check_doc({check_item("a", "FAIL", {"fail"}), error})}});
+  CHECK(err.doc["verdict"] == "ERROR");
+  CHECK(err.exit_code == 2);
+  CHECK(err.doc["summary"]["errors"] == 1);
+  CHECK(err.doc["summary"]["fail"] == 1);
+
+  const Merged half = merge_results({{"a.json", check_doc({check_item("a", "PASS", {"pass"})})}});
+  CHECK(half.exit_code == 2);
+  CHECK(half.missing == std::vector<std::string>{"b"});
+  const std::string junit = merged_junit(half);
+  CHECK_THAT(junit, Catch::Contains("type=\"missing\""));
+  CHECK_THAT(junit, Catch::Contains("tests=\"2\" failures=\"0\" errors=\"1\""));
+  const std::string html = merged_html(half, {"a"});
+  CHECK_THAT(html, Catch::Contains("<a href=\"a/index.html\">a</a>"));
+  CHECK_THAT(html, Catch::Contains("MISSING"));
+  CHECK_THAT(html, Catch::Contains("INCOMPLETE"));
+}
+
+TEST_CASE("merge refuses files of different runs, naming them", "[batch]") {
+  CHECK_THAT(input_error_of([] {
+               ordered_json other = run_doc("2/2", {run_item("2")});
+               other["batch"]["item_ids"] = {"1", "2"};
+               merge_results({{"r1.json", run_doc("1/2", {run_item("1")})}, {"r2.json", other}});
+             }),
+             Catch::Contains("r2.json: lists other items (2) than r1.json (3)"));
+  CHECK_THAT(input_error_of([] {
+               merge_results({{"r1.json", run_doc("1/2", {run_item("1")})},
+                              {"r2.json", run_doc("2/2", {run_item("2")}, true, 2, 8)}});
+             }),
+             Catch::Contains("r2.json: was run with other parameters"));
+  CHECK_THAT(input_error_of([] {
+               merge_results({{"r1.json", run_doc("1/2", {run_item("1")})},
+                              {"c.json", check_doc(ordered_json::array())}});
+             }),
+             Catch::Contains("c.json: holds bloomref check results"));
+  CHECK_THAT(input_error_of([] {
+               ordered_json one = run_doc("1/1", ordered_json::array());
+               one.erase("kind");
+               merge_results({{"one.json", one}});
+             }),
+             Catch::Contains("one.json: holds the results of one image"));
+  CHECK_THAT(input_error_of([] {
+               ordered_json plain = check_doc(ordered_json::array());
+               plain.erase("batch");
+               merge_results({{"plain.json", plain}});
+             }),
+             Catch::Contains("plain.json: has no item list"));
+  CHECK_THAT(input_error_of([] { merge_results({{"x.json", ordered_json::array()}}); }),
+             Catch::Contains("x.json: is not a bloomref results file"));
 }
