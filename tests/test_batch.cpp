@@ -108,7 +108,7 @@ TEST_CASE("frame lists written compactly", "[batch]") {
   CHECK(format_frame_list({}) == "");
 }
 
-TEST_CASE("--shard K/N takes every N-th item from K", "[batch]") {
+TEST_CASE("shard K/N takes every N-th item from K", "[batch]") {
   const Shard s = *resolve_shard("2/3", 0, {});
   CHECK(s.index == 1);
   CHECK(s.count == 3);
@@ -134,7 +134,7 @@ TEST_CASE("bad --shard values are named", "[batch]") {
              Catch::Contains("no shard variables are set"));
 }
 
-TEST_CASE("--shard auto: Slurm arrays, dense and sparse", "[batch]") {
+TEST_CASE("shard auto: Slurm arrays, dense and sparse", "[batch]") {
   // sbatch --array=1-4: ids 1..4 (Slurm 22.05 sets MIN, MAX, STEP, COUNT as below).
   const Shard a = *resolve_shard("auto", 0, {{"SLURM_ARRAY_TASK_ID", "3"}, {"SLURM_ARRAY_TASK_MIN", "1"},
                                              {"SLURM_ARRAY_TASK_MAX", "4"}, {"SLURM_ARRAY_TASK_STEP", "1"},
@@ -164,7 +164,7 @@ TEST_CASE("--shard auto: Slurm arrays, dense and sparse", "[batch]") {
   CHECK(c.label() == "1/2");
 }
 
-TEST_CASE("--shard auto: Kubernetes, GitLab, Bazel, GoogleTest, Buildkite, CircleCI", "[batch]") {
+TEST_CASE("shard auto: Kubernetes, GitLab, Bazel, GoogleTest, Buildkite, CircleCI", "[batch]") {
   CHECK(resolve_shard("auto", 5, {{"JOB_COMPLETION_INDEX", "0"}})->label() == "1/5");
   CHECK(resolve_shard("auto", 5, {{"JOB_COMPLETION_INDEX", "4"}})->label() == "5/5");
   CHECK_THAT(error_of([] { resolve_shard("auto", 0, {{"JOB_COMPLETION_INDEX", "0"}}); }),

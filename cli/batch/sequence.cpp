@@ -1,7 +1,7 @@
 #include "batch/sequence.h"
 
-#include <ImfInputFile.h>
 #include <fcntl.h>
+#include <openexr.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -71,6 +71,39 @@ int terminal_width() {
     if (w >= 20) return w;
   }
   return 80;
+}
+
+// Every chunk of every part of an EXR lies within the file: the offset table is whole and the
+// chunk furthest in ends before the end of the file. (OpenEXR's InputFile::isComplete checks
+// only the offset table, which a file cut short keeps: measured here on a 48x40 file cut in half.)
+bool exr_complete(const std::string& path, std::uintmax_t size) {
+  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+  init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};
+  exr_context_t ctx = nullptr;
+  if (exr_start_read(&ctx, path.c_str(), &init) != EXR_ERR_SUCCESS) {
+    exr_finish(&ctx);
+    return false;
+  }
+  bool ok = true;
+  std::uint64_t end = 0;
+  int parts = 0;
+  ok = exr_get_count(ctx, &parts) == EXR_ERR_SUCCESS;
+  for (int p = 0; ok && p < parts; ++p) {
+    exr_storage_t storage{};
+    exr_attr_box2i_t dw{};
+    int32_t lines = 0;
+    ok = exr_get_storage(ctx, p, &storage) == EXR_ERR_SUCCESS &&
+         storage == EXR_STORAGE_SCANLINE &&  // bloomref writes scanline files only
+         exr_get_data_window(ctx, p, &dw) == EXR_ERR_SUCCESS &&
+         exr_get_scanlines_per_chunk(ctx, p, &lines) == EXR_ERR_SUCCESS && lines > 0;
+    for (int y = dw.min.y; ok && y <= dw.max.y; y += lines) {
+      exr_chunk_info_t ci{};
+      ok = exr_read_scanline_chunk_info(ctx, p, y, &ci) == EXR_ERR_SUCCESS;
+      end = std::max<std::uint64_t>(end, ci.data_offset + ci.packed_size);
+    }
+  }
+  exr_finish(&ctx);
+  return ok && end <= size;
 }
 
 }  // namespace
@@ -309,12 +342,7 @@ bool image_complete(const std::string& path) {
     f.read(reinterpret_cast<char*>(tail), 12);
     return f && std::equal(tail, tail + 12, iend);
   }
-  try {
-    Imf::InputFile file(path.c_str(), 1);
-    return file.isComplete();
-  } catch (const std::exception&) {
-    return false;
-  }
+  return exr_complete(path, fs::file_size(path, ec));
 }
 
 }  // namespace bloomref::cli

@@ -93,8 +93,8 @@ struct BatchLoop {
 /// The exit code of a batch: 130 interrupted, else the worst item error (4 over 2), else 0.
 int batch_exit_code(const std::vector<ItemOutcome>& outcomes, bool interrupted);
 
-/// Whether an image file is whole: an EXR whose every chunk is present (OpenEXR's
-/// isComplete), or a PNG that ends with its IEND chunk.
+/// Whether an image file is whole: a scanline EXR whose every chunk lies within the file, or a
+/// PNG that ends with its IEND chunk.
 bool image_complete(const std::string& path);
 
 }  // namespace bloomref::cli
