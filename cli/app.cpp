@@ -21,6 +21,7 @@ int run_command_line(const std::vector<std::string>& args) {
   auto stability = add_stability(app);
   auto bench = add_bench(app);
   auto tradeoff = add_tradeoff(app);
+  auto merge = add_merge(app);
   try {
     std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11's order
     app.parse(reversed);
@@ -33,7 +34,7 @@ int run_command_line(const std::vector<std::string>& args) {
     return 2;
   }
   try {
-    for (auto* cmd : {&run, &scenes, &gl_info, &compare, &check, &stability, &bench, &tradeoff}) {
+    for (auto* cmd : {&run, &scenes, &gl_info, &compare, &check, &stability, &bench, &tradeoff, &merge}) {
       const int rc = (*cmd)();
       if (rc >= 0) return rc;
     }

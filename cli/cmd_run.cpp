@@ -10,6 +10,7 @@
 #include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
 #include "bloomref/scenes.h"
+#include "batch/run_sequence.h"
 #include "commands.h"
 #include "json_out.h"
 #include "options.h"
@@ -28,6 +29,7 @@ struct RunArgs {
   bool quiet = false;
   int repeat = 1;
   PipelineOptions pipeline;
+  SequenceOptions sequence;  ///< --frames, --shard, --resume, --jobs (batch/run_sequence.h)
 };
 
 /// Runs 2..repeat of the CPU pipeline in this process. The first run (the trace given) pays a
@@ -63,7 +65,8 @@ nlohmann::ordered_json repeat_runs(const Plan& plan, const Image& input, const S
           {"same_bits", true}};
 }
 
-int run(const RunArgs& a) {
+// `record` (sequences): the frame's size, counts and pipeline time.
+int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
   if (a.backend != "cpu" && a.backend != "gl")
     throw ParamError("--backend '" + a.backend + "' is not one of: cpu, gl");
   if (a.repeat < 1) throw ParamError("--repeat must be >= 1");
@@ -145,6 +148,10 @@ int run(const RunArgs& a) {
     if (!repeated.is_null()) j["repeat"] = repeated;
     save_text(a.json_path, j.dump(2) + "\n");
   }
+  if (record)
+    *record = {{"width", plan.facts.width}, {"height", plan.facts.height},
+               {"bright_pixels", plan.facts.bright_pixels},
+               {"nonfinite", plan.facts.nonfinite.total()}, {"pipeline_ms", trace.total_ms}};
   if (!a.quiet) {
     const NonFiniteCounts& c = plan.facts.nonfinite;
     std::cout << source << ": " << plan.facts.width << "x" << plan.facts.height << ", "
@@ -168,7 +175,7 @@ int run(const RunArgs& a) {
 
 std::function<int()> add_run(CLI::App& app) {
   auto args = std::make_shared<RunArgs>();
-  CLI::App* sub = app.add_subcommand("run", "apply bloom to an image (or a built-in scene)");
+  CLI::App* sub = app.add_subcommand("run", "apply bloom to an image or a frame sequence (or a built-in scene)");
   sub->add_option("IN", args->input, "input image (EXR, HDR, PNG, TIFF...); none = --scene");
   sub->add_option("-o,--output", args->outputs, "output .exr (float, display-referred) or .png; repeatable");
   sub->add_option("--backend", args->backend, "cpu | gl")->capture_default_str();
@@ -182,10 +189,25 @@ std::function<int()> add_run(CLI::App& app) {
                   "first; --json gets the first run's timings and the others' medians")
       ->capture_default_str();
   args->pipeline.add_to(*sub);
+  args->sequence.add_to(*sub, true);
   return [args, sub]() -> int {
     if (!sub->parsed()) return -1;
     args->pipeline.finish();
-    return run(*args);
+    const RunSequenceArgs seq{args->input,     args->outputs, args->dump_dir,
+                              args->json_path, args->quiet,   args->pipeline.params,
+                              args->sequence};
+    if (!is_run_sequence(seq)) return run(*args);
+    if (args->repeat > 1) throw ParamError("--repeat times one image, not a sequence");
+    return run_sequence(seq, [&args](const FrameFiles& f, nlohmann::ordered_json& record) {
+      RunArgs a = *args;  // one frame: its own files, no results file, nothing printed
+      a.input = f.input;
+      a.outputs = f.outputs;
+      a.dump_dir = f.dump_dir;
+      a.json_path.clear();
+      a.quiet = true;
+      a.pipeline.params.threads = f.threads;
+      run(a, &record);
+    });
   };
 }
 

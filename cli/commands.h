@@ -13,5 +13,6 @@ std::function<int()> add_check(CLI::App& app);
 std::function<int()> add_stability(CLI::App& app);
 std::function<int()> add_bench(CLI::App& app);
 std::function<int()> add_tradeoff(CLI::App& app);
+std::function<int()> add_merge(CLI::App& app);
 
 }  // namespace bloomref::cli

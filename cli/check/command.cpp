@@ -13,6 +13,7 @@
 #include <memory>
 #include <set>
 
+#include "batch/sequence.h"
 #include "bloomref/error.h"
 #include "bloomref/io.h"
 #include "bloomref/parity/compare.h"
@@ -38,6 +39,7 @@ struct CheckArgs {
   bool warn_as_error = false, quiet = false, no_causes = false;
   PipelineOptions pipeline;
   ShaderArgs shaders;
+  SequenceOptions sequence;  ///< --frames, --shard (batch/sequence.h)
   CLI::App* sub = nullptr;
 };
 
@@ -156,6 +158,10 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
 }
 
 void print_item(const ItemResult& r, const parity::DeviceProfile& profile) {
+  if (!r.error.empty()) {
+    std::printf("%s: ERROR, not judged: %s\n", r.id.c_str(), r.error.c_str());
+    return;
+  }
   std::printf("%s: %s %dx%d, profile %s, %zu stage image(s)%s%s\n", r.id.c_str(), r.source.c_str(),
               r.width, r.height, profile.name.c_str(), r.file_of.size(),
               r.stages_from.empty() ? "" : " from ", r.stages_from.c_str());
@@ -236,6 +242,84 @@ CheckItem folder_item(const CheckArgs& a) {
   return item;
 }
 
+// SCENE 'scene.####.exr' --stages 'stages.####/': an item per frame, named by its number.
+std::vector<CheckItem> sequence_items(const CheckArgs& a) {
+  const batch::FramePattern scene = batch::FramePattern::parse(a.scene);
+  const batch::FramePattern stages = batch::FramePattern::parse(a.stages_dir);
+  if (!a.scene.empty() && !scene.has_wildcard())
+    throw ParamError("SCENE '" + a.scene + "' names one file for every frame: give a pattern such "
+                     "as scene.####.exr");
+  if (!stages.has_wildcard())
+    throw ParamError("--stages '" + a.stages_dir + "' names one folder for every frame: give a "
+                     "pattern such as stages.####/");
+  const batch::FramePattern& first = scene.has_wildcard() ? scene : stages;
+  std::vector<CheckItem> items;
+  for (int f : sequence_frames(a.sequence, first, scene.has_wildcard() ? "SCENE" : "--stages")) {
+    CheckItem item = folder_item(a);
+    item.scene = scene.name(f);
+    item.stages_dir = stages.name(f);
+    item.id = first.frame_text(f);
+    items.push_back(std::move(item));
+  }
+  return items;
+}
+
+// Frames, manifests and shards: the items this process takes (in their own order), and the
+// whole list's ids, sorted, for the results.
+ItemSelection select_check_items(const CheckArgs& a, std::vector<CheckItem>& items) {
+  std::vector<std::string> ids;
+  for (const CheckItem& it : items) ids.push_back(it.id);
+  if (!a.manifest.empty()) std::sort(ids.begin(), ids.end());  // frames are sorted already
+  ItemSelection sel = select_items(ids, a.sequence);
+  std::set<std::string> mine;
+  for (std::size_t i : sel.mine) mine.insert(sel.ids[i]);
+  std::vector<CheckItem> kept;
+  for (CheckItem& it : items)
+    if (mine.count(it.id)) kept.push_back(std::move(it));
+  items = std::move(kept);
+  if (!a.quiet && sel.shard)
+    std::printf("shard %s (%s): %zu of %zu items\n", sel.shard->label().c_str(),
+                sel.shard->source.c_str(), sel.mine.size(), sel.ids.size());
+  return sel;
+}
+
+// Every item of a batch, one after another: an item that cannot be read (a missing frame) is
+// recorded as an ERROR and the others go on. Returns the batch's exit code (batch_exit_code).
+int check_batch(const CheckArgs& a, const std::vector<CheckItem>& items, CheckRun& run,
+                std::vector<Expectation>& expectations, bool& interrupted) {
+  std::vector<ItemResult> results(items.size());
+  std::vector<std::string> labels;
+  for (const CheckItem& it : items) labels.push_back(it.id);
+  BatchLoop loop;
+  loop.threads = a.pipeline.params.threads;
+  loop.progress = a.sequence.progress;
+  loop.quiet = a.quiet;
+  loop.noun = a.manifest.empty() && !a.stages_dir.empty() && batch::has_frame_wildcard(a.stages_dir) ? "frames" : "items";
+  loop.fn = [&](std::size_t i, int) {
+    ItemResult r = check_item(items[i], a, run.profile, !a.no_causes);
+    apply_expectations(r, expectations, run.device);
+    ItemOutcome o;
+    o.status = ItemOutcome::Status::done;
+    o.message = r.verdict;
+    results[i] = std::move(r);
+    return o;
+  };
+  const std::vector<ItemOutcome> outcomes = loop.run(labels, interrupted);
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    if (outcomes[i].status == ItemOutcome::Status::not_run) continue;  // merge reports it missing
+    if (outcomes[i].status == ItemOutcome::Status::error) {
+      results[i] = ItemResult{};
+      results[i].id = items[i].id;
+      results[i].source = items[i].scene.empty() ? "scene:" + a.pipeline.scene : items[i].scene;
+      results[i].stages_from = items[i].stages_dir;
+      results[i].verdict = "ERROR";
+      results[i].error = outcomes[i].message;
+    }
+    run.items.push_back(std::move(results[i]));
+  }
+  return batch_exit_code(outcomes, interrupted);
+}
+
 // Every destination is checked before any work, and none may be an input.
 void require_destinations(const CheckArgs& a, const std::vector<CheckItem>& items) {
   std::vector<std::string> inputs;
@@ -290,6 +374,11 @@ int check_cmd(CheckArgs& a) {
     throw ParamError("give one of --stages DIR, --manifest FILE or --shaders learnopengl");
   if (!a.manifest.empty() && !a.scene.empty())
     throw ParamError("with --manifest the scenes are the manifest's items; give no SCENE");
+  const bool frames = batch::has_frame_wildcard(a.scene) ||
+                      batch::has_frame_wildcard(a.stages_dir) || !a.sequence.frames.empty();
+  if (frames && a.stages_dir.empty())
+    throw ParamError("a frame sequence is checked from stage folders: give --stages "
+                     "'stages.####/' (a manifest lists its items itself)");
 
   CheckRun run;
   run.warn_as_error = a.warn_as_error;
@@ -305,9 +394,14 @@ int check_cmd(CheckArgs& a) {
   } else if (a.shaders.any()) {
     scratch = std::make_unique<ScratchDir>();
     items.push_back(shaders_item(a, run, *scratch));
+  } else if (frames) {
+    items = sequence_items(a);
   } else {
     items.push_back(folder_item(a));
   }
+  const bool batch = frames || !a.manifest.empty() || !a.sequence.shard.empty();
+  ItemSelection selection;
+  if (batch) selection = select_check_items(a, items);
   run.params = a.pipeline.params;
   std::vector<Expectation> expectations;
   if (!a.expectations.empty()) {
@@ -316,14 +410,25 @@ int check_cmd(CheckArgs& a) {
   }
   require_destinations(a, items);
 
-  for (const CheckItem& item : items) {
-    ItemResult r = check_item(item, a, run.profile, !a.no_causes);
-    apply_expectations(r, expectations, run.device);
-    run.items.push_back(std::move(r));
+  int batch_code = 0;
+  bool interrupted = false;
+  if (!batch) {
+    for (const CheckItem& item : items) {
+      ItemResult r = check_item(item, a, run.profile, !a.no_causes);
+      apply_expectations(r, expectations, run.device);
+      run.items.push_back(std::move(r));
+    }
+  } else if (!items.empty()) {
+    batch_code = check_batch(a, items, run, expectations, interrupted);
   }
+  if (batch) run.batch = selection.json(!interrupted, interrupted);
   finish_run(run);
+  if (batch_code == 130 || batch_code == 4) run.exit_code = batch_code;  // over the verdict's
   print_run(a, run, expectations);
-  if (run.verdict == "NOTHING")
+  if (batch && selection.shard && selection.mine.empty())
+    std::fprintf(stderr, "bloomref: shard %s has no item (%zu items in %d shards): nothing to do\n",
+                 selection.shard->label().c_str(), selection.ids.size(), selection.shard->count);
+  else if (run.verdict == "NOTHING")
     std::fprintf(stderr, "bloomref: nothing compared: no stage image matched in %s\n",
                  a.manifest.empty() ? a.stages_dir.c_str() : a.manifest.c_str());
   if (!a.json_path.empty()) save_text(a.json_path, check_json(run).dump(2) + "\n");
@@ -390,6 +495,7 @@ std::function<int()> add_check(CLI::App& app) {
   sub->add_flag("--no-causes", args->no_causes, "do not test the usual causes of a failure");
   sub->add_flag("-q,--quiet", args->quiet, "print nothing");
   args->pipeline.add_to(*sub);
+  args->sequence.add_to(*sub, false);
   return [args, sub]() -> int {
     if (!sub->parsed()) return -1;
     args->pipeline.finish();

@@ -396,13 +396,17 @@ void apply_expectations(ItemResult& r, std::vector<Expectation>& expectations,
 }
 
 void finish_run(CheckRun& run) {
-  bool fail = false, warn = false, nothing = run.items.empty();
+  bool fail = false, warn = false, nothing = run.items.empty(), error = false;
   for (const ItemResult& r : run.items) {
+    error |= r.verdict == "ERROR";
     fail |= r.verdict == "FAIL";
     warn |= r.verdict == "WARN";
     nothing |= r.verdict == "NOTHING";
   }
-  if (fail || (warn && run.warn_as_error)) {
+  if (error) {
+    run.verdict = "ERROR";
+    run.exit_code = 2;
+  } else if (fail || (warn && run.warn_as_error)) {
     run.verdict = "FAIL";
     run.exit_code = 1;
   } else if (nothing) {

@@ -35,8 +35,9 @@ parity::DeviceProfile read_profile_file(const std::string& path);
 void apply_expectations(ItemResult& r, std::vector<Expectation>& expectations,
                         const DeviceKeys& device);
 
-/// The run's verdict and exit code: FAIL (1) when a stage fails (or warns, with warn_as_error)
-/// without an expectation; NOTHING (5) when no item compared a stage; else WARN or PASS (0).
+/// The run's verdict and exit code: ERROR (2) when an item could not be read (a frame's scene or
+/// stage folder missing); FAIL (1) when a stage fails (or warns, with warn_as_error) without an
+/// expectation; NOTHING (5) when no item compared a stage; else WARN or PASS (0).
 void finish_run(CheckRun& run);
 
 }  // namespace bloomref::cli

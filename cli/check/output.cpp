@@ -75,12 +75,13 @@ const parity::StageComparison* first_divergent(const ItemResult& r) {
 }
 
 struct Counts {
-  int stages = 0, pass = 0, warn = 0, fail = 0, expected = 0, fixed = 0;
+  int stages = 0, pass = 0, warn = 0, fail = 0, expected = 0, fixed = 0, errors = 0;
 };
 
 Counts count(const CheckRun& run) {
   Counts c;
-  for (const ItemResult& r : run.items)
+  for (const ItemResult& r : run.items) {
+    c.errors += !r.error.empty();
     for (const StageOutcome& o : r.outcomes) {
       ++c.stages;
       if (o.status == "pass") ++c.pass;
@@ -89,6 +90,7 @@ Counts count(const CheckRun& run) {
       else if (o.status == "expected-fail") ++c.expected;
       else if (o.status == "fixed") ++c.fixed;
     }
+  }
   return c;
 }
 
@@ -131,6 +133,7 @@ ordered_json check_json(const CheckRun& run) {
                                        ? cause_json(first->causes.front())
                                        : ordered_json(nullptr)},
          {"ignored_files", r.ignored},
+         {"error", r.error.empty() ? ordered_json(nullptr) : ordered_json(r.error)},
          {"timings_ms", {{"load", r.load_ms}, {"oracle", r.oracle_ms}, {"judge", r.judge_ms}}},
          {"stages", stages}});
   }
@@ -156,7 +159,8 @@ ordered_json check_json(const CheckRun& run) {
            }()},
           {"summary", {{"items", run.items.size()}, {"stages", n.stages}, {"pass", n.pass},
                        {"warn", n.warn}, {"fail", n.fail}, {"expected_fail", n.expected},
-                       {"fixed", n.fixed}}},
+                       {"fixed", n.fixed}, {"errors", n.errors}}},
+          {"batch", run.batch},
           {"items", items}};
 }
 
@@ -166,10 +170,18 @@ std::string junit_xml(const CheckRun& run) {
     return status == "fail" || (status == "warn" && run.warn_as_error);
   };
   std::string out = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
-  out += "<testsuites name=\"bloomref check\" tests=\"" + std::to_string(n.stages) +
+  out += "<testsuites name=\"bloomref check\" tests=\"" + std::to_string(n.stages + n.errors) +
          "\" failures=\"" + std::to_string(n.fail + (run.warn_as_error ? n.warn : 0)) +
-         "\" errors=\"0\" skipped=\"" + std::to_string(n.expected) + "\">\n";
+         "\" errors=\"" + std::to_string(n.errors) + "\" skipped=\"" + std::to_string(n.expected) +
+         "\">\n";
   for (const ItemResult& r : run.items) {
+    if (!r.error.empty()) {
+      out += "  <testsuite name=\"" + xml(r.id) + "\" tests=\"1\" failures=\"0\" errors=\"1\" "
+             "skipped=\"0\" time=\"0\">\n    <testcase classname=\"bloomref.check." + xml(r.id) +
+             "\" name=\"stages\"><error message=\"" + xml(r.error) +
+             "\" type=\"input\"/></testcase>\n  </testsuite>\n";
+      continue;
+    }
     int fails = 0, skipped = 0;
     for (const StageOutcome& o : r.outcomes) {
       fails += failed(o.status);
@@ -236,6 +248,7 @@ std::string markdown_summary(const CheckRun& run) {
          std::to_string(n.fail) + " fail";
   if (n.expected) out += ", " + std::to_string(n.expected) + " expected failure(s)";
   if (n.fixed) out += ", " + std::to_string(n.fixed) + " known deviation(s) now passing";
+  if (n.errors) out += ", " + std::to_string(n.errors) + " item(s) not read";
   out += ". Profile `" + run.profile.name + "`";
   if (run.device.any()) {
     std::string d;
@@ -248,7 +261,7 @@ std::string markdown_summary(const CheckRun& run) {
     const parity::StageComparison* first = first_divergent(r);
     out += "| " + md(r.id) + " | " + r.verdict + " | " +
            (r.parity.first_divergent_stage ? "`" + *r.parity.first_divergent_stage + "`" : "-") +
-           " | " + (first ? md(cause_line(*first)) : "-") + " |\n";
+           " | " + (first ? md(cause_line(*first)) : !r.error.empty() ? md(r.error) : "-") + " |\n";
   }
   return out;
 }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <map>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -51,7 +52,9 @@ struct ItemResult {
   std::vector<std::string> ignored;            ///< files of the folder that are no stage
   parity::ParityResult parity;
   std::vector<StageOutcome> outcomes;          ///< per isolated stage, after expectations
-  std::string verdict;                         ///< PASS, WARN, FAIL (after expectations)
+  std::string verdict;                         ///< PASS, WARN, FAIL (after expectations), NOTHING,
+                                               ///< or ERROR: the item could not be judged
+  std::string error;                           ///< why (ERROR: a missing scene or folder)
   double load_ms = 0, oracle_ms = 0, judge_ms = 0;
 };
 
@@ -61,8 +64,11 @@ struct CheckRun {
   DeviceKeys device;
   bool warn_as_error = false;
   std::vector<ItemResult> items;
-  std::string verdict;  ///< PASS, WARN, FAIL, or NOTHING (nothing compared)
+  std::string verdict;  ///< PASS, WARN, FAIL, NOTHING (nothing compared), ERROR (an item unread)
   int exit_code = 0;
+  /// Frames, manifests and shards: the whole item list, the shard and its state
+  /// (ItemSelection::json); null for one item.
+  nlohmann::ordered_json batch;
   std::optional<std::string> expectations_file;
   std::string report_dir;  ///< --report, where the failing stages' images are
 };

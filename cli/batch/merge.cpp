@@ -1,0 +1,340 @@
+#include "batch/merge.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <map>
+
+#include "bloomref/error.h"
+
+using nlohmann::ordered_json;
+
+namespace bloomref::batch {
+namespace {
+
+bool is_check(const ordered_json& doc) { return doc.value("tool", "") == "bloomref check"; }
+
+// The parameters that decide the results: every one but the thread count, which may differ
+// between machines and gives the same bits.
+ordered_json deciding_params(const ordered_json& doc) {
+  ordered_json p = doc.contains("params") ? doc["params"] : ordered_json::object();
+  if (p.is_object()) p.erase("threads");
+  return p;
+}
+
+void require_results(const ResultsFile& f) {
+  const ordered_json& d = f.doc;
+  if (!d.is_object() || !d.contains("tool") || !d["tool"].is_string())
+    throw InputError(f.name, "is not a bloomref results file (no \"tool\")");
+  const std::string tool = d["tool"].get<std::string>();
+  if (tool != "bloomref check" && tool != "bloomref run")
+    throw InputError(f.name, "holds results of '" + tool + "'; merge takes run and check results");
+  if (tool == "bloomref run" && d.value("kind", "") != "sequence")
+    throw InputError(f.name, "holds the results of one image; merge takes the results of "
+                             "sequences (run --frames ... --json)");
+  if (d.value("version", 0) != 1)
+    throw InputError(f.name, "is results version " + d.value("version", ordered_json(0)).dump() +
+                                 "; this bloomref merges version 1");
+  if (!d.contains("batch") || !d["batch"].is_object() || !d["batch"].contains("item_ids") ||
+      !d["batch"]["item_ids"].is_array())
+    throw InputError(f.name, "has no item list (\"batch.item_ids\"): it was written by a check of "
+                             "one folder; run check with frames, a manifest or --shard");
+  if (!d.contains("items") || !d["items"].is_array())
+    throw InputError(f.name, "has no \"items\" array");
+  for (const ordered_json& it : d["items"])
+    if (!it.is_object() || !it.contains("id") || !it["id"].is_string())
+      throw InputError(f.name, "has an item without a string \"id\"");
+}
+
+std::string shard_label(const ordered_json& doc) {
+  const ordered_json& s = doc["batch"].value("shard", ordered_json(nullptr));
+  return s.is_object() ? s.value("label", "?") : "all";
+}
+
+// check: counts, verdict and exit code over the merged items, as a single check decides them
+// (cli/check/manifest.cpp, finish_run).
+void finish_check(ordered_json& doc) {
+  int stages = 0, pass = 0, warn = 0, fail = 0, expected = 0, fixed = 0, errors = 0;
+  bool any_fail = false, any_warn = false, any_error = false, nothing = doc["items"].empty();
+  const bool warn_as_error = doc.value("warn_as_error", false);
+  for (const ordered_json& it : doc["items"]) {
+    const std::string v = it.value("verdict", "");
+    any_error |= v == "ERROR";
+    any_fail |= v == "FAIL";
+    any_warn |= v == "WARN";
+    nothing |= v == "NOTHING";
+    errors += v == "ERROR";
+    if (!it.contains("stages") || !it["stages"].is_array()) continue;
+    for (const ordered_json& s : it["stages"]) {
+      const std::string st = s.value("status", "");
+      ++stages;
+      pass += st == "pass";
+      warn += st == "warn";
+      fail += st == "fail";
+      expected += st == "expected-fail";
+      fixed += st == "fixed";
+    }
+  }
+  std::string verdict = "PASS";
+  int code = 0;
+  if (any_error) verdict = "ERROR", code = 2;
+  else if (any_fail || (any_warn && warn_as_error)) verdict = "FAIL", code = 1;
+  else if (nothing) verdict = "NOTHING", code = 5;
+  else if (any_warn) verdict = "WARN";
+  doc["verdict"] = verdict;
+  doc["exit_code"] = code;
+  doc["summary"] = {{"items", doc["items"].size()}, {"stages", stages}, {"pass", pass},
+                    {"warn", warn}, {"fail", fail}, {"expected_fail", expected},
+                    {"fixed", fixed}, {"errors", errors}};
+}
+
+// run: frames done, resumed, failed; the exit code of the worst failure.
+void finish_run(ordered_json& doc) {
+  int done = 0, resumed = 0, error = 0, code = 0;
+  double wall = 0;
+  for (const ordered_json& it : doc["items"]) {
+    const std::string st = it.value("status", "");
+    done += st == "done";
+    resumed += st == "resumed";
+    if (st == "error") {
+      ++error;
+      code = std::max(code, it.value("exit_code", 2));
+    }
+    wall += it.value("wall_ms", 0.0);
+  }
+  doc["exit_code"] = code;
+  doc["summary"] = {{"done", done}, {"resumed", resumed}, {"error", error}, {"not_run", 0}};
+  doc["frame_ms_sum"] = wall;
+  doc.erase("wall_ms");
+  doc.erase("frames_per_second");
+}
+
+std::string xml(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    switch (c) {
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '&': o += "&amp;"; break;
+      case '"': o += "&quot;"; break;
+      case '\n': o += "&#10;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
+
+std::string str(const ordered_json& j, const char* key) {
+  return j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : "";
+}
+
+}  // namespace
+
+Merged merge_results(const std::vector<ResultsFile>& files) {
+  if (files.empty()) throw ParamError("merge: give the results files of the shards");
+  for (const ResultsFile& f : files) require_results(f);
+  const ResultsFile& first = files.front();
+  const ordered_json& ids = first.doc["batch"]["item_ids"];
+  for (const ResultsFile& f : files) {
+    if (f.doc["tool"] != first.doc["tool"])
+      throw InputError(f.name, "holds " + f.doc["tool"].get<std::string>() + " results, " +
+                                   first.name + " " + first.doc["tool"].get<std::string>() + " results");
+    if (f.doc["batch"]["item_ids"] != ids)
+      throw InputError(f.name, "lists other items (" +
+                                   std::to_string(f.doc["batch"]["item_ids"].size()) + ") than " +
+                                   first.name + " (" + std::to_string(ids.size()) +
+                                   "): the files are not shards of one run");
+    if (deciding_params(f.doc) != deciding_params(first.doc))
+      throw InputError(f.name, "was run with other parameters than " + first.name + ": " +
+                                   deciding_params(f.doc).dump() + " against " +
+                                   deciding_params(first.doc).dump());
+  }
+
+  Merged m;
+  std::map<std::string, std::vector<std::pair<const ResultsFile*, const ordered_json*>>> found;
+  ordered_json shards = ordered_json::array();
+  for (const ResultsFile& f : files) {
+    const ordered_json& b = f.doc["batch"];
+    shards.push_back({{"file", f.name}, {"shard", shard_label(f.doc)},
+                      {"source", b.contains("shard") && b["shard"].is_object()
+                                     ? b["shard"].value("source", "")
+                                     : std::string("")},
+                      {"items", f.doc["items"].size()}, {"finished", b.value("finished", true)},
+                      {"interrupted", b.value("interrupted", false)}});
+    if (!b.value("finished", true))
+      m.problems.push_back(f.name + ": shard " + shard_label(f.doc) + " did not finish" +
+                           (b.value("interrupted", false) ? " (interrupted)" : " (still running, or crashed)"));
+    for (const ordered_json& it : f.doc["items"]) found[it["id"].get<std::string>()].push_back({&f, &it});
+  }
+
+  ordered_json items = ordered_json::array();
+  std::set<std::string> listed;
+  for (const ordered_json& idj : ids) {
+    const std::string id = idj.get<std::string>();
+    listed.insert(id);
+    const auto it = found.find(id);
+    if (it == found.end()) {
+      m.missing.push_back(id);
+      continue;
+    }
+    if (it->second.size() > 1) {
+      m.duplicates.push_back(id);
+      std::string where;
+      for (const auto& [file, item] : it->second) where += (where.empty() ? "" : ", ") + file->name;
+      m.problems.push_back("item " + id + " was run " + std::to_string(it->second.size()) +
+                           " times (" + where + ")");
+    }
+    for (const auto& [file, item] : it->second) {
+      ordered_json copy = *item;
+      copy["shard"] = shard_label(file->doc);
+      copy["results_file"] = file->name;
+      items.push_back(std::move(copy));
+    }
+  }
+  for (const auto& [id, where] : found)
+    if (!listed.count(id))
+      m.problems.push_back(where.front().first->name + ": item " + id + " is not in the item list");
+  if (!m.missing.empty()) {
+    std::string list;
+    for (std::size_t i = 0; i < m.missing.size() && i < 20; ++i) list += (i ? ", " : "") + m.missing[i];
+    if (m.missing.size() > 20) list += " ... (" + std::to_string(m.missing.size()) + " in all)";
+    m.problems.insert(m.problems.begin(), std::to_string(m.missing.size()) + " of " +
+                                              std::to_string(ids.size()) + " items missing: " + list);
+  }
+
+  ordered_json doc = first.doc;
+  doc["items"] = std::move(items);
+  doc["batch"] = {{"items_total", ids.size()}, {"item_ids", ids}, {"shards", shards},
+                  {"missing", m.missing}, {"duplicates", m.duplicates},
+                  {"complete", m.problems.empty()}};
+  doc.erase("peak_rss_bytes");
+  if (is_check(doc)) finish_check(doc);
+  else finish_run(doc);
+  if (!m.problems.empty()) doc["exit_code"] = 2;
+  doc["problems"] = m.problems;
+  m.exit_code = doc["exit_code"].get<int>();
+  m.doc = std::move(doc);
+  return m;
+}
+
+std::string merged_junit(const Merged& m) {
+  const ordered_json& d = m.doc;
+  const bool check = is_check(d);
+  const std::string tool = check ? "check" : "run";
+  std::string suites;
+  int tests = 0, failures = 0, errors = 0;
+  for (const ordered_json& it : d["items"]) {
+    const std::string id = it["id"].get<std::string>();
+    const std::string cls = "bloomref." + tool + "." + xml(id);
+    std::string cases;
+    int t = 0, f = 0, e = 0;
+    const std::string err = str(it, "error");
+    if (!err.empty()) {
+      ++t, ++e;
+      cases += "    <testcase classname=\"" + cls + "\" name=\"" + (check ? "stages" : "frame") +
+               "\"><error message=\"" + xml(err) + "\" type=\"input\"/></testcase>\n";
+    } else if (check && it.contains("stages")) {
+      for (const ordered_json& s : it["stages"]) {
+        const std::string st = str(s, "status");
+        ++t;
+        cases += "    <testcase classname=\"" + cls + "\" name=\"" + xml(str(s, "stage")) + "\">";
+        if (st == "fail" || (st == "warn" && d.value("warn_as_error", false))) {
+          ++f;
+          const std::string reason = s.contains("isolated") ? str(s["isolated"], "reason") : "";
+          cases += "<failure message=\"" + xml(str(s, "stage") + " " + st + ": " + reason) +
+                   "\" type=\"" + xml(st) + "\"/>";
+        } else if (st == "expected-fail") {
+          cases += "<skipped message=\"expected failure\"/>";
+        }
+        cases += "</testcase>\n";
+      }
+    } else {
+      ++t;
+      cases += "    <testcase classname=\"" + cls + "\" name=\"frame\"/>\n";
+    }
+    tests += t, failures += f, errors += e;
+    suites += "  <testsuite name=\"" + xml(id) + "\" tests=\"" + std::to_string(t) + "\" failures=\"" +
+              std::to_string(f) + "\" errors=\"" + std::to_string(e) + "\">\n" +
+              "    <properties><property name=\"shard\" value=\"" + xml(str(it, "shard")) +
+              "\"/></properties>\n" + cases + "  </testsuite>\n";
+  }
+  for (const std::string& id : m.missing) {
+    ++tests, ++errors;
+    suites += "  <testsuite name=\"" + xml(id) + "\" tests=\"1\" failures=\"0\" errors=\"1\">\n"
+              "    <testcase classname=\"bloomref." + tool + "." + xml(id) + "\" name=\"" +
+              (check ? "stages" : "frame") + "\"><error message=\"missing: no shard's results have "
+              "this item\" type=\"missing\"/></testcase>\n  </testsuite>\n";
+  }
+  for (const std::string& id : m.duplicates) {
+    ++tests, ++errors;
+    suites += "  <testsuite name=\"" + xml(id) + " (run twice)\" tests=\"1\" failures=\"0\" errors=\"1\">\n"
+              "    <testcase classname=\"bloomref." + tool + "." + xml(id) + "\" name=\"once\">"
+              "<error message=\"run by more than one shard\" type=\"duplicate\"/></testcase>\n"
+              "  </testsuite>\n";
+  }
+  return "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"bloomref " + tool +
+         " (merged)\" tests=\"" + std::to_string(tests) + "\" failures=\"" +
+         std::to_string(failures) + "\" errors=\"" + std::to_string(errors) + "\">\n" + suites +
+         "</testsuites>\n";
+}
+
+std::string merged_html(const Merged& m, const std::set<std::string>& item_reports) {
+  const ordered_json& d = m.doc;
+  const bool check = is_check(d);
+  std::string verdict = check ? str(d, "verdict") : (d.value("exit_code", 0) == 0 ? "OK" : "FAILED");
+  if (!m.problems.empty()) verdict = "INCOMPLETE";
+  std::string h =
+      "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>bloomref " +
+      std::string(check ? "check" : "run") + " (merged)</title>\n<style>body{font:14px sans-serif;"
+      "margin:2em}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 8px;"
+      "text-align:left}.bad{background:#fdd}.warn{background:#ffd}.ok{background:#dfd}</style>"
+      "</head><body>\n<h1>bloomref " + std::string(check ? "check" : "run") + ": " + xml(verdict) +
+      " (exit " + std::to_string(m.exit_code) + ")</h1>\n";
+  h += "<p>" + std::to_string(d["batch"]["items_total"].get<std::size_t>()) + " items in " +
+       std::to_string(d["batch"]["shards"].size()) + " results file(s). Summary: " +
+       xml(d["summary"].dump()) + "</p>\n";
+  if (!m.problems.empty()) {
+    h += "<h2>Problems</h2><ul>\n";
+    for (const std::string& p : m.problems) h += "<li class=\"bad\">" + xml(p) + "</li>\n";
+    h += "</ul>\n";
+  }
+  h += "<h2>Shards</h2><table><tr><th>file</th><th>shard</th><th>from</th><th>items</th>"
+       "<th>finished</th></tr>\n";
+  for (const ordered_json& s : d["batch"]["shards"])
+    h += "<tr><td>" + xml(str(s, "file")) + "</td><td>" + xml(str(s, "shard")) + "</td><td>" +
+         xml(str(s, "source")) + "</td><td>" + std::to_string(s.value("items", 0)) + "</td><td>" +
+         (s.value("finished", true) ? "yes" : "no") + "</td></tr>\n";
+  h += "</table>\n<h2>Items</h2><table><tr><th>item</th><th>" +
+       std::string(check ? "verdict</th><th>first divergent stage</th><th>cause" : "status</th><th>time (ms)</th><th>outputs") +
+       "</th><th>shard</th></tr>\n";
+  for (const ordered_json& it : d["items"]) {
+    const std::string id = str(it, "id");
+    const std::string v = check ? str(it, "verdict") : str(it, "status");
+    const char* cls = v == "PASS" || v == "done" || v == "resumed" ? "ok" : v == "WARN" ? "warn" : "bad";
+    std::string name = xml(id);
+    if (item_reports.count(id)) name = "<a href=\"" + xml(id) + "/index.html\">" + name + "</a>";
+    h += "<tr class=\"" + std::string(cls) + "\"><td>" + name + "</td><td>" + xml(v) + "</td><td>";
+    if (check) {
+      h += xml(it.contains("first_divergent_stage") && it["first_divergent_stage"].is_string()
+                   ? it["first_divergent_stage"].get<std::string>() : "-") + "</td><td>";
+      const std::string err = str(it, "error");
+      h += xml(!err.empty() ? err
+               : it.contains("first_divergent_cause") && it["first_divergent_cause"].is_object()
+                   ? str(it["first_divergent_cause"], "description") : "-");
+    } else {
+      char ms[32];
+      std::snprintf(ms, sizeof ms, "%.0f", it.value("wall_ms", 0.0));
+      h += std::string(ms) + "</td><td>";
+      const std::string err = str(it, "error");
+      if (!err.empty()) h += xml(err);
+      else if (it.contains("outputs"))
+        for (const ordered_json& o : it["outputs"]) h += xml(o.get<std::string>()) + " ";
+    }
+    h += "</td><td>" + xml(str(it, "shard")) + "</td></tr>\n";
+  }
+  for (const std::string& id : m.missing)
+    h += "<tr class=\"bad\"><td>" + xml(id) + "</td><td>MISSING</td><td colspan=\"3\">no shard's "
+         "results have this item</td></tr>\n";
+  return h + "</table>\n</body></html>\n";
+}
+
+}  // namespace bloomref::batch
