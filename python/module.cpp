@@ -1,0 +1,71 @@
+// The Python module `bloomref`: bloom on numpy arrays with the command line's options and bits,
+// and the check of anyone's stage images. Errors: bad input or options raise ValueError with the
+// reason; no GL device for backend='gl' or shaders= raises bloomref.GlUnavailable (a
+// RuntimeError); anything else RuntimeError.
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "app.h"
+#include "bloomref/error.h"
+#include "bloomref/gpu/context.h"
+#include "run.h"
+
+namespace py = pybind11;
+
+namespace {
+
+constexpr const char* kRunDoc = R"(run(image=None, *, keep_stages=False, **options)
+
+Applies bloom as `bloomref run` does, with the same bits.
+
+image: a numpy array of H x W x 4 (RGBA) or H x W x 3 (RGB, alpha 1) floats, linear and
+    scene-referred, row 0 on top; a float32 H x W x 4 array whose pixels are contiguous (C order,
+    or a crop of one) is read in place, any other is converted first. Or an image path (EXR,
+    .hdr, PNG, TIFF...), or None for the built-in scene (options scene, size).
+keep_stages: return every stage instead of the output.
+options: `bloomref run`'s options, named as its long options with underscores: method,
+    threshold, exposure, gamma, passes, kernel, strength, storage, precision, nonfinite,
+    subtexel_bits, threads, plan, blur, levels, karis, composite, scene, size, backend,
+    gl_shaders. Their defaults and checks are the command's (bloomref run --help).
+
+Returns the output, a float32 H x W x 4 array (display-referred: after tone map and gamma), or
+with keep_stages a dict from stage name (input, bright, blur.1 ... output) to its array, in
+pipeline order. The arrays own their buffers (no copy). The computation runs without the GIL.
+Raises ValueError for a bad image or option (the reason in the message).)";
+
+constexpr const char* kCommandDoc = R"(run_command_line(args)
+
+Runs a bloomref command line in this process (the arguments after the program name, e.g.
+["run", "in.exr", "-o", "out.exr"]) and returns its exit code (0 success, 1 FAIL, 2 bad usage
+or input, 3 GL unavailable, 4 internal error, 5 nothing compared). It prints as the command does.)";
+
+}  // namespace
+
+PYBIND11_MODULE(bloomref, m) {
+  m.doc() = "bloomref: the reference HDR bloom (CPU oracle, GL parity, check) on numpy arrays";
+  m.attr("__version__") = BLOOMREF_VERSION;
+  static py::exception<bloomref::gpu::GlUnavailable> gl_unavailable(m, "GlUnavailable",
+                                                                    PyExc_RuntimeError);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const bloomref::gpu::GlUnavailable& e) {
+      PyErr_SetString(gl_unavailable.ptr(), e.what());
+    } catch (const bloomref::InputError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const bloomref::ParamError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const bloomref::Error& e) {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
+    }
+  });
+  m.def("run", &bloomref::python::run, kRunDoc, py::arg("image") = py::none(), py::kw_only(),
+        py::arg("keep_stages") = false);
+  m.def(
+      "run_command_line",
+      [](const std::vector<std::string>& args) {
+        py::gil_scoped_release unlocked;
+        return bloomref::cli::run_command_line(args);
+      },
+      kCommandDoc, py::arg("args"));
+}
