@@ -8,6 +8,7 @@
 #include "app.h"
 #include "bloomref/error.h"
 #include "bloomref/gpu/context.h"
+#include "check.h"
 #include "run.h"
 
 namespace py = pybind11;
@@ -32,6 +33,25 @@ Returns the output, a float32 H x W x 4 array (display-referred: after tone map 
 with keep_stages a dict from stage name (input, bright, blur.1 ... output) to its array, in
 pipeline order. The arrays own their buffers (no copy). The computation runs without the GIL.
 Raises ValueError for a bad image or option (the reason in the message).)";
+
+constexpr const char* kCheckDoc = R"(check(scene=None, stages=None, **options)
+
+Judges captured bloom stages against the oracle, as `bloomref check` does.
+
+scene: the HDR image the stages were rendered from: an array (as for run), an image path, or
+    None for the built-in scene (options scene, size).
+stages: a folder of stage images named as --dump-stages names them, or a dict from stage name
+    (bright, blur.1 ... output) to an array or an image path; None with the manifest or shaders
+    option.
+options: `bloomref check`'s options, named as its long options with underscores: the pipeline
+    options of run, profile, encoding, origin, channels, raw_format, expectations, no_causes,
+    warn_as_error, device_api, device_vendor, device_renderer, device_driver, manifest,
+    shaders, blur_fs, final_fs, ..., and json, junit, markdown, report to write those files too.
+
+Returns the result as `check --json` writes it (docs/schemas/check-result.v1.json): verdict,
+exit_code, items with their stages' verdicts, errors, bounds and likely causes. Arrays are
+written to a scratch folder as float EXR (lossless) and named by their key in the result
+(stages['blur.3']). Raises ValueError for bad input or options, and when no stage was compared.)";
 
 constexpr const char* kCommandDoc = R"(run_command_line(args)
 
@@ -61,6 +81,8 @@ PYBIND11_MODULE(bloomref, m) {
   });
   m.def("run", &bloomref::python::run, kRunDoc, py::arg("image") = py::none(), py::kw_only(),
         py::arg("keep_stages") = false);
+  m.def("check", &bloomref::python::check, kCheckDoc, py::arg("scene") = py::none(),
+        py::arg("stages") = py::none());
   m.def(
       "run_command_line",
       [](const std::vector<std::string>& args) {
