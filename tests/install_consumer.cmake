@@ -1,8 +1,10 @@
 # Installs the build into a fresh prefix, then builds examples/consumer out of tree against it,
 # twice: through the CMake package (find_package(bloomref)) and through pkg-config
 # (bloomref.pc). Each program runs a bloom and checks its values (examples/consumer/main.cpp).
+# With PYTHON and PYTHON_DIR (the module's folder in the prefix), the installed module is
+# imported from there and runs a bloom.
 #   cmake -DBUILD=<build dir> -DSOURCE=<source dir> -DWORK=<scratch dir> -DGENERATOR=<gen>
-#         -DCXX=<compiler> -P install_consumer.cmake
+#         -DCXX=<compiler> [-DPYTHON=<python3> -DPYTHON_DIR=<dir>] -P install_consumer.cmake
 foreach(v BUILD SOURCE WORK CXX)
   if(NOT DEFINED ${v})
     message(FATAL_ERROR "install_consumer.cmake needs -D${v}=...")
@@ -44,3 +46,16 @@ run("compile with pkg-config's flags" ${CXX} -std=c++17 -O1 ${SOURCE}/examples/c
     -o ${WORK}/consumer_pc ${flags})
 run("run the consumer (pkg-config)" ${WORK}/consumer_pc)
 message(STATUS "${last_output}")
+
+if(PYTHON AND PYTHON_DIR)
+  set(ENV{PYTHONPATH} ${prefix}/${PYTHON_DIR})
+  run("the installed Python module" ${PYTHON} -c [=[
+import numpy as np, os, sys, bloomref
+assert bloomref.__file__.startswith(sys.argv[1]), bloomref.__file__
+out = bloomref.run(np.full((8, 8, 4), 0.5, np.float32), gamma=1.0)
+expected = 1.0 - np.exp(-0.5)
+assert abs(float(out[0, 0, 0]) - expected) < 1e-6, out[0, 0]
+print("bloomref", bloomref.__version__, "from", bloomref.__file__, "ok")
+]=] ${prefix})
+  message(STATUS "${last_output}")
+endif()
