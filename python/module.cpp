@@ -9,6 +9,7 @@
 #include "bloomref/error.h"
 #include "bloomref/gpu/context.h"
 #include "check.h"
+#include "files.h"
 #include "run.h"
 
 namespace py = pybind11;
@@ -53,6 +54,18 @@ exit_code, items with their stages' verdicts, errors, bounds and likely causes. 
 written to a scratch folder as float EXR (lossless) and named by their key in the result
 (stages['blur.3']). Raises ValueError for bad input or options, and when no stage was compared.)";
 
+constexpr const char* kLoadDoc = R"(load(path)
+
+Reads an image file as bloomref run does (EXR through OpenEXR, other formats through
+OpenImageIO): a float32 H x W x 4 array, RGB files with alpha 1. Raises ValueError naming the
+file and the problem.)";
+
+constexpr const char* kSaveDoc = R"(save(path, image)
+
+Writes an array (as run takes it) as bloomref run writes its output: .exr holds 32-bit float
+RGBA, .png 8-bit RGB quantised as round(clamp(x, 0, 1) * 255); written to a temporary file and
+renamed into place.)";
+
 constexpr const char* kCommandDoc = R"(run_command_line(args)
 
 Runs a bloomref command line in this process (the arguments after the program name, e.g.
@@ -83,6 +96,8 @@ PYBIND11_MODULE(bloomref, m) {
         py::arg("keep_stages") = false);
   m.def("check", &bloomref::python::check, kCheckDoc, py::arg("scene") = py::none(),
         py::arg("stages") = py::none());
+  m.def("load", &bloomref::python::load, kLoadDoc, py::arg("path"));
+  m.def("save", &bloomref::python::save, kSaveDoc, py::arg("path"), py::arg("image"));
   m.def(
       "run_command_line",
       [](const std::vector<std::string>& args) {
