@@ -17,6 +17,7 @@
 #include "bloomref/error.h"
 #include "bloomref/io.h"
 #include "bloomref/parity/compare.h"
+#include "check/command.h"
 #include "check/manifest.h"
 #include "check/output.h"
 #include "check/shaders.h"
@@ -361,7 +362,7 @@ void print_run(const CheckArgs& a, const CheckRun& run, const std::vector<Expect
     std::printf("%zu items: verdict %s\n", run.items.size(), run.verdict.c_str());
 }
 
-int check_cmd(CheckArgs& a) {
+CheckRun check_cmd(CheckArgs& a) {
   // Stage-sized buffers are allocated and freed stage after stage. glibc's dynamic mmap
   // threshold rises to the largest block freed (up to 32 MiB), after which images just below
   // it (1920x1080 RGBA float: 31.6 MiB) come from the heap and stay there, fragmented: measured
@@ -434,13 +435,11 @@ int check_cmd(CheckArgs& a) {
   if (!a.json_path.empty()) save_text(a.json_path, check_json(run).dump(2) + "\n");
   if (!a.junit_path.empty()) save_text(a.junit_path, junit_xml(run));
   if (!a.markdown_path.empty()) save_text(a.markdown_path, markdown_summary(run));
-  return run.exit_code;
+  return run;
 }
 
-}  // namespace
-
-std::function<int()> add_check(CLI::App& app) {
-  auto args = std::make_shared<CheckArgs>();
+// The subcommand and its options, bound to `args` (the command line's and check_results').
+void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
   CLI::App* sub = app.add_subcommand(
       "check", "judge anyone's bloom, captured as stage images, against the CPU oracle");
   args->sub = sub;
@@ -496,11 +495,34 @@ std::function<int()> add_check(CLI::App& app) {
   sub->add_flag("-q,--quiet", args->quiet, "print nothing");
   args->pipeline.add_to(*sub);
   args->sequence.add_to(*sub, false);
-  return [args, sub]() -> int {
-    if (!sub->parsed()) return -1;
+}
+
+}  // namespace
+
+std::function<int()> add_check(CLI::App& app) {
+  auto args = std::make_shared<CheckArgs>();
+  add_check_options(app, args);
+  return [args]() -> int {
+    if (!args->sub->parsed()) return -1;
     args->pipeline.finish();
-    return check_cmd(*args);
+    return check_cmd(*args).exit_code;
   };
+}
+
+nlohmann::ordered_json check_results(const std::vector<std::string>& args) {
+  CLI::App app{"bloomref"};
+  app.require_subcommand(1);
+  auto a = std::make_shared<CheckArgs>();
+  add_check_options(app, a);
+  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11's order
+  reversed.push_back("check");
+  try {
+    app.parse(reversed);
+  } catch (const CLI::ParseError& e) {
+    throw ParamError(e.what());
+  }
+  a->pipeline.finish();
+  return check_json(check_cmd(*a));
 }
 
 }  // namespace bloomref::cli

@@ -3,6 +3,7 @@
 #include <dlfcn.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -54,18 +55,46 @@ ChannelMap map_channels(const OiioHeader& spec) {
   return m;
 }
 
-/// Where the module may be: $BLOOMREF_OIIO_MODULE alone when it is set; otherwise next to the
-/// running program (an installed layout), then where this build put it
-/// (BLOOMREF_OIIO_MODULE_PATH, set by CMake).
+/// The folder of `file` ("" when it has no slash), with its trailing slash.
+std::string folder_of(const std::string& file) {
+  const auto slash = file.rfind('/');
+  return slash == std::string::npos ? std::string() : file.substr(0, slash + 1);
+}
+
+/// Where the module may be: $BLOOMREF_OIIO_MODULE alone when it is set; otherwise, from the
+/// folder of the running program and from that of the binary this code is linked into (the
+/// Python module, a program linking the installed libraries): the module beside it, then where
+/// an installed layout puts it (BLOOMREF_OIIO_MODULE_RELATIVE_DIRS, ':'-separated folders
+/// relative to the installed binaries' own, set by CMake: the installation may move); then
+/// where the installation at the configured prefix has it (BLOOMREF_OIIO_MODULE_INSTALLED_PATH:
+/// for programs linking the installed libraries, wherever they are); last, where this build put
+/// it (BLOOMREF_OIIO_MODULE_PATH).
 std::vector<std::string> module_candidates() {
   if (const char* env = std::getenv("BLOOMREF_OIIO_MODULE"); env && *env) return {env};
-  std::vector<std::string> paths;
+  std::vector<std::string> folders;
   std::string exe(4096, '\0');
   const ssize_t n = ::readlink("/proc/self/exe", exe.data(), exe.size() - 1);
-  if (n > 0) {
-    exe.resize(static_cast<std::size_t>(n));
-    paths.push_back(exe.substr(0, exe.rfind('/') + 1) + "libbloomref_oiio.so");
+  if (n > 0) folders.push_back(folder_of(exe.substr(0, static_cast<std::size_t>(n))));
+  Dl_info self{};
+  if (::dladdr(reinterpret_cast<void*>(&folder_of), &self) && self.dli_fname) {
+    const std::string f = folder_of(self.dli_fname);
+    if (!f.empty() && (folders.empty() || f != folders.front())) folders.push_back(f);
   }
+  std::vector<std::string> relative{""};
+#ifdef BLOOMREF_OIIO_MODULE_RELATIVE_DIRS
+  const std::string dirs = BLOOMREF_OIIO_MODULE_RELATIVE_DIRS;
+  for (std::size_t a = 0; a <= dirs.size();) {
+    const std::size_t b = std::min(dirs.find(':', a), dirs.size());
+    if (b > a) relative.push_back(dirs.substr(a, b - a) + "/");
+    a = b + 1;
+  }
+#endif
+  std::vector<std::string> paths;
+  for (const std::string& folder : folders)
+    for (const std::string& rel : relative) paths.push_back(folder + rel + "libbloomref_oiio.so");
+#ifdef BLOOMREF_OIIO_MODULE_INSTALLED_PATH
+  paths.push_back(BLOOMREF_OIIO_MODULE_INSTALLED_PATH);
+#endif
 #ifdef BLOOMREF_OIIO_MODULE_PATH
   paths.push_back(BLOOMREF_OIIO_MODULE_PATH);
 #endif
@@ -97,7 +126,8 @@ OiioReadFn oiio_reader(const std::string& path) {
   }();
   if (!loaded.read)
     throw InputError(path, "reading this format needs bloomref's OpenImageIO module "
-                           "(libbloomref_oiio.so), which did not load: " + loaded.why);
+                           "(libbloomref_oiio.so), which did not load (BLOOMREF_OIIO_MODULE may name "
+                           "it): " + loaded.why);
   return loaded.read;
 }
 

@@ -1,0 +1,85 @@
+#include "arrays.h"
+
+#include <algorithm>
+#include <cstdint>
+
+#include "bloomref/error.h"
+#include "bloomref/io.h"
+
+namespace py = pybind11;
+
+namespace bloomref::python {
+namespace {
+
+std::string shape_text(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+// Whole 16-byte pixels, rows of whole pixels, float32 in this machine's byte order.
+bool viewable(const py::array& a) {
+  constexpr py::ssize_t pixel = kChannels * sizeof(float);
+  return a.dtype().is(py::dtype::of<float>()) && a.shape(2) == kChannels &&
+         a.strides(2) == sizeof(float) && a.strides(1) == pixel && a.strides(0) > 0 &&
+         a.strides(0) % pixel == 0 && a.strides(0) / pixel >= a.shape(1) &&
+         reinterpret_cast<std::uintptr_t>(a.data()) % alignof(float) == 0;
+}
+
+}  // namespace
+
+SceneArray scene_array(const py::handle& obj, const std::string& what) {
+  SceneArray s;
+  if (!py::isinstance<py::array>(obj))
+    throw py::value_error(what + ": expected a numpy array of H x W x 4 (or x 3) floats, got " +
+                          std::string(py::str(py::type::of(obj).attr("__name__"))));
+  s.array = py::reinterpret_borrow<py::array>(obj);
+  const py::array& a = s.array;
+  if (a.ndim() != 3 || (a.shape(2) != 3 && a.shape(2) != 4))
+    throw py::value_error(what + ": shape " + shape_text(a) +
+                          " is not H x W x 4 (RGBA) or H x W x 3 (RGB)");
+  if (a.dtype().kind() != 'f')
+    throw py::value_error(what + ": dtype " + std::string(py::str(a.dtype())) +
+                          " is not floating point (float32, float64 or float16)");
+  const int h = static_cast<int>(std::min<py::ssize_t>(a.shape(0), 1 << 30));
+  const int w = static_cast<int>(std::min<py::ssize_t>(a.shape(1), 1 << 30));
+  if (w < 1 || h < 1) throw py::value_error(what + ": shape " + shape_text(a) + " is empty");
+  try {
+    check_size(what, a.shape(1), a.shape(0), SizeLimits{});
+  } catch (const InputError& e) {
+    throw py::value_error(e.what());
+  }
+  if (viewable(a)) {
+    s.view = {w, h, a.strides(0) / py::ssize_t(kChannels * sizeof(float)),
+              static_cast<const float*>(a.data())};
+    return s;
+  }
+  // float32, C order: numpy converts (any dtype, any strides) in one pass.
+  const auto f = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
+  if (!f) throw py::error_already_set();
+  const int channels = static_cast<int>(a.shape(2));
+  s.copy = Image(w, h, 1.0f);
+  const float* src = f.data();
+  float* dst = s.copy.data();
+  const std::size_t n = std::size_t(w) * h;
+  if (channels == kChannels) {
+    std::copy(src, src + n * kChannels, dst);
+  } else {
+    for (std::size_t i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) dst[i * kChannels + c] = src[i * 3 + c];
+  }
+  s.view = s.copy.cview();
+  s.copied = true;
+  return s;
+}
+
+py::array to_array(Image&& image) {
+  auto* owner = new Image(std::move(image));
+  py::capsule release(owner, [](void* p) { delete static_cast<Image*>(p); });
+  const py::ssize_t w = owner->width(), h = owner->height();
+  constexpr py::ssize_t f = sizeof(float);
+  return py::array_t<float>({h, w, py::ssize_t(kChannels)}, {w * kChannels * f, kChannels * f, f},
+                            owner->data(), release);
+}
+
+}  // namespace bloomref::python

@@ -1,0 +1,32 @@
+// numpy arrays and bloomref images: a scene viewed in place where its layout allows, and images
+// handed to numpy without a copy.
+#pragma once
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <string>
+
+#include "bloomref/image.h"
+
+namespace bloomref::python {
+
+/// A scene given as an array: `view` reads it in place when it is float32, 4 channels, with
+/// whole pixels of 16 bytes and rows of whole pixels (C-contiguous H x W x 4, or a crop of
+/// one); any other float array of H x W x 3 or H x W x 4 is converted into `copy` (alpha 1
+/// where there is none), and `view` reads that. `array` keeps the caller's array alive.
+struct SceneArray {
+  pybind11::array array;
+  Image copy;
+  ConstImageView view;
+  bool copied = false;
+};
+
+/// ValueError (naming `what` and the problem) for anything but a floating-point array of
+/// H x W x 3 or H x W x 4 within io.h's size limits.
+SceneArray scene_array(const pybind11::handle& obj, const std::string& what);
+
+/// The image as a float32 H x W x 4 array that owns its buffer (no copy).
+pybind11::array to_array(Image&& image);
+
+}  // namespace bloomref::python

@@ -1,0 +1,161 @@
+"""bloomref.run: values computed here by hand, the CLI's output bits, arrays in and out, errors."""
+import threading
+
+import numpy as np
+import pytest
+
+import bloomref
+from conftest import bits, hdr_scene, read_exr, write_exr
+
+F32_ULP = 2.0 ** -24  # relative
+
+
+def tone_and_gamma(hdr, exposure=1.0, gamma=2.2):
+    """DESIGN.md stages 5 and 6, in double: pow(1 - exp(-hdr * exposure), 1 / gamma)."""
+    return (1.0 - np.exp(-np.float64(hdr) * exposure)) ** (1.0 / gamma)
+
+
+def uniform(h, w, value):
+    img = np.full((h, w, 4), value, np.float32)
+    img[..., 3] = 1.0
+    return img
+
+
+def test_below_threshold_is_tone_map_and_gamma_only():
+    # Nothing is bright: the bloom is 0 and each value is the tone map and gamma of the scene's.
+    out = bloomref.run(uniform(9, 13, 0.5), exposure=2.0, gamma=2.0)
+    expected = tone_and_gamma(0.5, exposure=2.0, gamma=2.0)  # sqrt(1 - e^-1) = 0.79506...
+    assert out.shape == (9, 13, 4) and out.dtype == np.float32
+    np.testing.assert_allclose(out[..., :3], expected, rtol=8 * F32_ULP, atol=0)
+
+
+def test_uniform_bright_scene_adds_strength_times_itself():
+    # Luminance 2 > 1: bright = scene. Each blur pass of a uniform image keeps it (the discrete9
+    # weights 924, 792, 495, 220, 66 over 4070 sum to 1, up to float rounding of each tap), so
+    # composite = 2 + 0.5 * 2 = 3.
+    out = bloomref.run(uniform(12, 20, 2.0), strength=0.5, passes=4)
+    np.testing.assert_allclose(out[..., :3], tone_and_gamma(3.0), rtol=32 * F32_ULP, atol=0)
+
+
+def test_threshold_option_turns_the_bloom_off():
+    out = bloomref.run(uniform(6, 6, 2.0), threshold=5.0)
+    np.testing.assert_allclose(out[..., :3], tone_and_gamma(2.0), rtol=8 * F32_ULP, atol=0)
+
+
+@pytest.mark.parametrize("options", [
+    {},
+    {"storage": "f16"},
+    {"method": "mip", "karis": True},
+    {"passes": 4, "kernel": "linear5", "exposure": 0.7, "plan": "full"},
+])
+def test_same_bits_as_the_command(tmp_path, cli, options):
+    scene = hdr_scene(45, 70)
+    write_exr(tmp_path / "in.exr", scene)
+    args = []
+    for key, value in options.items():
+        name = "--" + key.replace("_", "-")
+        args += [name] if value is True else [name, value]
+    r = cli("run", tmp_path / "in.exr", "-o", tmp_path / "out.exr", "-q", *args)
+    assert r.returncode == 0, r.stderr
+    expected = read_exr(tmp_path / "out.exr")
+    out = bloomref.run(scene, **options)
+    assert out.shape == expected.shape
+    assert np.array_equal(bits(out), bits(expected))
+    # The same from the file, read by bloomref itself.
+    assert np.array_equal(bits(bloomref.run(tmp_path / "in.exr", **options)), bits(expected))
+
+
+def test_keep_stages_are_the_commands_dumped_stages(tmp_path, cli):
+    scene = hdr_scene(30, 41)
+    write_exr(tmp_path / "in.exr", scene)
+    r = cli("run", tmp_path / "in.exr", "--dump-stages", tmp_path / "stages", "--plan", "full",
+            "--passes", "4", "-q")
+    assert r.returncode == 0, r.stderr
+    stages = bloomref.run(scene, keep_stages=True, plan="full", passes=4)
+    assert list(stages) == ["input", "bright", "blur.1", "blur.2", "blur.3", "blur.4",
+                            "composite", "tonemap", "output"]
+    for name, image in stages.items():
+        assert np.array_equal(bits(image), bits(read_exr(tmp_path / "stages" / f"{name}.exr"))), name
+
+
+def test_corpus_image_same_bits_as_the_command(tmp_path, cli, corpus):
+    if corpus is None:
+        return
+    path = corpus / "reference-crop.exr"  # 160x160 half RGB
+    r = cli("run", path, "-o", tmp_path / "out.exr", "--storage", "f16", "-q")
+    assert r.returncode == 0, r.stderr
+    expected = read_exr(tmp_path / "out.exr")
+    assert np.array_equal(bits(bloomref.run(path, storage="f16")), bits(expected))
+    rgb = read_exr(path)  # H x W x 3: alpha 1, as the command reads it
+    assert rgb.shape[2] == 3
+    assert np.array_equal(bits(bloomref.run(rgb, storage="f16")), bits(expected))
+
+
+def test_arrays_in_and_out():
+    scene = hdr_scene(40, 64)
+    before = scene.copy()
+    out = bloomref.run(scene)
+    assert np.array_equal(bits(scene), bits(before))  # the input is read, never written
+    assert out.flags["C_CONTIGUOUS"] and out.flags["WRITEABLE"]
+    assert out.base is not None  # owns the executor's buffer through a capsule: no copy
+    # A crop of a float32 array (rows of another length) is read in place: same as a copy of it.
+    crop = scene[5:30, 8:50]
+    assert not crop.flags["C_CONTIGUOUS"]
+    assert np.array_equal(bits(bloomref.run(crop)), bits(bloomref.run(crop.copy())))
+    # RGB and float64 are converted: the same as RGBA float32 with alpha 1.
+    assert np.array_equal(bits(bloomref.run(scene[..., :3].astype(np.float64))), bits(out))
+    assert np.array_equal(bits(bloomref.run(np.asfortranarray(scene))), bits(out))
+
+
+def test_the_gil_is_released_while_it_runs():
+    scene = hdr_scene(720, 1280)
+    count = [0]
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            count[0] += 1
+
+    t = threading.Thread(target=spin)
+    t.start()
+    try:
+        start = count[0]
+        bloomref.run(scene, plan="full", threads=1)
+        during = count[0] - start  # Python ran in the other thread only if the GIL was free
+    finally:
+        stop.set()
+        t.join()
+    assert during > 1000
+
+
+@pytest.mark.parametrize("image, options, message", [
+    (np.zeros((4, 4), np.float32), {}, "shape (4, 4) is not H x W x 4"),
+    (np.zeros((4, 4, 2), np.float32), {}, "shape (4, 4, 2)"),
+    (np.zeros((0, 4, 4), np.float32), {}, "is empty"),
+    (np.zeros((4, 4, 4), np.int32), {}, "dtype int32 is not floating point"),
+    ([[0.0]], {}, "expected a numpy array"),
+    (np.zeros((4, 4, 4), np.float32), {"passes": "x"}, "--passes"),
+    (np.zeros((4, 4, 4), np.float32), {"method": "blob"}, "--method 'blob' is not one of"),
+    (np.zeros((4, 4, 4), np.float32), {"storage": "f8"}, "--storage"),
+    (np.zeros((4, 4, 4), np.float32), {"colour": 1}, "unknown option 'colour'"),
+    (np.zeros((4, 4, 4), np.float32), {"backend": "vulkan"}, "--backend 'vulkan'"),
+    (np.zeros((4, 4, 4), np.float32), {"gamma": 0}, "gamma"),
+])
+def test_bad_input_raises_value_error(image, options, message):
+    with pytest.raises(ValueError) as e:
+        bloomref.run(image, **options)
+    assert message in str(e.value)
+
+
+def test_nonfinite_error_policy_names_the_problem():
+    scene = hdr_scene(8, 8)
+    scene[3, 4, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        bloomref.run(scene, nonfinite="error")
+    out = bloomref.run(scene)  # zero: the NaN becomes 0
+    assert np.isfinite(out).all()
+
+
+def test_missing_file_raises_value_error(tmp_path):
+    with pytest.raises(ValueError, match="no-such.exr"):
+        bloomref.run(tmp_path / "no-such.exr")
