@@ -390,7 +390,7 @@ TEST_CASE("bad patterns, frame lists, shards and results files are exit 2, named
       {"run 'in.####.exr' -o 'o.####.exr' --shard 0/2", "K of --shard 0/2 is '0'"},
       {"run 'in.####.exr' -o 'o.####.exr' --shard 2", "is not K/N"},
       {"run 'in.####.exr' -o 'o.####.exr' --shard-count 3", "--shard-count goes with --shard auto"},
-      {"run 'in.####.exr' -o 'o.####.exr' --jobs 0", "--jobs '0' is not auto or a whole number"},
+      {"run 'in.####.exr' -o 'o.####.exr' --jobs 0", "--jobs: Value 0 not in range"},
       {"run 'in.####.exr' -o 'o.####.exr' --progress loud", "--progress 'loud' is not one of"},
       {"run 'in.####.exr' -o 'o.####.exr' --repeat 3", "--repeat times one image"},
       {"check 'in.####.exr' --stages st", "--stages 'st' names one folder for every frame"},

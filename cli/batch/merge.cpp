@@ -277,6 +277,33 @@ std::string merged_junit(const Merged& m) {
          "</testsuites>\n";
 }
 
+std::string merged_markdown(const Merged& m) {
+  const ordered_json& d = m.doc;
+  const bool check = is_check(d);
+  const std::string verdict = !m.problems.empty() ? "INCOMPLETE"
+                              : check ? str(d, "verdict")
+                                      : d.value("exit_code", 0) == 0 ? "OK" : "FAILED";
+  std::string out = "### bloomref " + std::string(check ? "check" : "run") + " (merged): " +
+                    verdict + "\n\n" + std::to_string(d["batch"]["items_total"].get<std::size_t>()) +
+                    " items from " + std::to_string(d["batch"]["shards"].size()) +
+                    " results file(s); exit code " + std::to_string(m.exit_code) + ".\n\n";
+  for (const std::string& p : m.problems) out += "- :x: " + p + "\n";
+  std::string rows;
+  for (const ordered_json& it : d["items"]) {
+    const std::string v = check ? str(it, "verdict") : str(it, "status");
+    if (v == "PASS" || v == "WARN" || v == "done" || v == "resumed") continue;
+    std::string why = str(it, "error");
+    if (why.empty() && it.contains("first_divergent_stage") && it["first_divergent_stage"].is_string())
+      why = "first divergent stage `" + it["first_divergent_stage"].get<std::string>() + "`";
+    for (char& c : why)
+      if (c == '|' || c == '\n') c = ' ';
+    rows += "| " + str(it, "id") + " | " + v + " | " + why + " | " + str(it, "shard") + " |\n";
+  }
+  if (!rows.empty())
+    out += "\n| item | " + std::string(check ? "verdict" : "status") + " | why | shard |\n|---|---|---|---|\n" + rows;
+  return out;
+}
+
 std::string merged_html(const Merged& m, const std::set<std::string>& item_reports) {
   const ordered_json& d = m.doc;
   const bool check = is_check(d);

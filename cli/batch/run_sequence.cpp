@@ -112,20 +112,6 @@ bool frame_complete(const FrameFiles& f, const BloomParams& params) {
   return true;
 }
 
-int parse_jobs(const std::string& jobs) {
-  if (jobs == "auto") return 0;
-  std::size_t used = 0;
-  int j = 0;
-  try {
-    j = std::stoi(jobs, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != jobs.size() || j < 1 || j > 256)
-    throw ParamError("--jobs '" + jobs + "' is not auto or a whole number from 1 to 256");
-  return j;
-}
-
 }  // namespace
 
 bool is_run_sequence(const RunSequenceArgs& a) {
@@ -138,7 +124,6 @@ bool is_run_sequence(const RunSequenceArgs& a) {
 
 int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
   const Patterns p = check_patterns(a);
-  const int jobs = parse_jobs(a.sequence.jobs);
   const std::vector<int> frames = sequence_frames(a.sequence, p.input, "IN");
   std::vector<std::string> ids;
   for (int f : frames) ids.push_back(p.first_wildcard().frame_text(f));
@@ -207,7 +192,7 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
   std::vector<std::string> labels;
   for (std::size_t i : sel.mine) labels.push_back(ids[i]);
   BatchLoop loop;
-  loop.jobs = jobs;
+  loop.jobs = a.sequence.jobs;
   loop.threads = a.params.threads;
   loop.progress = a.sequence.progress;
   loop.quiet = a.quiet;
@@ -222,12 +207,6 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
     frame(files, o.record);
     o.status = ItemOutcome::Status::done;
     return o;
-  };
-  // Measured on the project's 2-core machine (benchmarks/sequence.cmake): two frames at once
-  // beat one frame on two threads for small frames, and not for large ones.
-  loop.choose_jobs = [&](const ItemOutcome& first) {
-    (void)first;
-    return 1;
   };
   loop.checkpoint = [&](const std::vector<ItemOutcome>& outcomes) {
     save(results(outcomes, false, false, 0));

@@ -26,7 +26,7 @@ struct SequenceOptions {
   std::string shard;   ///< --shard K/N | auto
   int shard_count = 0;
   bool resume = false;
-  std::string jobs = "auto";
+  int jobs = 1;
   std::string progress = "auto";  ///< auto | bar | lines | none
 
   /// `for_run`: also --resume and --jobs (frames written as files); check takes the others.
@@ -82,9 +82,6 @@ struct BatchLoop {
   std::string noun = "frames";
   std::function<ItemOutcome(std::size_t, int)> fn;
   std::function<void(const std::vector<ItemOutcome>&)> checkpoint;
-  /// Called once after the first item when jobs is 0 ("auto"), with its outcome: returns the
-  /// jobs for the rest.
-  std::function<int(const ItemOutcome&)> choose_jobs;
 
   /// Returns the outcomes; `interrupted` tells whether a signal stopped the loop.
   std::vector<ItemOutcome> run(const std::vector<std::string>& labels, bool& interrupted);
