@@ -30,7 +30,8 @@ batch::ResultsFile read_results(const std::string& path) {
   try {
     return {path, nlohmann::ordered_json::parse(ss.str())};
   } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(path, std::string("is not valid JSON (a results file cut short?): ") + e.what());
+    throw InputError(path,
+                     std::string("is not valid JSON (a results file cut short?): ") + e.what());
   }
 }
 
@@ -78,12 +79,14 @@ int merge(const MergeArgs& a) {
 std::function<int()> add_merge(CLI::App& app) {
   auto args = std::make_shared<MergeArgs>();
   CLI::App* sub = app.add_subcommand(
-      "merge", "one result from the shards' results files (run --frames or check, --json): "
-               "exit 2 when an item is missing or was run twice");
+      "merge",
+      "one result from the shards' results files (run --frames or check, --json): "
+      "exit 2 when an item is missing or was run twice");
   sub->add_option("RESULTS", args->files, "the shards' results files (JSON)")->required();
   sub->add_option("--json", args->json_path, "write the merged results as JSON");
   sub->add_option("--junit", args->junit_path, "write JUnit XML (a testsuite per item)");
-  sub->add_option("--markdown", args->markdown_path, "write a Markdown summary (a CI job's summary page)");
+  sub->add_option("--markdown", args->markdown_path,
+                  "write a Markdown summary (a CI job's summary page)");
   sub->add_option("--report", args->report_dir, "write DIR/index.html (a row per item)");
   sub->add_flag("-q,--quiet", args->quiet, "print nothing but problems");
   return [args, sub]() -> int {

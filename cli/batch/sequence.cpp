@@ -57,7 +57,8 @@ class SignalScope {
   SignalScope& operator=(const SignalScope&) = delete;
 
  private:
-  struct sigaction old_int_ {}, old_term_ {};
+  struct sigaction old_int_ {
+  }, old_term_{};
 };
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -121,8 +122,7 @@ void SequenceOptions::add_to(CLI::App& app, bool for_run) {
                  "auto (a bar on a terminal, else a line per item) | bar | lines | none")
       ->capture_default_str();
   if (!for_run) return;
-  app.add_flag("--resume", resume,
-               "skip frames whose outputs already exist and are complete");
+  app.add_flag("--resume", resume, "skip frames whose outputs already exist and are complete");
   // Measured on the project's 2-core machine (benchmarks/sequence.sh): two frames at once were
   // no faster than one frame on both threads, at 256x256 or at 3840x2160.
   app.add_option("--jobs", jobs, "frames at once, the threads shared among them")
@@ -154,8 +154,8 @@ std::vector<int> sequence_frames(const SequenceOptions& o, const batch::FramePat
   std::vector<int> frames;
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
-    const std::string name = p.has_parent_path() ? (dir / e.path().filename()).string()
-                                                  : e.path().filename().string();
+    const std::string name =
+        p.has_parent_path() ? (dir / e.path().filename()).string() : e.path().filename().string();
     if (const auto f = scan.frame_of(name)) frames.push_back(*f);
   }
   if (frames.empty())
@@ -168,9 +168,11 @@ std::vector<int> sequence_frames(const SequenceOptions& o, const batch::FramePat
 ordered_json ItemSelection::json(bool finished, bool interrupted) const {
   ordered_json s = nullptr;
   if (shard)
-    s = {{"index", shard->index + 1}, {"count", shard->count}, {"label", shard->label()},
+    s = {{"index", shard->index + 1},
+         {"count", shard->count},
+         {"label", shard->label()},
          {"source", shard->source}};
-  return {{"items_total", ids.size()}, {"item_ids", ids}, {"shard", s},
+  return {{"items_total", ids.size()},     {"item_ids", ids},      {"shard", s},
           {"items_in_shard", mine.size()}, {"finished", finished}, {"interrupted", interrupted}};
 }
 
@@ -190,10 +192,14 @@ ItemSelection select_items(std::vector<std::string> ids, const SequenceOptions& 
 
 const char* to_string(ItemOutcome::Status s) {
   switch (s) {
-    case ItemOutcome::Status::done: return "done";
-    case ItemOutcome::Status::resumed: return "resumed";
-    case ItemOutcome::Status::error: return "error";
-    case ItemOutcome::Status::not_run: return "not-run";
+    case ItemOutcome::Status::done:
+      return "done";
+    case ItemOutcome::Status::resumed:
+      return "resumed";
+    case ItemOutcome::Status::error:
+      return "error";
+    case ItemOutcome::Status::not_run:
+      return "not-run";
   }
   return "?";
 }
@@ -226,8 +232,9 @@ std::vector<ItemOutcome> BatchLoop::run(const std::vector<std::string>& labels, 
 
   auto draw = [&] {  // under the lock
     if (mode == "bar")
-      std::fprintf(stderr, "\r%s\033[K", batch::progress_bar(done, n, seconds_since(t0),
-                                                             terminal_width() - 1, noun).c_str());
+      std::fprintf(
+          stderr, "\r%s\033[K",
+          batch::progress_bar(done, n, seconds_since(t0), terminal_width() - 1, noun).c_str());
   };
   auto finish_item = [&](std::size_t i, ItemOutcome o) {
     std::lock_guard<std::mutex> g(lock);

@@ -61,9 +61,9 @@ ItemSelection select_items(std::vector<std::string> ids, const SequenceOptions& 
 struct ItemOutcome {
   enum class Status { done, resumed, error, not_run };
   Status status = Status::not_run;
-  std::string message;  ///< the error, or a short note for the per-item line
-  int exit_code = 0;    ///< of an error: 2 bad input, 4 internal
-  double ms = 0;        ///< wall time of the item, I/O included
+  std::string message;            ///< the error, or a short note for the per-item line
+  int exit_code = 0;              ///< of an error: 2 bad input, 4 internal
+  double ms = 0;                  ///< wall time of the item, I/O included
   nlohmann::ordered_json record;  ///< what the command records of the item
 };
 const char* to_string(ItemOutcome::Status s);
