@@ -18,7 +18,7 @@ namespace {
 
 struct MergeArgs {
   std::vector<std::string> files;
-  std::string json_path, junit_path, report_dir;
+  std::string json_path, junit_path, markdown_path, report_dir;
   bool quiet = false;
 };
 
@@ -30,13 +30,14 @@ batch::ResultsFile read_results(const std::string& path) {
   try {
     return {path, nlohmann::ordered_json::parse(ss.str())};
   } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(path, std::string("is not valid JSON (a results file cut short?): ") + e.what());
+    throw InputError(path,
+                     std::string("is not valid JSON (a results file cut short?): ") + e.what());
   }
 }
 
 int merge(const MergeArgs& a) {
   // Destinations first: none may be a results file being merged, each must be writable.
-  for (const std::string* out : {&a.json_path, &a.junit_path})
+  for (const std::string* out : {&a.json_path, &a.junit_path, &a.markdown_path})
     if (!out->empty()) {
       for (const std::string& in : a.files) refuse_overwrite(*out, in);
       const fs::path dir = fs::path(*out).parent_path();
@@ -50,6 +51,7 @@ int merge(const MergeArgs& a) {
 
   if (!a.json_path.empty()) save_text(a.json_path, m.doc.dump(2) + "\n");
   if (!a.junit_path.empty()) save_text(a.junit_path, batch::merged_junit(m));
+  if (!a.markdown_path.empty()) save_text(a.markdown_path, batch::merged_markdown(m));
   if (!a.report_dir.empty()) {
     std::error_code ec;
     fs::create_directories(a.report_dir, ec);
@@ -77,11 +79,14 @@ int merge(const MergeArgs& a) {
 std::function<int()> add_merge(CLI::App& app) {
   auto args = std::make_shared<MergeArgs>();
   CLI::App* sub = app.add_subcommand(
-      "merge", "one result from the shards' results files (run --frames or check, --json): "
-               "exit 2 when an item is missing or was run twice");
+      "merge",
+      "one result from the shards' results files (run --frames or check, --json): "
+      "exit 2 when an item is missing or was run twice");
   sub->add_option("RESULTS", args->files, "the shards' results files (JSON)")->required();
   sub->add_option("--json", args->json_path, "write the merged results as JSON");
   sub->add_option("--junit", args->junit_path, "write JUnit XML (a testsuite per item)");
+  sub->add_option("--markdown", args->markdown_path,
+                  "write a Markdown summary (a CI job's summary page)");
   sub->add_option("--report", args->report_dir, "write DIR/index.html (a row per item)");
   sub->add_flag("-q,--quiet", args->quiet, "print nothing but problems");
   return [args, sub]() -> int {

@@ -73,7 +73,7 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
   if (a.repeat > 1 && a.backend != "cpu") throw ParamError("--repeat times the CPU backend only");
   if (a.repeat > 1 && !a.dump_dir.empty())
     throw ParamError("--repeat and --dump-stages do not go together (stages kept change the timings)");
-  if (a.outputs.empty() && a.dump_dir.empty() && a.json_path.empty())
+  if (a.outputs.empty() && a.dump_dir.empty() && a.json_path.empty() && !record)
     throw ParamError("nothing to write: give -o OUT.exr and/or -o OUT.png (or --dump-stages, --json)");
 
   // Check every destination before the (possibly long) work starts, so a refusal leaves

@@ -65,9 +65,11 @@ TEST_CASE("frame wildcards: the frame a file name stands for", "[batch]") {
 TEST_CASE("bad frame patterns are named", "[batch]") {
   CHECK_THAT(error_of([] { FramePattern::parse("a.####.b.%04d.exr"); }),
              Catch::Contains("two frame wildcards") && Catch::Contains("'####' and '%04d'"));
-  CHECK_THAT(error_of([] { FramePattern::parse("a.#@.exr"); }), Catch::Contains("mixes '#' and '@'"));
+  CHECK_THAT(error_of([] { FramePattern::parse("a.#@.exr"); }),
+             Catch::Contains("mixes '#' and '@'"));
   CHECK_THAT(error_of([] { FramePattern::parse("a.%4d.exr"); }), Catch::Contains("write '%04d'"));
-  CHECK_THAT(error_of([] { FramePattern::parse("a.%020d.exr"); }), Catch::Contains("more than 16 digits"));
+  CHECK_THAT(error_of([] { FramePattern::parse("a.%020d.exr"); }),
+             Catch::Contains("more than 16 digits"));
   CHECK(has_frame_wildcard("a.#@.exr"));  // malformed, still meant as a sequence
 }
 
@@ -92,11 +94,15 @@ TEST_CASE("bad frame lists are named", "[batch]") {
   CHECK_THAT(error_of([] { parse_frame_list("1-10,,20"); }), Catch::Contains("empty part"));
   CHECK_THAT(error_of([] { parse_frame_list("1-a"); }), Catch::Contains("'1-a' is not a frame"));
   CHECK_THAT(error_of([] { parse_frame_list("1-10x0"); }), Catch::Contains("must be 1 or more"));
-  CHECK_THAT(error_of([] { parse_frame_list("1-10x"); }), Catch::Contains("'1-10x' is not a frame"));
+  CHECK_THAT(error_of([] { parse_frame_list("1-10x"); }),
+             Catch::Contains("'1-10x' is not a frame"));
   CHECK_THAT(error_of([] { parse_frame_list("5x2"); }), Catch::Contains("has a step but no range"));
-  CHECK_THAT(error_of([] { parse_frame_list("1-10,5"); }), Catch::Contains("frame 5 is listed twice"));
-  CHECK_THAT(error_of([] { parse_frame_list("1-20000000"); }), Catch::Contains("more than 10000000"));
-  CHECK_THAT(error_of([] { parse_frame_list("1-2000000000"); }), Catch::Contains("beyond the frame numbers"));
+  CHECK_THAT(error_of([] { parse_frame_list("1-10,5"); }),
+             Catch::Contains("frame 5 is listed twice"));
+  CHECK_THAT(error_of([] { parse_frame_list("1-20000000"); }),
+             Catch::Contains("more than 10000000"));
+  CHECK_THAT(error_of([] { parse_frame_list("1-2000000000"); }),
+             Catch::Contains("beyond the frame numbers"));
   CHECK_THAT(error_of([] { parse_frame_list("1-2y1"); }), Catch::Contains("lists no frame"));
 }
 
@@ -128,70 +134,107 @@ TEST_CASE("bad --shard values are named", "[batch]") {
   CHECK_THAT(error_of([] { resolve_shard("2", 0, {}); }), Catch::Contains("is not K/N"));
   CHECK_THAT(error_of([] { resolve_shard("a/b", 0, {}); }), Catch::Contains("is 'b'"));
   CHECK_THAT(error_of([] { resolve_shard("1/0", 0, {}); }), Catch::Contains("is '0'"));
-  CHECK_THAT(error_of([] { resolve_shard("1/2", 4, {}); }), Catch::Contains("--shard-count goes with --shard auto"));
-  CHECK_THAT(error_of([] { resolve_shard("", 4, {}); }), Catch::Contains("--shard-count goes with"));
-  CHECK_THAT(error_of([] { resolve_shard("auto", 0, {{"PATH", "/bin"}}); }),
+  CHECK_THAT(error_of([] { resolve_shard("1/2", 4, {}); }),
+             Catch::Contains("--shard-count goes with --shard auto"));
+  CHECK_THAT(error_of([] { resolve_shard("", 4, {}); }),
+             Catch::Contains("--shard-count goes with"));
+  CHECK_THAT(error_of([] {
+               resolve_shard("auto", 0, {{"PATH", "/bin"}});
+             }),
              Catch::Contains("no shard variables are set"));
 }
 
 TEST_CASE("shard auto: Slurm arrays, dense and sparse", "[batch]") {
   // sbatch --array=1-4: ids 1..4 (Slurm 22.05 sets MIN, MAX, STEP, COUNT as below).
-  const Shard a = *resolve_shard("auto", 0, {{"SLURM_ARRAY_TASK_ID", "3"}, {"SLURM_ARRAY_TASK_MIN", "1"},
-                                             {"SLURM_ARRAY_TASK_MAX", "4"}, {"SLURM_ARRAY_TASK_STEP", "1"},
-                                             {"SLURM_ARRAY_TASK_COUNT", "4"}});
+  const Shard a = *resolve_shard("auto", 0,
+                                 {{"SLURM_ARRAY_TASK_ID", "3"},
+                                  {"SLURM_ARRAY_TASK_MIN", "1"},
+                                  {"SLURM_ARRAY_TASK_MAX", "4"},
+                                  {"SLURM_ARRAY_TASK_STEP", "1"},
+                                  {"SLURM_ARRAY_TASK_COUNT", "4"}});
   CHECK(a.label() == "3/4");
   CHECK_THAT(a.source, Catch::Contains("SLURM_ARRAY_TASK_ID=3"));
   // --array=0-9:3: ids 0, 3, 6, 9; id 6 is the third.
-  const Shard b = *resolve_shard("auto", 0, {{"SLURM_ARRAY_TASK_ID", "6"}, {"SLURM_ARRAY_TASK_MIN", "0"},
-                                             {"SLURM_ARRAY_TASK_MAX", "9"}, {"SLURM_ARRAY_TASK_STEP", "3"},
-                                             {"SLURM_ARRAY_TASK_COUNT", "4"}});
+  const Shard b = *resolve_shard("auto", 0,
+                                 {{"SLURM_ARRAY_TASK_ID", "6"},
+                                  {"SLURM_ARRAY_TASK_MIN", "0"},
+                                  {"SLURM_ARRAY_TASK_MAX", "9"},
+                                  {"SLURM_ARRAY_TASK_STEP", "3"},
+                                  {"SLURM_ARRAY_TASK_COUNT", "4"}});
   CHECK(b.label() == "3/4");
   // --array=1,2,5: measured MIN 1, MAX 5, STEP 1, COUNT 3: not evenly spaced.
   CHECK_THAT(error_of([] {
-               resolve_shard("auto", 0, {{"SLURM_ARRAY_TASK_ID", "5"}, {"SLURM_ARRAY_TASK_MIN", "1"},
-                                         {"SLURM_ARRAY_TASK_MAX", "5"}, {"SLURM_ARRAY_TASK_STEP", "1"},
-                                         {"SLURM_ARRAY_TASK_COUNT", "3"}});
+               resolve_shard("auto", 0,
+                             {{"SLURM_ARRAY_TASK_ID", "5"},
+                              {"SLURM_ARRAY_TASK_MIN", "1"},
+                              {"SLURM_ARRAY_TASK_MAX", "5"},
+                              {"SLURM_ARRAY_TASK_STEP", "1"},
+                              {"SLURM_ARRAY_TASK_COUNT", "3"}});
              }),
              Catch::Contains("not evenly spaced"));
-  CHECK_THAT(error_of([] {
-               resolve_shard("auto", 0, {{"SLURM_ARRAY_TASK_ID", "3"}, {"SLURM_ARRAY_TASK_MIN", "1"}});
-             }),
-             Catch::Contains("SLURM_ARRAY_TASK_COUNT is not"));
+  CHECK_THAT(
+      error_of([] {
+        resolve_shard("auto", 0, {{"SLURM_ARRAY_TASK_ID", "3"}, {"SLURM_ARRAY_TASK_MIN", "1"}});
+      }),
+      Catch::Contains("SLURM_ARRAY_TASK_COUNT is not"));
   // Slurm comes first even when a CI's variables are set too.
-  const Shard c = *resolve_shard("auto", 0, {{"SLURM_ARRAY_TASK_ID", "0"}, {"SLURM_ARRAY_TASK_MIN", "0"},
-                                             {"SLURM_ARRAY_TASK_COUNT", "2"}, {"CI_NODE_INDEX", "2"},
-                                             {"CI_NODE_TOTAL", "2"}});
+  const Shard c = *resolve_shard("auto", 0,
+                                 {{"SLURM_ARRAY_TASK_ID", "0"},
+                                  {"SLURM_ARRAY_TASK_MIN", "0"},
+                                  {"SLURM_ARRAY_TASK_COUNT", "2"},
+                                  {"CI_NODE_INDEX", "2"},
+                                  {"CI_NODE_TOTAL", "2"}});
   CHECK(c.label() == "1/2");
 }
 
 TEST_CASE("shard auto: Kubernetes, GitLab, Bazel, GoogleTest, Buildkite, CircleCI", "[batch]") {
   CHECK(resolve_shard("auto", 5, {{"JOB_COMPLETION_INDEX", "0"}})->label() == "1/5");
   CHECK(resolve_shard("auto", 5, {{"JOB_COMPLETION_INDEX", "4"}})->label() == "5/5");
-  CHECK_THAT(error_of([] { resolve_shard("auto", 0, {{"JOB_COMPLETION_INDEX", "0"}}); }),
+  CHECK_THAT(error_of([] {
+               resolve_shard("auto", 0, {{"JOB_COMPLETION_INDEX", "0"}});
+             }),
              Catch::Contains("pass --shard-count"));
-  CHECK_THAT(error_of([] { resolve_shard("auto", 5, {{"JOB_COMPLETION_INDEX", "5"}}); }),
+  CHECK_THAT(error_of([] {
+               resolve_shard("auto", 5, {{"JOB_COMPLETION_INDEX", "5"}});
+             }),
              Catch::Contains("shard 6 of 5"));
   // GitLab counts from 1.
-  CHECK(resolve_shard("auto", 0, {{"CI_NODE_INDEX", "1"}, {"CI_NODE_TOTAL", "3"}})->label() == "1/3");
-  CHECK_THAT(error_of([] { resolve_shard("auto", 0, {{"CI_NODE_INDEX", "0"}, {"CI_NODE_TOTAL", "3"}}); }),
+  CHECK(resolve_shard("auto", 0, {{"CI_NODE_INDEX", "1"}, {"CI_NODE_TOTAL", "3"}})->label() ==
+        "1/3");
+  CHECK_THAT(error_of([] {
+               resolve_shard("auto", 0, {{"CI_NODE_INDEX", "0"}, {"CI_NODE_TOTAL", "3"}});
+             }),
              Catch::Contains("CI_NODE_INDEX is '0'"));
-  CHECK_THAT(error_of([] { resolve_shard("auto", 0, {{"CI_NODE_INDEX", "1"}}); }),
+  CHECK_THAT(error_of([] {
+               resolve_shard("auto", 0, {{"CI_NODE_INDEX", "1"}});
+             }),
              Catch::Contains("CI_NODE_TOTAL is not"));
   // The others from 0.
-  const Shard bazel = *resolve_shard("auto", 0, {{"TEST_SHARD_INDEX", "1"}, {"TEST_TOTAL_SHARDS", "2"},
-                                                 {"TEST_SHARD_STATUS_FILE", "/tmp/x"}});
+  const Shard bazel = *resolve_shard("auto", 0,
+                                     {{"TEST_SHARD_INDEX", "1"},
+                                      {"TEST_TOTAL_SHARDS", "2"},
+                                      {"TEST_SHARD_STATUS_FILE", "/tmp/x"}});
   CHECK(bazel.label() == "2/2");
   CHECK(bazel.status_file == "/tmp/x");
-  CHECK(resolve_shard("auto", 0, {{"GTEST_SHARD_INDEX", "0"}, {"GTEST_TOTAL_SHARDS", "4"}})->label() == "1/4");
-  CHECK(resolve_shard("auto", 0, {{"BUILDKITE_PARALLEL_JOB", "3"}, {"BUILDKITE_PARALLEL_JOB_COUNT", "4"}})
+  CHECK(resolve_shard("auto", 0, {{"GTEST_SHARD_INDEX", "0"}, {"GTEST_TOTAL_SHARDS", "4"}})
+            ->label() == "1/4");
+  CHECK(resolve_shard("auto", 0,
+                      {{"BUILDKITE_PARALLEL_JOB", "3"}, {"BUILDKITE_PARALLEL_JOB_COUNT", "4"}})
             ->label() == "4/4");
-  CHECK(resolve_shard("auto", 0, {{"CIRCLE_NODE_INDEX", "2"}, {"CIRCLE_NODE_TOTAL", "3"}})->label() == "3/3");
-  CHECK_THAT(error_of([] { resolve_shard("auto", 0, {{"CIRCLE_NODE_INDEX", "3"}, {"CIRCLE_NODE_TOTAL", "3"}}); }),
+  CHECK(
+      resolve_shard("auto", 0, {{"CIRCLE_NODE_INDEX", "2"}, {"CIRCLE_NODE_TOTAL", "3"}})->label() ==
+      "3/3");
+  CHECK_THAT(error_of([] {
+               resolve_shard("auto", 0, {{"CIRCLE_NODE_INDEX", "3"}, {"CIRCLE_NODE_TOTAL", "3"}});
+             }),
              Catch::Contains("shard 4 of 3"));
   // A --shard-count must agree with the engine's own total.
-  CHECK_THAT(error_of([] { resolve_shard("auto", 2, {{"CI_NODE_INDEX", "1"}, {"CI_NODE_TOTAL", "3"}}); }),
+  CHECK_THAT(error_of([] {
+               resolve_shard("auto", 2, {{"CI_NODE_INDEX", "1"}, {"CI_NODE_TOTAL", "3"}});
+             }),
              Catch::Contains("contradicts GitLab"));
-  CHECK(resolve_shard("auto", 3, {{"CI_NODE_INDEX", "1"}, {"CI_NODE_TOTAL", "3"}})->label() == "1/3");
+  CHECK(resolve_shard("auto", 3, {{"CI_NODE_INDEX", "1"}, {"CI_NODE_TOTAL", "3"}})->label() ==
+        "1/3");
 }
 
 // --- progress ---
@@ -204,11 +247,14 @@ TEST_CASE("progress: durations and the bar", "[batch]") {
   // 37 of 240 in 15.35 s: 2.4104/s, 203 left / 2.4104 = 84.2 s; a 40-column bar 37/240 full = 6.
   CHECK(progress_bar(37, 240, 15.35, 80) ==
         "[======>" + std::string(33, ' ') + "]  37/240 frames  2.41/s  1m24s left");
-  CHECK(progress_bar(0, 10, 0, 80) == "[>" + std::string(39, ' ') + "]  0/10 frames  --/s  -- left");
-  CHECK(progress_bar(10, 10, 5, 80) == "[" + std::string(40, '=') + "]  10/10 frames  2.00/s  0.0s left");
-  CHECK(progress_bar(37, 240, 15.35, 30) == "37/240 frames  2.41/s  1m24s left");  // no room for a bar
-  CHECK(progress_bar(3, 4, 1, 80, "items") == "[" + std::string(30, '=') + ">" + std::string(9, ' ') +
-                                                  "]  3/4 items  3.00/s  0.3s left");
+  CHECK(progress_bar(0, 10, 0, 80) ==
+        "[>" + std::string(39, ' ') + "]  0/10 frames  --/s  -- left");
+  CHECK(progress_bar(10, 10, 5, 80) ==
+        "[" + std::string(40, '=') + "]  10/10 frames  2.00/s  0.0s left");
+  CHECK(progress_bar(37, 240, 15.35, 30) ==
+        "37/240 frames  2.41/s  1m24s left");  // no room for a bar
+  CHECK(progress_bar(3, 4, 1, 80, "items") ==
+        "[" + std::string(30, '=') + ">" + std::string(9, ' ') + "]  3/4 items  3.00/s  0.3s left");
 }
 
 // --- merge ---
@@ -223,11 +269,17 @@ ordered_json run_item(const std::string& id, const std::string& status = "done")
 
 ordered_json run_doc(const std::string& label, ordered_json items, bool finished = true,
                      int threads = 2, int passes = 10) {
-  return {{"version", 1}, {"tool", "bloomref run"}, {"kind", "sequence"},
+  return {{"version", 1},
+          {"tool", "bloomref run"},
+          {"kind", "sequence"},
           {"params", {{"passes", passes}, {"threads", threads}}},
-          {"batch", {{"item_ids", {"1", "2", "3"}}, {"shard", {{"label", label}, {"source", "test"}}},
-                     {"finished", finished}, {"interrupted", !finished}}},
-          {"exit_code", 0}, {"items", items}};
+          {"batch",
+           {{"item_ids", {"1", "2", "3"}},
+            {"shard", {{"label", label}, {"source", "test"}}},
+            {"finished", finished},
+            {"interrupted", !finished}}},
+          {"exit_code", 0},
+          {"items", items}};
 }
 
 ordered_json check_item(const std::string& id, const std::string& verdict,
@@ -239,8 +291,12 @@ ordered_json check_item(const std::string& id, const std::string& verdict,
 }
 
 ordered_json check_doc(ordered_json items, bool warn_as_error = false) {
-  return {{"version", 1}, {"tool", "bloomref check"}, {"verdict", "PASS"}, {"exit_code", 0},
-          {"warn_as_error", warn_as_error}, {"params", {{"passes", 10}}},
+  return {{"version", 1},
+          {"tool", "bloomref check"},
+          {"verdict", "PASS"},
+          {"exit_code", 0},
+          {"warn_as_error", warn_as_error},
+          {"params", {{"passes", 10}}},
           {"batch", {{"item_ids", {"a", "b"}}, {"shard", nullptr}, {"finished", true}}},
           {"items", items}};
 }
@@ -265,8 +321,9 @@ std::string input_error_of(F f) {
 
 TEST_CASE("merge: every item once gives the items in list order", "[batch]") {
   // Shard 1/2 ran items 1 and 3, shard 2/2 item 2, on a machine with another thread count.
-  const Merged m = merge_results({{"r1.json", run_doc("1/2", {run_item("1"), run_item("3", "resumed")})},
-                                  {"r2.json", run_doc("2/2", {run_item("2")}, true, 16)}});
+  const Merged m =
+      merge_results({{"r1.json", run_doc("1/2", {run_item("1"), run_item("3", "resumed")})},
+                     {"r2.json", run_doc("2/2", {run_item("2")}, true, 16)}});
   CHECK(m.exit_code == 0);
   CHECK(m.problems.empty());
   CHECK(ids_of(m.doc) == std::vector<std::string>{"1", "2", "3"});
@@ -279,7 +336,8 @@ TEST_CASE("merge: every item once gives the items in list order", "[batch]") {
 }
 
 TEST_CASE("merge: a missing item, an item run twice, an unfinished shard", "[batch]") {
-  const Merged missing = merge_results({{"r1.json", run_doc("1/2", {run_item("1"), run_item("3")})}});
+  const Merged missing =
+      merge_results({{"r1.json", run_doc("1/2", {run_item("1"), run_item("3")})}});
   CHECK(missing.exit_code == 2);
   CHECK(missing.missing == std::vector<std::string>{"2"});
   REQUIRE_FALSE(missing.problems.empty());
@@ -294,8 +352,8 @@ TEST_CASE("merge: a missing item, an item run twice, an unfinished shard", "[bat
   REQUIRE(twice.problems.size() == 1);
   CHECK(twice.problems[0] == "item 3 was run 2 times (r1.json, r2.json)");
 
-  const Merged unfinished = merge_results({{"r1.json", run_doc("1/1", {run_item("1"), run_item("2"),
-                                                                          run_item("3")}, false)}});
+  const Merged unfinished = merge_results(
+      {{"r1.json", run_doc("1/1", {run_item("1"), run_item("2"), run_item("3")}, false)}});
   CHECK(unfinished.exit_code == 2);
   REQUIRE(unfinished.problems.size() == 1);
   CHECK_THAT(unfinished.problems[0], Catch::Contains("did not finish (interrupted)"));
@@ -312,27 +370,31 @@ TEST_CASE("merge: run items' errors decide the exit code", "[batch]") {
   CHECK(m.exit_code == 4);
   CHECK(m.doc["summary"]["error"] == 2);
   const std::string junit = merged_junit(m);
-  CHECK_THAT(junit, Catch::Contains("tests=\"3\" failures=\"0\" errors=\"1\""));  // item 3 has no message
+  CHECK_THAT(junit,
+             Catch::Contains("tests=\"3\" failures=\"0\" errors=\"1\""));  // item 3 has no message
   CHECK_THAT(junit, Catch::Contains("<error message=\"in.0002.exr: no such file\""));
 }
 
 TEST_CASE("merge: check verdicts and counts over all shards", "[batch]") {
-  const Merged pass = merge_results({{"a.json", check_doc({check_item("a", "PASS", {"pass", "pass"})})},
-                                     {"b.json", check_doc({check_item("b", "WARN", {"pass", "warn"})})}});
+  const Merged pass =
+      merge_results({{"a.json", check_doc({check_item("a", "PASS", {"pass", "pass"})})},
+                     {"b.json", check_doc({check_item("b", "WARN", {"pass", "warn"})})}});
   CHECK(pass.exit_code == 0);
   CHECK(pass.doc["verdict"] == "WARN");
   CHECK(pass.doc["summary"]["stages"] == 4);
   CHECK(pass.doc["summary"]["pass"] == 3);
   CHECK(pass.doc["summary"]["warn"] == 1);
 
-  const Merged strict = merge_results({{"a.json", check_doc({check_item("a", "PASS", {"pass"}),
-                                                             check_item("b", "WARN", {"warn"})}, true)}});
+  const Merged strict = merge_results(
+      {{"a.json",
+        check_doc({check_item("a", "PASS", {"pass"}), check_item("b", "WARN", {"warn"})}, true)}});
   CHECK(strict.doc["verdict"] == "FAIL");
   CHECK(strict.exit_code == 1);
 
   ordered_json error = check_item("b", "ERROR", {});
   error["error"] = "st.0002/: is not a folder";
-  const Merged err = merge_results({{"a.json", check_doc({check_item("a", "FAIL", {"fail"}), error})}});
+  const Merged err =
+      merge_results({{"a.json", check_doc({check_item("a", "FAIL", {"fail"}), error})}});
   CHECK(err.doc["verdict"] == "ERROR");
   CHECK(err.exit_code == 2);
   CHECK(err.doc["summary"]["errors"] == 1);
@@ -344,6 +406,9 @@ TEST_CASE("merge: check verdicts and counts over all shards", "[batch]") {
   const std::string junit = merged_junit(half);
   CHECK_THAT(junit, Catch::Contains("type=\"missing\""));
   CHECK_THAT(junit, Catch::Contains("tests=\"2\" failures=\"0\" errors=\"1\""));
+  const std::string md = merged_markdown(half);
+  CHECK_THAT(md, Catch::Contains("### bloomref check (merged): INCOMPLETE"));
+  CHECK_THAT(md, Catch::Contains("- :x: 1 of 2 items missing: b"));
   const std::string html = merged_html(half, {"a"});
   CHECK_THAT(html, Catch::Contains("<a href=\"a/index.html\">a</a>"));
   CHECK_THAT(html, Catch::Contains("MISSING"));
@@ -379,6 +444,8 @@ TEST_CASE("merge refuses files of different runs, naming them", "[batch]") {
                merge_results({{"plain.json", plain}});
              }),
              Catch::Contains("plain.json: has no item list"));
-  CHECK_THAT(input_error_of([] { merge_results({{"x.json", ordered_json::array()}}); }),
+  CHECK_THAT(input_error_of([] {
+               merge_results({{"x.json", ordered_json::array()}});
+             }),
              Catch::Contains("x.json: is not a bloomref results file"));
 }

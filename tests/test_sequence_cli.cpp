@@ -3,12 +3,13 @@
 // a missing frame is named and the rest go on; --resume redoes only what is not whole; Ctrl-C
 // leaves no partial file; every engine's shard variables split the frames so that merge finds
 // each exactly once; check takes frames and shards too; bad values are exit 2, named.
+#include <sys/wait.h>
+
 #include <catch2/catch.hpp>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
-#include <sys/wait.h>
 
 #include "bloomref/io.h"
 #include "test_util.h"
@@ -43,17 +44,22 @@ void write_frames(const TempDir& dir, int n, const std::string& prefix = "in.") 
   }
 }
 
-bloomref::Image load(const std::string& path) { return bloomref::load_image(path).image; }
+bloomref::Image load(const std::string& path) {
+  return bloomref::load_image(path).image;
+}
 
 // The output of the single-image run of `input` (a separate process, its own folder).
 bloomref::Image single_run(const std::string& input, const std::string& extra = "") {
   TempDir d;
-  const CliResult r = bloomref::test::run_cli("run '" + input + "' -o one.exr -q " + extra, "", d.path());
+  const CliResult r =
+      bloomref::test::run_cli("run '" + input + "' -o one.exr -q " + extra, "", d.path());
   REQUIRE(r.code == 0);
   return load(d / "one.exr");
 }
 
-json read_json(const std::string& path) { return json::parse(bloomref::test::read_bytes(path)); }
+json read_json(const std::string& path) {
+  return json::parse(bloomref::test::read_bytes(path));
+}
 
 std::vector<std::string> ids(const json& results) {
   std::vector<std::string> v;
@@ -72,8 +78,9 @@ bool has_hidden_files(const TempDir& dir) {
 TEST_CASE("run over a sequence: each frame has the bits of its single-image run", "[sequence]") {
   TempDir dir;
   write_frames(dir, 4);
-  const CliResult r = run_cli(dir, "run 'in.####.exr' --frames 1-4 -o 'out.%04d.exr' -o 'out.@@@@.png' "
-                                   "--json r.json --progress lines");
+  const CliResult r = run_cli(dir,
+                              "run 'in.####.exr' --frames 1-4 -o 'out.%04d.exr' -o 'out.@@@@.png' "
+                              "--json r.json --progress lines");
   INFO(r.out << r.err);
   REQUIRE(r.code == 0);
   CHECK_THAT(r.out, Catch::Contains("[4/4] 0004: done"));
@@ -110,7 +117,8 @@ TEST_CASE("a missing frame is named, the rest go on, and the exit code says so",
   TempDir dir;
   write_frames(dir, 4);
   fs::remove(dir / "in.0003.exr");
-  const CliResult r = run_cli(dir, "run 'in.####.exr' --frames 1-4 -o 'out.####.exr' --json r.json --progress lines");
+  const CliResult r = run_cli(
+      dir, "run 'in.####.exr' --frames 1-4 -o 'out.####.exr' --json r.json --progress lines");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("frame 0003: in.0003.exr: no such file"));
   CHECK_THAT(r.out, Catch::Contains("1 failed (frame 3)"));
@@ -127,7 +135,8 @@ TEST_CASE("a missing frame is named, the rest go on, and the exit code says so",
 TEST_CASE("resume redoes only the frames whose outputs are not whole", "[sequence]") {
   TempDir dir;
   write_frames(dir, 3);
-  REQUIRE(run_cli(dir, "run 'in.####.exr' -o 'out.####.exr' --dump-stages 'st.####/' -q").code == 0);
+  REQUIRE(run_cli(dir, "run 'in.####.exr' -o 'out.####.exr' --dump-stages 'st.####/' -q").code ==
+          0);
   const std::string first = bloomref::test::read_bytes(dir / "out.0001.exr");
   const auto first_time = fs::last_write_time(dir / "out.0001.exr");
   // Frame 2's output cut short (as a copy killed half-way would leave it), frame 3's gone, and a
@@ -150,8 +159,9 @@ TEST_CASE("resume redoes only the frames whose outputs are not whole", "[sequenc
 
   // With --dump-stages, a frame is whole when every stage file is.
   fs::remove(dir / "st.0001/blur.4.exr");
-  const CliResult s = run_cli(dir, "run 'in.####.exr' -o 'out.####.exr' --dump-stages 'st.####/' "
-                                   "--resume --progress lines");
+  const CliResult s = run_cli(dir,
+                              "run 'in.####.exr' -o 'out.####.exr' --dump-stages 'st.####/' "
+                              "--resume --progress lines");
   REQUIRE(s.code == 0);
   CHECK_THAT(s.out, Catch::Contains("0001: done"));
   CHECK_THAT(s.out, Catch::Contains("0002: resumed"));
@@ -162,14 +172,18 @@ TEST_CASE("SIGINT stops after the frame in flight and leaves no partial file", "
   TempDir dir;
   // 12 frames of 480x270 (about 0.1 s each on a 2-core machine): the signal comes once the first
   // one exists.
-  const std::string cmd = "cd '" + dir.path().string() + "' && ('" BLOOMREF_EXE "' run --scene demo "
-                          "--size 480x270 --frames 1-12 -o 'o.####.exr' --json r.json --progress lines "
-                          ">out.txt 2>err.txt & pid=$!; "
-                          "for i in $(seq 600); do [ -e o.0001.exr ] && break; sleep 0.01; done; "
-                          "kill -INT $pid; wait $pid; echo $? >rc.txt)";
+  const std::string cmd =
+      "cd '" + dir.path().string() +
+      "' && ('" BLOOMREF_EXE
+      "' run --scene demo "
+      "--size 480x270 --frames 1-12 -o 'o.####.exr' --json r.json --progress lines "
+      ">out.txt 2>err.txt & pid=$!; "
+      "for i in $(seq 600); do [ -e o.0001.exr ] && break; sleep 0.01; done; "
+      "kill -INT $pid; wait $pid; echo $? >rc.txt)";
   REQUIRE(std::system(cmd.c_str()) == 0);
   CHECK(std::stoi(bloomref::test::read_bytes(dir / "rc.txt")) == 130);
-  CHECK_THAT(bloomref::test::read_bytes(dir / "err.txt"), Catch::Contains("stopping after the items in flight"));
+  CHECK_THAT(bloomref::test::read_bytes(dir / "err.txt"),
+             Catch::Contains("stopping after the items in flight"));
   CHECK_FALSE(has_hidden_files(dir));  // no temporary file left
   int outputs = 0;
   for (const std::string& n : dir.listing())
@@ -189,12 +203,15 @@ TEST_CASE("SIGINT stops after the frame in flight and leaves no partial file", "
   CHECK(partial.code == 2);
   CHECK_THAT(partial.err, Catch::Contains("items missing"));
   CHECK_THAT(partial.err, Catch::Contains("did not finish (interrupted)"));
-  REQUIRE(run_cli(dir, "run --scene demo --size 480x270 --frames 1-12 -o 'o.####.exr' --json r.json "
-                       "--resume -q").code == 0);
+  REQUIRE(run_cli(dir,
+                  "run --scene demo --size 480x270 --frames 1-12 -o 'o.####.exr' --json r.json "
+                  "--resume -q")
+              .code == 0);
   CHECK(run_cli(dir, "merge r.json -q").code == 0);
 }
 
-TEST_CASE("every engine's shard variables split a sequence that merge puts together", "[sequence]") {
+TEST_CASE("every engine's shard variables split a sequence that merge puts together",
+          "[sequence]") {
   TempDir dir;
   write_frames(dir, 5);
   REQUIRE(run_cli(dir, "run 'in.####.exr' -o 'all.####.exr' -q").code == 0);
@@ -204,18 +221,22 @@ TEST_CASE("every engine's shard variables split a sequence that merge puts toget
   };
   const std::vector<Engine> engines = {
       {"explicit", "", "", ""},
-      {"slurm", "SLURM_ARRAY_TASK_ID=10 SLURM_ARRAY_TASK_MIN=10 SLURM_ARRAY_TASK_MAX=12 "
-                "SLURM_ARRAY_TASK_STEP=2 SLURM_ARRAY_TASK_COUNT=2",
+      {"slurm",
+       "SLURM_ARRAY_TASK_ID=10 SLURM_ARRAY_TASK_MIN=10 SLURM_ARRAY_TASK_MAX=12 "
+       "SLURM_ARRAY_TASK_STEP=2 SLURM_ARRAY_TASK_COUNT=2",
        "SLURM_ARRAY_TASK_ID=12 SLURM_ARRAY_TASK_MIN=10 SLURM_ARRAY_TASK_MAX=12 "
-       "SLURM_ARRAY_TASK_STEP=2 SLURM_ARRAY_TASK_COUNT=2", ""},
+       "SLURM_ARRAY_TASK_STEP=2 SLURM_ARRAY_TASK_COUNT=2",
+       ""},
       {"kubernetes", "JOB_COMPLETION_INDEX=0", "JOB_COMPLETION_INDEX=1", "--shard-count 2"},
       {"gitlab", "CI_NODE_INDEX=1 CI_NODE_TOTAL=2", "CI_NODE_INDEX=2 CI_NODE_TOTAL=2", ""},
       {"bazel", "TEST_SHARD_INDEX=0 TEST_TOTAL_SHARDS=2 TEST_SHARD_STATUS_FILE=bazel-status",
        "TEST_SHARD_INDEX=1 TEST_TOTAL_SHARDS=2", ""},
-      {"gtest", "GTEST_SHARD_INDEX=0 GTEST_TOTAL_SHARDS=2", "GTEST_SHARD_INDEX=1 GTEST_TOTAL_SHARDS=2", ""},
+      {"gtest", "GTEST_SHARD_INDEX=0 GTEST_TOTAL_SHARDS=2",
+       "GTEST_SHARD_INDEX=1 GTEST_TOTAL_SHARDS=2", ""},
       {"buildkite", "BUILDKITE_PARALLEL_JOB=0 BUILDKITE_PARALLEL_JOB_COUNT=2",
        "BUILDKITE_PARALLEL_JOB=1 BUILDKITE_PARALLEL_JOB_COUNT=2", ""},
-      {"circleci", "CIRCLE_NODE_INDEX=0 CIRCLE_NODE_TOTAL=2", "CIRCLE_NODE_INDEX=1 CIRCLE_NODE_TOTAL=2", ""},
+      {"circleci", "CIRCLE_NODE_INDEX=0 CIRCLE_NODE_TOTAL=2",
+       "CIRCLE_NODE_INDEX=1 CIRCLE_NODE_TOTAL=2", ""},
   };
   for (const Engine& e : engines) {
     SECTION(e.name) {
@@ -223,9 +244,11 @@ TEST_CASE("every engine's shard variables split a sequence that merge puts toget
       std::vector<std::string> envs = {e.env1, e.env2};
       for (int k = 1; k <= 2; ++k) {
         const std::string shard = e.env1.empty() ? std::to_string(k) + "/2" : "auto";
-        const CliResult r = run_cli(dir, "run 'in.####.exr' -o '" + out + "' --shard " + shard + " " +
-                                             e.extra + " --json " + e.name + "-" + std::to_string(k) + ".json",
-                                    kNoShardVars + " " + envs[k - 1]);
+        const CliResult r =
+            run_cli(dir,
+                    "run 'in.####.exr' -o '" + out + "' --shard " + shard + " " + e.extra +
+                        " --json " + e.name + "-" + std::to_string(k) + ".json",
+                    kNoShardVars + " " + envs[k - 1]);
         INFO(r.out << r.err);
         REQUIRE(r.code == 0);
         CHECK_THAT(r.out, Catch::Contains("shard " + std::to_string(k) + "/2 ("));  // printed
@@ -235,8 +258,9 @@ TEST_CASE("every engine's shard variables split a sequence that merge puts toget
         CHECK(ids(j) == (k == 1 ? std::vector<std::string>{"0001", "0003", "0005"}
                                 : std::vector<std::string>{"0002", "0004"}));
       }
-      const CliResult m = run_cli(dir, std::string("merge ") + e.name + "-1.json " + e.name +
-                                           "-2.json --json merged.json --junit merged.xml --report rep");
+      const CliResult m =
+          run_cli(dir, std::string("merge ") + e.name + "-1.json " + e.name +
+                           "-2.json --json merged.json --junit merged.xml --report rep");
       INFO(m.out << m.err);
       CHECK(m.code == 0);
       CHECK(ids(read_json(dir / "merged.json")) ==
@@ -254,25 +278,29 @@ TEST_CASE("every engine's shard variables split a sequence that merge puts toget
   }
 }
 
-TEST_CASE("a lost or repeated shard fails merge but a retried shard into its own file does not", "[sequence]") {
+TEST_CASE("a lost or repeated shard fails merge but a retried shard into its own file does not",
+          "[sequence]") {
   TempDir dir;
   write_frames(dir, 5);
   for (int k = 1; k <= 2; ++k)
     REQUIRE(run_cli(dir, "run 'in.####.exr' -o 'o.####.exr' -q --shard " + std::to_string(k) +
-                             "/2 --json r" + std::to_string(k) + ".json").code == 0);
+                             "/2 --json r" + std::to_string(k) + ".json")
+                .code == 0);
   CHECK(run_cli(dir, "merge r1.json r2.json -q").code == 0);
   const CliResult lost = run_cli(dir, "merge r1.json --json m.json");
   CHECK(lost.code == 2);
   CHECK_THAT(lost.err, Catch::Contains("2 of 5 items missing: 0002, 0004"));
   CHECK(read_json(dir / "m.json")["batch"]["missing"] == json({"0002", "0004"}));
   // A shard run again under another name (a retried job with a new id): run twice.
-  REQUIRE(run_cli(dir, "run 'in.####.exr' -o 'o.####.exr' -q --shard 2/2 --resume --json r2b.json").code == 0);
+  REQUIRE(run_cli(dir, "run 'in.####.exr' -o 'o.####.exr' -q --shard 2/2 --resume --json r2b.json")
+              .code == 0);
   const CliResult twice = run_cli(dir, "merge r1.json r2.json r2b.json");
   CHECK(twice.code == 2);
   CHECK_THAT(twice.err, Catch::Contains("item 0002 was run 2 times (r2.json, r2b.json)"));
   // The same shard retried into its own file: the file is replaced whole, the merge is complete.
   const std::string before = bloomref::test::read_bytes(dir / "o.0002.exr");
-  REQUIRE(run_cli(dir, "run 'in.####.exr' -o 'o.####.exr' -q --shard 2/2 --resume --json r2.json").code == 0);
+  REQUIRE(run_cli(dir, "run 'in.####.exr' -o 'o.####.exr' -q --shard 2/2 --resume --json r2.json")
+              .code == 0);
   CHECK(run_cli(dir, "merge r1.json r2.json -q").code == 0);
   CHECK(bloomref::test::read_bytes(dir / "o.0002.exr") == before);
   CHECK(read_json(dir / "r2.json")["summary"]["resumed"] == 2);
@@ -281,7 +309,8 @@ TEST_CASE("a lost or repeated shard fails merge but a retried shard into its own
 TEST_CASE("an empty shard exits 5 and shards that do not exist exit 2", "[sequence]") {
   TempDir dir;
   write_frames(dir, 2);
-  const CliResult empty = run_cli(dir, "run 'in.####.exr' -o 'o.####.exr' --shard 3/3 --json r.json");
+  const CliResult empty =
+      run_cli(dir, "run 'in.####.exr' -o 'o.####.exr' --shard 3/3 --json r.json");
   CHECK(empty.code == 5);
   CHECK_THAT(empty.err, Catch::Contains("shard 3/3 has no frame (2 frames in 3 shards)"));
   CHECK(read_json(dir / "r.json")["items"].empty());
@@ -289,13 +318,15 @@ TEST_CASE("an empty shard exits 5 and shards that do not exist exit 2", "[sequen
   const CliResult beyond = run_cli(dir, "run 'in.####.exr' -o 'o.####.exr' --shard 3/2");
   CHECK(beyond.code == 2);
   CHECK_THAT(beyond.err, Catch::Contains("shard 3 of 2 does not exist"));
-  const CliResult none = run_cli(dir, "run 'in.####.exr' -o 'o.####.exr' --shard auto", kNoShardVars);
+  const CliResult none =
+      run_cli(dir, "run 'in.####.exr' -o 'o.####.exr' --shard auto", kNoShardVars);
   CHECK(none.code == 2);
   CHECK_THAT(none.err, Catch::Contains("no shard variables are set"));
   CHECK_FALSE(fs::exists(dir / "o.0001.exr"));
 }
 
-TEST_CASE("check over frames: an item per frame, a missing folder an error, shards merged", "[sequence]") {
+TEST_CASE("check over frames: an item per frame, a missing folder an error, shards merged",
+          "[sequence]") {
   TempDir dir;
   write_frames(dir, 3);
   REQUIRE(run_cli(dir, "run 'in.####.exr' --plan full --dump-stages 'st.####/' -q").code == 0);
@@ -309,15 +340,17 @@ TEST_CASE("check over frames: an item per frame, a missing folder an error, shar
 
   for (int k = 1; k <= 2; ++k)
     REQUIRE(run_cli(dir, "check 'in.####.exr' --stages 'st.####/' --frames 1-3 -q --shard " +
-                             std::to_string(k) + "/2 --json c" + std::to_string(k) + ".json").code == 0);
+                             std::to_string(k) + "/2 --json c" + std::to_string(k) + ".json")
+                .code == 0);
   const CliResult m = run_cli(dir, "merge c1.json c2.json --json cm.json --junit cm.xml");
   CHECK(m.code == 0);
   CHECK(read_json(dir / "cm.json")["verdict"] == "PASS");
   CHECK(read_json(dir / "cm.json")["summary"]["items"] == 3);
 
   fs::remove_all(dir / "st.0002");
-  const CliResult missing = run_cli(dir, "check 'in.####.exr' --stages 'st.####/' --frames 1-3 "
-                                         "--json e.json --junit e.xml -q");
+  const CliResult missing = run_cli(dir,
+                                    "check 'in.####.exr' --stages 'st.####/' --frames 1-3 "
+                                    "--json e.json --junit e.xml -q");
   CHECK(missing.code == 2);
   CHECK_THAT(missing.err, Catch::Contains("frame 0002: st.0002/"));
   const json e = read_json(dir / "e.json");
@@ -362,7 +395,8 @@ TEST_CASE("progress: a line per frame, a bar on a terminal, nothing with --quiet
     WARN("script(1) not found: the terminal bar is not checked");
     return;
   }
-  const std::string cmd = "cd '" + dir.path().string() + "' && COLUMNS=100 script -qec \"'" BLOOMREF_EXE
+  const std::string cmd = "cd '" + dir.path().string() +
+                          "' && COLUMNS=100 script -qec \"'" BLOOMREF_EXE
                           "' run 'in.####.exr' -o 'c.####.exr'\" /dev/null >tty.txt 2>&1";
   REQUIRE(std::system(cmd.c_str()) == 0);
   const std::string tty = bloomref::test::read_bytes(dir / "tty.txt");
@@ -375,7 +409,8 @@ TEST_CASE("bad patterns, frame lists, shards and results files are exit 2, named
   write_frames(dir, 2);
   const std::pair<std::string, std::string> cases[] = {
       {"run 'in.####.exr' -o out.exr", "-o 'out.exr' names one file for every frame"},
-      {"run in.0001.exr --frames 1-2 -o 'o.####.exr'", "IN 'in.0001.exr' names one file for every frame"},
+      {"run in.0001.exr --frames 1-2 -o 'o.####.exr'",
+       "IN 'in.0001.exr' names one file for every frame"},
       {"run 'in.####.exr' -o 'o.#@.exr'", "'#@' mixes '#' and '@'"},
       {"run 'in.####.exr' -o 'o.%4d.exr'", "write '%04d'"},
       {"run 'in.####.exr' -o 'o.####.####.exr'", "has two frame wildcards"},
@@ -385,12 +420,14 @@ TEST_CASE("bad patterns, frame lists, shards and results files are exit 2, named
       {"run 'in.####.exr' --frames 1-b -o 'o.####.exr'", "'1-b' is not a frame"},
       {"run 'nope.####.exr' -o 'o.####.exr'", "no file matches IN 'nope.####.exr'"},
       {"run 'in.####.exr' -o 'in.####.exr'", "is the input file"},
+      {"run 'in.####.exr' -o 'no/o.####.exr'",
+       "no/o.0001.exr: cannot be written: the folder no does not exist"},
       {"run 'in.####.exr' -o 'o.####.exr' --json 'r.####.json'", "writes one results file"},
       {"run --scene demo -o 'o.####.exr'", "needs --frames"},
       {"run 'in.####.exr' -o 'o.####.exr' --shard 0/2", "K of --shard 0/2 is '0'"},
       {"run 'in.####.exr' -o 'o.####.exr' --shard 2", "is not K/N"},
       {"run 'in.####.exr' -o 'o.####.exr' --shard-count 3", "--shard-count goes with --shard auto"},
-      {"run 'in.####.exr' -o 'o.####.exr' --jobs 0", "--jobs '0' is not auto or a whole number"},
+      {"run 'in.####.exr' -o 'o.####.exr' --jobs 0", "--jobs: Value 0 not in range"},
       {"run 'in.####.exr' -o 'o.####.exr' --progress loud", "--progress 'loud' is not one of"},
       {"run 'in.####.exr' -o 'o.####.exr' --repeat 3", "--repeat times one image"},
       {"check 'in.####.exr' --stages st", "--stages 'st' names one folder for every frame"},

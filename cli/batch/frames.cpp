@@ -31,7 +31,8 @@ std::optional<Wildcard> wildcard_at(const std::string& text, std::size_t i) {
     std::size_t j = i;
     while (j < text.size() && (text[j] == '#' || text[j] == '@')) ++j;
     const std::string run = text.substr(i, j - i);
-    const bool hashes = run.find('@') == std::string::npos, ats = run.find('#') == std::string::npos;
+    const bool hashes = run.find('@') == std::string::npos,
+               ats = run.find('#') == std::string::npos;
     if (!hashes && !ats) bad_pattern(text, "'" + run + "' mixes '#' and '@'; use one kind");
     const int n = static_cast<int>(run.size());
     return Wildcard{i, run.size(), hashes && n == 1 ? 4 : n};
@@ -45,7 +46,8 @@ std::optional<Wildcard> wildcard_at(const std::string& text, std::size_t i) {
     bad_pattern(text, "'%" + width + "d' pads with spaces; write '%0" + width + "d'");
   const int padding = width.size() > 1 ? std::stoi(width.substr(1).substr(0, 3)) : 0;
   if (width.size() > 4 || padding > kMaxPadding)
-    bad_pattern(text, "'%" + width + "d' pads to more than " + std::to_string(kMaxPadding) + " digits");
+    bad_pattern(text,
+                "'%" + width + "d' pads to more than " + std::to_string(kMaxPadding) + " digits");
   return Wildcard{i, j + 1 - i, padding};
 }
 
@@ -53,11 +55,13 @@ long long parse_number(const std::string& spec, const std::string& part, const s
   const std::size_t digits = !s.empty() && s[0] == '-' ? 1 : 0;
   if (s.size() == digits || s.size() > digits + 10 ||
       !std::all_of(s.begin() + digits, s.end(), [](char c) { return c >= '0' && c <= '9'; }))
-    throw ParamError("--frames '" + spec + "': '" + part + "' is not a frame, a range A-B or a range "
+    throw ParamError("--frames '" + spec + "': '" + part +
+                     "' is not a frame, a range A-B or a range "
                      "with a step A-BxS (e.g. 1-100x2,120)");
   const long long v = std::stoll(s);
   if (v > kMaxFrame || v < -kMaxFrame)
-    throw ParamError("--frames '" + spec + "': " + s + " is beyond the frame numbers bloomref takes "
+    throw ParamError("--frames '" + spec + "': " + s +
+                     " is beyond the frame numbers bloomref takes "
                      "(-1000000000 to 1000000000)");
   return v;
 }
@@ -122,7 +126,8 @@ std::optional<int> FramePattern::frame_of(const std::string& name) const {
   if (name.compare(0, prefix_.size(), prefix_) != 0 ||
       name.compare(name.size() - suffix_.size(), suffix_.size(), suffix_) != 0)
     return std::nullopt;
-  const std::string mid = name.substr(prefix_.size(), name.size() - prefix_.size() - suffix_.size());
+  const std::string mid =
+      name.substr(prefix_.size(), name.size() - prefix_.size() - suffix_.size());
   const std::size_t sign = mid[0] == '-' ? 1 : 0;
   const std::size_t digits = mid.size() - sign;
   if (digits == 0 || digits > 10 || static_cast<int>(mid.size()) < padding_ ||
@@ -144,14 +149,15 @@ bool has_frame_wildcard(const std::string& text) {
 }
 
 std::vector<int> parse_frame_list(const std::string& spec) {
-  if (trim(spec).empty()) throw ParamError("--frames is empty: give frames such as 1-240 or 1-100x2,120");
+  if (trim(spec).empty())
+    throw ParamError("--frames is empty: give frames such as 1-240 or 1-100x2,120");
   std::vector<long long> frames;
   std::size_t start = 0;
   while (true) {
     const std::size_t comma = spec.find(',', start);
-    const std::string part = trim(spec.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-    if (part.empty())
-      throw ParamError("--frames '" + spec + "': an empty part between commas");
+    const std::string part =
+        trim(spec.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (part.empty()) throw ParamError("--frames '" + spec + "': an empty part between commas");
     std::string range = part, a, b;
     long long step = 1;
     bool complement = false;
@@ -187,7 +193,8 @@ std::vector<int> parse_frame_list(const std::string& spec) {
   std::sort(frames.begin(), frames.end());
   const auto twice = std::adjacent_find(frames.begin(), frames.end());
   if (twice != frames.end())
-    throw ParamError("--frames '" + spec + "': frame " + std::to_string(*twice) + " is listed twice");
+    throw ParamError("--frames '" + spec + "': frame " + std::to_string(*twice) +
+                     " is listed twice");
   if (frames.empty())
     throw ParamError("--frames '" + spec + "' lists no frame (a 'y' range leaves every frame out)");
   return std::vector<int>(frames.begin(), frames.end());

@@ -11,7 +11,9 @@ using nlohmann::ordered_json;
 namespace bloomref::batch {
 namespace {
 
-bool is_check(const ordered_json& doc) { return doc.value("tool", "") == "bloomref check"; }
+bool is_check(const ordered_json& doc) {
+  return doc.value("tool", "") == "bloomref check";
+}
 
 // The parameters that decide the results: every one but the thread count, which may differ
 // between machines and gives the same bits.
@@ -29,15 +31,17 @@ void require_results(const ResultsFile& f) {
   if (tool != "bloomref check" && tool != "bloomref run")
     throw InputError(f.name, "holds results of '" + tool + "'; merge takes run and check results");
   if (tool == "bloomref run" && d.value("kind", "") != "sequence")
-    throw InputError(f.name, "holds the results of one image; merge takes the results of "
-                             "sequences (run --frames ... --json)");
+    throw InputError(f.name,
+                     "holds the results of one image; merge takes the results of "
+                     "sequences (run --frames ... --json)");
   if (d.value("version", 0) != 1)
     throw InputError(f.name, "is results version " + d.value("version", ordered_json(0)).dump() +
                                  "; this bloomref merges version 1");
   if (!d.contains("batch") || !d["batch"].is_object() || !d["batch"].contains("item_ids") ||
       !d["batch"]["item_ids"].is_array())
-    throw InputError(f.name, "has no item list (\"batch.item_ids\"): it was written by a check of "
-                             "one folder; run check with frames, a manifest or --shard");
+    throw InputError(f.name,
+                     "has no item list (\"batch.item_ids\"): it was written by a check of "
+                     "one folder; run check with frames, a manifest or --shard");
   if (!d.contains("items") || !d["items"].is_array())
     throw InputError(f.name, "has no \"items\" array");
   for (const ordered_json& it : d["items"])
@@ -76,15 +80,24 @@ void finish_check(ordered_json& doc) {
   }
   std::string verdict = "PASS";
   int code = 0;
-  if (any_error) verdict = "ERROR", code = 2;
-  else if (any_fail || (any_warn && warn_as_error)) verdict = "FAIL", code = 1;
-  else if (nothing) verdict = "NOTHING", code = 5;
-  else if (any_warn) verdict = "WARN";
+  if (any_error)
+    verdict = "ERROR", code = 2;
+  else if (any_fail || (any_warn && warn_as_error))
+    verdict = "FAIL", code = 1;
+  else if (nothing)
+    verdict = "NOTHING", code = 5;
+  else if (any_warn)
+    verdict = "WARN";
   doc["verdict"] = verdict;
   doc["exit_code"] = code;
-  doc["summary"] = {{"items", doc["items"].size()}, {"stages", stages}, {"pass", pass},
-                    {"warn", warn}, {"fail", fail}, {"expected_fail", expected},
-                    {"fixed", fixed}, {"errors", errors}};
+  doc["summary"] = {{"items", doc["items"].size()},
+                    {"stages", stages},
+                    {"pass", pass},
+                    {"warn", warn},
+                    {"fail", fail},
+                    {"expected_fail", expected},
+                    {"fixed", fixed},
+                    {"errors", errors}};
 }
 
 // run: frames done, resumed, failed; the exit code of the worst failure.
@@ -112,12 +125,23 @@ std::string xml(const std::string& s) {
   std::string o;
   for (char c : s) {
     switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      case '\n': o += "&#10;"; break;
-      default: o += c;
+      case '<':
+        o += "&lt;";
+        break;
+      case '>':
+        o += "&gt;";
+        break;
+      case '&':
+        o += "&amp;";
+        break;
+      case '"':
+        o += "&quot;";
+        break;
+      case '\n':
+        o += "&#10;";
+        break;
+      default:
+        o += c;
     }
   }
   return o;
@@ -137,7 +161,8 @@ Merged merge_results(const std::vector<ResultsFile>& files) {
   for (const ResultsFile& f : files) {
     if (f.doc["tool"] != first.doc["tool"])
       throw InputError(f.name, "holds " + f.doc["tool"].get<std::string>() + " results, " +
-                                   first.name + " " + first.doc["tool"].get<std::string>() + " results");
+                                   first.name + " " + first.doc["tool"].get<std::string>() +
+                                   " results");
     if (f.doc["batch"]["item_ids"] != ids)
       throw InputError(f.name, "lists other items (" +
                                    std::to_string(f.doc["batch"]["item_ids"].size()) + ") than " +
@@ -154,16 +179,20 @@ Merged merge_results(const std::vector<ResultsFile>& files) {
   ordered_json shards = ordered_json::array();
   for (const ResultsFile& f : files) {
     const ordered_json& b = f.doc["batch"];
-    shards.push_back({{"file", f.name}, {"shard", shard_label(f.doc)},
-                      {"source", b.contains("shard") && b["shard"].is_object()
-                                     ? b["shard"].value("source", "")
-                                     : std::string("")},
-                      {"items", f.doc["items"].size()}, {"finished", b.value("finished", true)},
-                      {"interrupted", b.value("interrupted", false)}});
+    shards.push_back(
+        {{"file", f.name},
+         {"shard", shard_label(f.doc)},
+         {"source", b.contains("shard") && b["shard"].is_object() ? b["shard"].value("source", "")
+                                                                  : std::string("")},
+         {"items", f.doc["items"].size()},
+         {"finished", b.value("finished", true)},
+         {"interrupted", b.value("interrupted", false)}});
     if (!b.value("finished", true))
-      m.problems.push_back(f.name + ": shard " + shard_label(f.doc) + " did not finish" +
-                           (b.value("interrupted", false) ? " (interrupted)" : " (still running, or crashed)"));
-    for (const ordered_json& it : f.doc["items"]) found[it["id"].get<std::string>()].push_back({&f, &it});
+      m.problems.push_back(
+          f.name + ": shard " + shard_label(f.doc) + " did not finish" +
+          (b.value("interrupted", false) ? " (interrupted)" : " (still running, or crashed)"));
+    for (const ordered_json& it : f.doc["items"])
+      found[it["id"].get<std::string>()].push_back({&f, &it});
   }
 
   ordered_json items = ordered_json::array();
@@ -195,20 +224,24 @@ Merged merge_results(const std::vector<ResultsFile>& files) {
       m.problems.push_back(where.front().first->name + ": item " + id + " is not in the item list");
   if (!m.missing.empty()) {
     std::string list;
-    for (std::size_t i = 0; i < m.missing.size() && i < 20; ++i) list += (i ? ", " : "") + m.missing[i];
+    for (std::size_t i = 0; i < m.missing.size() && i < 20; ++i)
+      list += (i ? ", " : "") + m.missing[i];
     if (m.missing.size() > 20) list += " ... (" + std::to_string(m.missing.size()) + " in all)";
     m.problems.insert(m.problems.begin(), std::to_string(m.missing.size()) + " of " +
-                                              std::to_string(ids.size()) + " items missing: " + list);
+                                              std::to_string(ids.size()) +
+                                              " items missing: " + list);
   }
 
   ordered_json doc = first.doc;
   doc["items"] = std::move(items);
-  doc["batch"] = {{"items_total", ids.size()}, {"item_ids", ids}, {"shards", shards},
-                  {"missing", m.missing}, {"duplicates", m.duplicates},
-                  {"complete", m.problems.empty()}};
+  doc["batch"] = {{"items_total", ids.size()},  {"item_ids", ids},
+                  {"shards", shards},           {"missing", m.missing},
+                  {"duplicates", m.duplicates}, {"complete", m.problems.empty()}};
   doc.erase("peak_rss_bytes");
-  if (is_check(doc)) finish_check(doc);
-  else finish_run(doc);
+  if (is_check(doc))
+    finish_check(doc);
+  else
+    finish_run(doc);
   if (!m.problems.empty()) doc["exit_code"] = 2;
   doc["problems"] = m.problems;
   m.exit_code = doc["exit_code"].get<int>();
@@ -252,22 +285,27 @@ std::string merged_junit(const Merged& m) {
       cases += "    <testcase classname=\"" + cls + "\" name=\"frame\"/>\n";
     }
     tests += t, failures += f, errors += e;
-    suites += "  <testsuite name=\"" + xml(id) + "\" tests=\"" + std::to_string(t) + "\" failures=\"" +
-              std::to_string(f) + "\" errors=\"" + std::to_string(e) + "\">\n" +
+    suites += "  <testsuite name=\"" + xml(id) + "\" tests=\"" + std::to_string(t) +
+              "\" failures=\"" + std::to_string(f) + "\" errors=\"" + std::to_string(e) + "\">\n" +
               "    <properties><property name=\"shard\" value=\"" + xml(str(it, "shard")) +
               "\"/></properties>\n" + cases + "  </testsuite>\n";
   }
   for (const std::string& id : m.missing) {
     ++tests, ++errors;
-    suites += "  <testsuite name=\"" + xml(id) + "\" tests=\"1\" failures=\"0\" errors=\"1\">\n"
-              "    <testcase classname=\"bloomref." + tool + "." + xml(id) + "\" name=\"" +
-              (check ? "stages" : "frame") + "\"><error message=\"missing: no shard's results have "
+    suites += "  <testsuite name=\"" + xml(id) +
+              "\" tests=\"1\" failures=\"0\" errors=\"1\">\n"
+              "    <testcase classname=\"bloomref." +
+              tool + "." + xml(id) + "\" name=\"" + (check ? "stages" : "frame") +
+              "\"><error message=\"missing: no shard's results have "
               "this item\" type=\"missing\"/></testcase>\n  </testsuite>\n";
   }
   for (const std::string& id : m.duplicates) {
     ++tests, ++errors;
-    suites += "  <testsuite name=\"" + xml(id) + " (run twice)\" tests=\"1\" failures=\"0\" errors=\"1\">\n"
-              "    <testcase classname=\"bloomref." + tool + "." + xml(id) + "\" name=\"once\">"
+    suites += "  <testsuite name=\"" + xml(id) +
+              " (run twice)\" tests=\"1\" failures=\"0\" errors=\"1\">\n"
+              "    <testcase classname=\"bloomref." +
+              tool + "." + xml(id) +
+              "\" name=\"once\">"
               "<error message=\"run by more than one shard\" type=\"duplicate\"/></testcase>\n"
               "  </testsuite>\n";
   }
@@ -277,21 +315,55 @@ std::string merged_junit(const Merged& m) {
          "</testsuites>\n";
 }
 
+std::string merged_markdown(const Merged& m) {
+  const ordered_json& d = m.doc;
+  const bool check = is_check(d);
+  const std::string verdict = !m.problems.empty()            ? "INCOMPLETE"
+                              : check                        ? str(d, "verdict")
+                              : d.value("exit_code", 0) == 0 ? "OK"
+                                                             : "FAILED";
+  std::string out = "### bloomref " + std::string(check ? "check" : "run") +
+                    " (merged): " + verdict + "\n\n" +
+                    std::to_string(d["batch"]["items_total"].get<std::size_t>()) + " items from " +
+                    std::to_string(d["batch"]["shards"].size()) + " results file(s); exit code " +
+                    std::to_string(m.exit_code) + ".\n\n";
+  for (const std::string& p : m.problems) out += "- :x: " + p + "\n";
+  std::string rows;
+  for (const ordered_json& it : d["items"]) {
+    const std::string v = check ? str(it, "verdict") : str(it, "status");
+    if (v == "PASS" || v == "WARN" || v == "done" || v == "resumed") continue;
+    std::string why = str(it, "error");
+    if (why.empty() && it.contains("first_divergent_stage") &&
+        it["first_divergent_stage"].is_string())
+      why = "first divergent stage `" + it["first_divergent_stage"].get<std::string>() + "`";
+    for (char& c : why)
+      if (c == '|' || c == '\n') c = ' ';
+    rows += "| " + str(it, "id") + " | " + v + " | " + why + " | " + str(it, "shard") + " |\n";
+  }
+  if (!rows.empty())
+    out += "\n| item | " + std::string(check ? "verdict" : "status") +
+           " | why | shard |\n|---|---|---|---|\n" + rows;
+  return out;
+}
+
 std::string merged_html(const Merged& m, const std::set<std::string>& item_reports) {
   const ordered_json& d = m.doc;
   const bool check = is_check(d);
-  std::string verdict = check ? str(d, "verdict") : (d.value("exit_code", 0) == 0 ? "OK" : "FAILED");
+  std::string verdict =
+      check ? str(d, "verdict") : (d.value("exit_code", 0) == 0 ? "OK" : "FAILED");
   if (!m.problems.empty()) verdict = "INCOMPLETE";
   std::string h =
       "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>bloomref " +
-      std::string(check ? "check" : "run") + " (merged)</title>\n<style>body{font:14px sans-serif;"
+      std::string(check ? "check" : "run") +
+      " (merged)</title>\n<style>body{font:14px sans-serif;"
       "margin:2em}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 8px;"
       "text-align:left}.bad{background:#fdd}.warn{background:#ffd}.ok{background:#dfd}</style>"
-      "</head><body>\n<h1>bloomref " + std::string(check ? "check" : "run") + ": " + xml(verdict) +
-      " (exit " + std::to_string(m.exit_code) + ")</h1>\n";
+      "</head><body>\n<h1>bloomref " +
+      std::string(check ? "check" : "run") + ": " + xml(verdict) + " (exit " +
+      std::to_string(m.exit_code) + ")</h1>\n";
   h += "<p>" + std::to_string(d["batch"]["items_total"].get<std::size_t>()) + " items in " +
-       std::to_string(d["batch"]["shards"].size()) + " results file(s). Summary: " +
-       xml(d["summary"].dump()) + "</p>\n";
+       std::to_string(d["batch"]["shards"].size()) +
+       " results file(s). Summary: " + xml(d["summary"].dump()) + "</p>\n";
   if (!m.problems.empty()) {
     h += "<h2>Problems</h2><ul>\n";
     for (const std::string& p : m.problems) h += "<li class=\"bad\">" + xml(p) + "</li>\n";
@@ -304,35 +376,43 @@ std::string merged_html(const Merged& m, const std::set<std::string>& item_repor
          xml(str(s, "source")) + "</td><td>" + std::to_string(s.value("items", 0)) + "</td><td>" +
          (s.value("finished", true) ? "yes" : "no") + "</td></tr>\n";
   h += "</table>\n<h2>Items</h2><table><tr><th>item</th><th>" +
-       std::string(check ? "verdict</th><th>first divergent stage</th><th>cause" : "status</th><th>time (ms)</th><th>outputs") +
+       std::string(check ? "verdict</th><th>first divergent stage</th><th>cause"
+                         : "status</th><th>time (ms)</th><th>outputs") +
        "</th><th>shard</th></tr>\n";
   for (const ordered_json& it : d["items"]) {
     const std::string id = str(it, "id");
     const std::string v = check ? str(it, "verdict") : str(it, "status");
-    const char* cls = v == "PASS" || v == "done" || v == "resumed" ? "ok" : v == "WARN" ? "warn" : "bad";
+    const char* cls = v == "PASS" || v == "done" || v == "resumed" ? "ok"
+                      : v == "WARN"                                ? "warn"
+                                                                   : "bad";
     std::string name = xml(id);
     if (item_reports.count(id)) name = "<a href=\"" + xml(id) + "/index.html\">" + name + "</a>";
     h += "<tr class=\"" + std::string(cls) + "\"><td>" + name + "</td><td>" + xml(v) + "</td><td>";
     if (check) {
       h += xml(it.contains("first_divergent_stage") && it["first_divergent_stage"].is_string()
-                   ? it["first_divergent_stage"].get<std::string>() : "-") + "</td><td>";
+                   ? it["first_divergent_stage"].get<std::string>()
+                   : "-") +
+           "</td><td>";
       const std::string err = str(it, "error");
       h += xml(!err.empty() ? err
                : it.contains("first_divergent_cause") && it["first_divergent_cause"].is_object()
-                   ? str(it["first_divergent_cause"], "description") : "-");
+                   ? str(it["first_divergent_cause"], "description")
+                   : "-");
     } else {
       char ms[32];
       std::snprintf(ms, sizeof ms, "%.0f", it.value("wall_ms", 0.0));
       h += std::string(ms) + "</td><td>";
       const std::string err = str(it, "error");
-      if (!err.empty()) h += xml(err);
+      if (!err.empty())
+        h += xml(err);
       else if (it.contains("outputs"))
         for (const ordered_json& o : it["outputs"]) h += xml(o.get<std::string>()) + " ";
     }
     h += "</td><td>" + xml(str(it, "shard")) + "</td></tr>\n";
   }
   for (const std::string& id : m.missing)
-    h += "<tr class=\"bad\"><td>" + xml(id) + "</td><td>MISSING</td><td colspan=\"3\">no shard's "
+    h += "<tr class=\"bad\"><td>" + xml(id) +
+         "</td><td>MISSING</td><td colspan=\"3\">no shard's "
          "results have this item</td></tr>\n";
   return h + "</table>\n</body></html>\n";
 }

@@ -39,6 +39,10 @@ Merged merge_results(const std::vector<ResultsFile>& files);
 /// testcase), an <error> for each item that could not be run and for each missing one.
 std::string merged_junit(const Merged& m);
 
+/// A short Markdown summary (a CI job's summary page): the verdict, the problems, the items that
+/// failed or are missing.
+std::string merged_markdown(const Merged& m);
+
 /// One self-contained HTML page: the verdict, the problems, and a row per item; items whose id
 /// is in `item_reports` link to "<id>/index.html" (check --report into the same folder).
 std::string merged_html(const Merged& m, const std::set<std::string>& item_reports = {});

@@ -14,9 +14,12 @@ std::string format_duration(double seconds) {
     return b;
   }
   const long long s = std::llround(seconds);
-  if (s < 60) std::snprintf(b, sizeof b, "%llds", s);
-  else if (s < 3600) std::snprintf(b, sizeof b, "%lldm%02llds", s / 60, s % 60);
-  else std::snprintf(b, sizeof b, "%lldh%02lldm", s / 3600, (s % 3600) / 60);
+  if (s < 60)
+    std::snprintf(b, sizeof b, "%llds", s);
+  else if (s < 3600)
+    std::snprintf(b, sizeof b, "%lldm%02llds", s / 60, s % 60);
+  else
+    std::snprintf(b, sizeof b, "%lldh%02lldm", s / 3600, (s % 3600) / 60);
   return b;
 }
 
@@ -33,7 +36,8 @@ std::string progress_bar(std::size_t done, std::size_t total, double elapsed, in
   const std::string tail = "  " + counts + "  " + rate + "  " + left + " left";
   const int bar = std::min(40, width - static_cast<int>(tail.size()) - 2);
   if (bar < 5) return tail.substr(2);
-  const int filled = total ? static_cast<int>(static_cast<double>(bar) * std::min(done, total) / total) : bar;
+  const int filled =
+      total ? static_cast<int>(static_cast<double>(bar) * std::min(done, total) / total) : bar;
   std::string line = "[";
   line += std::string(filled, '=');
   if (filled < bar) line += ">" + std::string(bar - filled - 1, ' ');

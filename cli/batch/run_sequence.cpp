@@ -47,24 +47,28 @@ Patterns check_patterns(const RunSequenceArgs& a) {
   Patterns p;
   p.input = FramePattern::parse(a.input);
   if (!a.input.empty() && !p.input.has_wildcard())
-    throw ParamError("IN '" + a.input + "' names one file for every frame: give a pattern such as "
+    throw ParamError("IN '" + a.input +
+                     "' names one file for every frame: give a pattern such as "
                      "shot.####.exr (or no IN for the built-in scene)");
   if (a.input.empty() && a.sequence.frames.empty())
     throw ParamError("a sequence of the built-in scene needs --frames (e.g. --frames 1-10)");
   for (const std::string& o : a.outputs) {
     p.outputs.push_back(FramePattern::parse(o));
     if (!p.outputs.back().has_wildcard())
-      throw ParamError("-o '" + o + "' names one file for every frame: give a pattern such as "
+      throw ParamError("-o '" + o +
+                       "' names one file for every frame: give a pattern such as "
                        "out.####.exr");
   }
   if (!a.dump_dir.empty()) {
     p.dump = FramePattern::parse(a.dump_dir);
     if (!p.dump.has_wildcard())
-      throw ParamError("--dump-stages '" + a.dump_dir + "' names one folder for every frame: give "
+      throw ParamError("--dump-stages '" + a.dump_dir +
+                       "' names one folder for every frame: give "
                        "a pattern such as stages.####/");
   }
   if (batch::has_frame_wildcard(a.json_path))
-    throw ParamError("--json '" + a.json_path + "': a sequence writes one results file; give a "
+    throw ParamError("--json '" + a.json_path +
+                     "': a sequence writes one results file; give a "
                      "name without a frame wildcard");
   if (a.outputs.empty() && a.dump_dir.empty() && a.json_path.empty())
     throw ParamError("nothing to write: give -o 'out.####.exr' (or --dump-stages, --json)");
@@ -78,6 +82,12 @@ void check_destinations(const Patterns& p, const RunSequenceArgs& a, int frame) 
   std::vector<std::string> dest = f.outputs;
   if (!f.dump_dir.empty()) dest.push_back(f.dump_dir);
   if (!a.json_path.empty()) dest.push_back(a.json_path);
+  for (const std::string& o : f.outputs) {  // a missing folder would fail every frame
+    const fs::path dir = fs::path(o).parent_path();
+    std::error_code ec;
+    if (!dir.empty() && !fs::is_directory(dir, ec))
+      throw InputError(o, "cannot be written: the folder " + dir.string() + " does not exist");
+  }
   std::set<fs::path> seen;
   for (const std::string& d : dest) {
     if (!f.input.empty()) refuse_overwrite(d, f.input);
@@ -112,20 +122,6 @@ bool frame_complete(const FrameFiles& f, const BloomParams& params) {
   return true;
 }
 
-int parse_jobs(const std::string& jobs) {
-  if (jobs == "auto") return 0;
-  std::size_t used = 0;
-  int j = 0;
-  try {
-    j = std::stoi(jobs, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != jobs.size() || j < 1 || j > 256)
-    throw ParamError("--jobs '" + jobs + "' is not auto or a whole number from 1 to 256");
-  return j;
-}
-
 }  // namespace
 
 bool is_run_sequence(const RunSequenceArgs& a) {
@@ -138,7 +134,6 @@ bool is_run_sequence(const RunSequenceArgs& a) {
 
 int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
   const Patterns p = check_patterns(a);
-  const int jobs = parse_jobs(a.sequence.jobs);
   const std::vector<int> frames = sequence_frames(a.sequence, p.input, "IN");
   std::vector<std::string> ids;
   for (int f : frames) ids.push_back(p.first_wildcard().frame_text(f));
@@ -148,7 +143,8 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
     const fs::path dir = fs::path(a.json_path).parent_path();
     std::error_code ec;
     if (!dir.empty() && !fs::is_directory(dir, ec))
-      throw InputError(a.json_path, "cannot be written: the folder " + dir.string() + " does not exist");
+      throw InputError(a.json_path,
+                       "cannot be written: the folder " + dir.string() + " does not exist");
   }
   if (!a.quiet && sel.shard)
     std::printf("shard %s (%s): %zu of %zu frames\n", sel.shard->label().c_str(),
@@ -165,21 +161,27 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
       if (o.status == ItemOutcome::Status::not_run) continue;  // merge reports it missing
       const int f = frames[sel.mine[i]];
       const FrameFiles files = p.files(f, 0);
-      ordered_json item = {{"id", ids[sel.mine[i]]}, {"frame", f}, {"status", to_string(o.status)},
-                           {"input", files.input.empty() ? ordered_json(nullptr) : ordered_json(files.input)},
-                           {"outputs", files.outputs},
-                           {"dump_stages", files.dump_dir.empty() ? ordered_json(nullptr)
-                                                                  : ordered_json(files.dump_dir)},
-                           {"wall_ms", o.ms},
-                           {"error", o.status == ItemOutcome::Status::error ? ordered_json(o.message)
-                                                                            : ordered_json(nullptr)}};
+      ordered_json item = {
+          {"id", ids[sel.mine[i]]},
+          {"frame", f},
+          {"status", to_string(o.status)},
+          {"input", files.input.empty() ? ordered_json(nullptr) : ordered_json(files.input)},
+          {"outputs", files.outputs},
+          {"dump_stages",
+           files.dump_dir.empty() ? ordered_json(nullptr) : ordered_json(files.dump_dir)},
+          {"wall_ms", o.ms},
+          {"error", o.status == ItemOutcome::Status::error ? ordered_json(o.message)
+                                                           : ordered_json(nullptr)}};
       if (o.status == ItemOutcome::Status::error) item["exit_code"] = o.exit_code;
       for (const auto& [k, v] : o.record.items()) item[k] = v;
       items.push_back(std::move(item));
     }
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return ordered_json{
-        {"version", 1}, {"tool", "bloomref run"}, {"kind", "sequence"},
+        {"version", 1},
+        {"tool", "bloomref run"},
+        {"kind", "sequence"},
         {"params", params_json(a.params)},
         {"input", a.input.empty() ? ordered_json(nullptr) : ordered_json(a.input)},
         {"outputs", a.outputs},
@@ -187,8 +189,11 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
         {"frames", batch::format_frame_list(frames)},
         {"batch", sel.json(finished, interrupted)},
         {"exit_code", code},
-        {"summary", {{"done", counts[0]}, {"resumed", counts[1]}, {"error", counts[2]},
-                     {"not_run", counts[3]}}},
+        {"summary",
+         {{"done", counts[0]},
+          {"resumed", counts[1]},
+          {"error", counts[2]},
+          {"not_run", counts[3]}}},
         {"wall_ms", 1000 * wall},
         {"frames_per_second", wall > 0 ? (counts[0] + counts[2]) / wall : 0.0},
         {"items", items}};
@@ -198,7 +203,8 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
   };
 
   if (sel.mine.empty()) {
-    std::fprintf(stderr, "bloomref: shard %s has no frame (%zu frames in %d shards): nothing to do\n",
+    std::fprintf(stderr,
+                 "bloomref: shard %s has no frame (%zu frames in %d shards): nothing to do\n",
                  sel.shard->label().c_str(), ids.size(), sel.shard->count);
     save(results({}, true, false, 5));
     return 5;
@@ -207,7 +213,7 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
   std::vector<std::string> labels;
   for (std::size_t i : sel.mine) labels.push_back(ids[i]);
   BatchLoop loop;
-  loop.jobs = jobs;
+  loop.jobs = a.sequence.jobs;
   loop.threads = a.params.threads;
   loop.progress = a.sequence.progress;
   loop.quiet = a.quiet;
@@ -222,12 +228,6 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
     frame(files, o.record);
     o.status = ItemOutcome::Status::done;
     return o;
-  };
-  // Measured on the project's 2-core machine (benchmarks/sequence.cmake): two frames at once
-  // beat one frame on two threads for small frames, and not for large ones.
-  loop.choose_jobs = [&](const ItemOutcome& first) {
-    (void)first;
-    return 1;
   };
   loop.checkpoint = [&](const std::vector<ItemOutcome>& outcomes) {
     save(results(outcomes, false, false, 0));
@@ -249,7 +249,8 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
         failed_frames.push_back(frames[sel.mine[i]]);
       }
     }
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf("%zu frames: %zu done, %zu resumed (outputs existed), %zu failed", outcomes.size(),
                 done, resumed, failed);
     if (!failed_frames.empty())

@@ -57,7 +57,8 @@ class SignalScope {
   SignalScope& operator=(const SignalScope&) = delete;
 
  private:
-  struct sigaction old_int_ {}, old_term_ {};
+  struct sigaction old_int_ {
+  }, old_term_{};
 };
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -121,10 +122,11 @@ void SequenceOptions::add_to(CLI::App& app, bool for_run) {
                  "auto (a bar on a terminal, else a line per item) | bar | lines | none")
       ->capture_default_str();
   if (!for_run) return;
-  app.add_flag("--resume", resume,
-               "skip frames whose outputs already exist and are complete");
-  app.add_option("--jobs", jobs,
-                 "frames at once, the threads shared among them; auto: by frame size")
+  app.add_flag("--resume", resume, "skip frames whose outputs already exist and are complete");
+  // Measured on the project's 2-core machine (benchmarks/sequence.sh): two frames at once were
+  // no faster than one frame on both threads, at 256x256 or at 3840x2160.
+  app.add_option("--jobs", jobs, "frames at once, the threads shared among them")
+      ->check(CLI::Range(1, 256))
       ->capture_default_str();
 }
 
@@ -152,8 +154,8 @@ std::vector<int> sequence_frames(const SequenceOptions& o, const batch::FramePat
   std::vector<int> frames;
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
-    const std::string name = p.has_parent_path() ? (dir / e.path().filename()).string()
-                                                  : e.path().filename().string();
+    const std::string name =
+        p.has_parent_path() ? (dir / e.path().filename()).string() : e.path().filename().string();
     if (const auto f = scan.frame_of(name)) frames.push_back(*f);
   }
   if (frames.empty())
@@ -166,9 +168,11 @@ std::vector<int> sequence_frames(const SequenceOptions& o, const batch::FramePat
 ordered_json ItemSelection::json(bool finished, bool interrupted) const {
   ordered_json s = nullptr;
   if (shard)
-    s = {{"index", shard->index + 1}, {"count", shard->count}, {"label", shard->label()},
+    s = {{"index", shard->index + 1},
+         {"count", shard->count},
+         {"label", shard->label()},
          {"source", shard->source}};
-  return {{"items_total", ids.size()}, {"item_ids", ids}, {"shard", s},
+  return {{"items_total", ids.size()},     {"item_ids", ids},      {"shard", s},
           {"items_in_shard", mine.size()}, {"finished", finished}, {"interrupted", interrupted}};
 }
 
@@ -188,10 +192,14 @@ ItemSelection select_items(std::vector<std::string> ids, const SequenceOptions& 
 
 const char* to_string(ItemOutcome::Status s) {
   switch (s) {
-    case ItemOutcome::Status::done: return "done";
-    case ItemOutcome::Status::resumed: return "resumed";
-    case ItemOutcome::Status::error: return "error";
-    case ItemOutcome::Status::not_run: return "not-run";
+    case ItemOutcome::Status::done:
+      return "done";
+    case ItemOutcome::Status::resumed:
+      return "resumed";
+    case ItemOutcome::Status::error:
+      return "error";
+    case ItemOutcome::Status::not_run:
+      return "not-run";
   }
   return "?";
 }
@@ -224,8 +232,9 @@ std::vector<ItemOutcome> BatchLoop::run(const std::vector<std::string>& labels, 
 
   auto draw = [&] {  // under the lock
     if (mode == "bar")
-      std::fprintf(stderr, "\r%s\033[K", batch::progress_bar(done, n, seconds_since(t0),
-                                                             terminal_width() - 1, noun).c_str());
+      std::fprintf(
+          stderr, "\r%s\033[K",
+          batch::progress_bar(done, n, seconds_since(t0), terminal_width() - 1, noun).c_str());
   };
   auto finish_item = [&](std::size_t i, ItemOutcome o) {
     std::lock_guard<std::mutex> g(lock);
@@ -295,27 +304,13 @@ std::vector<ItemOutcome> BatchLoop::run(const std::vector<std::string>& labels, 
     std::lock_guard<std::mutex> g(lock);
     draw();
   }
-  int j = jobs;
-  if (j == 0) {  // auto: the first item on every thread, then as choose_jobs says
-    if (n > 0 && g_signal == 0) {
-      try {
-        next = 1;
-        run_one(0, threads);
-      } catch (...) {
-        fatal = std::current_exception();
-      }
-    }
-    j = choose_jobs && !fatal && n > 1 ? std::max(1, choose_jobs(out[0])) : 1;
-  }
-  if (!fatal) {
-    const int per_job = j > 1 ? std::max(1, all_threads / j) : threads;
-    if (j == 1) {
-      worker(per_job);
-    } else {
-      std::vector<std::thread> pool;
-      for (int k = 0; k < j; ++k) pool.emplace_back(worker, per_job);
-      for (std::thread& t : pool) t.join();
-    }
+  const int j = std::max(1, jobs);
+  if (j == 1) {
+    worker(threads);
+  } else {
+    std::vector<std::thread> pool;
+    for (int k = 0; k < j; ++k) pool.emplace_back(worker, std::max(1, all_threads / j));
+    for (std::thread& t : pool) t.join();
   }
   if (mode == "bar") std::fprintf(stderr, "\n");
   interrupted = g_signal != 0;

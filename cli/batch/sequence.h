@@ -26,7 +26,7 @@ struct SequenceOptions {
   std::string shard;   ///< --shard K/N | auto
   int shard_count = 0;
   bool resume = false;
-  std::string jobs = "auto";
+  int jobs = 1;
   std::string progress = "auto";  ///< auto | bar | lines | none
 
   /// `for_run`: also --resume and --jobs (frames written as files); check takes the others.
@@ -61,9 +61,9 @@ ItemSelection select_items(std::vector<std::string> ids, const SequenceOptions& 
 struct ItemOutcome {
   enum class Status { done, resumed, error, not_run };
   Status status = Status::not_run;
-  std::string message;  ///< the error, or a short note for the per-item line
-  int exit_code = 0;    ///< of an error: 2 bad input, 4 internal
-  double ms = 0;        ///< wall time of the item, I/O included
+  std::string message;            ///< the error, or a short note for the per-item line
+  int exit_code = 0;              ///< of an error: 2 bad input, 4 internal
+  double ms = 0;                  ///< wall time of the item, I/O included
   nlohmann::ordered_json record;  ///< what the command records of the item
 };
 const char* to_string(ItemOutcome::Status s);
@@ -82,9 +82,6 @@ struct BatchLoop {
   std::string noun = "frames";
   std::function<ItemOutcome(std::size_t, int)> fn;
   std::function<void(const std::vector<ItemOutcome>&)> checkpoint;
-  /// Called once after the first item when jobs is 0 ("auto"), with its outcome: returns the
-  /// jobs for the rest.
-  std::function<int(const ItemOutcome&)> choose_jobs;
 
   /// Returns the outcomes; `interrupted` tells whether a signal stopped the loop.
   std::vector<ItemOutcome> run(const std::vector<std::string>& labels, bool& interrupted);

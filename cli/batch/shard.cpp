@@ -27,13 +27,16 @@ const std::string* get(const Environment& env, const std::string& name) {
   return it == env.end() ? nullptr : &it->second;
 }
 
-const std::string& require(const Environment& env, const std::string& name, const std::string& with) {
+const std::string& require(const Environment& env, const std::string& name,
+                           const std::string& with) {
   const std::string* v = get(env, name);
   if (!v) throw ParamError("--shard auto: " + with + " is set but " + name + " is not");
   return *v;
 }
 
-std::string var(const std::string& name, const std::string& value) { return name + "=" + value; }
+std::string var(const std::string& name, const std::string& value) {
+  return name + "=" + value;
+}
 
 Shard make(long long index, long long count, const std::string& source) {
   if (index < 0 || index >= count)
@@ -78,7 +81,8 @@ std::optional<Shard> slurm(const Environment& env) {
                        "pass --shard K/N");
   }
   if (task < min || (task - min) % step != 0)
-    throw ParamError("--shard auto: " + source + ": the task id is not MIN plus a multiple of STEP");
+    throw ParamError("--shard auto: " + source +
+                     ": the task id is not MIN plus a multiple of STEP");
   return make((task - min) / step, count, source);
 }
 
@@ -86,12 +90,14 @@ std::optional<Shard> kubernetes(const Environment& env, int count) {
   const std::string* index = get(env, "JOB_COMPLETION_INDEX");
   if (!index) return std::nullopt;
   if (count == 0)
-    throw ParamError("--shard auto: JOB_COMPLETION_INDEX is set (a Kubernetes Indexed Job) but "
-                     "Kubernetes does not say how many completions there are: pass "
-                     "--shard-count with the Job's spec.completions");
+    throw ParamError(
+        "--shard auto: JOB_COMPLETION_INDEX is set (a Kubernetes Indexed Job) but "
+        "Kubernetes does not say how many completions there are: pass "
+        "--shard-count with the Job's spec.completions");
   const long long i = whole("JOB_COMPLETION_INDEX", *index, 0, kMaxShards);
-  return make(i, count, "Kubernetes Indexed Job (" + var("JOB_COMPLETION_INDEX", *index) +
-                            ", --shard-count " + std::to_string(count) + ")");
+  return make(i, count,
+              "Kubernetes Indexed Job (" + var("JOB_COMPLETION_INDEX", *index) +
+                  ", --shard-count " + std::to_string(count) + ")");
 }
 
 }  // namespace
@@ -126,7 +132,8 @@ std::optional<Shard> resolve_shard(const std::string& arg, int count, const Envi
     }
   }
   if (!s) s = index_total(env, "GoogleTest", "GTEST_SHARD_INDEX", "GTEST_TOTAL_SHARDS", 0);
-  if (!s) s = index_total(env, "Buildkite", "BUILDKITE_PARALLEL_JOB", "BUILDKITE_PARALLEL_JOB_COUNT", 0);
+  if (!s)
+    s = index_total(env, "Buildkite", "BUILDKITE_PARALLEL_JOB", "BUILDKITE_PARALLEL_JOB_COUNT", 0);
   if (!s) s = index_total(env, "CircleCI", "CIRCLE_NODE_INDEX", "CIRCLE_NODE_TOTAL", 0);
   if (!s)
     throw ParamError(
