@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <mutex>
+#include <utility>
 
 #include "bloomref/error.h"
 #include "bloomref/io.h"
@@ -24,6 +26,18 @@ bool viewable(const py::array& a) {
          a.strides(2) == sizeof(float) && a.strides(1) == pixel && a.strides(0) > 0 &&
          a.strides(0) % pixel == 0 && a.strides(0) / pixel >= a.shape(1) &&
          reinterpret_cast<std::uintptr_t>(a.data()) % alignof(float) == 0;
+}
+
+// The buffer of the last array Python released (to_array's capsule), for kept_buffer. Runs take
+// it without the GIL, capsules give it back with it: a mutex of its own.
+struct KeptBuffer {
+  std::mutex mutex;
+  Image image;
+};
+
+KeptBuffer& kept() {
+  static KeptBuffer* k = new KeptBuffer;  // never destroyed: capsules may outlive static data
+  return *k;
 }
 
 }  // namespace
@@ -75,11 +89,27 @@ SceneArray scene_array(const py::handle& obj, const std::string& what) {
 
 py::array to_array(Image&& image) {
   auto* owner = new Image(std::move(image));
-  py::capsule release(owner, [](void* p) { delete static_cast<Image*>(p); });
+  py::capsule release(owner, [](void* p) {
+    Image* img = static_cast<Image*>(p);
+    Image old;  // freed outside the lock
+    {
+      std::lock_guard<std::mutex> lock(kept().mutex);
+      old = std::move(kept().image);
+      kept().image = std::move(*img);
+    }
+    delete img;
+  });
   const py::ssize_t w = owner->width(), h = owner->height();
   constexpr py::ssize_t f = sizeof(float);
   return py::array_t<float>({h, w, py::ssize_t(kChannels)}, {w * kChannels * f, kChannels * f, f},
                             owner->data(), release);
+}
+
+Image kept_buffer(int width, int height) {
+  std::lock_guard<std::mutex> lock(kept().mutex);
+  Image& k = kept().image;
+  if (k.empty() || k.width() != width || k.height() != height) return Image();
+  return std::exchange(k, Image());  // a moved-from image keeps its size: left empty instead
 }
 
 }  // namespace bloomref::python

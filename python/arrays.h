@@ -26,7 +26,15 @@ struct SceneArray {
 /// H x W x 3 or H x W x 4 within io.h's size limits.
 SceneArray scene_array(const pybind11::handle& obj, const std::string& what);
 
-/// The image as a float32 H x W x 4 array that owns its buffer (no copy).
+/// The image as a float32 H x W x 4 array that owns its buffer (no copy). When Python releases
+/// the array, its buffer is kept for kept_buffer (one buffer at most: the last released).
 pybind11::array to_array(Image&& image);
+
+/// The kept buffer of the last array Python released, when it is `width` x `height` (else an
+/// empty image), for the executor to write its output into (executor.h): a loop of runs at one
+/// size then writes into pages already mapped, where a new 3840x2160 buffer costs about 170 ms
+/// of page faults on its first write (reference/src/image.cpp), as much as the rest of a sparse
+/// scene's run. Callable without the GIL.
+Image kept_buffer(int width, int height);
 
 }  // namespace bloomref::python

@@ -53,6 +53,9 @@ RunOptions parse_run_options(const py::kwargs& kwargs) {
   return o;
 }
 
+// The CPU executor reads an array in place (or copies it where a stage would write it) and
+// writes the output into the buffer of an array Python has released (kept_buffer), or takes
+// over the image this call made itself (a file, a built-in scene, a converted array).
 StageTrace execute_on(const RunOptions& o, const Plan& plan, ConstImageView scene,
                       Image* owned, bool keep_stages) {
   if (o.backend == "gl") {
@@ -64,7 +67,8 @@ StageTrace execute_on(const RunOptions& o, const Plan& plan, ConstImageView scen
   }
   ExecuteOptions eo;
   eo.keep_all = keep_stages;
-  return owned ? execute(plan, std::move(*owned), eo) : execute(plan, scene, eo);
+  if (owned) return execute(plan, std::move(*owned), eo);
+  return execute(plan, scene, kept_buffer(scene.width, scene.height), eo);
 }
 
 }  // namespace
@@ -83,7 +87,8 @@ py::object run(const py::object& image, bool keep_stages, const py::kwargs& kwar
     if (!from_array) loaded = o.pipeline.load_input(path, source);
     const ConstImageView view = from_array ? scene.view : loaded.image.cview();
     const Plan plan = make_plan(o.pipeline.params, view, source);
-    trace = execute_on(o, plan, view, from_array ? nullptr : &loaded.image, keep_stages);
+    Image* owned = !from_array ? &loaded.image : scene.copied ? &scene.copy : nullptr;
+    trace = execute_on(o, plan, view, owned, keep_stages);
   }
   if (!keep_stages) return to_array(std::move(trace.stages.back().image));
   py::dict stages;

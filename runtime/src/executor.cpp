@@ -7,6 +7,7 @@
 #include <cstring>
 #include <mutex>
 #include <type_traits>
+#include <utility>
 
 #include "bloomref/error.h"
 #include "bloomref/mip.h"
@@ -198,13 +199,15 @@ Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt) {
 template <class T>
 class Executor {
  public:
-  Executor(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& opt, Image* owned)
+  Executor(const Plan& plan, ConstImageView scene_in, const ExecuteOptions& opt, Image* owned,
+           Image* output = nullptr)
       : plan_(plan),
         p_(plan.params),
         opt_(opt),
         sched_(choose_schedule(plan, opt)),
         scene_in_(scene_in),
         owned_(owned),
+        output_(output),
         w_(scene_in.width),
         h_(scene_in.height),
         threads_(plan.params.threads),
@@ -304,9 +307,14 @@ class Executor {
         scene_ = std::move(*owned_);  // the caller handed the image over: no copy
         return;
       }
+      // The caller's buffer for the output when it has the scene's size, else a new one.
+      if (output_ && !output_->empty() && output_->width() == w_ && output_->height() == h_)
+        scene_ = std::exchange(*output_, Image());
+      else
+        scene_ = BasicImage<T>::uninitialised(w_, h_);
+      if (reads_scene_in_place()) return;  // scene_ receives the output only
       // Copied by every thread (the pages are faulted in by whichever thread writes them
       // first), with no zero fill before the copy.
-      scene_ = BasicImage<T>::uninitialised(w_, h_);
       parallel_rows(h_, threads_, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y)
           std::copy(scene_in_.row(y), scene_in_.row(y) + std::size_t(w_) * kChannels,
@@ -315,6 +323,21 @@ class Executor {
     } else {
       scene_ = convert_image<T>(scene_in_);
     }
+  }
+
+  // Where nothing writes the scene before the finishing stages (no non-finite value to
+  // sanitise, f32 storage, gaussian, the finish fused into one sweep) and the caller keeps it,
+  // the stages read the caller's view and the finish writes the output into scene_: no copy
+  // of the scene (one read and one write of every value fewer).
+  bool reads_scene_in_place() const {
+    return kF32 && !owned_ && !plan_.sanitize && p_.method == Method::gaussian &&
+           sched_.finish == FinishPath::fused;
+  }
+  // The scene as the stages read it: the caller's view, or scene_.
+  BasicView<const T> scene_source() const {
+    if constexpr (kF32)
+      if (reads_scene_in_place()) return scene_in_;
+    return scene_.cview();
   }
 
   // The adaptive plan's first support comes out of the same sweep (the bright image's nonzero
@@ -331,7 +354,7 @@ class Executor {
         sched_.sparse_bright && plan_.facts.bright_rows.size() == std::size_t(h_)
             ? plan_.facts.bright_rows.data()
             : nullptr;
-    extract_bright(scene_.cview(), bright_.view(), static_cast<T>(p_.threshold), threads_,
+    extract_bright(scene_source(), bright_.view(), static_cast<T>(p_.threshold), threads_,
                    /*dst_zeroed=*/sched_.sparse_bright, nonzero.empty() ? nullptr : nonzero.data(),
                    rows);
     if (!nonzero.empty()) support_.start(std::move(nonzero), threads_, rows);
@@ -422,14 +445,19 @@ class Executor {
     std::string name = "blur." + std::to_string(stage.pass) + "-" +
                        std::to_string(stage.pass + int(axes.size()) - 1);
     BasicView<float> out = scene_.view();
+    const BasicView<const float> scene = scene_source();
     const FusedBlurSink sink = [&](int x0, int x1, int y0, int y1, const float* const* rows) {
       std::vector<float*> dst(std::size_t(y1 - y0));
-      for (int y = y0; y < y1; ++y) dst[std::size_t(y - y0)] = out.row(y) + 4 * x0;
-      finish_fast_rows(dst.data(), rows, dst.data(), y1 - y0, x1 - x0, p_.strength, p_.exposure,
+      std::vector<const float*> in(std::size_t(y1 - y0));
+      for (int y = y0; y < y1; ++y) {
+        dst[std::size_t(y - y0)] = out.row(y) + 4 * x0;
+        in[std::size_t(y - y0)] = scene.row(y) + 4 * x0;
+      }
+      finish_fast_rows(in.data(), rows, dst.data(), y1 - y0, x1 - x0, p_.strength, p_.exposure,
                        p_.gamma);
     };
     if (sched_.blur == BlurPath::fused_from_bright) {
-      blur_bright_fused(scene_.cview(), static_cast<float>(p_.threshold), sink, axes,
+      blur_bright_fused(scene, static_cast<float>(p_.threshold), sink, axes,
                         kernel_for(p_.kernel), p_.subtexel_bits, threads_, BlurIsa::best, p_.blur);
       name = "bright+" + name;
     } else {
@@ -569,7 +597,7 @@ class Executor {
     }
     if constexpr (kF32) {
       const std::size_t from_table =
-          finish_fast(scene_.cview(), bloom.cview(), scene_.view(), p_.strength, p_.exposure,
+          finish_fast(scene_source(), bloom.cview(), scene_.view(), p_.strength, p_.exposure,
                       p_.gamma, threads_, BlurIsa::best, bloom_support);
       if (from_table)  // finished from the table of binary16 values, not computed
         trace_.skipped_fraction.emplace_back("composite+tonemap+output",
@@ -655,6 +683,7 @@ class Executor {
   const Schedule sched_;
   const ConstImageView scene_in_;
   Image* const owned_;
+  Image* const output_;  // the caller's buffer for the output (execute's third overload), or null
   const int w_, h_, threads_;
   StageTrace trace_;
   BasicImage<T> scene_, bright_, ping_, pong_;  // ping_ and pong_ allocated by the first blur pass
@@ -696,6 +725,14 @@ StageTrace execute(const Plan& plan, ConstImageView scene, const ExecuteOptions&
   return with_scan(plan, plan.params.precision == Precision::f64
                                ? Executor<double>(plan, scene, opt, nullptr).run()
                                : Executor<float>(plan, scene, opt, nullptr).run());
+}
+
+StageTrace execute(const Plan& plan, ConstImageView scene, Image&& output,
+                   const ExecuteOptions& opt) {
+  if (plan.params.precision == Precision::f64 || scene.width != plan.facts.width ||
+      scene.height != plan.facts.height)
+    return execute(plan, scene, opt);  // (f64 computes in its own buffers; reports a mismatch)
+  return with_scan(plan, Executor<float>(plan, scene, opt, nullptr, &output).run());
 }
 
 StageTrace execute(const Plan& plan, Image&& scene, const ExecuteOptions& opt) {
