@@ -26,107 +26,174 @@ double ulp16(double v) {
 //
 // Local range (max - min) and magnitude (max |t|) of each channel over the texels a tap based
 // at texel p may touch once its coordinate is a little off: [p-1, p+2] along the blurred axis
-// (linear5 taps sit between p and p+1), [q-1, q+1] across it.
-struct Window {
-  Image range, magnitude;
+// (linear5 taps sit between p and p+1), [q-1, q+1] across it. Computed for the rows a band's
+// taps reach, in two passes: along the axis, then across. Min and max are exact, so the band's
+// statistics are the whole image's.
+
+// Pass 1 at one texel and channel: min, max and max |.| of the finite values among n values
+// `stride` apart (a non-finite one makes the magnitude +Inf).
+inline void along(const float* t, std::ptrdiff_t stride, int n, float& mn, float& mx, float& ma) {
+  mn = INFINITY;
+  mx = -INFINITY;
+  ma = 0;
+  for (int d = 0; d < n; ++d) {
+    const float v = t[d * stride];
+    if (!std::isfinite(v)) {
+      ma = INFINITY;  // a NaN/Inf texel in the footprint: see above
+      continue;
+    }
+    mn = std::min(mn, v);
+    mx = std::max(mx, v);
+    ma = std::max(ma, std::fabs(v));
+  }
+}
+
+// Per-thread scratch of a band (reused band after band: stage-wide buffers would be mapped and
+// faulted in afresh on every allocation).
+struct WindowScratch {
+  std::vector<float> lo, hi, mag;       // pass 1, RGBA rows
+  std::vector<float> range, magnitude;  // the window statistics, RGBA rows
 };
 
-Window window_stats(ConstImageView src, Axis axis, int threads) {
+WindowScratch& window_scratch() {
+  thread_local WindowScratch s;
+  return s;
+}
+
+float* sized(std::vector<float>& v, std::size_t n) {
+  if (v.size() < n) v.resize(n);
+  return v.data();
+}
+
+// Window statistics of rows [r0, r1) of src into range / magnitude (RGBA rows; range may be
+// null). Horizontal: pass 1 along x over [x-1, x+2] on rows [r0-1, r1+1), pass 2 across the rows
+// y-1..y+1. Vertical: per row, pass 1 along y over [y-1, y+2], pass 2 across x-1..x+1. Edges
+// clamp.
+void window_rows(ConstImageView src, Axis axis, int r0, int r1, float* range, float* magnitude,
+                 WindowScratch& s) {
   const int w = src.width, h = src.height;
-  const bool hz = axis == Axis::horizontal;
-  // Pass 1 along the axis: min, max, max|.| over [p-1, p+2].
-  Image lo(w, h), hi(w, h), mag(w, h);
-  parallel_rows(h, threads, [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y)
+  const std::size_t row = std::size_t(w) * kChannels;
+  auto pass2 = [&](const float* lo[3], const float* hi[3], const float* ma[3], int step, int r) {
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) {
+        float mn = INFINITY, mx = -INFINITY, m = 0;
+        for (int d = 0; d < 3; ++d) {
+          const int xx = step ? std::clamp(x + d - 1, 0, w - 1) : x;
+          const std::size_t at = std::size_t(xx) * kChannels + c;
+          mn = std::min(mn, lo[d][at]);
+          mx = std::max(mx, hi[d][at]);
+          m = std::max(m, ma[d][at]);
+        }
+        const std::size_t o = std::size_t(r - r0) * row + std::size_t(x) * kChannels + c;
+        if (range) range[o] = mx >= mn ? mx - mn : 0.0f;
+        magnitude[o] = m;
+      }
+  };
+  if (axis == Axis::horizontal) {
+    const int p0 = std::max(r0 - 1, 0), p1 = std::min(r1 + 1, h);
+    const std::size_t n = std::size_t(p1 - p0) * row;
+    float *lo = sized(s.lo, n), *hi = sized(s.hi, n), *ma = sized(s.mag, n);
+    for (int y = p0; y < p1; ++y) {
+      const float* in = src.row(y);
+      const std::size_t o = std::size_t(y - p0) * row;
+      for (int x = 0; x < w; ++x) {
+        const bool inner = x >= 1 && x + 2 < w;
+        for (int c = 0; c < 3; ++c) {
+          float* l = lo + o + std::size_t(x) * kChannels + c;
+          float* g = hi + o + std::size_t(x) * kChannels + c;
+          float* m = ma + o + std::size_t(x) * kChannels + c;
+          if (inner) {
+            along(in + std::size_t(x - 1) * kChannels + c, kChannels, 4, *l, *g, *m);
+          } else {
+            float t[4];
+            for (int d = -1; d <= 2; ++d) t[d + 1] = in[std::size_t(std::clamp(x + d, 0, w - 1)) * kChannels + c];
+            along(t, 1, 4, *l, *g, *m);
+          }
+        }
+      }
+    }
+    for (int r = r0; r < r1; ++r) {
+      const float *l[3], *g[3], *m[3];
+      for (int d = 0; d < 3; ++d) {
+        const std::size_t o = std::size_t(std::clamp(r + d - 1, 0, h - 1) - p0) * row;
+        l[d] = lo + o;
+        g[d] = hi + o;
+        m[d] = ma + o;
+      }
+      pass2(l, g, m, 0, r);
+    }
+  } else {
+    float *lo = sized(s.lo, row), *hi = sized(s.hi, row), *ma = sized(s.mag, row);
+    for (int r = r0; r < r1; ++r) {
+      const float* in[4];
+      for (int d = -1; d <= 2; ++d) in[d + 1] = src.row(std::clamp(r + d, 0, h - 1));
       for (int x = 0; x < w; ++x)
         for (int c = 0; c < 3; ++c) {
-          float mn = INFINITY, mx = -INFINITY, ma = 0;
-          for (int d = -1; d <= 2; ++d) {
-            const int xx = hz ? std::clamp(x + d, 0, w - 1) : x;
-            const int yy = hz ? y : std::clamp(y + d, 0, h - 1);
-            const float t = src.pixel(xx, yy)[c];
-            if (!std::isfinite(t)) {
-              ma = INFINITY;  // a NaN/Inf texel in the footprint: see nonfinite_footprint
-              continue;
-            }
-            mn = std::min(mn, t);
-            mx = std::max(mx, t);
-            ma = std::max(ma, std::fabs(t));
-          }
-          lo.pixel(x, y)[c] = mn;
-          hi.pixel(x, y)[c] = mx;
-          mag.pixel(x, y)[c] = ma;
+          const std::size_t at = std::size_t(x) * kChannels + c;
+          const float t[4] = {in[0][at], in[1][at], in[2][at], in[3][at]};
+          along(t, 1, 4, lo[at], hi[at], ma[at]);
         }
-  });
-  // Pass 2 across: [q-1, q+1].
-  Window out{Image(w, h, 0.0f), Image(w, h, 0.0f)};
-  parallel_rows(h, threads, [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y)
-      for (int x = 0; x < w; ++x)
-        for (int c = 0; c < 3; ++c) {
-          float mn = INFINITY, mx = -INFINITY, ma = 0;
-          for (int d = -1; d <= 1; ++d) {
-            const int xx = hz ? x : std::clamp(x + d, 0, w - 1);
-            const int yy = hz ? std::clamp(y + d, 0, h - 1) : y;
-            mn = std::min(mn, lo.pixel(xx, yy)[c]);
-            mx = std::max(mx, hi.pixel(xx, yy)[c]);
-            ma = std::max(ma, mag.pixel(xx, yy)[c]);
-          }
-          out.range.pixel(x, y)[c] = mx >= mn ? mx - mn : 0.0f;
-          out.magnitude.pixel(x, y)[c] = ma;
-        }
-  });
-  return out;
-}
-
-// A tap's base texel along the axis: floor of its exact position, clamped.
-int tap_base(int pos, double offset, int n) {
-  return std::clamp(static_cast<int>(std::floor(pos + offset)), 0, n - 1);
-}
-
-// For each position along the axis, the base texel of every tap (centre, +o1, -o1, ...) and its
-// weight: computed once per pass instead of per value.
-struct TapBases {
-  int taps = 0;
-  std::vector<int> base;
-  std::vector<double> weight;
-};
-
-TapBases tap_bases(int n, const Kernel& k) {
-  TapBases t;
-  t.taps = k.taps();
-  for (int pos = 0; pos < n; ++pos)
-    for (std::size_t i = 0; i < k.offsets_f64.size(); ++i)
-      for (double sign : {1.0, -1.0}) {
-        if (i == 0 && sign < 0) continue;
-        t.base.push_back(tap_base(pos, sign * k.offsets_f64[i], n));
-        t.weight.push_back(k.weights_f64[i]);
-      }
-  return t;
-}
-
-// out(x, y) = sum over taps of weight * img(tap base), per channel (img: a window statistic).
-Image weighted_tap_sum(ConstImageView img, Axis axis, const TapBases& t, int threads) {
-  const bool hz = axis == Axis::horizontal;
-  Image out(img.width, img.height, 0.0f);
-  parallel_rows(img.height, threads, [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y)
-      for (int x = 0; x < img.width; ++x) {
-        const int pos = hz ? x : y;
-        double acc[3] = {0, 0, 0};
-        for (int k = 0; k < t.taps; ++k) {
-          const int b = t.base[std::size_t(pos) * t.taps + k];
-          const float* v = hz ? img.pixel(b, y) : img.pixel(x, b);
-          for (int c = 0; c < 3; ++c) acc[c] += t.weight[std::size_t(pos) * t.taps + k] * v[c];
-        }
-        float* o = out.pixel(x, y);
-        for (int c = 0; c < 3; ++c) o[c] = static_cast<float>(acc[c]);
-      }
-  });
-  return out;
+      const float *l[3] = {lo, lo, lo}, *g[3] = {hi, hi, hi}, *m[3] = {ma, ma, ma};
+      pass2(l, g, m, 1, r);
+    }
+  }
 }
 
 }  // namespace
+
+// For each position along the axis, the base texel of every tap (centre, +o1, -o1, ...: floor of
+// its exact position, clamped) and its weight: computed once per pass instead of per value.
+struct BlurPropagation::Taps {
+  Axis axis = Axis::horizontal;
+  int taps = 0;
+  std::vector<int> base;
+  std::vector<double> weight;
+
+  Taps(Axis a, int n, const Kernel& k) : axis(a), taps(k.taps()) {
+    for (int pos = 0; pos < n; ++pos)
+      for (std::size_t i = 0; i < k.offsets_f64.size(); ++i)
+        for (double sign : {1.0, -1.0}) {
+          if (i == 0 && sign < 0) continue;
+          base.push_back(std::clamp(static_cast<int>(std::floor(pos + sign * k.offsets_f64[i])), 0, n - 1));
+          weight.push_back(k.weights_f64[i]);
+        }
+  }
+
+  // sum over taps of weight * statistic(tap base), per channel, for rows [y0, y1) of src's
+  // window statistics (range_sum may be null: magnitude only). RGBA rows.
+  void sums(ConstImageView src, int y0, int y1, float* range_sum, float* magnitude_sum) const {
+    const bool hz = axis == Axis::horizontal;
+    const int w = src.width;
+    // The window rows the band's taps read: its own (horizontal), or every tap's base row.
+    int r0 = y0, r1 = y1;
+    if (!hz) {
+      r0 = *std::min_element(base.begin() + std::ptrdiff_t(y0) * taps, base.begin() + std::ptrdiff_t(y0 + 1) * taps);
+      r1 = 1 + *std::max_element(base.begin() + std::ptrdiff_t(y1 - 1) * taps, base.begin() + std::ptrdiff_t(y1) * taps);
+    }
+    WindowScratch& s = window_scratch();
+    const std::size_t row = std::size_t(w) * kChannels, n = std::size_t(r1 - r0) * row;
+    float* range = range_sum ? sized(s.range, n) : nullptr;
+    float* magnitude = sized(s.magnitude, n);
+    window_rows(src, axis, r0, r1, range, magnitude, s);
+    for (const auto& [stat, out] : {std::pair<const float*, float*>{range, range_sum},
+                                    std::pair<const float*, float*>{magnitude, magnitude_sum}}) {
+      if (!out) continue;
+      for (int y = y0; y < y1; ++y)
+        for (int x = 0; x < w; ++x) {
+          const int pos = hz ? x : y;
+          double acc[3] = {0, 0, 0};
+          for (int k = 0; k < taps; ++k) {
+            const int b = base[std::size_t(pos) * taps + k];
+            const float* v = hz ? stat + std::size_t(y - r0) * row + std::size_t(b) * kChannels
+                                : stat + std::size_t(b - r0) * row + std::size_t(x) * kChannels;
+            for (int c = 0; c < 3; ++c) acc[c] += weight[std::size_t(pos) * taps + k] * v[c];
+          }
+          float* o = out + std::size_t(y - y0) * row + std::size_t(x) * kChannels;
+          for (int c = 0; c < 3; ++c) o[c] = static_cast<float>(acc[c]);
+        }
+    }
+  }
+};
 
 double storage_term(double v, Storage s, const DeviceProfile& p) {
   if (s == Storage::f32 || !std::isfinite(v)) return 0.0;
@@ -146,7 +213,7 @@ std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ct
         return Values{storage_term(v, ctx.storage, *ctx.profile),
                       ctx.profile->flush_denormals && std::fabs(v) < 0x1p-126 ? std::fabs(v) : 0.0};
       },
-      ctx.threads);
+      oracle.width, ctx.threads);
 }
 
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,
@@ -166,35 +233,83 @@ std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float thres
         return Values{tie ? std::max({std::fabs(s[0]), std::fabs(s[1]), std::fabs(s[2])}) : 0.0,
                       storage_term(v, ctx.storage, *ctx.profile)};
       },
-      ctx.threads);
+      sanitized.width, ctx.threads);
 }
+
+namespace {
+
+// A blur pass's bound: per value, the coordinate error times the weighted local range of the
+// taps' windows, the filter's and the sums' rounding times their weighted magnitude, storage
+// and the denormal floor.
+class BlurBounds : public StageBounds {
+ public:
+  BlurBounds(ConstImageView src, ConstImageView oracle, Axis axis, const Kernel& k, BoundContext ctx)
+      : src_(src), oracle_(oracle), ctx_(ctx), taps_(k.taps()),
+        bases_(std::make_shared<BlurPropagation::Taps>(
+            axis, axis == Axis::horizontal ? src.width : src.height, k)) {
+    threads = ctx.threads;
+    const bool hz = axis == Axis::horizontal;
+    delta_ = coordinate_error(hz ? src.width : src.height, *ctx.profile) +
+             coordinate_error(hz ? src.height : src.width, *ctx.profile);
+  }
+
+  void rows(int y0, int y1, float* bound, float* rounding) const override {
+    const std::size_t n = std::size_t(y1 - y0) * src_.width * kChannels;
+    Sums& s = scratch();
+    float* range = sized(s.range, n);
+    float* magnitude = sized(s.magnitude, n);
+    bases_->sums(src_, y0, y1, range, magnitude);
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < src_.width; ++x) {
+        const std::size_t at = (std::size_t(y - y0) * src_.width + x) * kChannels;
+        for (int c = 0; c < 3; ++c) {
+          const Values v = values(range[at + c], magnitude[at + c], oracle_.pixel(x, y)[c]);
+          if (bound) bound[at + c] = static_cast<float>(0.0 + v[0] + v[1] + v[2] + v[3] + v[4]);
+          if (rounding) rounding[at + c] = static_cast<float>(0.0 + v[1] + v[2] + v[3]);
+        }
+      }
+  }
+
+  std::vector<Term> terms(int x, int y, int c) const override {
+    std::vector<float> range(std::size_t(src_.width) * kChannels),
+        magnitude(std::size_t(src_.width) * kChannels);
+    bases_->sums(src_, y, y + 1, range.data(), magnitude.data());
+    const std::size_t at = std::size_t(x) * kChannels + c;
+    const Values v = values(range[at], magnitude[at], oracle_.pixel(x, y)[c]);
+    return {{"coordinate rounding (x local range)", v[0]},
+            {"filter and accumulation rounding (Inf: NaN/Inf in the footprint)", v[1]},
+            {"storage", v[2]},
+            {"denormal flush", v[3]}};
+  }
+
+ private:
+  struct Sums {
+    std::vector<float> range, magnitude;
+  };
+  static Sums& scratch() {
+    thread_local Sums s;
+    return s;
+  }
+  // The terms from the weighted window sums: the filter's lerp (3 roundings) and the tap sums
+  // (2 per tap): (3 + 2 T) u |t|.
+  Values values(float range, float magnitude, float oracle) const {
+    const double U = ctx_.profile->unit_roundoff;  // one operation's rounding
+    return Values{delta_ * range, (3 + 2 * taps_) * U * magnitude,
+                  storage_term(oracle, ctx_.storage, *ctx_.profile), denormal_floor(*ctx_.profile), 0};
+  }
+
+  ConstImageView src_, oracle_;
+  BoundContext ctx_;
+  int taps_;
+  double delta_ = 0;
+  std::shared_ptr<const BlurPropagation::Taps> bases_;
+};
+
+}  // namespace
 
 std::unique_ptr<StageBounds> blur_bounds(ConstImageView src, ConstImageView oracle, Axis axis,
                                          const Kernel& k, BoundContext ctx) {
-  const double U = ctx.profile->unit_roundoff;  // one operation's rounding
-  const bool hz = axis == Axis::horizontal;
-  const int n_along = hz ? src.width : src.height, n_across = hz ? src.height : src.width;
-  const Window win = window_stats(src, axis, ctx.threads);
-  const TapBases bases = tap_bases(n_along, k);
-  // sum_k w_k * (local range at tap k) and sum_k w_k * (local magnitude at tap k).
-  auto range = std::make_shared<Image>(weighted_tap_sum(win.range.cview(), axis, bases, ctx.threads));
-  auto magnitude =
-      std::make_shared<Image>(weighted_tap_sum(win.magnitude.cview(), axis, bases, ctx.threads));
-  const double delta = coordinate_error(n_along, *ctx.profile) +
-                       coordinate_error(n_across, *ctx.profile);
-  const int taps = k.taps();
-  return make_bounds(
-      {"coordinate rounding (x local range)",
-       "filter and accumulation rounding (Inf: NaN/Inf in the footprint)", "storage",
-       "denormal flush"},
-      [=](int x, int y, int c) {
-        // The filter's lerp (3 roundings) and the tap sums (2 per tap): (3 + 2 T) u |t|.
-        return Values{delta * range->pixel(x, y)[c],
-                      (3 + 2 * taps) * U * magnitude->pixel(x, y)[c],
-                      storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
-                      denormal_floor(*ctx.profile)};
-      },
-      ctx.threads);
+  return std::make_unique<BlurBounds>(src, oracle, axis, k, ctx);
 }
 
 std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageView bloom,
@@ -209,7 +324,7 @@ std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageVi
                       storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
                       denormal_floor(*ctx.profile)};
       },
-      ctx.threads);
+      scene.width, ctx.threads);
 }
 
 std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView oracle,
@@ -234,7 +349,7 @@ std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView o
                       storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
                       denormal_floor(*ctx.profile)};
       },
-      ctx.threads);
+      hdr.width, ctx.threads);
 }
 
 std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView oracle,
@@ -264,13 +379,34 @@ std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView
                       o * std::log(2.0) * std::fabs(t) * (1 + ctx.profile->division_ulps) * U,
                       o * (3 + 2 * std::fabs(t)) * 2 * U, storage};
       },
-      ctx.threads);
+      mapped.width, ctx.threads);
+}
+
+BlurPropagation::BlurPropagation(ConstImageView error, Axis axis, const Kernel& k)
+    : error_(error), axis_(axis),
+      taps_(std::make_shared<Taps>(axis, axis == Axis::horizontal ? error.width : error.height, k)) {}
+
+BlurPropagation::~BlurPropagation() = default;
+
+void BlurPropagation::rows(int y0, int y1, float* out) const {
+  taps_->sums(error_, y0, y1, nullptr, out);
 }
 
 Image propagate_blur(ConstImageView error, Axis axis, const Kernel& k, int threads) {
-  const Window win = window_stats(error, axis, threads);
-  const int n = axis == Axis::horizontal ? error.width : error.height;
-  return weighted_tap_sum(win.magnitude.cview(), axis, tap_bases(n, k), threads);
+  const BlurPropagation p(error, axis, k);
+  Image out(error.width, error.height, 0.0f);
+  parallel_rows(error.height, threads, [&](int y0, int y1) { p.rows(y0, y1, out.pixel(0, y0)); });
+  return out;
+}
+
+void StageBounds::fill(Image& bound) const {
+  parallel_rows(bound.height(), threads,
+                [&](int y0, int y1) { rows(y0, y1, bound.pixel(0, y0), nullptr); });
+}
+
+void StageBounds::fill_rounding(Image& rounding) const {
+  parallel_rows(rounding.height(), threads,
+                [&](int y0, int y1) { rows(y0, y1, nullptr, rounding.pixel(0, y0)); });
 }
 
 }  // namespace bloomref::parity::detail
