@@ -130,17 +130,17 @@ class Streams {
   bool captured(const std::string& n) const { return captured_.count(n) > 0; }
   /// Whether a stage after `index` reads `n`.
   bool read_after(const std::string& n, int index) const { return get(read_, n) > index; }
-  /// Releases every image of the isolated chain no stage after `done` (an index into the plan)
-  /// needs.
-  template <class... Maps>
-  void release_chain(int done, Maps&... maps) {
-    (release_in(chain_, done, maps), ...);
+  /// Hands `recycle` every image of the isolated chain no stage after `done` (an index into
+  /// the plan) needs, and drops it from its map.
+  template <class Recycle, class... Maps>
+  void release_chain(int done, Recycle recycle, Maps&... maps) {
+    (release_in(chain_, done, recycle, maps), ...);
   }
   /// The same for the images only the stages that read them need: the oracle's full run, its
   /// bounds, the error stages without capture carry.
-  template <class... Maps>
-  void release_read(int done, Maps&... maps) {
-    (release_in(read_, done, maps), ...);
+  template <class Recycle, class... Maps>
+  void release_read(int done, Recycle recycle, Maps&... maps) {
+    (release_in(read_, done, recycle, maps), ...);
   }
 
  private:
@@ -148,70 +148,21 @@ class Streams {
     const auto it = m.find(n);
     return it == m.end() ? -1 : it->second;
   }
-  template <class Map>
-  static void release_in(const std::map<std::string, int>& need, int done, Map& m) {
-    for (auto it = m.begin(); it != m.end();)
-      it = get(need, it->first) <= done ? m.erase(it) : std::next(it);
+  template <class Recycle, class Map>
+  static void release_in(const std::map<std::string, int>& need, int done, Recycle& recycle,
+                         Map& m) {
+    for (auto it = m.begin(); it != m.end();) {
+      if (get(need, it->first) > done) {
+        ++it;
+        continue;
+      }
+      recycle(it->second);
+      it = m.erase(it);
+    }
   }
   std::map<std::string, int> index_, read_, chain_;
   std::map<std::string, bool> captured_;
 };
-
-Image copy_of(ConstImageView v) {
-  Image out = Image::uninitialised(v.width, v.height);
-  for (int y = 0; y < v.height; ++y)
-    std::copy(v.row(y), v.row(y) + std::size_t(v.width) * kChannels, out.view().row(y));
-  return out;
-}
-
-// A stage of the oracle from its inputs, unrounded, as the CPU executor computes it: the same
-// functions (the fast blur and finishing stages give the reference's bits).
-Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanitized,
-                   const std::vector<ConstImageView>& in, int subtexel_bits) {
-  const BloomParams& p = plan.params;
-  const int threads = p.threads;
-  Image out;
-  switch (spec.kind) {
-    case StageKind::input:
-      return copy_of(sanitized);
-    case StageKind::bright:
-      out = Image::uninitialised(sanitized.width, sanitized.height);
-      extract_bright(sanitized, out.view(), p.threshold, threads);
-      break;
-    case StageKind::blur:
-      out = Image::uninitialised(in[0].width, in[0].height);
-      blur_pass_fast(in[0], out.view(), {spec.axis, &kernel_for(p.kernel), subtexel_bits}, threads);
-      break;
-    case StageKind::down: {
-      const LevelSize& l = plan.levels[spec.pass - 1];
-      out = Image::uninitialised(l.width, l.height);
-      const bool first = spec.pass == 1;
-      downsample(in[0], out.view(), {first, p.threshold, p.karis && first, subtexel_bits}, threads);
-      break;
-    }
-    case StageKind::up:
-    case StageKind::bloom: {
-      const bool up = spec.kind == StageKind::up;
-      out = up ? Image::uninitialised(in[1].width, in[1].height)
-               : Image::uninitialised(sanitized.width, sanitized.height);
-      upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads);
-      break;
-    }
-    case StageKind::composite:
-      out = Image::uninitialised(in[0].width, in[0].height);
-      composite(in[0], in[1], out.view(), p.strength, threads);
-      break;
-    case StageKind::tonemap:
-      out = Image::uninitialised(in[0].width, in[0].height);
-      tonemap_fast(in[0], out.view(), p.exposure, threads);
-      break;
-    case StageKind::output:
-      out = Image::uninitialised(in[0].width, in[0].height);
-      encode_output_fast(in[0], out.view(), p.gamma, threads);
-      break;
-  }
-  return out;
-}
 
 // A capture the comparison reads: a view of the caller's image, or one it loaded and owns.
 struct Held {
@@ -220,6 +171,89 @@ struct Held {
   int code_bits = 0;
   bool srgb = false;
 };
+
+// Stage-sized buffers the stages done hand back and the next ones take, instead of freeing them
+// and mapping new ones: a new buffer is faulted in page by page as it is first written (check
+// maps every block from 1 MiB, cmd_check.cpp), which took most of check's system time. Emptied
+// before each stage is judged, so that it never adds to the peak.
+class ImagePool {
+ public:
+  Image take(int w, int h) {
+    for (auto it = pool_.begin(); it != pool_.end(); ++it)
+      if (it->width() == w && it->height() == h) {
+        Image img = std::move(*it);
+        pool_.erase(it);
+        return img;
+      }
+    return Image::uninitialised(w, h);
+  }
+  void give(Image& img) {
+    if (!img.empty() && pool_.size() < kKeep) pool_.push_back(std::move(img));
+    img = Image();
+  }
+  void give(Held& h) { give(h.owned); }
+  void clear() { pool_.clear(); }
+
+ private:
+  static constexpr std::size_t kKeep = 4;
+  std::vector<Image> pool_;
+};
+
+Image copy_of(ConstImageView v, ImagePool& pool) {
+  Image out = pool.take(v.width, v.height);
+  for (int y = 0; y < v.height; ++y)
+    std::copy(v.row(y), v.row(y) + std::size_t(v.width) * kChannels, out.view().row(y));
+  return out;
+}
+
+// A stage of the oracle from its inputs, unrounded, as the CPU executor computes it: the same
+// functions (the fast blur and finishing stages give the reference's bits).
+Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanitized,
+                   const std::vector<ConstImageView>& in, int subtexel_bits, ImagePool& pool) {
+  const BloomParams& p = plan.params;
+  const int threads = p.threads;
+  Image out;
+  switch (spec.kind) {
+    case StageKind::input:
+      return copy_of(sanitized, pool);
+    case StageKind::bright:
+      out = pool.take(sanitized.width, sanitized.height);
+      extract_bright(sanitized, out.view(), p.threshold, threads);
+      break;
+    case StageKind::blur:
+      out = pool.take(in[0].width, in[0].height);
+      blur_pass_fast(in[0], out.view(), {spec.axis, &kernel_for(p.kernel), subtexel_bits}, threads);
+      break;
+    case StageKind::down: {
+      const LevelSize& l = plan.levels[spec.pass - 1];
+      out = pool.take(l.width, l.height);
+      const bool first = spec.pass == 1;
+      downsample(in[0], out.view(), {first, p.threshold, p.karis && first, subtexel_bits}, threads);
+      break;
+    }
+    case StageKind::up:
+    case StageKind::bloom: {
+      const bool up = spec.kind == StageKind::up;
+      out = up ? pool.take(in[1].width, in[1].height)
+               : pool.take(sanitized.width, sanitized.height);
+      upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads);
+      break;
+    }
+    case StageKind::composite:
+      out = pool.take(in[0].width, in[0].height);
+      composite(in[0], in[1], out.view(), p.strength, threads);
+      break;
+    case StageKind::tonemap:
+      out = pool.take(in[0].width, in[0].height);
+      tonemap_fast(in[0], out.view(), p.exposure, threads);
+      break;
+    case StageKind::output:
+      out = pool.take(in[0].width, in[0].height);
+      encode_output_fast(in[0], out.view(), p.gamma, threads);
+      break;
+  }
+  return out;
+}
 
 // One stage's isolated oracle and bounds (StageWork::terms): the bound, what inputs without
 // capture carry into it (empty: nothing), and its end-to-end bound; each as band rows given the
@@ -328,7 +362,8 @@ class Comparison {
   ParityResult result_;
   double oracle_time_ = 0;
 
-  Image sanitized_owned_;               // when the policy changed the scene
+  ImagePool pool_;
+  Image sanitized_owned_;                  // when the policy changed the scene
   std::map<std::string, Held> captures_;   // loaded when reached
   std::map<std::string, Image> computed_;  // stages without capture: the oracle's, stored
   std::map<std::string, Image> carried_;   // and the error each carries
@@ -365,7 +400,7 @@ void Comparison::oracle_full(const StageSpec& spec, const std::vector<std::strin
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<ConstImageView> cin;
   for (const std::string& n : in) cin.push_back(full_.at(n).cview());
-  Image out = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits);
+  Image out = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits, pool_);
   store(out.view(), p_.storage, rounding_, threads_);
   full_[spec.name] = std::move(out);
   oracle_time_ +=
@@ -377,7 +412,7 @@ StageTerms Comparison::point_terms(const StageSpec& spec, const std::vector<std:
   std::vector<ConstImageView> cin;
   for (const std::string& n : in) cin.push_back(V(n));
   StageTerms t;
-  t.oracle = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits);
+  t.oracle = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits, pool_);
   const ConstImageView o = t.oracle.cview();
   const int w = o.width;
   const float strength = p_.strength;
@@ -449,7 +484,7 @@ StageTerms Comparison::point_terms(const StageSpec& spec, const std::vector<std:
 StageTerms Comparison::blur_terms(const StageSpec& spec, const std::vector<std::string>& in) {
   const ConstImageView src = V(in[0]);
   StageTerms t;
-  t.oracle = oracle_stage(plan_, spec, sanitized_, {src}, profile_.subtexel_bits);
+  t.oracle = oracle_stage(plan_, spec, sanitized_, {src}, profile_.subtexel_bits, pool_);
   t.bound = blur_bounds(src, t.oracle.cview(), spec.axis, kernel_, ctx_);
   const int w = src.width;
   auto e = std::make_shared<BlurPropagation>(e2e_.at(in[0]).cview(), spec.axis, kernel_);
@@ -472,7 +507,7 @@ StageTerms Comparison::mip_terms(const StageSpec& spec, const std::vector<std::s
   std::vector<ConstImageView> cin;
   for (const std::string& n : in) cin.push_back(V(n));
   StageTerms t;
-  t.oracle = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits);
+  t.oracle = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits, pool_);
   const ConstImageView o = t.oracle.cview(), none{};
   auto bounds = [&](ConstImageView a, ConstImageView b, ConstImageView out, const Image* ea,
                     const Image* eb) -> std::shared_ptr<StageBounds> {
@@ -521,12 +556,17 @@ ParityResult Comparison::run(double* oracle_ms) {
     // A blur or composite reads no full-run input for its bounds: release those now.
     if (!cpu_ && (spec.kind == StageKind::blur || spec.kind == StageKind::composite))
       for (const std::string& n : in)
-        if (!streams_.read_after(n, static_cast<int>(index))) full_.erase(n);
+        if (!streams_.read_after(n, static_cast<int>(index))) {
+          pool_.give(full_.at(n));
+          full_.erase(n);
+        }
     StageTerms t = terms(spec, in);
     if (streams_.captured(name_)) judge_captured(index, t);
     else keep_uncaptured(index, t);
-    streams_.release_chain(static_cast<int>(index), captures_, computed_);
-    streams_.release_read(static_cast<int>(index), full_, e2e_, carried_);
+    pool_.give(t.oracle);
+    auto recycle = [this](auto& img) { pool_.give(img); };
+    streams_.release_chain(static_cast<int>(index), recycle, captures_, computed_);
+    streams_.release_read(static_cast<int>(index), recycle, full_, e2e_, carried_);
   }
   if (oracle_ms) *oracle_ms = oracle_time_;
   return finish();
@@ -630,9 +670,10 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   // judged (without one, they are made again when needed).
   Image e_kept, bound_kept, inherited_kept;
   Kept kept;
-  if (streams_.read_after(name_, static_cast<int>(index))) kept.e2e = &(e_kept = Image::uninitialised(w, h));
+  if (streams_.read_after(name_, static_cast<int>(index))) kept.e2e = &(e_kept = pool_.take(w, h));
   if (fits && codes && (opt_.causes || opt_.keep_images)) kept.bound = &(bound_kept = Image::uninitialised(w, h));
   if (fits && codes && t.inherited) kept.inherited = &(inherited_kept = Image::uninitialised(w, h));
+  pool_.clear();
   const int rows = judge_band(iso_rules_.window);
   std::vector<Tally> iso((h + rows - 1) / rows), e2e(iso.size());
   over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
@@ -741,8 +782,9 @@ void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Ima
 void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
   const int w = t.oracle.width(), h = t.oracle.height();
   const bool read_later = streams_.read_after(name_, static_cast<int>(index));
-  Image e_kept = read_later ? Image::uninitialised(w, h) : Image();
-  Image carried = read_later ? Image::uninitialised(w, h) : Image();
+  Image e_kept = read_later ? pool_.take(w, h) : Image();
+  Image carried = read_later ? pool_.take(w, h) : Image();
+  pool_.clear();
   over_bands(h, judge_band(0), threads_, [&](int y0, int y1, int) {
     const std::size_t n = std::size_t(y1 - y0) * w, values = n * kChannels;
     BandScratch& s = band_scratch();

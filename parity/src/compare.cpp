@@ -204,58 +204,61 @@ void Tally::merge(Tally&& band, std::size_t keep) {
 void judge_row(const JudgeRules& rules, int y, const float* gl, const float* oracle,
                const float* bound, const float* allowance, const float* slack, Tally& t) {
   const DeviceProfile& p = *rules.profile;
-  const int n = rules.window;
-  const bool windows = rules.gates && n > 0;
+  const int n = rules.gates && rules.window > 0 ? rules.window : rules.width;
+  const bool windows = rules.gates && rules.window > 0;
+  const std::size_t per_row = std::size_t(rules.width + n - 1) / n;
   if (windows && y % n == 0) {  // a new row of windows
-    const std::size_t per_row = std::size_t(rules.width + n - 1) / n;
     t.window_excess.resize(t.window_excess.size() + per_row, 0.0);
     t.window_count.resize(t.window_count.size() + per_row, 0.0);
   }
-  const std::size_t wrow = windows ? t.window_excess.size() - std::size_t(rules.width + n - 1) / n : 0;
-  for (int x = 0; x < rules.width; ++x)
-    for (int c = 0; c < 3; ++c) {
-      const std::size_t i = std::size_t(x) * kChannels + c;
-      const double o = oracle[i], g = gl[i], b = bound[i];
-      ++t.values;
-      // An infinite (or NaN, from non-finite data) bound: unpinned by GL (NaN/Inf in the
-      // footprint, max(NaN, 0)); where NaN/Inf appear is still compared through the stages.
-      if (!(b < INFINITY)) continue;
-      const int special = special_case(o, g, rules.storage, p, b);
-      if (special == 0) {
-        ++t.mismatch;
-        offer_worst(t, rules.worst_count, {x, y, c, o, g, INFINITY, b, {}});
-        continue;
-      }
-      if (special == 1) continue;
-      const double err = std::fabs(g - o);
-      double gate = 0;
-      if (rules.gates &&
-          gate_ratio(err, b, allowance ? allowance[i] : storage_term(o, rules.storage, p),
-                     slack ? slack[i] : 0.0f, gate)) {
-        t.excess += gate;
-        t.base += 1;
-        if (windows) {
-          t.window_excess[wrow + std::size_t(x / n)] += gate;
-          t.window_count[wrow + std::size_t(x / n)] += 1;
+  double* w_excess = windows ? t.window_excess.data() + t.window_excess.size() - per_row : nullptr;
+  double* w_count = windows ? t.window_count.data() + t.window_count.size() - per_row : nullptr;
+  // Window by window along the row (the whole row when there are none), texel by texel.
+  for (int x0 = 0, wi = 0; x0 < rules.width; x0 += n, ++wi)
+    for (int x = x0; x < std::min(rules.width, x0 + n); ++x)
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t i = std::size_t(x) * kChannels + c;
+        const double o = oracle[i], g = gl[i], b = bound[i];
+        ++t.values;
+        // An infinite (or NaN, from non-finite data) bound: unpinned by GL (NaN/Inf in the
+        // footprint, max(NaN, 0)); where NaN/Inf appear is still compared through the stages.
+        if (!(b < INFINITY)) continue;
+        const int special = special_case(o, g, rules.storage, p, b);
+        if (special == 0) {
+          ++t.mismatch;
+          offer_worst(t, rules.worst_count, {x, y, c, o, g, INFINITY, b, {}});
+          continue;
         }
+        if (special == 1) continue;
+        const double err = std::fabs(g - o);
+        double gate = 0;
+        if (rules.gates &&
+            gate_ratio(err, b, allowance ? allowance[i] : storage_term(o, rules.storage, p),
+                       slack ? slack[i] : 0.0f, gate)) {
+          t.excess += gate;
+          t.base += 1;
+          if (windows) {
+            w_excess[wi] += gate;
+            w_count[wi] += 1;
+          }
+        }
+        if (err == 0) {
+          t.hist[8]++;
+          continue;
+        }
+        t.max_abs = std::max(t.max_abs, err);
+        if (o != 0) t.max_rel = std::max(t.max_rel, err / std::fabs(o));
+        const double ulps = (g - o) / ulp16_of(o);
+        t.max_ulp16 = std::max(t.max_ulp16, std::fabs(ulps));
+        t.hist[static_cast<int>(std::clamp(std::round(ulps), -8.0, 8.0)) + 8]++;
+        const double ratio = b > 0 ? err / b : INFINITY;
+        t.max_ratio = std::max(t.max_ratio, ratio);
+        if (ratio > 1) {
+          ++t.over;
+          if (ratio > kWarnTier) ++t.beyond_tier;
+        }
+        offer_worst(t, rules.worst_count, {x, y, c, o, g, err, b, {}});
       }
-      if (err == 0) {
-        t.hist[8]++;
-        continue;
-      }
-      t.max_abs = std::max(t.max_abs, err);
-      if (o != 0) t.max_rel = std::max(t.max_rel, err / std::fabs(o));
-      const double ulps = (g - o) / ulp16_of(o);
-      t.max_ulp16 = std::max(t.max_ulp16, std::fabs(ulps));
-      t.hist[static_cast<int>(std::clamp(std::round(ulps), -8.0, 8.0)) + 8]++;
-      const double ratio = b > 0 ? err / b : INFINITY;
-      t.max_ratio = std::max(t.max_ratio, ratio);
-      if (ratio > 1) {
-        ++t.over;
-        if (ratio > kWarnTier) ++t.beyond_tier;
-      }
-      offer_worst(t, rules.worst_count, {x, y, c, o, g, err, b, {}});
-    }
 }
 
 StageComparison conclude(const std::string& stage, Tally total, const JudgeRules& rules,

@@ -4,18 +4,29 @@
 
 #include <algorithm>
 #include <array>
+#include <cfloat>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <memory>
+#include <stdexcept>
 
 #include "bloomref/parallel.h"
 
 namespace bloomref::parity::detail {
 namespace {
 
-double ulp16(double v) {
-  const double a = std::fabs(v);
-  const int e = a > 0 ? std::max(std::ilogb(a), -14) : -14;
-  return std::ldexp(1.0, e - 10);
+// One f16 ULP at v: 2^(max(e, -14) - 10) for |v| = m 2^e (1 <= m < 2), 2^-24 for 0 (the
+// subnormal spacing). From the exponent bits, as ilogb and ldexp would give it for every finite
+// double (a subnormal double's exponent is below -14 either way).
+inline double ulp16(double v) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &v, sizeof bits);
+  const int e = static_cast<int>((bits >> 52) & 0x7ff) - 1023;
+  const std::uint64_t out = std::uint64_t((v != 0 ? std::max(e, -14) : -14) - 10 + 1023) << 52;
+  double r;
+  std::memcpy(&r, &out, sizeof r);
+  return r;
 }
 
 // A NaN or Inf texel where a lookup may touch it makes the lookup's result unpinned: the GL
@@ -30,21 +41,61 @@ double ulp16(double v) {
 // taps reach, in two passes: along the axis, then across. Min and max are exact, so the band's
 // statistics are the whole image's.
 
-// Pass 1 at one texel and channel: min, max and max |.| of the finite values among n values
-// `stride` apart (a non-finite one makes the magnitude +Inf).
-inline void along(const float* t, std::ptrdiff_t stride, int n, float& mn, float& mx, float& ma) {
-  mn = INFINITY;
-  mx = -INFINITY;
-  ma = 0;
-  for (int d = 0; d < n; ++d) {
-    const float v = t[d * stride];
-    if (!std::isfinite(v)) {
-      ma = INFINITY;  // a NaN/Inf texel in the footprint: see above
-      continue;
+// Folds value v into a window's (min, max, magnitude) as std::min, std::max and std::max of |v|
+// in turn would, over finite values only; a non-finite one makes the magnitude +Inf (see above).
+// Written as selects so that the loops below vectorise.
+inline void fold(float v, float& mn, float& mx, float& ma) {
+  const float a = std::fabs(v);
+  const bool finite = a <= FLT_MAX;  // false for NaN and +-Inf
+  mn = finite && v < mn ? v : mn;
+  mx = finite && mx < v ? v : mx;
+  ma = !finite ? INFINITY : ma < a ? a : ma;
+}
+
+// Pass 1 over n values (RGBA interleaved, alpha too: its results are not read): value i folds
+// t0[i], t1[i], t2[i], t3[i] in that order.
+template <bool Range>
+void pass1(const float* __restrict t0, const float* __restrict t1, const float* __restrict t2,
+           const float* __restrict t3, std::size_t n, float* __restrict lo, float* __restrict hi,
+           float* __restrict ma) {
+  for (std::size_t i = 0; i < n; ++i) {
+    float mn = INFINITY, mx = -INFINITY, m = 0;
+    fold(t0[i], mn, mx, m);
+    fold(t1[i], mn, mx, m);
+    fold(t2[i], mn, mx, m);
+    fold(t3[i], mn, mx, m);
+    if (Range) {
+      lo[i] = mn;
+      hi[i] = mx;
     }
-    mn = std::min(mn, v);
-    mx = std::max(mx, v);
-    ma = std::max(ma, std::fabs(v));
+    ma[i] = m;
+  }
+}
+
+// Pass 2 over n values: value i combines entries i of three pass-1 results (d = 0, 1, 2 in that
+// order; std::min / std::max: none is NaN), into the range and the magnitude.
+template <bool Range>
+void pass2(const float* const lo[3], const float* const hi[3], const float* const ma[3],
+           std::size_t n, float* __restrict range, float* __restrict magnitude) {
+  const float *__restrict l0 = lo[0], *__restrict l1 = lo[1], *__restrict l2 = lo[2];
+  const float *__restrict h0 = hi[0], *__restrict h1 = hi[1], *__restrict h2 = hi[2];
+  const float *__restrict m0 = ma[0], *__restrict m1 = ma[1], *__restrict m2 = ma[2];
+  for (std::size_t i = 0; i < n; ++i) {
+    float m = 0;
+    m = m < m0[i] ? m0[i] : m;
+    m = m < m1[i] ? m1[i] : m;
+    m = m < m2[i] ? m2[i] : m;
+    magnitude[i] = m;
+    if (Range) {
+      float mn = INFINITY, mx = -INFINITY;
+      mn = l0[i] < mn ? l0[i] : mn;
+      mn = l1[i] < mn ? l1[i] : mn;
+      mn = l2[i] < mn ? l2[i] : mn;
+      mx = mx < h0[i] ? h0[i] : mx;
+      mx = mx < h1[i] ? h1[i] : mx;
+      mx = mx < h2[i] ? h2[i] : mx;
+      range[i] = mx >= mn ? mx - mn : 0.0f;
+    }
   }
 }
 
@@ -60,81 +111,95 @@ WindowScratch& window_scratch() {
   return s;
 }
 
-float* sized(std::vector<float>& v, std::size_t n) {
+template <class T>
+T* sized(std::vector<T>& v, std::size_t n) {
   if (v.size() < n) v.resize(n);
   return v.data();
 }
 
-// Window statistics of rows [r0, r1) of src into range / magnitude (RGBA rows; range may be
-// null). Horizontal: pass 1 along x over [x-1, x+2] on rows [r0-1, r1+1), pass 2 across the rows
-// y-1..y+1. Vertical: per row, pass 1 along y over [y-1, y+2], pass 2 across x-1..x+1. Edges
-// clamp.
+// The texels of a row of w whose four (pass 1: x-1..x+2) or three (pass 2: x-1..x+1) neighbours
+// along x are all inside: [1, w - reach), the others clamp.
+inline bool inside(int x, int w, int reach) { return x >= 1 && x + reach < w; }
+
+// Pass 1 along x of one row (its texels x-1..x+2, clamped at the edges).
+template <bool Range>
+void pass1_along_x(const float* in, int w, float* lo, float* hi, float* ma) {
+  constexpr int C = kChannels;
+  if (w > 3) pass1<Range>(in, in + C, in + 2 * C, in + 3 * C, std::size_t(w - 3) * C, lo + C, hi + C, ma + C);
+  for (int x = 0; x < w; ++x) {
+    if (inside(x, w, 2)) continue;
+    const float* t[4];
+    for (int d = 0; d < 4; ++d) t[d] = in + std::size_t(std::clamp(x + d - 1, 0, w - 1)) * C;
+    const std::size_t o = std::size_t(x) * C;
+    pass1<Range>(t[0], t[1], t[2], t[3], C, lo + o, hi + o, ma + o);
+  }
+}
+
+// Pass 2 across x of one row (x-1..x+1, clamped at the edges).
+template <bool Range>
+void pass2_across_x(const float* lo, const float* hi, const float* ma, int w, float* range,
+                    float* magnitude) {
+  constexpr int C = kChannels;
+  if (w > 2) {
+    const float* l[3] = {lo, lo + C, lo + 2 * C};
+    const float* g[3] = {hi, hi + C, hi + 2 * C};
+    const float* m[3] = {ma, ma + C, ma + 2 * C};
+    pass2<Range>(l, g, m, std::size_t(w - 2) * C, range + C, magnitude + C);
+  }
+  for (int x = 0; x < w; ++x) {
+    if (inside(x, w, 1)) continue;
+    const float *l[3], *g[3], *m[3];
+    for (int d = 0; d < 3; ++d) {
+      const std::size_t at = std::size_t(std::clamp(x + d - 1, 0, w - 1)) * C;
+      l[d] = lo + at;
+      g[d] = hi + at;
+      m[d] = ma + at;
+    }
+    const std::size_t o = std::size_t(x) * C;
+    pass2<Range>(l, g, m, C, range + o, magnitude + o);
+  }
+}
+
+// Window statistics of rows [r0, r1) of src into range / magnitude (RGBA rows; without Range
+// only the magnitude). Horizontal: pass 1 along x over [x-1, x+2] on rows [r0-1, r1+1), pass 2
+// across the rows y-1..y+1. Vertical: per row, pass 1 along y over [y-1, y+2], pass 2 across
+// x-1..x+1. Edges clamp.
+template <bool Range>
 void window_rows(ConstImageView src, Axis axis, int r0, int r1, float* range, float* magnitude,
                  WindowScratch& s) {
   const int w = src.width, h = src.height;
   const std::size_t row = std::size_t(w) * kChannels;
-  auto pass2 = [&](const float* lo[3], const float* hi[3], const float* ma[3], int step, int r) {
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 3; ++c) {
-        float mn = INFINITY, mx = -INFINITY, m = 0;
-        for (int d = 0; d < 3; ++d) {
-          const int xx = step ? std::clamp(x + d - 1, 0, w - 1) : x;
-          const std::size_t at = std::size_t(xx) * kChannels + c;
-          mn = std::min(mn, lo[d][at]);
-          mx = std::max(mx, hi[d][at]);
-          m = std::max(m, ma[d][at]);
-        }
-        const std::size_t o = std::size_t(r - r0) * row + std::size_t(x) * kChannels + c;
-        if (range) range[o] = mx >= mn ? mx - mn : 0.0f;
-        magnitude[o] = m;
-      }
+  auto at = [&](std::vector<float>& v, int i) {
+    return v.empty() ? nullptr : v.data() + std::size_t(i) * row;
   };
   if (axis == Axis::horizontal) {
     const int p0 = std::max(r0 - 1, 0), p1 = std::min(r1 + 1, h);
     const std::size_t n = std::size_t(p1 - p0) * row;
-    float *lo = sized(s.lo, n), *hi = sized(s.hi, n), *ma = sized(s.mag, n);
-    for (int y = p0; y < p1; ++y) {
-      const float* in = src.row(y);
-      const std::size_t o = std::size_t(y - p0) * row;
-      for (int x = 0; x < w; ++x) {
-        const bool inner = x >= 1 && x + 2 < w;
-        for (int c = 0; c < 3; ++c) {
-          float* l = lo + o + std::size_t(x) * kChannels + c;
-          float* g = hi + o + std::size_t(x) * kChannels + c;
-          float* m = ma + o + std::size_t(x) * kChannels + c;
-          if (inner) {
-            along(in + std::size_t(x - 1) * kChannels + c, kChannels, 4, *l, *g, *m);
-          } else {
-            float t[4];
-            for (int d = -1; d <= 2; ++d) t[d + 1] = in[std::size_t(std::clamp(x + d, 0, w - 1)) * kChannels + c];
-            along(t, 1, 4, *l, *g, *m);
-          }
-        }
-      }
-    }
+    sized(s.lo, Range ? n : 0);
+    sized(s.hi, Range ? n : 0);
+    sized(s.mag, n);
+    for (int y = p0; y < p1; ++y)
+      pass1_along_x<Range>(src.row(y), w, at(s.lo, y - p0), at(s.hi, y - p0), at(s.mag, y - p0));
     for (int r = r0; r < r1; ++r) {
       const float *l[3], *g[3], *m[3];
       for (int d = 0; d < 3; ++d) {
-        const std::size_t o = std::size_t(std::clamp(r + d - 1, 0, h - 1) - p0) * row;
-        l[d] = lo + o;
-        g[d] = hi + o;
-        m[d] = ma + o;
+        const int i = std::clamp(r + d - 1, 0, h - 1) - p0;
+        l[d] = at(s.lo, i);
+        g[d] = at(s.hi, i);
+        m[d] = at(s.mag, i);
       }
-      pass2(l, g, m, 0, r);
+      const std::size_t o = std::size_t(r - r0) * row;
+      pass2<Range>(l, g, m, row, Range ? range + o : nullptr, magnitude + o);
     }
   } else {
-    float *lo = sized(s.lo, row), *hi = sized(s.hi, row), *ma = sized(s.mag, row);
+    float *lo = sized(s.lo, Range ? row : 0), *hi = sized(s.hi, Range ? row : 0);
+    float* ma = sized(s.mag, row);
     for (int r = r0; r < r1; ++r) {
-      const float* in[4];
-      for (int d = -1; d <= 2; ++d) in[d + 1] = src.row(std::clamp(r + d, 0, h - 1));
-      for (int x = 0; x < w; ++x)
-        for (int c = 0; c < 3; ++c) {
-          const std::size_t at = std::size_t(x) * kChannels + c;
-          const float t[4] = {in[0][at], in[1][at], in[2][at], in[3][at]};
-          along(t, 1, 4, lo[at], hi[at], ma[at]);
-        }
-      const float *l[3] = {lo, lo, lo}, *g[3] = {hi, hi, hi}, *m[3] = {ma, ma, ma};
-      pass2(l, g, m, 1, r);
+      const float* t[4];
+      for (int d = 0; d < 4; ++d) t[d] = src.row(std::clamp(r + d - 1, 0, h - 1));
+      pass1<Range>(t[0], t[1], t[2], t[3], row, lo, hi, ma);
+      const std::size_t o = std::size_t(r - r0) * row;
+      pass2_across_x<Range>(lo, hi, ma, w, Range ? range + o : nullptr, magnitude + o);
     }
   }
 }
@@ -148,8 +213,13 @@ struct BlurPropagation::Taps {
   int taps = 0;
   std::vector<int> base;
   std::vector<double> weight;
+  // Positions [inner0, inner1) have every tap at a fixed offset from them (offset[k]: none
+  // clamped at an edge).
+  int inner0 = 0, inner1 = 0;
+  std::vector<int> offset;
 
   Taps(Axis a, int n, const Kernel& k) : axis(a), taps(k.taps()) {
+    if (taps > kMaxTaps) throw std::logic_error("blur bounds: more than 16 taps");
     for (int pos = 0; pos < n; ++pos)
       for (std::size_t i = 0; i < k.offsets_f64.size(); ++i)
         for (double sign : {1.0, -1.0}) {
@@ -157,10 +227,21 @@ struct BlurPropagation::Taps {
           base.push_back(std::clamp(static_cast<int>(std::floor(pos + sign * k.offsets_f64[i])), 0, n - 1));
           weight.push_back(k.weights_f64[i]);
         }
+    const int mid = n / 2;
+    for (int t = 0; t < taps; ++t) offset.push_back(base[std::size_t(mid) * taps + t] - mid);
+    auto fixed = [&](int pos) {
+      for (int t = 0; t < taps; ++t)
+        if (base[std::size_t(pos) * taps + t] != pos + offset[t]) return false;
+      return true;
+    };
+    inner0 = inner1 = mid;
+    while (inner0 > 0 && fixed(inner0 - 1)) --inner0;
+    while (inner1 < n && fixed(inner1)) ++inner1;
   }
 
   // sum over taps of weight * statistic(tap base), per channel, for rows [y0, y1) of src's
-  // window statistics (range_sum may be null: magnitude only). RGBA rows.
+  // window statistics (range_sum may be null: magnitude only). RGBA rows. In double, tap by tap
+  // in the kernel's order, rounded to float once.
   void sums(ConstImageView src, int y0, int y1, float* range_sum, float* magnitude_sum) const {
     const bool hz = axis == Axis::horizontal;
     const int w = src.width;
@@ -174,23 +255,60 @@ struct BlurPropagation::Taps {
     const std::size_t row = std::size_t(w) * kChannels, n = std::size_t(r1 - r0) * row;
     float* range = range_sum ? sized(s.range, n) : nullptr;
     float* magnitude = sized(s.magnitude, n);
-    window_rows(src, axis, r0, r1, range, magnitude, s);
+    if (range) window_rows<true>(src, axis, r0, r1, range, magnitude, s);
+    else window_rows<false>(src, axis, r0, r1, nullptr, magnitude, s);
     for (const auto& [stat, out] : {std::pair<const float*, float*>{range, range_sum},
                                     std::pair<const float*, float*>{magnitude, magnitude_sum}}) {
       if (!out) continue;
-      for (int y = y0; y < y1; ++y)
-        for (int x = 0; x < w; ++x) {
-          const int pos = hz ? x : y;
-          double acc[3] = {0, 0, 0};
-          for (int k = 0; k < taps; ++k) {
-            const int b = base[std::size_t(pos) * taps + k];
-            const float* v = hz ? stat + std::size_t(y - r0) * row + std::size_t(b) * kChannels
-                                : stat + std::size_t(b - r0) * row + std::size_t(x) * kChannels;
-            for (int c = 0; c < 3; ++c) acc[c] += weight[std::size_t(pos) * taps + k] * v[c];
-          }
-          float* o = out + std::size_t(y - y0) * row + std::size_t(x) * kChannels;
-          for (int c = 0; c < 3; ++c) o[c] = static_cast<float>(acc[c]);
+      for (int y = y0; y < y1; ++y) {
+        float* o = out + std::size_t(y - y0) * row;
+        if (hz) {
+          along_row(stat + std::size_t(y - r0) * row, w, o);
+          continue;
         }
+        const float* rows[kMaxTaps];
+        for (int t = 0; t < taps; ++t)
+          rows[t] = stat + std::size_t(base[std::size_t(y) * taps + t] - r0) * row;
+        weighted_sums(rows, &weight[std::size_t(y) * taps], row, o);
+      }
+    }
+  }
+
+  static constexpr int kMaxTaps = 16;
+
+  // out[i] = sum over taps t of w[t] * src[t][i], in double from 0, tap by tap in order, rounded
+  // to float once: the kernels' tap counts unrolled.
+  template <int T>
+  static void sums_of(const float* const* src, const double* w, std::size_t n, float* out) {
+    for (std::size_t i = 0; i < n; ++i) {
+      double a = 0;
+      for (int t = 0; t < T; ++t) a += w[t] * src[t][i];
+      out[i] = static_cast<float>(a);
+    }
+  }
+  void weighted_sums(const float* const* src, const double* w, std::size_t n, float* out) const {
+    if (taps == 9) return sums_of<9>(src, w, n, out);
+    if (taps == 5) return sums_of<5>(src, w, n, out);
+    for (std::size_t i = 0; i < n; ++i) {
+      double a = 0;
+      for (int t = 0; t < taps; ++t) a += w[t] * src[t][i];
+      out[i] = static_cast<float>(a);
+    }
+  }
+
+  // A horizontal pass's sums over one row of statistics: the inner texels by fixed offsets, the
+  // edges by their clamped bases.
+  void along_row(const float* stat, int w, float* out) const {
+    constexpr int C = kChannels;
+    const float* src[kMaxTaps];
+    if (inner1 > inner0) {
+      for (int t = 0; t < taps; ++t) src[t] = stat + std::ptrdiff_t(inner0 + offset[t]) * C;
+      weighted_sums(src, weight.data(), std::size_t(inner1 - inner0) * C, out + std::size_t(inner0) * C);
+    }
+    for (int x = 0; x < w; ++x) {
+      if (x >= inner0 && x < inner1) continue;
+      for (int t = 0; t < taps; ++t) src[t] = stat + std::size_t(base[std::size_t(x) * taps + t]) * C;
+      weighted_sums(src, &weight[std::size_t(x) * taps], C, out + std::size_t(x) * C);
     }
   }
 };
@@ -254,20 +372,24 @@ class BlurBounds : public StageBounds {
   }
 
   void rows(int y0, int y1, float* bound, float* rounding) const override {
-    const std::size_t n = std::size_t(y1 - y0) * src_.width * kChannels;
+    const std::size_t row = std::size_t(src_.width) * kChannels;
     Sums& s = scratch();
-    float* range = sized(s.range, n);
-    float* magnitude = sized(s.magnitude, n);
+    float* range = sized(s.range, std::size_t(y1 - y0) * row);
+    float* magnitude = sized(s.magnitude, std::size_t(y1 - y0) * row);
     bases_->sums(src_, y0, y1, range, magnitude);
-    for (int y = y0; y < y1; ++y)
-      for (int x = 0; x < src_.width; ++x) {
-        const std::size_t at = (std::size_t(y - y0) * src_.width + x) * kChannels;
-        for (int c = 0; c < 3; ++c) {
-          const Values v = values(range[at + c], magnitude[at + c], oracle_.pixel(x, y)[c]);
-          if (bound) bound[at + c] = static_cast<float>(0.0 + v[0] + v[1] + v[2] + v[3] + v[4]);
-          if (rounding) rounding[at + c] = static_cast<float>(0.0 + v[1] + v[2] + v[3]);
-        }
+    const double U = ctx_.profile->unit_roundoff;  // one operation's rounding
+    const double filter = (3 + 2 * taps_) * U, denormal = denormal_floor(*ctx_.profile);
+    for (int y = y0; y < y1; ++y) {
+      const std::size_t at = std::size_t(y - y0) * row;
+      const float* o = oracle_.row(y);
+      // The terms of values(), value by value (alpha too: its results are not read).
+      for (std::size_t i = 0; i < row; ++i) {
+        const double v0 = delta_ * range[at + i], v1 = filter * magnitude[at + i];
+        const double v2 = storage_term(o[i], ctx_.storage, *ctx_.profile);
+        if (bound) bound[at + i] = static_cast<float>(0.0 + v0 + v1 + v2 + denormal + 0.0);
+        if (rounding) rounding[at + i] = static_cast<float>(0.0 + v1 + v2 + denormal);
       }
+    }
   }
 
   std::vector<Term> terms(int x, int y, int c) const override {
