@@ -255,6 +255,20 @@ Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanit
   return out;
 }
 
+// Rows of an input's end-to-end bound as a stage reads them: the image kept, or, for the input
+// stage (a function of the scene, which is held anyway), made again.
+struct BoundRows {
+  const Image* image = nullptr;
+  std::shared_ptr<const StageBounds> made;
+  // Rows [y0, y1) in StageBounds' layout: in the image, or made into `scratch`.
+  const float* rows(int y0, int y1, int w, std::vector<float>& scratch) const {
+    if (image) return image->cview().row(y0);
+    if (scratch.size() < std::size_t(y1 - y0) * w * kChannels) scratch.resize(std::size_t(y1 - y0) * w * kChannels);
+    made->rows(y0, y1, scratch.data(), nullptr);
+    return scratch.data();
+  }
+};
+
 // One stage's isolated oracle and bounds (StageWork::terms): the bound, what inputs without
 // capture carry into it (empty: nothing), and its end-to-end bound; each as band rows given the
 // band's isolated bound.
@@ -267,6 +281,7 @@ struct StageTerms {
 // Scratch rows of a band, per thread (reused band after band).
 struct BandScratch {
   std::vector<float> bound, rounding, inherited, e2e, judged, codes, codes_e2e, oracle_e2e, kept;
+  std::vector<float> read[2];  // end-to-end bounds of the inputs made again (BoundRows)
   static float* rows(std::vector<float>& v, std::size_t n) {
     if (v.size() < n) v.resize(n);
     return v.data();
@@ -317,7 +332,7 @@ class Comparison {
   void judge_captured(std::size_t index, StageTerms& t);
   void band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept, bool judge);
   ExtraTerms iso_terms(const StageTerms& t, const CapturedStage& cap, const Image& inherited) const;
-  ExtraTerms::Value codes_of(const CapturedStage& cap, const Image& oracle) const;
+  ExtraTerms::Value codes_of(const CapturedStage& cap, ConstImageView oracle) const;
   Image final_bound(const StageTerms& t);
   void test_causes_of(const StageSpec& spec, StageComparison& iso, Image& oracle,
                       const Image& bound);
@@ -334,12 +349,18 @@ class Comparison {
     const auto it = carried_.find(n);
     return it == carried_.end() ? nullptr : &it->second;
   }
-  const Image& C(const std::string& n) const {  // the oracle's full run
-    if (!cpu_) return full_.at(n);
+  ConstImageView C(const std::string& n) const {  // the oracle's full run
+    if (!cpu_) return n == "input" && input_is_scene_ ? sanitized_ : full_.at(n).cview();
     const StageResult* r = cpu_->find(n);
     if (!r) throw ParamError("the CPU trace has no stage '" + n + "'");
-    return r->image;
+    return r->image.cview();
   }
+  BoundRows e2e_rows(const std::string& n) const {
+    const auto it = e2e_.find(n);
+    if (it != e2e_.end()) return {&it->second, nullptr};
+    return {nullptr, input_e2e_};
+  }
+  bool e2e_made_again(const std::string& n) const;
   // The capture of the stage being judged, as judged (the profile may say every capture holds
   // 8-bit codes).
   CapturedStage capture(const std::string& n) const {
@@ -364,6 +385,8 @@ class Comparison {
 
   ImagePool pool_;
   Image sanitized_owned_;                  // when the policy changed the scene
+  bool input_is_scene_ = false;            // the full run's input is sanitized_ (f32 storage)
+  std::shared_ptr<const StageBounds> input_e2e_;  // input's end-to-end bound, made again
   std::map<std::string, Held> captures_;   // loaded when reached
   std::map<std::string, Image> computed_;  // stages without capture: the oracle's, stored
   std::map<std::string, Image> carried_;   // and the error each carries
@@ -397,9 +420,14 @@ void Comparison::sanitize_scene() {
 // The oracle's full run of one stage, stored as the device stores it.
 void Comparison::oracle_full(const StageSpec& spec, const std::vector<std::string>& in) {
   if (cpu_) return;
+  // f32 storage leaves the input stage the sanitised scene itself: read in place.
+  if (spec.kind == StageKind::input && p_.storage == Storage::f32) {
+    input_is_scene_ = true;
+    return;
+  }
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<ConstImageView> cin;
-  for (const std::string& n : in) cin.push_back(full_.at(n).cview());
+  for (const std::string& n : in) cin.push_back(C(n));
   Image out = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits, pool_);
   store(out.view(), p_.storage, rounding_, threads_);
   full_[spec.name] = std::move(out);
@@ -419,14 +447,16 @@ StageTerms Comparison::point_terms(const StageSpec& spec, const std::vector<std:
   auto same_as_bound = [w](int y0, int y1, const float* b, float* out) {
     std::copy(b, b + std::size_t(y1 - y0) * w * kChannels, out);
   };
-  // A per-value function of one carried or end-to-end image, plus the isolated bound.
-  auto through = [w](const Image* img, ConstImageView at, auto f, bool plus_bound) -> BandRows {
+  // A per-value function f(at value, image value) of an image's rows (an input's end-to-end
+  // bound, or the error it carries), plus the isolated bound when `plus_bound`.
+  auto through = [w](BoundRows img, ConstImageView at, auto f, bool plus_bound) -> BandRows {
     return [=](int y0, int y1, const float* b, float* out) {
+      const float* e = img.rows(y0, y1, w, band_scratch().read[0]);
       for (int y = y0; y < y1; ++y)
         for (int x = 0; x < w; ++x)
           for (int c = 0; c < 3; ++c) {
             const std::size_t i = (std::size_t(y - y0) * w + x) * kChannels + c;
-            const float v = f(at.pixel(x, y)[c], img->pixel(x, y)[c]);
+            const float v = f(at.pixel(x, y)[c], e[i]);
             out[i] = plus_bound ? v + b[i] : v;
           }
     };
@@ -442,10 +472,13 @@ StageTerms Comparison::point_terms(const StageSpec& spec, const std::vector<std:
       break;
     case StageKind::composite: {
       t.bound = composite_bounds(cin[0], cin[1], o, strength, ctx_);
-      const Image *e0 = &e2e_.at(in[0]), *e1 = &e2e_.at(in[1]);
-      t.end_to_end = through(e0, e1->cview(), [strength](float b, float a) {
-        return a + static_cast<float>(double(strength) * b);
-      }, true);
+      const BoundRows e0 = e2e_rows(in[0]), e1 = e2e_rows(in[1]);
+      t.end_to_end = [=](int y0, int y1, const float* b, float* out) {
+        BandScratch& s = band_scratch();
+        const float *a = e0.rows(y0, y1, w, s.read[0]), *d = e1.rows(y0, y1, w, s.read[1]);
+        for (std::size_t i = 0; i < std::size_t(y1 - y0) * w * kChannels; ++i)
+          out[i] = a[i] + static_cast<float>(double(strength) * d[i]) + b[i];
+      };
       const Image *es = E(in[0]), *eb = E(in[1]);
       if (es || eb)
         t.inherited = [=](int y0, int y1, const float*, float* out) {
@@ -469,8 +502,8 @@ StageTerms Comparison::point_terms(const StageSpec& spec, const std::vector<std:
       auto f = [tm, k](float h, float e) {
         return tm ? through_tonemap(h, e, k) : through_output(h, e, k);
       };
-      t.end_to_end = through(&e2e_.at(in[0]), C(in[0]).cview(), f, true);
-      if (const Image* ce = E(in[0])) t.inherited = through(ce, cin[0], f, false);
+      t.end_to_end = through(e2e_rows(in[0]), C(in[0]), f, true);
+      if (const Image* ce = E(in[0])) t.inherited = through({ce, nullptr}, cin[0], f, false);
       break;
     }
     default:
@@ -528,7 +561,7 @@ StageTerms Comparison::mip_terms(const StageSpec& spec, const std::vector<std::s
     };
   }
   std::shared_ptr<StageBounds> e =
-      bounds(C(in[0]).cview(), up ? C(in[1]).cview() : none, C(spec.name).cview(),
+      bounds(C(in[0]), up ? C(in[1]) : none, C(spec.name),
              &e2e_.at(in[0]), up ? &e2e_.at(in[1]) : nullptr);
   t.end_to_end = [e](int y0, int y1, const float*, float* out) { e->rows(y0, y1, out, nullptr); };
   return t;
@@ -544,19 +577,49 @@ StageTerms Comparison::terms(const StageSpec& spec, const std::vector<std::strin
   }
 }
 
+// Whether a stage's end-to-end bound is made again where it is read instead of kept: the input
+// stage's (a function of the scene, held anyway; kept for a downsample, which reads it through
+// windows), which the composite reads at the end of the run.
+bool Comparison::e2e_made_again(const std::string& n) const {
+  if (n != "input") return false;
+  for (const StageSpec& s : plan_.stages)
+    if (s.kind == StageKind::down) {
+      const std::vector<std::string> in = stage_inputs(plan_, s);
+      if (std::find(in.begin(), in.end(), n) != in.end()) return false;
+    }
+  return true;
+}
+
+bool same_bits(ConstImageView a, ConstImageView b) {
+  if (a.width != b.width || a.height != b.height) return false;
+  for (int y = 0; y < a.height; ++y)
+    if (std::memcmp(a.row(y), b.row(y), std::size_t(a.width) * kChannels * sizeof(float)) != 0)
+      return false;
+  return true;
+}
+
 ParityResult Comparison::run(double* oracle_ms) {
   sanitize_scene();
+  input_e2e_ = input_bounds(sanitized_, ctx_);
   for (std::size_t index = 0; index < plan_.stages.size(); ++index) {
     const StageSpec& spec = plan_.stages[index];
     spec_ = &spec;
     name_ = spec.name;
     const std::vector<std::string> in = stage_inputs(plan_, spec);
     oracle_full(spec, in);
-    if (streams_.captured(name_)) captures_[name_] = load_(name_);
+    if (streams_.captured(name_)) {
+      Held& h = captures_[name_] = load_(name_);
+      // A capture of the input stage with the sanitised scene's bits (the usual case) is read
+      // there: the composite reads it at the end of the run, and it need not be held twice.
+      if (spec.kind == StageKind::input && same_bits(h.view, sanitized_)) {
+        h.owned = Image();
+        h.view = sanitized_;
+      }
+    }
     // A blur or composite reads no full-run input for its bounds: release those now.
     if (!cpu_ && (spec.kind == StageKind::blur || spec.kind == StageKind::composite))
       for (const std::string& n : in)
-        if (!streams_.read_after(n, static_cast<int>(index))) {
+        if (!streams_.read_after(n, static_cast<int>(index)) && full_.count(n)) {
           pool_.give(full_.at(n));
           full_.erase(n);
         }
@@ -610,7 +673,7 @@ void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally&
     add_rows(bound, inherited, n);
   }
   float* oracle = t.oracle.pixel(0, y0);
-  const float* full = C(name_).cview().row(y0);
+  const float* full = C(name_).row(y0);
   float* q = codes ? BandScratch::rows(s.codes, values) : nullptr;
   if (codes) {
     capture_codes(cap, oracle, q, n);
@@ -670,7 +733,8 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   // judged (without one, they are made again when needed).
   Image e_kept, bound_kept, inherited_kept;
   Kept kept;
-  if (streams_.read_after(name_, static_cast<int>(index))) kept.e2e = &(e_kept = pool_.take(w, h));
+  if (streams_.read_after(name_, static_cast<int>(index)) && !e2e_made_again(name_))
+    kept.e2e = &(e_kept = pool_.take(w, h));
   if (fits && codes && (opt_.causes || opt_.keep_images)) kept.bound = &(bound_kept = Image::uninitialised(w, h));
   if (fits && codes && t.inherited) kept.inherited = &(inherited_kept = Image::uninitialised(w, h));
   pool_.clear();
@@ -720,14 +784,14 @@ ExtraTerms Comparison::iso_terms(const StageTerms& t, const CapturedStage& cap,
       return double(out[std::size_t(x) * kChannels + c]);
     };
   return ExtraTerms(*t.bound, {{"carried from stages without capture", carried},
-                               {"8-bit capture: half a code", codes_of(cap, t.oracle)}});
+                               {"8-bit capture: half a code", codes_of(cap, t.oracle.cview())}});
 }
 
 // Half a code of an 8-bit capture at each value of `oracle` (clamped first: the values as
 // judged); nothing for a float capture.
-ExtraTerms::Value Comparison::codes_of(const CapturedStage& cap, const Image& oracle) const {
+ExtraTerms::Value Comparison::codes_of(const CapturedStage& cap, ConstImageView oracle) const {
   if (cap.code_bits <= 0) return {};
-  return [cap, &oracle](int x, int y, int c) {
+  return [cap, oracle](int x, int y, int c) {
     float o = oracle.pixel(x, y)[c];
     return double(capture_code(cap, o));
   };
@@ -782,7 +846,7 @@ void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Ima
 void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
   const int w = t.oracle.width(), h = t.oracle.height();
   const bool read_later = streams_.read_after(name_, static_cast<int>(index));
-  Image e_kept = read_later ? pool_.take(w, h) : Image();
+  Image e_kept = read_later && !e2e_made_again(name_) ? pool_.take(w, h) : Image();
   Image carried = read_later ? pool_.take(w, h) : Image();
   pool_.clear();
   over_bands(h, judge_band(0), threads_, [&](int y0, int y1, int) {
@@ -802,16 +866,12 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
     std::copy(o, o + values, unrounded);
     store(ImageView{w, y1 - y0, w, o}, p_.storage, rounding_, 1);
     for (std::size_t i = 0; i < values; ++i) bound[i] += std::fabs(o[i] - unrounded[i]);
-    if (read_later) {
-      put_rows(e_kept, y0, e, n);
-      put_rows(carried, y0, bound, n);
-    }
+    if (!e_kept.empty()) put_rows(e_kept, y0, e, n);
+    if (read_later) put_rows(carried, y0, bound, n);
   });
   computed_[name_] = std::move(t.oracle);
-  if (read_later) {
-    e2e_[name_] = std::move(e_kept);
-    carried_[name_] = std::move(carried);
-  }
+  if (!e_kept.empty()) e2e_[name_] = std::move(e_kept);
+  if (read_later) carried_[name_] = std::move(carried);
 }
 
 ParityResult Comparison::finish() {
