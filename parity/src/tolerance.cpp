@@ -104,6 +104,8 @@ void pass2(const float* const lo[3], const float* const hi[3], const float* cons
 struct WindowScratch {
   std::vector<float> lo, hi, mag;       // pass 1, RGBA rows
   std::vector<float> range, magnitude;  // the window statistics, RGBA rows
+  std::vector<std::uint8_t> src_const, p1_const, p1_filled, w_const, w_filled;
+  std::vector<std::array<float, 4>> src_c, p1_lo, p1_hi, p1_ma, w_range, w_mag;
 };
 
 WindowScratch& window_scratch() {
@@ -115,6 +117,25 @@ template <class T>
 T* sized(std::vector<T>& v, std::size_t n) {
   if (v.size() < n) v.resize(n);
   return v.data();
+}
+
+// Whether every texel of a row of w has the first texel's bits (then `c` is that texel): rows of
+// one value (dark and empty regions, their bounds) have one window statistic and one sum,
+// computed once.
+bool constant_row(const float* row, int w, std::array<float, 4>& c) {
+  std::uint32_t first[4], diff = 0;
+  std::memcpy(first, row, sizeof first);
+  std::memcpy(c.data(), row, sizeof first);
+  for (int x = 1; x < w; ++x) {
+    std::uint32_t t[4];
+    std::memcpy(t, row + std::size_t(x) * kChannels, sizeof t);
+    diff |= (t[0] ^ first[0]) | (t[1] ^ first[1]) | (t[2] ^ first[2]) | (t[3] ^ first[3]);
+  }
+  return diff == 0;
+}
+
+void fill_row(float* row, int w, const std::array<float, 4>& c) {
+  for (int x = 0; x < w; ++x) std::memcpy(row + std::size_t(x) * kChannels, c.data(), sizeof c);
 }
 
 // The texels of a row of w whose four (pass 1: x-1..x+2) or three (pass 2: x-1..x+1) neighbours
@@ -163,32 +184,81 @@ void pass2_across_x(const float* lo, const float* hi, const float* ma, int w, fl
 // Window statistics of rows [r0, r1) of src into range / magnitude (RGBA rows; without Range
 // only the magnitude). Horizontal: pass 1 along x over [x-1, x+2] on rows [r0-1, r1+1), pass 2
 // across the rows y-1..y+1. Vertical: per row, pass 1 along y over [y-1, y+2], pass 2 across
-// x-1..x+1. Edges clamp.
+// x-1..x+1. Edges clamp. A window row all of whose source rows are constant is constant: it is
+// flagged in s.w_const with its values in s.w_range / s.w_mag, and its rows are left unwritten
+// (window_filled writes them).
 template <bool Range>
 void window_rows(ConstImageView src, Axis axis, int r0, int r1, float* range, float* magnitude,
                  WindowScratch& s) {
   const int w = src.width, h = src.height;
-  const std::size_t row = std::size_t(w) * kChannels;
+  const std::size_t row = std::size_t(w) * kChannels, rows = std::size_t(r1 - r0);
   auto at = [&](std::vector<float>& v, int i) {
     return v.empty() ? nullptr : v.data() + std::size_t(i) * row;
   };
-  if (axis == Axis::horizontal) {
-    const int p0 = std::max(r0 - 1, 0), p1 = std::min(r1 + 1, h);
-    const std::size_t n = std::size_t(p1 - p0) * row;
+  const bool hz = axis == Axis::horizontal;
+  // The source rows read: [q0, q1), each tested for one value.
+  const int q0 = std::max(r0 - 1, 0), q1 = std::min(r1 + (hz ? 1 : 2), h);
+  sized(s.src_const, std::size_t(q1 - q0));
+  sized(s.src_c, std::size_t(q1 - q0));
+  for (int y = q0; y < q1; ++y)
+    s.src_const[y - q0] = constant_row(src.row(y), w, s.src_c[y - q0]);
+  sized(s.w_const, rows);
+  std::fill(s.w_const.begin(), s.w_const.begin() + rows, 0);
+  sized(s.w_filled, rows);
+  std::fill(s.w_filled.begin(), s.w_filled.begin() + rows, 0);
+  sized(s.w_range, rows);
+  sized(s.w_mag, rows);
+  if (hz) {
+    // Pass 1 per source row; a constant row's result is its one texel's (made whole when a
+    // window row that is not constant reads it).
+    const std::size_t n = std::size_t(q1 - q0) * row;
     sized(s.lo, Range ? n : 0);
     sized(s.hi, Range ? n : 0);
     sized(s.mag, n);
-    for (int y = p0; y < p1; ++y)
-      pass1_along_x<Range>(src.row(y), w, at(s.lo, y - p0), at(s.hi, y - p0), at(s.mag, y - p0));
+    for (auto* v : {&s.p1_const, &s.p1_filled}) sized(*v, std::size_t(q1 - q0));
+    for (auto* v : {&s.p1_lo, &s.p1_hi, &s.p1_ma}) sized(*v, std::size_t(q1 - q0));
+    for (int y = q0; y < q1; ++y) {
+      const int i = y - q0;
+      s.p1_const[i] = s.src_const[i];
+      s.p1_filled[i] = !s.src_const[i];
+      if (s.src_const[i]) {
+        const float* c = s.src_c[i].data();
+        pass1<Range>(c, c, c, c, kChannels, s.p1_lo[i].data(), s.p1_hi[i].data(), s.p1_ma[i].data());
+      } else {
+        pass1_along_x<Range>(src.row(y), w, at(s.lo, i), at(s.hi, i), at(s.mag, i));
+      }
+    }
     for (int r = r0; r < r1; ++r) {
-      const float *l[3], *g[3], *m[3];
+      int src_rows[3];
+      bool all_const = true;
       for (int d = 0; d < 3; ++d) {
-        const int i = std::clamp(r + d - 1, 0, h - 1) - p0;
+        src_rows[d] = std::clamp(r + d - 1, 0, h - 1) - q0;
+        all_const = all_const && s.p1_const[src_rows[d]];
+      }
+      const std::size_t o = std::size_t(r - r0) * row;
+      const float *l[3], *g[3], *m[3];
+      if (all_const) {
+        for (int d = 0; d < 3; ++d) {
+          l[d] = s.p1_lo[src_rows[d]].data();
+          g[d] = s.p1_hi[src_rows[d]].data();
+          m[d] = s.p1_ma[src_rows[d]].data();
+        }
+        s.w_const[r - r0] = 1;
+        pass2<Range>(l, g, m, kChannels, s.w_range[r - r0].data(), s.w_mag[r - r0].data());
+        continue;
+      }
+      for (int d = 0; d < 3; ++d) {
+        const int i = src_rows[d];
+        if (!s.p1_filled[i]) {
+          if (Range) fill_row(at(s.lo, i), w, s.p1_lo[i]);
+          if (Range) fill_row(at(s.hi, i), w, s.p1_hi[i]);
+          fill_row(at(s.mag, i), w, s.p1_ma[i]);
+          s.p1_filled[i] = 1;
+        }
         l[d] = at(s.lo, i);
         g[d] = at(s.hi, i);
         m[d] = at(s.mag, i);
       }
-      const std::size_t o = std::size_t(r - r0) * row;
       pass2<Range>(l, g, m, row, Range ? range + o : nullptr, magnitude + o);
     }
   } else {
@@ -196,12 +266,35 @@ void window_rows(ConstImageView src, Axis axis, int r0, int r1, float* range, fl
     float* ma = sized(s.mag, row);
     for (int r = r0; r < r1; ++r) {
       const float* t[4];
+      bool all_const = true;
+      for (int d = 0; d < 4; ++d) {
+        const int y = std::clamp(r + d - 1, 0, h - 1);
+        all_const = all_const && s.src_const[y - q0];
+        t[d] = all_const ? s.src_c[y - q0].data() : src.row(y);
+      }
+      const std::size_t o = std::size_t(r - r0) * row;
+      if (all_const) {
+        float l[4], g[4], m[4];
+        pass1<Range>(t[0], t[1], t[2], t[3], kChannels, l, g, m);
+        const float *ls[3] = {l, l, l}, *gs[3] = {g, g, g}, *ms[3] = {m, m, m};
+        s.w_const[r - r0] = 1;
+        pass2<Range>(ls, gs, ms, kChannels, s.w_range[r - r0].data(), s.w_mag[r - r0].data());
+        continue;
+      }
       for (int d = 0; d < 4; ++d) t[d] = src.row(std::clamp(r + d - 1, 0, h - 1));
       pass1<Range>(t[0], t[1], t[2], t[3], row, lo, hi, ma);
-      const std::size_t o = std::size_t(r - r0) * row;
       pass2_across_x<Range>(lo, hi, ma, w, Range ? range + o : nullptr, magnitude + o);
     }
   }
+}
+
+// Writes window row i whole if it was left constant (window_rows).
+void window_filled(WindowScratch& s, int i, int w, float* range, float* magnitude) {
+  if (!s.w_const[i] || s.w_filled[i]) return;
+  const std::size_t o = std::size_t(i) * w * kChannels;
+  if (range) fill_row(range + o, w, s.w_range[i]);
+  fill_row(magnitude + o, w, s.w_mag[i]);
+  s.w_filled[i] = 1;
 }
 
 }  // namespace
@@ -217,6 +310,8 @@ struct BlurPropagation::Taps {
   // clamped at an edge).
   int inner0 = 0, inner1 = 0;
   std::vector<int> offset;
+
+  static constexpr int kMaxTaps = 16;
 
   Taps(Axis a, int n, const Kernel& k) : axis(a), taps(k.taps()) {
     if (taps > kMaxTaps) throw std::logic_error("blur bounds: more than 16 taps");
@@ -241,7 +336,8 @@ struct BlurPropagation::Taps {
 
   // sum over taps of weight * statistic(tap base), per channel, for rows [y0, y1) of src's
   // window statistics (range_sum may be null: magnitude only). RGBA rows. In double, tap by tap
-  // in the kernel's order, rounded to float once.
+  // in the kernel's order, rounded to float once. Every tap of a position has the same weights,
+  // so where every tap reads constant window rows the row's sums are one texel's.
   void sums(ConstImageView src, int y0, int y1, float* range_sum, float* magnitude_sum) const {
     const bool hz = axis == Axis::horizontal;
     const int w = src.width;
@@ -257,24 +353,38 @@ struct BlurPropagation::Taps {
     float* magnitude = sized(s.magnitude, n);
     if (range) window_rows<true>(src, axis, r0, r1, range, magnitude, s);
     else window_rows<false>(src, axis, r0, r1, nullptr, magnitude, s);
-    for (const auto& [stat, out] : {std::pair<const float*, float*>{range, range_sum},
-                                    std::pair<const float*, float*>{magnitude, magnitude_sum}}) {
+    for (int which = 0; which < 2; ++which) {
+      const float* stat = which == 0 ? range : magnitude;
+      float* out = which == 0 ? range_sum : magnitude_sum;
       if (!out) continue;
+      const auto& consts = which == 0 ? s.w_range : s.w_mag;
       for (int y = y0; y < y1; ++y) {
         float* o = out + std::size_t(y - y0) * row;
+        const int* b = hz ? nullptr : &base[std::size_t(y) * taps];
+        bool all_const = true;
+        for (int t = 0; t < (hz ? 1 : taps) && all_const; ++t) all_const = s.w_const[(hz ? y : b[t]) - r0];
+        if (all_const) {
+          const float* src_c[kMaxTaps];
+          for (int t = 0; t < taps; ++t) src_c[t] = consts[(hz ? y : b[t]) - r0].data();
+          std::array<float, 4> v;
+          weighted_sums(src_c, &weight[0], kChannels, v.data());
+          fill_row(o, w, v);
+          continue;
+        }
         if (hz) {
+          window_filled(s, y - r0, w, range, magnitude);
           along_row(stat + std::size_t(y - r0) * row, w, o);
           continue;
         }
         const float* rows[kMaxTaps];
-        for (int t = 0; t < taps; ++t)
-          rows[t] = stat + std::size_t(base[std::size_t(y) * taps + t] - r0) * row;
+        for (int t = 0; t < taps; ++t) {
+          window_filled(s, b[t] - r0, w, range, magnitude);
+          rows[t] = stat + std::size_t(b[t] - r0) * row;
+        }
         weighted_sums(rows, &weight[std::size_t(y) * taps], row, o);
       }
     }
   }
-
-  static constexpr int kMaxTaps = 16;
 
   // out[i] = sum over taps t of w[t] * src[t][i], in double from 0, tap by tap in order, rounded
   // to float once: the kernels' tap counts unrolled.
