@@ -29,15 +29,16 @@ namespace {
 
 constexpr double kWarnTier = 4.0;  // over the derived bound but within 4x: WARN
 
-// 2^(max(e, -14) - 10) for v = m 2^e (1 <= m < 2), 2^-24 for 0: one f16 ULP at v. From the
-// exponent bits (ilogb and ldexp give the same for every finite double: a subnormal double's
-// exponent is below -14 either way).
-double ulp16_of(double v) {
+// 1 / (one f16 ULP at v), exactly: the ULP is 2^(max(e, -14) - 10) for |v| = m 2^e
+// (1 <= m < 2), 2^-24 for 0, read from the exponent bits (as ilogb gives it for every finite
+// double: a subnormal double's exponent is below -14 either way). A power of two between 2^-117
+// and 2^24, so multiplying by it is dividing by the ULP, exactly.
+double inverse_ulp16(double v) {
   std::uint64_t bits;
   std::memcpy(&bits, &v, sizeof bits);
   const int e = static_cast<int>((bits >> 52) & 0x7ff) - 1023;
   const int k = (v != 0 ? std::max(e, -14) : -14) - 10;
-  const std::uint64_t out = std::uint64_t(k + 1023) << 52;
+  const std::uint64_t out = std::uint64_t(1023 - k) << 52;
   double r;
   std::memcpy(&r, &out, sizeof r);
   return r;
@@ -168,6 +169,22 @@ void decide(StageComparison& s) {
   }
 }
 
+// Whether texels [x0, x1) of a row have the oracle's RGB bits, finite and at most `limit` in
+// magnitude (f16: within half's range), with finite bounds: values judge_row would only count
+// (an error of 0, neither special nor unbounded).
+bool same_values(const float* gl, const float* oracle, const float* bound, int x0, int x1,
+                 float limit) {
+  bool same = true;
+  for (std::size_t i = std::size_t(x0) * kChannels; i < std::size_t(x1) * kChannels; ++i) {
+    if (i % kChannels == 3) continue;
+    std::uint32_t a, b;
+    std::memcpy(&a, gl + i, sizeof a);
+    std::memcpy(&b, oracle + i, sizeof b);
+    same &= a == b && std::fabs(oracle[i]) <= limit && bound[i] < INFINITY;
+  }
+  return same;
+}
+
 }  // namespace
 
 StageComparison size_fault(const std::string& stage, ConstImageView gl, ConstImageView oracle) {
@@ -213,9 +230,30 @@ void judge_row(const JudgeRules& rules, int y, const float* gl, const float* ora
   }
   double* w_excess = windows ? t.window_excess.data() + t.window_excess.size() - per_row : nullptr;
   double* w_count = windows ? t.window_count.data() + t.window_count.size() - per_row : nullptr;
-  // Window by window along the row (the whole row when there are none), texel by texel.
-  for (int x0 = 0, wi = 0; x0 < rules.width; x0 += n, ++wi)
-    for (int x = x0; x < std::min(rules.width, x0 + n); ++x)
+  // Window by window along the row (chunks of 16 texels when there are none), texel by texel;
+  // a chunk whose values all equal the oracle's, finite, within a finite bound, only counts.
+  const int chunk = windows ? n : 16;
+  const float limit = rules.storage == Storage::f16 ? 65504.0f : FLT_MAX;
+  for (int x0 = 0, wi = 0; x0 < rules.width; x0 += chunk, ++wi) {
+    const int x1 = std::min(rules.width, x0 + chunk);
+    if (same_values(gl, oracle, bound, x0, x1, limit)) {
+      const std::uint64_t m = 3 * std::uint64_t(x1 - x0);
+      t.values += m;
+      t.hist[8] += m;
+      if (!rules.gates) continue;
+      // No error: no excess, a ratio of +0 wherever there is a bound beyond rounding.
+      double count = 0;
+      for (int x = x0; x < x1; ++x)
+        for (int c = 0; c < 3; ++c) {
+          const std::size_t i = std::size_t(x) * kChannels + c;
+          const double r = allowance ? allowance[i] : storage_term(oracle[i], rules.storage, p);
+          count += double(bound[i]) - r > 0;
+        }
+      t.base += count;
+      if (windows) w_count[wi] += count;
+      continue;
+    }
+    for (int x = x0; x < x1; ++x)
       for (int c = 0; c < 3; ++c) {
         const std::size_t i = std::size_t(x) * kChannels + c;
         const double o = oracle[i], g = gl[i], b = bound[i];
@@ -232,14 +270,15 @@ void judge_row(const JudgeRules& rules, int y, const float* gl, const float* ora
         if (special == 1) continue;
         const double err = std::fabs(g - o);
         double gate = 0;
-        if (rules.gates &&
-            gate_ratio(err, b, allowance ? allowance[i] : storage_term(o, rules.storage, p),
-                       slack ? slack[i] : 0.0f, gate)) {
-          t.excess += gate;
-          t.base += 1;
-          if (windows) {
-            w_excess[wi] += gate;
-            w_count[wi] += 1;
+        if (rules.gates) {
+          const double r = allowance ? allowance[i] : storage_term(o, rules.storage, p);
+          if (err == 0 ? b - r > 0 : gate_ratio(err, b, r, slack ? slack[i] : 0.0f, gate)) {
+            t.excess += gate;
+            t.base += 1;
+            if (windows) {
+              w_excess[wi] += gate;
+              w_count[wi] += 1;
+            }
           }
         }
         if (err == 0) {
@@ -248,7 +287,7 @@ void judge_row(const JudgeRules& rules, int y, const float* gl, const float* ora
         }
         t.max_abs = std::max(t.max_abs, err);
         if (o != 0) t.max_rel = std::max(t.max_rel, err / std::fabs(o));
-        const double ulps = (g - o) / ulp16_of(o);
+        const double ulps = (g - o) * inverse_ulp16(o);  // a power of two: exact
         t.max_ulp16 = std::max(t.max_ulp16, std::fabs(ulps));
         t.hist[static_cast<int>(std::clamp(std::round(ulps), -8.0, 8.0)) + 8]++;
         const double ratio = b > 0 ? err / b : INFINITY;
@@ -259,6 +298,7 @@ void judge_row(const JudgeRules& rules, int y, const float* gl, const float* ora
         }
         offer_worst(t, rules.worst_count, {x, y, c, o, g, err, b, {}});
       }
+  }
 }
 
 StageComparison conclude(const std::string& stage, Tally total, const JudgeRules& rules,
