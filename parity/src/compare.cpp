@@ -169,20 +169,34 @@ void decide(StageComparison& s) {
   }
 }
 
-// Whether texels [x0, x1) of a row have the oracle's RGB bits, finite and at most `limit` in
-// magnitude (f16: within half's range), with finite bounds: values judge_row would only count
-// (an error of 0, neither special nor unbounded).
+// Whether texels [x0, x1) of a row have the oracle's RGB values (== : -0 and +0 too), finite and
+// at most `limit` in magnitude (f16: within half's range), with finite bounds: values judge_row
+// would only count (an error of 0, neither special nor unbounded).
 bool same_values(const float* gl, const float* oracle, const float* bound, int x0, int x1,
                  float limit) {
-  bool same = true;
-  for (std::size_t i = std::size_t(x0) * kChannels; i < std::size_t(x1) * kChannels; ++i) {
-    if (i % kChannels == 3) continue;
-    std::uint32_t a, b;
-    std::memcpy(&a, gl + i, sizeof a);
-    std::memcpy(&b, oracle + i, sizeof b);
-    same &= a == b && std::fabs(oracle[i]) <= limit && bound[i] < INFINITY;
+  bool ok = true;
+  for (std::size_t i = std::size_t(x0) * kChannels; i < std::size_t(x1) * kChannels; i += kChannels)
+    for (int c = 0; c < 3; ++c)  // alpha is not judged
+      ok &= (gl[i + c] == oracle[i + c]) & (std::fabs(oracle[i + c]) <= limit) &
+            (bound[i + c] < INFINITY);
+  return ok;
+}
+
+// How many RGB values of texels [x0, x1) have a bound beyond their rounding allowance (the
+// storage term where `allowance` is null): double(b) - double(r) > 0, which for floats is b > r.
+std::uint64_t beyond_rounding(const float* oracle, const float* bound, const float* allowance,
+                              int x0, int x1, Storage storage, const DeviceProfile& p) {
+  std::uint32_t n = 0;
+  const std::size_t i0 = std::size_t(x0) * kChannels, i1 = std::size_t(x1) * kChannels;
+  if (allowance) {
+    for (std::size_t i = i0; i < i1; i += kChannels)
+      n += (bound[i] > allowance[i]) + (bound[i + 1] > allowance[i + 1]) +
+           (bound[i + 2] > allowance[i + 2]);
+    return n;
   }
-  return same;
+  for (std::size_t i = i0; i < i1; ++i)
+    if (i % kChannels != 3) n += double(bound[i]) - storage_term(oracle[i], storage, p) > 0;
+  return n;
 }
 
 }  // namespace
@@ -242,13 +256,8 @@ void judge_row(const JudgeRules& rules, int y, const float* gl, const float* ora
       t.hist[8] += m;
       if (!rules.gates) continue;
       // No error: no excess, a ratio of +0 wherever there is a bound beyond rounding.
-      double count = 0;
-      for (int x = x0; x < x1; ++x)
-        for (int c = 0; c < 3; ++c) {
-          const std::size_t i = std::size_t(x) * kChannels + c;
-          const double r = allowance ? allowance[i] : storage_term(oracle[i], rules.storage, p);
-          count += double(bound[i]) - r > 0;
-        }
+      const double count =
+          double(beyond_rounding(oracle, bound, allowance, x0, x1, rules.storage, p));
       t.base += count;
       if (windows) w_count[wi] += count;
       continue;
