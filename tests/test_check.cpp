@@ -536,3 +536,50 @@ TEST_CASE("the oracle computed stage by stage is the executor's, bit for bit", "
         CHECK(r.verdict == Verdict::pass);
       }
 }
+
+TEST_CASE("check's results are the same on any thread count", "[check]") {
+  // Every stage is judged in bands of rows on all threads; the bands' sums are added in row
+  // order, so nothing may depend on how many threads ran them: a flipped pass (failing, its
+  // causes tested) and a capture a little off everywhere (its gates' sums), on 1 and 3 threads.
+  const Image scene = test_scene();
+  std::map<std::string, Image> user = trace_of(test_params(), scene);
+  flip(user.at("blur.2"));
+  for (std::size_t i = 0; i < user.at("output").values().size(); ++i)
+    user.at("output").values()[i] *= 1.0001f;
+  std::vector<parity::ParityResult> runs;
+  for (int threads : {1, 3}) {
+    BloomParams p = test_params();
+    p.threads = threads;
+    runs.push_back(check(p, scene, user));
+  }
+  REQUIRE(runs[0].isolated.size() == runs[1].isolated.size());
+  REQUIRE(runs[0].verdict == Verdict::fail);
+  for (std::size_t i = 0; i < runs[0].isolated.size(); ++i)
+    for (const auto* pair : {&runs[0].isolated, &runs[0].end_to_end}) {
+      const bool iso = pair == &runs[0].isolated;
+      const parity::StageComparison& a = (*pair)[i];
+      const parity::StageComparison& b = iso ? runs[1].isolated[i] : runs[1].end_to_end[i];
+      INFO(a.stage << (iso ? " isolated" : " end to end"));
+      CHECK(a.verdict == b.verdict);
+      CHECK(a.reason == b.reason);
+      CHECK(a.over_bound == b.over_bound);
+      CHECK(a.max_ratio == b.max_ratio);
+      CHECK(a.max_ulp16 == b.max_ulp16);
+      CHECK(a.ulp_histogram == b.ulp_histogram);
+      CHECK(a.mean_excess == b.mean_excess);
+      CHECK(a.worst_window == b.worst_window);
+      CHECK(a.worst_window_x == b.worst_window_x);
+      REQUIRE(a.worst.size() == b.worst.size());
+      for (std::size_t j = 0; j < a.worst.size(); ++j) {
+        CHECK(a.worst[j].x == b.worst[j].x);
+        CHECK(a.worst[j].y == b.worst[j].y);
+        CHECK(a.worst[j].bound == b.worst[j].bound);
+      }
+      REQUIRE(a.causes.size() == b.causes.size());
+      for (std::size_t j = 0; j < a.causes.size(); ++j) {
+        CHECK(a.causes[j].id == b.causes[j].id);
+        CHECK(a.causes[j].within == b.causes[j].within);
+      }
+    }
+  CHECK(best_cause(stage(runs[0], "blur.2")) == "flipped-vertically");
+}

@@ -4,6 +4,7 @@
 // 924, 792, 495, 220, 66 over 4070. Needs no GL.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -151,6 +152,75 @@ TEST_CASE("blur: coordinate term from the local range, rounding from the magnitu
   Image bound(8, 1);
   b->fill(bound);
   CHECK(close(bound.pixel(0, 0)[0], (81 + 21) * u * 781 / 4070 + 0x1p-120));
+}
+
+TEST_CASE("blur bounds at every texel of small images: the windows written out plainly",
+          "[parity][bounds]") {
+  // The model (tolerance.cpp): a tap based at texel b = clamp(floor(pos +- o_i)) touches
+  // [b - 1, b + 2] along the axis and [q - 1, q + 1] across, clamped; its range is max - min and
+  // its magnitude max |t| over the finite texels there (+Inf with a NaN/Inf among them). The
+  // coordinate term is delta x sum_i w_i range_i, the filter term (3 + 2T) u x sum_i w_i
+  // magnitude_i (each sum in double, rounded to float). Computed here texel by texel, on every
+  // size from 1 to 6 along both axes (edges everywhere), both kernels, with one NaN texel and
+  // one row of one value (whose windows the bounds take as one).
+  const DeviceProfile p = profile_llvmpipe();
+  const BoundContext ctx{&p, Storage::f32, 3};
+  for (const Kernel* k : {&kernel_discrete9(), &kernel_linear5()})
+    for (Axis axis : {Axis::horizontal, Axis::vertical})
+      for (int w = 1; w <= 6; ++w)
+        for (int h = 1; h <= 6; ++h) {
+          Image img(w, h);
+          for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x)
+              for (int c = 0; c < 3; ++c)
+                img.pixel(x, y)[c] =
+                    static_cast<float>(((y == 1 ? c : x * 7 + y * 13 + c * 5) % 11) - 3) / 4;
+          if (w * h > 4) img.pixel(w / 2, h / 2)[1] = NAN;
+          const bool hz = axis == Axis::horizontal;
+          const int n = hz ? w : h;
+          const double delta = tol::coordinate_error(w, p) + tol::coordinate_error(h, p);
+          auto window = [&](int bx, int by, int c, bool range) {
+            float mn = INFINITY, mx = -INFINITY, ma = 0;
+            for (int a = -1; a <= 2; ++a)
+              for (int q = -1; q <= 1; ++q) {
+                const int xx = std::clamp(bx + (hz ? a : q), 0, w - 1);
+                const int yy = std::clamp(by + (hz ? q : a), 0, h - 1);
+                const float t = img.pixel(xx, yy)[c];
+                if (!std::isfinite(t)) {
+                  ma = INFINITY;
+                  continue;
+                }
+                mn = std::min(mn, t);
+                mx = std::max(mx, t);
+                ma = std::max(ma, std::fabs(t));
+              }
+            return range ? (mx >= mn ? mx - mn : 0.0f) : ma;
+          };
+          const auto b = tol::blur_bounds(img.cview(), img.cview(), axis, *k, ctx);
+          Image filled(w, h);
+          b->fill(filled);
+          for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x)
+              for (int c = 0; c < 3; ++c) {
+                double range = 0, magnitude = 0;
+                for (std::size_t i = 0; i < k->offsets_f64.size(); ++i)
+                  for (double sign : {1.0, -1.0}) {
+                    if (i == 0 && sign < 0) continue;
+                    const int pos = hz ? x : y;
+                    const int base = std::clamp(int(std::floor(pos + sign * k->offsets_f64[i])), 0, n - 1);
+                    range += k->weights_f64[i] * window(hz ? base : x, hz ? y : base, c, true);
+                    magnitude += k->weights_f64[i] * window(hz ? base : x, hz ? y : base, c, false);
+                  }
+                const auto t = b->terms(x, y, c);
+                INFO(k->taps() << " taps, " << (hz ? "horizontal " : "vertical ") << w << "x" << h
+                               << " at (" << x << ", " << y << ", " << c << ")");
+                CHECK(term(t, "coordinate") == delta * static_cast<float>(range));
+                const double filter = (3 + 2 * k->taps()) * u * static_cast<float>(magnitude);
+                if (std::isinf(magnitude)) CHECK(std::isinf(term(t, "filter")));
+                else CHECK(term(t, "filter") == filter);
+                CHECK(filled.pixel(x, y)[c] == static_cast<float>(total(t)));
+              }
+        }
 }
 
 TEST_CASE("an error propagated through one blur pass is its windowed, weighted magnitude",

@@ -7,13 +7,21 @@
 // bound plus what it inherited, plus the storage rounding of the recomputed value; the stages
 // that read it add that error, propagated through them, to their isolated bounds. A capture
 // carries none: it is what the device had.
+//
+// How it runs: stage by stage, in plan order, each stage in bands of rows on every thread. A
+// band's bounds (isolated, inherited, end to end, a capture's codes) are made in scratch rows
+// and judged at once; only the images later stages read are kept whole (the oracle's run, the
+// captures, the end-to-end bounds, what stages without capture carry), and each is released
+// once no later stage reads it.
 #include <algorithm>
 #include <chrono>
-#include <functional>
 #include <cmath>
+#include <functional>
+#include <cstring>
 #include <map>
 #include <memory>
 
+#include "bloomref/engine/fast_stages.h"
 #include "bloomref/error.h"
 #include "bloomref/mip.h"
 #include "bloomref/parallel.h"
@@ -28,57 +36,42 @@ using namespace detail;
 
 namespace {
 
-// A stage's bound terms plus extra per-value terms read from images (the error carried from
-// stages without capture, an 8-bit capture's half code), for the report's worst values.
+// Rows of a band in StageBounds' layout, band-local: a function of the band's isolated bound.
+using BandRows = std::function<void(int y0, int y1, const float* bound, float* out)>;
+
+// A stage's bound terms plus extra per-value terms (the error carried from stages without
+// capture, an 8-bit capture's half code), for the report's worst values.
 struct ExtraTerms : StageBounds {
+  using Value = std::function<double(int x, int y, int c)>;
   const StageBounds& inner;
-  std::vector<std::pair<std::string, const Image*>> extra;
-  ExtraTerms(const StageBounds& b, std::vector<std::pair<std::string, const Image*>> e)
+  std::vector<std::pair<std::string, Value>> extra;
+  ExtraTerms(const StageBounds& b, std::vector<std::pair<std::string, Value>> e)
       : inner(b), extra(std::move(e)) {}
-  void fill(Image& bound) const override { inner.fill(bound); }
-  void fill_rounding(Image& r) const override { inner.fill_rounding(r); }
+  void rows(int y0, int y1, float* bound, float* rounding) const override {
+    inner.rows(y0, y1, bound, rounding);
+  }
   std::vector<Term> terms(int x, int y, int c) const override {
     std::vector<Term> t = inner.terms(x, y, c);
-    for (const auto& [name, img] : extra)
-      if (img && !img->empty()) t.push_back({name, img->pixel(x, y)[c]});
+    for (const auto& [name, value] : extra)
+      if (value) t.push_back({name, value(x, y, c)});
     return t;
   }
 };
 
-void add_into(Image& dst, const Image& a, double scale = 1.0) {
-  for (std::size_t i = 0; i < dst.values().size(); ++i)
-    dst.values()[i] += static_cast<float>(scale * a.values()[i]);
-}
-
 // 1 - exp(-h k) has slope k exp(-h k), largest at the low end of h +- e.
-Image through_tonemap(ConstImageView h, const Image& e, double exposure) {
-  Image out(h.width, h.height, 0.0f);
-  for (int y = 0; y < h.height; ++y)
-    for (int x = 0; x < h.width; ++x)
-      for (int c = 0; c < 3; ++c) {
-        const double hv = h.pixel(x, y)[c], ev = e.pixel(x, y)[c];
-        out.pixel(x, y)[c] = std::isfinite(hv) && std::isfinite(ev)
-                                 ? static_cast<float>(exposure * std::exp(-(hv - ev) * exposure) * ev)
-                                 : INFINITY;
-      }
-  return out;
+float through_tonemap(double h, double e, double exposure) {
+  return std::isfinite(h) && std::isfinite(e)
+             ? static_cast<float>(exposure * std::exp(-(h - e) * exposure) * e)
+             : INFINITY;
 }
 
 // Gamma's slope is unbounded near black: bound by the interval's image instead.
-Image through_output(ConstImageView m, const Image& e, double gamma) {
-  Image out(m.width, m.height, 0.0f);
+float through_output(double m, double e, double gamma) {
   const double g = 1.0 / gamma;
-  for (int y = 0; y < m.height; ++y)
-    for (int x = 0; x < m.width; ++x)
-      for (int c = 0; c < 3; ++c) {
-        const double mv = m.pixel(x, y)[c], ev = e.pixel(x, y)[c];
-        out.pixel(x, y)[c] =
-            std::isfinite(mv) && std::isfinite(ev)
-                ? static_cast<float>(std::pow(std::max(mv + ev, 0.0), g) -
-                                     std::pow(std::max(mv - ev, 0.0), g))
-                : INFINITY;
-      }
-  return out;
+  return std::isfinite(m) && std::isfinite(e)
+             ? static_cast<float>(std::pow(std::max(m + e, 0.0), g) -
+                                  std::pow(std::max(m - e, 0.0), g))
+             : INFINITY;
 }
 
 double srgb_decode(double v) {
@@ -88,25 +81,24 @@ double srgb_encode(double v) {
   return v <= 0.0031308 ? v * 12.92 : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
 }
 
-// An 8-bit capture: the oracle clamped to [0, 1] (what the capture could hold) and half a code
-// of the capture's encoding at that value, as its own term image.
-Image capture_codes(const CapturedStage& cap, Image& oracle) {
-  Image q(oracle.width(), oracle.height(), 0.0f);
+// An 8-bit capture: the oracle value clamped to [0, 1] (what the capture could hold), in
+// place, and half a code of the capture's encoding at that value.
+float capture_code(const CapturedStage& cap, float& o) {
   const double h = 0.5 / ((1 << cap.code_bits) - 1);
-  for (std::size_t i = 0; i < oracle.values().size(); ++i) {
-    if (i % 4 == 3) continue;
-    float& o = oracle.values()[i];
-    if (!std::isnan(o)) o = std::clamp(o, 0.0f, 1.0f);
-    double step = h;
-    if (cap.srgb && std::isfinite(o)) {
-      const double e = srgb_encode(o);
-      step = std::max(srgb_decode(std::min(e + h, 1.0)) - o, o - srgb_decode(std::max(e - h, 0.0)));
-    }
-    q.values()[i] = static_cast<float>(step * (1 + 1e-6));  // the decode's own rounding
+  if (!std::isnan(o)) o = std::clamp(o, 0.0f, 1.0f);
+  double step = h;
+  if (cap.srgb && std::isfinite(o)) {
+    const double e = srgb_encode(o);
+    step = std::max(srgb_decode(std::min(e + h, 1.0)) - o, o - srgb_decode(std::max(e - h, 0.0)));
   }
-  return q;
+  return static_cast<float>(step * (1 + 1e-6));  // the decode's own rounding
 }
 
+// capture_code over n RGBA texels: the oracle clamped in place, the codes into `codes`.
+void capture_codes(const CapturedStage& cap, float* oracle, float* codes, std::size_t n) {
+  for (std::size_t i = 0; i < n * kChannels; ++i)
+    if (i % kChannels != 3) codes[i] = capture_code(cap, oracle[i]);
+}
 
 // The images a comparison holds, each released once no later stage needs it: the captures
 // (loaded when reached), the stages without capture (the oracle's, stored) and the error they
@@ -136,17 +128,19 @@ class Streams {
         }
   }
   bool captured(const std::string& n) const { return captured_.count(n) > 0; }
-  /// Releases every image of the isolated chain no stage after `done` (an index into the plan)
-  /// needs.
-  template <class... Maps>
-  void release_chain(int done, Maps&... maps) {
-    (release_in(chain_, done, maps), ...);
+  /// Whether a stage after `index` reads `n`.
+  bool read_after(const std::string& n, int index) const { return get(read_, n) > index; }
+  /// Hands `recycle` every image of the isolated chain no stage after `done` (an index into
+  /// the plan) needs, and drops it from its map.
+  template <class Recycle, class... Maps>
+  void release_chain(int done, Recycle recycle, Maps&... maps) {
+    (release_in(chain_, done, recycle, maps), ...);
   }
-  /// The same for the oracle's full run and its bounds, which only the stages that read them
-  /// need.
-  template <class... Maps>
-  void release_read(int done, Maps&... maps) {
-    (release_in(read_, done, maps), ...);
+  /// The same for the images only the stages that read them need: the oracle's full run, its
+  /// bounds, the error stages without capture carry.
+  template <class Recycle, class... Maps>
+  void release_read(int done, Recycle recycle, Maps&... maps) {
+    (release_in(read_, done, recycle, maps), ...);
   }
 
  private:
@@ -154,68 +148,21 @@ class Streams {
     const auto it = m.find(n);
     return it == m.end() ? -1 : it->second;
   }
-  template <class Map>
-  static void release_in(const std::map<std::string, int>& need, int done, Map& m) {
-    for (auto it = m.begin(); it != m.end();)
-      it = get(need, it->first) <= done ? m.erase(it) : std::next(it);
+  template <class Recycle, class Map>
+  static void release_in(const std::map<std::string, int>& need, int done, Recycle& recycle,
+                         Map& m) {
+    for (auto it = m.begin(); it != m.end();) {
+      if (get(need, it->first) > done) {
+        ++it;
+        continue;
+      }
+      recycle(it->second);
+      it = m.erase(it);
+    }
   }
   std::map<std::string, int> index_, read_, chain_;
   std::map<std::string, bool> captured_;
 };
-
-// The oracle's full run, stage by stage, as the CPU executor computes it: the same functions
-// (the fast blur and finishing stages give the reference's bits), stored after each stage.
-Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanitized,
-                   const std::vector<ConstImageView>& in, int subtexel_bits, HalfRounding rounding) {
-  const BloomParams& p = plan.params;
-  const int threads = p.threads;
-  Image out;
-  switch (spec.kind) {
-    case StageKind::input:
-      out = Image::uninitialised(sanitized.width, sanitized.height);
-      for (int y = 0; y < sanitized.height; ++y)
-        std::copy(sanitized.row(y), sanitized.row(y) + std::size_t(sanitized.width) * kChannels,
-                  out.view().row(y));
-      break;
-    case StageKind::bright:
-      out = Image::uninitialised(sanitized.width, sanitized.height);
-      extract_bright(sanitized, out.view(), p.threshold, threads);
-      break;
-    case StageKind::blur:
-      out = Image::uninitialised(in[0].width, in[0].height);
-      blur_pass_fast(in[0], out.view(), {spec.axis, &kernel_for(p.kernel), subtexel_bits}, threads);
-      break;
-    case StageKind::down: {
-      const LevelSize& l = plan.levels[spec.pass - 1];
-      out = Image::uninitialised(l.width, l.height);
-      const bool first = spec.pass == 1;
-      downsample(in[0], out.view(), {first, p.threshold, p.karis && first, subtexel_bits}, threads);
-      break;
-    }
-    case StageKind::up:
-    case StageKind::bloom: {
-      const bool up = spec.kind == StageKind::up;
-      out = up ? Image::uninitialised(in[1].width, in[1].height)
-               : Image::uninitialised(sanitized.width, sanitized.height);
-      upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads);
-      break;
-    }
-    case StageKind::composite:
-      out = Image::uninitialised(in[0].width, in[0].height);
-      composite(in[0], in[1], out.view(), p.strength, threads);
-      break;
-    case StageKind::tonemap:
-      out = Image::uninitialised(in[0].width, in[0].height);
-      tonemap_fast(in[0], out.view(), p.exposure, threads);
-      break;
-    case StageKind::output:
-      out = Image::uninitialised(in[0].width, in[0].height);
-      encode_output_fast(in[0], out.view(), p.gamma, threads);
-      break;
-  }
-  store(out.view(), p.storage, rounding, threads);
-  return out;
-}
 
 // A capture the comparison reads: a view of the caller's image, or one it loaded and owns.
 struct Held {
@@ -225,278 +172,717 @@ struct Held {
   bool srgb = false;
 };
 
-ParityResult compare_core(const Plan& plan, ConstImageView scene,
-                          const std::vector<std::string>& captured_names,
-                          const std::function<Held(const std::string&)>& load,
-                          const StageTrace* cpu, const DeviceProfile& profile,
-                          const CompareOptions& opt, double* oracle_ms) {
+// Stage-sized buffers the stages done hand back and the next ones take, instead of freeing them
+// and mapping new ones: a new buffer is faulted in page by page as it is first written (check
+// maps every block from 1 MiB, cmd_check.cpp), which took most of check's system time. Emptied
+// before each stage is judged, so that it never adds to the peak.
+class ImagePool {
+ public:
+  Image take(int w, int h) {
+    for (auto it = pool_.begin(); it != pool_.end(); ++it)
+      if (it->width() == w && it->height() == h) {
+        Image img = std::move(*it);
+        pool_.erase(it);
+        return img;
+      }
+    return Image::uninitialised(w, h);
+  }
+  void give(Image& img) {
+    if (!img.empty() && pool_.size() < kKeep) pool_.push_back(std::move(img));
+    img = Image();
+  }
+  void give(Held& h) { give(h.owned); }
+  void clear() { pool_.clear(); }
+
+ private:
+  static constexpr std::size_t kKeep = 4;
+  std::vector<Image> pool_;
+};
+
+Image copy_of(ConstImageView v, ImagePool& pool) {
+  Image out = pool.take(v.width, v.height);
+  for (int y = 0; y < v.height; ++y)
+    std::copy(v.row(y), v.row(y) + std::size_t(v.width) * kChannels, out.view().row(y));
+  return out;
+}
+
+// A stage of the oracle from its inputs, unrounded, as the CPU executor computes it: the same
+// functions (the fast blur and finishing stages give the reference's bits).
+Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanitized,
+                   const std::vector<ConstImageView>& in, int subtexel_bits, ImagePool& pool) {
   const BloomParams& p = plan.params;
-  const int threads = p.threads, w = scene.width, h = scene.height;
-  const BoundContext ctx{&profile, p.storage, threads};
-  const Kernel& kernel = kernel_for(p.kernel);
-  const HalfRounding rounding = half_rounding_for(profile);
-  ParityResult result;
-  result.profile = profile;
-  for (const std::string& name : captured_names)
-    if (!find_stage(plan, name))
-      throw ParamError("no stage '" + name + "' in this plan (" + to_string(p.method) + ", " +
-                       std::to_string(p.passes) + " passes)");
-  Streams streams(plan, captured_names, opt.causes);
-  double oracle_time = 0;
-
-  // The sanitised scene (unrounded): what the input pass computes before storing.
-  Image sanitized(w, h);
-  sanitize(scene, sanitized.view(), p.nonfinite, p.storage, threads);
-
-  std::map<std::string, Held> captures;   // loaded when reached
-  std::map<std::string, Image> computed;  // stages without capture: the oracle's, stored
-  std::map<std::string, Image> carried;   // and the error each carries
-  std::map<std::string, Image> full;      // the oracle's full run (when no trace is given)
-  std::map<std::string, Image> e2e;       // end-to-end bound of each stage, on the full run
-  auto V = [&](const std::string& n) -> ConstImageView {
-    const auto c = captures.find(n);
-    if (c != captures.end()) return c->second.view;
-    const auto it = computed.find(n);
-    return it != computed.end() ? it->second.cview() : ConstImageView{};
-  };
-  auto E = [&](const std::string& n) -> const Image* {
-    const auto it = carried.find(n);
-    return it == carried.end() ? nullptr : &it->second;
-  };
-  auto C = [&](const std::string& n) -> const Image& {
-    if (!cpu) return full.at(n);
-    const StageResult* r = cpu->find(n);    if (!r) throw ParamError("the CPU trace has no stage '" + n + "'");
-    return r->image;
-  };
-  const float strength = p.strength;
-
-  for (std::size_t index = 0; index < plan.stages.size(); ++index) {
-    const StageSpec& spec = plan.stages[index];
-    const std::string& name = spec.name;
-    const std::vector<std::string> in = stage_inputs(plan, spec);
-    if (!cpu) {
-      const auto t0 = std::chrono::steady_clock::now();
-      std::vector<ConstImageView> cin;
-      for (const std::string& n : in) cin.push_back(full.at(n).cview());
-      full[name] = oracle_stage(plan, spec, sanitized.cview(), cin, profile.subtexel_bits, rounding);
-      oracle_time += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const int threads = p.threads;
+  Image out;
+  switch (spec.kind) {
+    case StageKind::input:
+      return copy_of(sanitized, pool);
+    case StageKind::bright:
+      out = pool.take(sanitized.width, sanitized.height);
+      extract_bright(sanitized, out.view(), p.threshold, threads);
+      break;
+    case StageKind::blur:
+      out = pool.take(in[0].width, in[0].height);
+      blur_pass_fast(in[0], out.view(), {spec.axis, &kernel_for(p.kernel), subtexel_bits}, threads);
+      break;
+    case StageKind::down: {
+      const LevelSize& l = plan.levels[spec.pass - 1];
+      out = pool.take(l.width, l.height);
+      const bool first = spec.pass == 1;
+      downsample(in[0], out.view(), {first, p.threshold, p.karis && first, subtexel_bits}, threads);
+      break;
     }
-    if (streams.captured(name)) captures[name] = load(name);
-    const Image& c = C(name);
-    Image oracle(c.width(), c.height()), bound(c.width(), c.height(), 0.0f);
-    Image e(c.width(), c.height(), 0.0f);  // end-to-end bound
-    Image inherited;  // the error carried in from inputs without capture (empty: none)
-    std::unique_ptr<StageBounds> b;
-    switch (spec.kind) {
-      case StageKind::input:
-        oracle = sanitized;
-        b = input_bounds(oracle.cview(), ctx);
-        b->fill(bound);
-        e = bound;
-        break;
-      case StageKind::bright:
-        extract_bright(sanitized.cview(), oracle.view(), p.threshold, threads);
-        b = bright_bounds(sanitized.cview(), p.threshold, ctx);
-        b->fill(bound);
-        e = bound;
-        break;
-      case StageKind::blur: {
-        const ConstImageView src = V(in[0]);
-        blur_pass(src, oracle.view(), {spec.axis, &kernel, profile.subtexel_bits}, threads);
-        b = blur_bounds(src, oracle.cview(), spec.axis, kernel, ctx);
-        b->fill(bound);
-        e = propagate_blur(e2e.at(in[0]).cview(), spec.axis, kernel, threads);
-        add_into(e, bound);
-        if (const Image* ce = E(in[0]))
-          inherited = propagate_blur(ce->cview(), spec.axis, kernel, threads);
-        break;
-      }
-      case StageKind::down: {
-        const int k = spec.pass;
-        const ConstImageView src = V(in[0]);
-        oracle = Image(plan.levels[k - 1].width, plan.levels[k - 1].height);
-        bound = Image(oracle.width(), oracle.height(), 0.0f);
-        const DownsampleOptions o{k == 1, p.threshold, p.karis && k == 1, profile.subtexel_bits};
-        downsample(src, oracle.view(), o, threads);
-        b = down_bounds(src, oracle.cview(), nullptr, k == 1, p.threshold, p.karis, ctx);
-        b->fill(bound);
-        if (const Image* ce = E(in[0])) {
-          // The carried error enters each tap (and the threshold's band): the bound with it,
-          // less the bound without, is what it adds.
-          Image with(bound.width(), bound.height(), 0.0f);
-          down_bounds(src, oracle.cview(), ce, k == 1, p.threshold, p.karis, ctx)->fill(with);
-          inherited = std::move(with);
-          add_into(inherited, bound, -1.0);
-        }
-        down_bounds(C(in[0]).cview(), c.cview(), &e2e.at(in[0]), k == 1, p.threshold, p.karis, ctx)
-            ->fill(e);
-        break;
-      }
-      case StageKind::up:
-      case StageKind::bloom: {
-        const bool up = spec.kind == StageKind::up;
-        const BasicView<const float> none{};
-        const ConstImageView small = V(in[0]);
-        const ConstImageView cur = up ? V(in[1]) : none;
-        oracle = up ? Image(cur.width, cur.height) : Image(w, h);
-        bound = Image(oracle.width(), oracle.height(), 0.0f);
-        upsample_tent(small, cur, oracle.view(), profile.subtexel_bits, threads);
-        b = up_bounds(small, cur, oracle.cview(), nullptr, nullptr, ctx);
-        b->fill(bound);
-        const Image* es = E(in[0]);
-        const Image* ec = up ? E(in[1]) : nullptr;
-        if (es || ec) {
-          Image with(bound.width(), bound.height(), 0.0f);
-          up_bounds(small, cur, oracle.cview(), es, ec, ctx)->fill(with);
-          inherited = std::move(with);
-          add_into(inherited, bound, -1.0);
-        }
-        up_bounds(C(in[0]).cview(), up ? C(in[1]).cview() : none, c.cview(), &e2e.at(in[0]),
-                  up ? &e2e.at(in[1]) : nullptr, ctx)
-            ->fill(e);
-        break;
-      }
-      case StageKind::composite: {
-        const ConstImageView sc = V(in[0]), bl = V(in[1]);
-        composite(sc, bl, oracle.view(), strength, threads);
-        b = composite_bounds(sc, bl, oracle.cview(), strength, ctx);
-        b->fill(bound);
-        e = e2e.at(in[0]);
-        add_into(e, e2e.at(in[1]), strength);
-        add_into(e, bound);
-        const Image *es = E(in[0]), *eb = E(in[1]);
-        if (es || eb) {
-          inherited = Image(w, h, 0.0f);
-          if (es) add_into(inherited, *es);
-          if (eb) add_into(inherited, *eb, strength);
-        }
-        break;
-      }
-      case StageKind::tonemap: {
-        const ConstImageView hd = V(in[0]);
-        tonemap(hd, oracle.view(), p.exposure, threads);
-        b = tonemap_bounds(hd, oracle.cview(), p.exposure, ctx);
-        b->fill(bound);
-        e = through_tonemap(C(in[0]).cview(), e2e.at(in[0]), p.exposure);
-        add_into(e, bound);
-        if (const Image* ce = E(in[0])) inherited = through_tonemap(hd, *ce, p.exposure);
-        break;
-      }
-      case StageKind::output: {
-        const ConstImageView m = V(in[0]);
-        encode_output(m, oracle.view(), p.gamma, threads);
-        b = output_bounds(m, oracle.cview(), p.gamma, ctx);
-        b->fill(bound);
-        e = through_output(C(in[0]).cview(), e2e.at(in[0]), p.gamma);
-        add_into(e, bound);
-        if (const Image* ce = E(in[0])) inherited = through_output(m, *ce, p.gamma);
-        break;
-      }
+    case StageKind::up:
+    case StageKind::bloom: {
+      const bool up = spec.kind == StageKind::up;
+      out = up ? pool.take(in[1].width, in[1].height)
+               : pool.take(sanitized.width, sanitized.height);
+      upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads);
+      break;
     }
-    if (!inherited.empty()) add_into(bound, inherited);
-    const StageOverride* over = stage_override(profile, name);
-    auto overridden = [&](Image& b) {
-      if (over && (over->scale != 1.0 || over->absolute != 0.0))
-        for (std::size_t i = 0; i < b.values().size(); ++i)
-          b.values()[i] = static_cast<float>(b.values()[i] * over->scale + over->absolute);
+    case StageKind::composite:
+      out = pool.take(in[0].width, in[0].height);
+      composite(in[0], in[1], out.view(), p.strength, threads);
+      break;
+    case StageKind::tonemap:
+      out = pool.take(in[0].width, in[0].height);
+      tonemap_fast(in[0], out.view(), p.exposure, threads);
+      break;
+    case StageKind::output:
+      out = pool.take(in[0].width, in[0].height);
+      encode_output_fast(in[0], out.view(), p.gamma, threads);
+      break;
+  }
+  return out;
+}
+
+// Rows of an input's end-to-end bound as a stage reads them: the image kept, or, for the input
+// stage (a function of the scene, which is held anyway), made again.
+struct BoundRows {
+  const Image* image = nullptr;
+  std::shared_ptr<const StageBounds> made;
+  // Rows [y0, y1) in StageBounds' layout: in the image, or made into `scratch`.
+  const float* rows(int y0, int y1, int w, std::vector<float>& scratch) const {
+    if (image) return image->cview().row(y0);
+    if (scratch.size() < std::size_t(y1 - y0) * w * kChannels) scratch.resize(std::size_t(y1 - y0) * w * kChannels);
+    made->rows(y0, y1, scratch.data(), nullptr);
+    return scratch.data();
+  }
+};
+
+// One stage's isolated oracle and bounds (StageWork::terms): the bound, what inputs without
+// capture carry into it (empty: nothing), and its end-to-end bound; each as band rows given the
+// band's isolated bound.
+struct StageTerms {
+  Image oracle;  // unrounded
+  std::unique_ptr<StageBounds> bound;
+  BandRows inherited, end_to_end;
+};
+
+// Scratch rows of a band, per thread (reused band after band).
+struct BandScratch {
+  std::vector<float> bound, rounding, inherited, e2e, judged, codes, codes_e2e, oracle_e2e, kept;
+  std::vector<float> read[2];  // end-to-end bounds of the inputs made again (BoundRows)
+  static float* rows(std::vector<float>& v, std::size_t n) {
+    if (v.size() < n) v.resize(n);
+    return v.data();
+  }
+};
+
+BandScratch& band_scratch() {
+  thread_local BandScratch s;
+  return s;
+}
+
+// a + b in float, value by value (the bounds' sums: each a float image before).
+void add_rows(float* a, const float* b, std::size_t n) {
+  for (std::size_t i = 0; i < n * kChannels; ++i) a[i] += b[i];
+}
+
+// What a band of a captured stage keeps whole (each null when not wanted): the end-to-end bound
+// as later stages read it, the isolated bound as judged, the error carried in.
+struct Kept {
+  Image *e2e = nullptr, *bound = nullptr, *inherited = nullptr;
+};
+
+class Comparison {
+ public:
+  Comparison(const Plan& plan, ConstImageView scene, const std::vector<std::string>& names,
+             const std::function<Held(const std::string&)>& load, const StageTrace* cpu,
+             const DeviceProfile& profile, const CompareOptions& opt)
+      : plan_(plan), p_(plan.params), scene_(scene), load_(load), cpu_(cpu), profile_(profile),
+        opt_(opt), threads_(p_.threads), ctx_{&profile, p_.storage, threads_},
+        kernel_(kernel_for(p_.kernel)), rounding_(half_rounding_for(profile)),
+        streams_(plan, names, opt.causes) {
+    result_.profile = profile;
+    for (const std::string& name : names)
+      if (!find_stage(plan, name))
+        throw ParamError("no stage '" + name + "' in this plan (" + to_string(p_.method) + ", " +
+                         std::to_string(p_.passes) + " passes)");
+  }
+
+  ParityResult run(double* oracle_ms);
+
+ private:
+  void sanitize_scene();
+  void oracle_full(const StageSpec& spec, const std::vector<std::string>& in);
+  StageTerms terms(const StageSpec& spec, const std::vector<std::string>& in);
+  StageTerms point_terms(const StageSpec& spec, const std::vector<std::string>& in);
+  StageTerms blur_terms(const StageSpec& spec, const std::vector<std::string>& in);
+  StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in);
+  void judge_captured(std::size_t index, StageTerms& t);
+  void band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept, bool judge);
+  ExtraTerms iso_terms(const StageTerms& t, const CapturedStage& cap, const Image& inherited) const;
+  ExtraTerms::Value codes_of(const CapturedStage& cap, ConstImageView oracle) const;
+  Image final_bound(const StageTerms& t);
+  void test_causes_of(const StageSpec& spec, StageComparison& iso, Image& oracle,
+                      const Image& bound);
+  void keep_uncaptured(std::size_t index, StageTerms& t);
+  ParityResult finish();
+
+  ConstImageView V(const std::string& n) const {  // a stage as the isolated oracle reads it
+    const auto c = captures_.find(n);
+    if (c != captures_.end()) return c->second.view;
+    const auto it = computed_.find(n);
+    return it != computed_.end() ? it->second.cview() : ConstImageView{};
+  }
+  const Image* E(const std::string& n) const {  // the error a stage without capture carries
+    const auto it = carried_.find(n);
+    return it == carried_.end() ? nullptr : &it->second;
+  }
+  ConstImageView C(const std::string& n) const {  // the oracle's full run
+    if (!cpu_) return n == "input" && input_is_scene_ ? sanitized_ : full_.at(n).cview();
+    const StageResult* r = cpu_->find(n);
+    if (!r) throw ParamError("the CPU trace has no stage '" + n + "'");
+    return r->image.cview();
+  }
+  BoundRows e2e_rows(const std::string& n) const {
+    const auto it = e2e_.find(n);
+    if (it != e2e_.end()) return {&it->second, nullptr};
+    return {nullptr, input_e2e_};
+  }
+  bool e2e_made_again(const std::string& n) const;
+  // The capture of the stage being judged, as judged (the profile may say every capture holds
+  // 8-bit codes).
+  CapturedStage capture(const std::string& n) const {
+    const Held& h = captures_.at(n);
+    return {h.view, std::max(h.code_bits, profile_.capture_code_bits), h.srgb};
+  }
+
+  const Plan& plan_;
+  const BloomParams& p_;
+  ConstImageView scene_, sanitized_;
+  const std::function<Held(const std::string&)>& load_;
+  const StageTrace* cpu_;
+  const DeviceProfile& profile_;
+  const CompareOptions& opt_;
+  const int threads_;
+  const BoundContext ctx_;
+  const Kernel& kernel_;
+  const HalfRounding rounding_;
+  Streams streams_;
+  ParityResult result_;
+  double oracle_time_ = 0;
+
+  ImagePool pool_;
+  Image sanitized_owned_;                  // when the policy changed the scene
+  bool input_is_scene_ = false;            // the full run's input is sanitized_ (f32 storage)
+  std::shared_ptr<const StageBounds> input_e2e_;  // input's end-to-end bound, made again
+  std::map<std::string, Held> captures_;   // loaded when reached
+  std::map<std::string, Image> computed_;  // stages without capture: the oracle's, stored
+  std::map<std::string, Image> carried_;   // and the error each carries
+  std::map<std::string, Image> full_;      // the oracle's full run (when no trace is given)
+  std::map<std::string, Image> e2e_;       // end-to-end bound of each stage, on the full run
+  const StageSpec* spec_ = nullptr;        // the stage being judged
+  std::string name_;
+  JudgeRules iso_rules_, e2e_rules_;       // how its values are judged
+};
+
+// The sanitised scene (unrounded): what the input pass computes before storing. A scene the
+// policy leaves as it is (every value finite and within range, the usual case) is read in
+// place.
+void Comparison::sanitize_scene() {
+  Image s = Image::uninitialised(scene_.width, scene_.height);
+  sanitize(scene_, s.view(), p_.nonfinite, p_.storage, threads_);
+  bool same = true;
+  for (int y = 0; y < scene_.height && same; ++y)
+    same = std::equal(scene_.row(y), scene_.row(y) + std::size_t(scene_.width) * kChannels,
+                      s.cview().row(y), [](float a, float b) {
+                        return std::memcmp(&a, &b, sizeof a) == 0;
+                      });
+  if (same) {
+    sanitized_ = scene_;
+    return;
+  }
+  sanitized_owned_ = std::move(s);
+  sanitized_ = sanitized_owned_.cview();
+}
+
+// The oracle's full run of one stage, stored as the device stores it.
+void Comparison::oracle_full(const StageSpec& spec, const std::vector<std::string>& in) {
+  if (cpu_) return;
+  // f32 storage leaves the input stage the sanitised scene itself: read in place.
+  if (spec.kind == StageKind::input && p_.storage == Storage::f32) {
+    input_is_scene_ = true;
+    return;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<ConstImageView> cin;
+  for (const std::string& n : in) cin.push_back(C(n));
+  Image out = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits, pool_);
+  store(out.view(), p_.storage, rounding_, threads_);
+  full_[spec.name] = std::move(out);
+  oracle_time_ +=
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Input, bright, composite, tonemap and output: bounds of the value at the same texel.
+StageTerms Comparison::point_terms(const StageSpec& spec, const std::vector<std::string>& in) {
+  std::vector<ConstImageView> cin;
+  for (const std::string& n : in) cin.push_back(V(n));
+  StageTerms t;
+  t.oracle = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits, pool_);
+  const ConstImageView o = t.oracle.cview();
+  const int w = o.width;
+  const float strength = p_.strength;
+  auto same_as_bound = [w](int y0, int y1, const float* b, float* out) {
+    std::copy(b, b + std::size_t(y1 - y0) * w * kChannels, out);
+  };
+  // A per-value function f(at value, image value) of an image's rows (an input's end-to-end
+  // bound, or the error it carries), plus the isolated bound when `plus_bound`.
+  auto through = [w](BoundRows img, ConstImageView at, auto f, bool plus_bound) -> BandRows {
+    return [=](int y0, int y1, const float* b, float* out) {
+      const float* e = img.rows(y0, y1, w, band_scratch().read[0]);
+      for (int y = y0; y < y1; ++y)
+        for (int x = 0; x < w; ++x)
+          for (int c = 0; c < 3; ++c) {
+            const std::size_t i = (std::size_t(y - y0) * w + x) * kChannels + c;
+            const float v = f(at.pixel(x, y)[c], e[i]);
+            out[i] = plus_bound ? v + b[i] : v;
+          }
     };
-    const ImageGates& gates = over && over->has_gates ? over->gates : profile.gates;
-
-    const auto cap = captures.find(name);
-    if (cap != captures.end()) {
-      const CapturedStage cs{cap->second.view, cap->second.code_bits, cap->second.srgb};
-      Image codes, codes_e2e;
-      Image oracle_e2e;
-      const Image* e2e_oracle = &c;
-      CapturedStage cs_bits = cs;  // the profile may say every capture holds 8-bit codes
-      cs_bits.code_bits = std::max(cs.code_bits, profile.capture_code_bits);
-      if (cs_bits.code_bits > 0) {
-        codes = capture_codes(cs_bits, oracle);
-        add_into(bound, codes);
-        oracle_e2e = c;
-        codes_e2e = capture_codes(cs_bits, oracle_e2e);
-        e2e_oracle = &oracle_e2e;
-      }
-      // The end-to-end bound as judged (plus the capture's codes, the override): in place when
-      // no later stage reads it, else a copy.
-      const bool e_read_later = std::any_of(plan.stages.begin() + index + 1, plan.stages.end(),
-                                            [&](const StageSpec& later) {
-                                              const auto li = stage_inputs(plan, later);
-                                              return std::find(li.begin(), li.end(), name) != li.end();
-                                            });
-      const bool e_changes = !codes_e2e.empty() || (over && (over->scale != 1.0 || over->absolute != 0.0));
-      Image e_copy;
-      if (e_changes && e_read_later) e_copy = e;
-      Image& e_judged = e_changes && e_read_later ? e_copy : e;
-      if (!codes_e2e.empty()) add_into(e_judged, codes_e2e);
-      overridden(bound);
-      overridden(e_judged);
-      // The gates' allowance: the capture's own rounding; and with f16 storage, what stages
-      // without capture carry, which holds their roundings (llvmpipe's toward zero is biased:
-      // half an ULP a stage on average, as systematic as the offsets the gates look for).
-      const ExtraTerms terms(*b, {{"carried from stages without capture", &inherited},
-                                  {"8-bit capture: half a code", &codes}});
-      const ExtraTerms terms_e2e(*b, {{"8-bit capture: half a code", &codes_e2e}});
-      // The gates measure the error beyond rounding: the stage's own (its storage and
-      // arithmetic terms, scaled as an override scales the bound) and the capture's codes.
-      Image own_rounding(oracle.width(), oracle.height(), 0.0f);
-      b->fill_rounding(own_rounding);
-      if (over && over->scale != 1.0)
-        for (float& v : own_rounding.values()) v = static_cast<float>(v * over->scale);
-      if (!codes.empty()) add_into(own_rounding, codes);
-      StageComparison iso = judge(name, cs.image, oracle.cview(), bound, terms, p.storage,
-                                  profile, opt, threads, &gates, &own_rounding,
-                                  p.storage == Storage::f16 && !inherited.empty() ? &inherited
-                                                                                  : nullptr);
-      if (opt.causes && iso.verdict != Verdict::pass) {
-        CauseContext cc{plan, sanitized.cview(), profile, rounding, threads,
-                        [&](const std::string& n) { return V(n); },
-                        [&](const std::string& n) { return streams.captured(n); }};
-        CompareOptions quick;
-        quick.worst_count = 0;
-        // A hypothesis changes the stage's arithmetic, which the bound was derived for: each
-        // is judged with the bound plus its own rounding, 32 f32 ULPs of its value (the
-        // stages' longest chain, a 9-tap sum, rounds 2 x 9 + 3 times), and so is the oracle
-        // itself for the baseline, so that a hypothesis equal to the oracle scores the same.
-        auto score = [&](Image& variant) {
-          if (cs_bits.code_bits > 0) capture_codes(cs_bits, variant);
-          Image relaxed = bound;
-          for (std::size_t i = 0; i < relaxed.values().size(); ++i)
-            relaxed.values()[i] += static_cast<float>(32 * kU * std::fabs(variant.values()[i]));
-          return judge(name, cs.image, variant.cview(), relaxed, terms, p.storage, profile, quick,
-                       threads)
-              .within();
+  };
+  switch (spec.kind) {
+    case StageKind::input:
+      t.bound = input_bounds(o, ctx_);
+      t.end_to_end = same_as_bound;
+      break;
+    case StageKind::bright:
+      t.bound = bright_bounds(sanitized_, p_.threshold, ctx_);
+      t.end_to_end = same_as_bound;
+      break;
+    case StageKind::composite: {
+      t.bound = composite_bounds(cin[0], cin[1], o, strength, ctx_);
+      const BoundRows e0 = e2e_rows(in[0]), e1 = e2e_rows(in[1]);
+      t.end_to_end = [=](int y0, int y1, const float* b, float* out) {
+        BandScratch& s = band_scratch();
+        const float *a = e0.rows(y0, y1, w, s.read[0]), *d = e1.rows(y0, y1, w, s.read[1]);
+        for (std::size_t i = 0; i < std::size_t(y1 - y0) * w * kChannels; ++i)
+          out[i] = a[i] + static_cast<float>(double(strength) * d[i]) + b[i];
+      };
+      const Image *es = E(in[0]), *eb = E(in[1]);
+      if (es || eb)
+        t.inherited = [=](int y0, int y1, const float*, float* out) {
+          for (int y = y0; y < y1; ++y)
+            for (int x = 0; x < w; ++x)
+              for (int c = 0; c < 3; ++c) {
+                float v = 0.0f;
+                if (es) v += es->pixel(x, y)[c];
+                if (eb) v += static_cast<float>(double(strength) * eb->pixel(x, y)[c]);
+                out[(std::size_t(y - y0) * w + x) * kChannels + c] = v;
+              }
         };
-        Image baseline = oracle;
-        const double oracle_score = score(baseline);
-        iso.causes = test_causes(cc, spec, oracle_score, score);
-      }
-      result.isolated.push_back(std::move(iso));
-      result.end_to_end.push_back(judge(name, cs.image, e2e_oracle->cview(), e_judged, terms_e2e,
-                                        p.storage, profile, opt, threads));
-    } else {
-      // Stored as the device stores it; the rounding adds to what it carries.
-      Image stored = oracle;
-      store(stored.view(), p.storage, rounding, threads);
-      for (std::size_t i = 0; i < bound.values().size(); ++i)
-        bound.values()[i] += std::fabs(stored.values()[i] - oracle.values()[i]);
-      computed[name] = std::move(stored);
-      carried[name] = std::move(bound);
+      break;
     }
-    e2e[name] = std::move(e);
-    streams.release_chain(static_cast<int>(index), captures, computed, carried);
-    streams.release_read(static_cast<int>(index), full, e2e);
+    case StageKind::tonemap:
+    case StageKind::output: {
+      const bool tm = spec.kind == StageKind::tonemap;
+      t.bound = tm ? tonemap_bounds(cin[0], o, p_.exposure, ctx_)
+                   : output_bounds(cin[0], o, p_.gamma, ctx_);
+      const double k = tm ? double(p_.exposure) : double(p_.gamma);
+      auto f = [tm, k](float h, float e) {
+        return tm ? through_tonemap(h, e, k) : through_output(h, e, k);
+      };
+      t.end_to_end = through(e2e_rows(in[0]), C(in[0]), f, true);
+      if (const Image* ce = E(in[0])) t.inherited = through({ce, nullptr}, cin[0], f, false);
+      break;
+    }
+    default:
+      break;
   }
-  if (oracle_ms) *oracle_ms = oracle_time;
+  return t;
+}
 
-  for (const StageComparison& s : result.isolated) {
-    if (s.verdict != Verdict::pass && !result.first_divergent_stage)
-      result.first_divergent_stage = s.stage;
-    result.verdict = std::max(result.verdict, s.verdict);
+// blur.k: the bounds of the pass; the end-to-end bound and the carried error propagated
+// through it.
+StageTerms Comparison::blur_terms(const StageSpec& spec, const std::vector<std::string>& in) {
+  const ConstImageView src = V(in[0]);
+  StageTerms t;
+  t.oracle = oracle_stage(plan_, spec, sanitized_, {src}, profile_.subtexel_bits, pool_);
+  t.bound = blur_bounds(src, t.oracle.cview(), spec.axis, kernel_, ctx_);
+  const int w = src.width;
+  auto e = std::make_shared<BlurPropagation>(e2e_.at(in[0]).cview(), spec.axis, kernel_);
+  t.end_to_end = [e, w](int y0, int y1, const float* b, float* out) {
+    e->rows(y0, y1, out);
+    add_rows(out, b, std::size_t(y1 - y0) * w);
+  };
+  if (const Image* ce = E(in[0])) {
+    auto c = std::make_shared<BlurPropagation>(ce->cview(), spec.axis, kernel_);
+    t.inherited = [c](int y0, int y1, const float*, float* out) { c->rows(y0, y1, out); };
   }
-  for (const StageComparison& s : result.end_to_end)
-    result.verdict = std::max(result.verdict, s.verdict);
-  return result;
+  return t;
+}
+
+// down.k, up.k, bloom: every tap's window on the level it reads. The carried error enters each
+// tap (and the threshold's band): the bound with it, less the bound without, is what it adds.
+StageTerms Comparison::mip_terms(const StageSpec& spec, const std::vector<std::string>& in) {
+  const bool down = spec.kind == StageKind::down, up = spec.kind == StageKind::up;
+  const int k = spec.pass;
+  std::vector<ConstImageView> cin;
+  for (const std::string& n : in) cin.push_back(V(n));
+  StageTerms t;
+  t.oracle = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits, pool_);
+  const ConstImageView o = t.oracle.cview(), none{};
+  auto bounds = [&](ConstImageView a, ConstImageView b, ConstImageView out, const Image* ea,
+                    const Image* eb) -> std::shared_ptr<StageBounds> {
+    if (down) return down_bounds(a, out, ea, k == 1, p_.threshold, p_.karis, ctx_);
+    return up_bounds(a, up ? b : none, out, ea, up ? eb : nullptr, ctx_);
+  };
+  t.bound = down ? down_bounds(cin[0], o, nullptr, k == 1, p_.threshold, p_.karis, ctx_)
+                 : up_bounds(cin[0], up ? cin[1] : none, o, nullptr, nullptr, ctx_);
+  const Image* es = E(in[0]);
+  const Image* ec = up ? E(in[1]) : nullptr;
+  const int w = o.width;
+  if (es || ec) {
+    std::shared_ptr<StageBounds> with = bounds(cin[0], up ? cin[1] : none, o, es, ec);
+    t.inherited = [with, w](int y0, int y1, const float* b, float* out) {
+      with->rows(y0, y1, out, nullptr);
+      for (std::size_t i = 0; i < std::size_t(y1 - y0) * w * kChannels; ++i)
+        out[i] += static_cast<float>(-1.0 * b[i]);
+    };
+  }
+  std::shared_ptr<StageBounds> e =
+      bounds(C(in[0]), up ? C(in[1]) : none, C(spec.name),
+             &e2e_.at(in[0]), up ? &e2e_.at(in[1]) : nullptr);
+  t.end_to_end = [e](int y0, int y1, const float*, float* out) { e->rows(y0, y1, out, nullptr); };
+  return t;
+}
+
+StageTerms Comparison::terms(const StageSpec& spec, const std::vector<std::string>& in) {
+  switch (spec.kind) {
+    case StageKind::blur: return blur_terms(spec, in);
+    case StageKind::down:
+    case StageKind::up:
+    case StageKind::bloom: return mip_terms(spec, in);
+    default: return point_terms(spec, in);
+  }
+}
+
+// Whether a stage's end-to-end bound is made again where it is read instead of kept: the input
+// stage's (a function of the scene, held anyway; kept for a downsample, which reads it through
+// windows), which the composite reads at the end of the run.
+bool Comparison::e2e_made_again(const std::string& n) const {
+  if (n != "input") return false;
+  for (const StageSpec& s : plan_.stages)
+    if (s.kind == StageKind::down) {
+      const std::vector<std::string> in = stage_inputs(plan_, s);
+      if (std::find(in.begin(), in.end(), n) != in.end()) return false;
+    }
+  return true;
+}
+
+bool same_bits(ConstImageView a, ConstImageView b) {
+  if (a.width != b.width || a.height != b.height) return false;
+  for (int y = 0; y < a.height; ++y)
+    if (std::memcmp(a.row(y), b.row(y), std::size_t(a.width) * kChannels * sizeof(float)) != 0)
+      return false;
+  return true;
+}
+
+ParityResult Comparison::run(double* oracle_ms) {
+  sanitize_scene();
+  input_e2e_ = input_bounds(sanitized_, ctx_);
+  for (std::size_t index = 0; index < plan_.stages.size(); ++index) {
+    const StageSpec& spec = plan_.stages[index];
+    spec_ = &spec;
+    name_ = spec.name;
+    const std::vector<std::string> in = stage_inputs(plan_, spec);
+    oracle_full(spec, in);
+    if (streams_.captured(name_)) {
+      Held& h = captures_[name_] = load_(name_);
+      // A capture of the input stage with the sanitised scene's bits (the usual case) is read
+      // there: the composite reads it at the end of the run, and it need not be held twice.
+      if (spec.kind == StageKind::input && same_bits(h.view, sanitized_)) {
+        h.owned = Image();
+        h.view = sanitized_;
+      }
+    }
+    // A blur or composite reads no full-run input for its bounds: release those now.
+    if (!cpu_ && (spec.kind == StageKind::blur || spec.kind == StageKind::composite))
+      for (const std::string& n : in)
+        if (!streams_.read_after(n, static_cast<int>(index)) && full_.count(n)) {
+          pool_.give(full_.at(n));
+          full_.erase(n);
+        }
+    StageTerms t = terms(spec, in);
+    if (streams_.captured(name_)) judge_captured(index, t);
+    else keep_uncaptured(index, t);
+    pool_.give(t.oracle);
+    auto recycle = [this](auto& img) { pool_.give(img); };
+    streams_.release_chain(static_cast<int>(index), recycle, captures_, computed_);
+    streams_.release_read(static_cast<int>(index), recycle, full_, e2e_, carried_);
+  }
+  if (oracle_ms) *oracle_ms = oracle_time_;
+  return finish();
+}
+
+// The override of a stage's bound in the profile (bound x scale + absolute), row by row.
+void override_rows(const StageOverride* over, float* b, std::size_t n) {
+  if (over && (over->scale != 1.0 || over->absolute != 0.0))
+    for (std::size_t i = 0; i < n * kChannels; ++i)
+      b[i] = static_cast<float>(b[i] * over->scale + over->absolute);
+}
+
+// Rows [y0, y0 + n / width) of an image from band rows: RGB, alpha 0 (as the bound images
+// always had).
+void put_rows(Image& img, int y0, const float* rows, std::size_t n) {
+  float* d = img.pixel(0, y0);
+  for (std::size_t i = 0; i < n * kChannels; ++i) d[i] = i % kChannels == 3 ? 0.0f : rows[i];
+}
+
+// One band of a captured stage: its bounds made, then both comparisons (none when `judge` is
+// false: a capture of another size).
+void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept,
+                               bool judge) {
+  const CapturedStage cap = capture(name_);
+  const StageOverride* over = stage_override(profile_, name_);
+  const std::size_t n = std::size_t(y1 - y0) * t.oracle.width(), values = n * kChannels;
+  const bool codes = judge && cap.code_bits > 0;
+  BandScratch& s = band_scratch();
+  float* bound = BandScratch::rows(s.bound, values);
+  float* rounding = BandScratch::rows(s.rounding, values);
+  float* inherited = t.inherited ? BandScratch::rows(s.inherited, values) : nullptr;
+  float* e = BandScratch::rows(s.e2e, values);
+  // The bound from the oracle as computed; the rounding part after an 8-bit capture's clamp.
+  t.bound->rows(y0, y1, bound, codes ? nullptr : rounding);
+  t.end_to_end(y0, y1, bound, e);
+  if (kept.e2e) put_rows(*kept.e2e, y0, e, n);
+  if (!judge) return;
+  if (inherited) {
+    t.inherited(y0, y1, bound, inherited);
+    if (kept.inherited) put_rows(*kept.inherited, y0, inherited, n);
+    add_rows(bound, inherited, n);
+  }
+  float* oracle = t.oracle.pixel(0, y0);
+  const float* full = C(name_).row(y0);
+  float* q = codes ? BandScratch::rows(s.codes, values) : nullptr;
+  if (codes) {
+    capture_codes(cap, oracle, q, n);
+    add_rows(bound, q, n);
+    t.bound->rows(y0, y1, nullptr, rounding);
+    float* o2 = BandScratch::rows(s.oracle_e2e, values);
+    float* q2 = BandScratch::rows(s.codes_e2e, values);
+    std::copy(full, full + values, o2);
+    capture_codes(cap, o2, q2, n);
+    add_rows(e, q2, n);
+    full = o2;
+  }
+  override_rows(over, bound, n);
+  override_rows(over, e, n);
+  if (kept.bound) put_rows(*kept.bound, y0, bound, n);
+  // The gates measure the error beyond rounding: the stage's own (its storage and arithmetic
+  // terms, scaled as an override scales the bound) and the capture's codes; with f16 storage,
+  // also what stages without capture carry, which holds their roundings (llvmpipe's toward zero
+  // is biased: half an ULP a stage on average, as systematic as the offsets the gates look for).
+  if (over && over->scale != 1.0)
+    for (std::size_t i = 0; i < values; ++i) rounding[i] = static_cast<float>(rounding[i] * over->scale);
+  if (codes) add_rows(rounding, q, n);
+  const float* slack = p_.storage == Storage::f16 ? inherited : nullptr;
+  const std::size_t row = std::size_t(t.oracle.width()) * kChannels;
+  for (int y = y0; y < y1; ++y) {
+    const std::size_t at = std::size_t(y - y0) * row;
+    judge_row(iso_rules_, y, cap.image.row(y), oracle + at, bound + at, rounding + at,
+              slack ? slack + at : nullptr, iso);
+    judge_row(e2e_rules_, y, cap.image.row(y), full + at, e + at, nullptr, nullptr, e2e);
+  }
+}
+
+// Runs `band(y0, y1, tally index)` over the stage's rows in bands of `rows`, on every thread.
+template <class Band>
+void over_bands(int height, int rows, int threads, Band band) {
+  const int bands = (height + rows - 1) / rows;
+  parallel_rows(bands, threads, [&](int b0, int b1) {
+    for (int b = b0; b < b1; ++b) band(b * rows, std::min(height, (b + 1) * rows), b);
+  });
+}
+
+// A captured stage: both comparisons, band by band; then, when it is not PASS, its causes, and
+// the images the report keeps.
+void Comparison::judge_captured(std::size_t index, StageTerms& t) {
+  const CapturedStage cap = capture(name_);
+  const int w = t.oracle.width(), h = t.oracle.height();
+  const bool fits = cap.image.width == w && cap.image.height == h;
+  const bool codes = cap.code_bits > 0;
+  const StageOverride* over = stage_override(profile_, name_);
+  const ImageGates& gates = over && over->has_gates ? over->gates : profile_.gates;
+  const bool uniform = fits && uniform_rgb(t.oracle.cview(), codes);
+  const std::size_t worst = static_cast<std::size_t>(opt_.worst_count);
+  iso_rules_ = {p_.storage, &profile_, worst, true, gates.window > 0 && !uniform ? gates.window_size : 0, w};
+  e2e_rules_ = {p_.storage, &profile_, worst, false, 0, w};
+  // Images kept whole: the end-to-end bound for the stages that read it; with an 8-bit capture,
+  // whose clamp changes the oracle the bounds read, the bound and what inputs carry as they were
+  // judged (without one, they are made again when needed).
+  Image e_kept, bound_kept, inherited_kept;
+  Kept kept;
+  if (streams_.read_after(name_, static_cast<int>(index)) && !e2e_made_again(name_))
+    kept.e2e = &(e_kept = pool_.take(w, h));
+  if (fits && codes && (opt_.causes || opt_.keep_images)) kept.bound = &(bound_kept = Image::uninitialised(w, h));
+  if (fits && codes && t.inherited) kept.inherited = &(inherited_kept = Image::uninitialised(w, h));
+  pool_.clear();
+  const int rows = judge_band(iso_rules_.window);
+  std::vector<Tally> iso((h + rows - 1) / rows), e2e(iso.size());
+  over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
+    band_captured(y0, y1, t, iso[b], e2e[b], kept, fits);
+  });
+  if (kept.e2e) e2e_[name_] = std::move(e_kept);
+  if (!fits) {
+    result_.isolated.push_back(size_fault(name_, cap.image, t.oracle.cview()));
+    result_.end_to_end.push_back(size_fault(name_, cap.image, t.oracle.cview()));
+    return;
+  }
+  Tally iso_total, e2e_total;
+  for (Tally& b : iso) iso_total.merge(std::move(b), worst);
+  for (Tally& b : e2e) e2e_total.merge(std::move(b), worst);
+  StageComparison s = conclude(name_, std::move(iso_total), iso_rules_, iso_terms(t, cap, inherited_kept),
+                               &gates, uniform);
+  const ExtraTerms e2e_terms(*t.bound, {{"8-bit capture: half a code", codes_of(cap, C(name_))}});
+  result_.end_to_end.push_back(conclude(name_, std::move(e2e_total), e2e_rules_, e2e_terms, nullptr, false));
+  const bool keep = opt_.keep_images && !(opt_.keep_failing_only && s.verdict == Verdict::pass);
+  if ((opt_.causes && s.verdict != Verdict::pass) || keep) {
+    Image bound = bound_kept.empty() ? final_bound(t) : std::move(bound_kept);
+    if (opt_.causes && s.verdict != Verdict::pass) test_causes_of(*spec_, s, t.oracle, bound);
+    if (keep) {
+      s.oracle = std::move(t.oracle);
+      s.bound = std::move(bound);
+    }
+  }
+  result_.isolated.push_back(std::move(s));
+}
+
+// The worst values' extra terms of an isolated comparison: what inputs without capture carry
+// (made again for one row, or read from `inherited` where it was kept) and the capture's codes.
+ExtraTerms Comparison::iso_terms(const StageTerms& t, const CapturedStage& cap,
+                                 const Image& inherited) const {
+  ExtraTerms::Value carried;
+  if (!inherited.empty())
+    carried = [&inherited](int x, int y, int c) { return double(inherited.pixel(x, y)[c]); };
+  else if (t.inherited)
+    carried = [&t](int x, int y, int c) {
+      const std::size_t n = std::size_t(t.oracle.width()) * kChannels;
+      std::vector<float> b(n), out(n);
+      t.bound->rows(y, y + 1, b.data(), nullptr);
+      t.inherited(y, y + 1, b.data(), out.data());
+      return double(out[std::size_t(x) * kChannels + c]);
+    };
+  return ExtraTerms(*t.bound, {{"carried from stages without capture", carried},
+                               {"8-bit capture: half a code", codes_of(cap, t.oracle.cview())}});
+}
+
+// Half a code of an 8-bit capture at each value of `oracle` (clamped first: the values as
+// judged); nothing for a float capture.
+ExtraTerms::Value Comparison::codes_of(const CapturedStage& cap, ConstImageView oracle) const {
+  if (cap.code_bits <= 0) return {};
+  return [cap, oracle](int x, int y, int c) {
+    float o = oracle.pixel(x, y)[c];
+    return double(capture_code(cap, o));
+  };
+}
+
+// The isolated bound as judged, whole: the stage's, what inputs without capture carry, the
+// profile's override (no 8-bit capture: judge_captured keeps that one as it goes).
+Image Comparison::final_bound(const StageTerms& t) {
+  const int w = t.oracle.width(), h = t.oracle.height();
+  const StageOverride* over = stage_override(profile_, name_);
+  Image out = Image::uninitialised(w, h);
+  over_bands(h, judge_band(0), threads_, [&](int y0, int y1, int) {
+    const std::size_t n = std::size_t(y1 - y0) * w;
+    BandScratch& s = band_scratch();
+    float* bound = BandScratch::rows(s.bound, n * kChannels);
+    t.bound->rows(y0, y1, bound, nullptr);
+    if (t.inherited) {
+      float* inherited = BandScratch::rows(s.inherited, n * kChannels);
+      t.inherited(y0, y1, bound, inherited);
+      add_rows(bound, inherited, n);
+    }
+    override_rows(over, bound, n);
+    put_rows(out, y0, bound, n);
+  });
+  return out;
+}
+
+// The cause hypotheses of a stage that is not PASS, each judged with the stage's bound plus its
+// own rounding: a hypothesis changes the stage's arithmetic, which the bound was derived for, so
+// 32 f32 ULPs of its value (the stages' longest chain, a 9-tap sum, rounds 2 x 9 + 3 times); and
+// so is the oracle itself for the baseline, so that a hypothesis equal to the oracle scores the
+// same.
+void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Image& oracle,
+                                const Image& bound) {
+  const CapturedStage cap = capture(name_);
+  const CauseContext cc{plan_, sanitized_, profile_, rounding_, threads_,
+                        [this](const std::string& n) { return V(n); },
+                        [this](const std::string& n) { return streams_.captured(n); }};
+  auto score = [&](Image& variant) {
+    if (cap.code_bits > 0) {
+      std::vector<float> q(variant.values().size());
+      capture_codes(cap, variant.data(), q.data(), variant.pixel_count());
+    }
+    return within_bound(cap.image, variant.cview(), bound, 32 * kU, p_.storage, profile_, threads_);
+  };
+  const double oracle_score = score(oracle);
+  iso.causes = test_causes(cc, spec, oracle_score, score);
+}
+
+// A stage without capture: the oracle's recomputation stored as the device stores it, carrying
+// its bound, what it inherited, and the storage rounding of the recomputed value.
+void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
+  const int w = t.oracle.width(), h = t.oracle.height();
+  const bool read_later = streams_.read_after(name_, static_cast<int>(index));
+  Image e_kept = read_later && !e2e_made_again(name_) ? pool_.take(w, h) : Image();
+  Image carried = read_later ? pool_.take(w, h) : Image();
+  pool_.clear();
+  over_bands(h, judge_band(0), threads_, [&](int y0, int y1, int) {
+    const std::size_t n = std::size_t(y1 - y0) * w, values = n * kChannels;
+    BandScratch& s = band_scratch();
+    float* bound = BandScratch::rows(s.bound, values);
+    float* e = BandScratch::rows(s.e2e, values);
+    t.bound->rows(y0, y1, bound, nullptr);
+    t.end_to_end(y0, y1, bound, e);
+    if (t.inherited) {
+      float* inherited = BandScratch::rows(s.inherited, values);
+      t.inherited(y0, y1, bound, inherited);
+      add_rows(bound, inherited, n);
+    }
+    float* unrounded = BandScratch::rows(s.kept, values);
+    float* o = t.oracle.pixel(0, y0);
+    std::copy(o, o + values, unrounded);
+    store(ImageView{w, y1 - y0, w, o}, p_.storage, rounding_, 1);
+    for (std::size_t i = 0; i < values; ++i) bound[i] += std::fabs(o[i] - unrounded[i]);
+    if (!e_kept.empty()) put_rows(e_kept, y0, e, n);
+    if (read_later) put_rows(carried, y0, bound, n);
+  });
+  computed_[name_] = std::move(t.oracle);
+  if (!e_kept.empty()) e2e_[name_] = std::move(e_kept);
+  if (read_later) carried_[name_] = std::move(carried);
+}
+
+ParityResult Comparison::finish() {
+  for (const StageComparison& s : result_.isolated) {
+    if (s.verdict != Verdict::pass && !result_.first_divergent_stage)
+      result_.first_divergent_stage = s.stage;
+    result_.verdict = std::max(result_.verdict, s.verdict);
+  }
+  for (const StageComparison& s : result_.end_to_end)
+    result_.verdict = std::max(result_.verdict, s.verdict);
+  return std::move(result_);
 }
 
 }  // namespace
@@ -506,10 +892,11 @@ ParityResult compare_captured(const Plan& plan, ConstImageView scene,
                               const DeviceProfile& profile, const CompareOptions& opt) {
   std::vector<std::string> names;
   for (const auto& [name, c] : captured) names.push_back(name);
-  return compare_core(plan, scene, names, [&](const std::string& n) {
+  const std::function<Held(const std::string&)> load = [&](const std::string& n) {
     const CapturedStage& c = captured.at(n);
     return Held{c.image, {}, c.code_bits, c.srgb};
-  }, &cpu, profile, opt, nullptr);
+  };
+  return Comparison(plan, scene, names, load, &cpu, profile, opt).run(nullptr);
 }
 
 ParityResult check_with_oracle(const Plan& plan, ConstImageView scene,
@@ -517,22 +904,24 @@ ParityResult check_with_oracle(const Plan& plan, ConstImageView scene,
                                const CompareOptions& opt, double* cpu_ms) {
   std::vector<std::string> names;
   for (const auto& [name, c] : captured) names.push_back(name);
-  return compare_core(plan, scene, names, [&](const std::string& n) {
+  const std::function<Held(const std::string&)> load = [&](const std::string& n) {
     const CapturedStage& c = captured.at(n);
     return Held{c.image, {}, c.code_bits, c.srgb};
-  }, nullptr, profile, opt, cpu_ms);
+  };
+  return Comparison(plan, scene, names, load, nullptr, profile, opt).run(cpu_ms);
 }
 
 ParityResult compare_streamed(const Plan& plan, ConstImageView scene,
                               const std::vector<std::string>& captured, const CaptureLoader& load,
                               const DeviceProfile& profile, const CompareOptions& opt,
                               double* oracle_ms) {
-  return compare_core(plan, scene, captured, [&](const std::string& n) {
+  const std::function<Held(const std::string&)> held = [&](const std::string& n) {
     OwnedCapture o = load(n);
-    Held held{{}, std::move(o.image), o.code_bits, o.srgb};
-    held.view = held.owned.cview();
-    return held;
-  }, nullptr, profile, opt, oracle_ms);
+    Held h{{}, std::move(o.image), o.code_bits, o.srgb};
+    h.view = h.owned.cview();
+    return h;
+  };
+  return Comparison(plan, scene, captured, held, nullptr, profile, opt).run(oracle_ms);
 }
 
 }  // namespace bloomref::parity

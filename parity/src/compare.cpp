@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <mutex>
 #include <tuple>
@@ -28,9 +29,19 @@ namespace {
 
 constexpr double kWarnTier = 4.0;  // over the derived bound but within 4x: WARN
 
-double ulp16_of(double v) {
-  const double a = std::fabs(v);
-  return std::ldexp(1.0, (a > 0 ? std::max(std::ilogb(a), -14) : -14) - 10);
+// 1 / (one f16 ULP at v), exactly: the ULP is 2^(max(e, -14) - 10) for |v| = m 2^e
+// (1 <= m < 2), 2^-24 for 0, read from the exponent bits (as ilogb gives it for every finite
+// double: a subnormal double's exponent is below -14 either way). A power of two between 2^-117
+// and 2^24, so multiplying by it is dividing by the ULP, exactly.
+double inverse_ulp16(double v) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &v, sizeof bits);
+  const int e = static_cast<int>((bits >> 52) & 0x7ff) - 1023;
+  const int k = (v != 0 ? std::max(e, -14) : -14) - 10;
+  const std::uint64_t out = std::uint64_t(1023 - k) << 52;
+  double r;
+  std::memcpy(&r, &out, sizeof r);
+  return r;
 }
 
 // Whether a non-finite or overflowing pair is acceptable, decided without a bound.
@@ -55,9 +66,12 @@ int special_case(double o, double g, Storage storage, const DeviceProfile& p, do
   return -1;
 }
 
+// The key the worst values are ordered by: error / bound.
+double worst_key(const WorstValue& w) { return w.error / std::max(w.bound, 1e-300); }
+
 // Orders by error / bound, largest first; position breaks ties so the list is deterministic.
 bool worse(const WorstValue& a, const WorstValue& b) {
-  const double ra = a.error / std::max(a.bound, 1e-300), rb = b.error / std::max(b.bound, 1e-300);
+  const double ra = worst_key(a), rb = worst_key(b);
   if (ra != rb) return ra > rb;
   return std::tie(a.y, a.x, a.channel) < std::tie(b.y, b.x, b.channel);
 }
@@ -68,65 +82,29 @@ void keep_worst(std::vector<WorstValue>& w, std::size_t n) {
   w.resize(keep);
 }
 
-// Counts over a row range; merged by sums and maxima, so the result is thread-count independent.
-struct Tally {
-  std::uint64_t values = 0, over = 0, mismatch = 0, beyond_tier = 0;
-  double excess = 0, base = 0;  // the image gates' sums (gate_sums): ratios, and their count
-  double max_abs = 0, max_rel = 0, max_ulp16 = 0, max_ratio = 0;
-  std::vector<std::uint64_t> hist = std::vector<std::uint64_t>(17, 0);
-  std::vector<WorstValue> worst;
-};
-
-// What the image gates take off each value (judge.h): rounding from both error and bound,
-// slack from the error only.
-struct GateAllowance {
-  const Image* rounding = nullptr;
-  const Image* slack = nullptr;
-};
-
-// One value's part in the image gates: its error beyond the rounding it is allowed over its
-// bound beyond the same (at most 4: beyond, the value fails anyway), added to `sum`; `count`
-// counts the values with something to bound. A mean of these ratios, not a ratio of sums: the
-// bounds span many orders of magnitude (a light's edge against flat sky), and a ratio of sums
-// would only see the largest.
-inline void gate_sums(double err, double b, double o, Storage storage, const DeviceProfile& p,
-                      GateAllowance a, int x, int y, int c, double& sum, double& count) {
-  const double r = a.rounding ? a.rounding->pixel(x, y)[c] : storage_term(o, storage, p);
-  const double excess = std::max(0.0, err - r - (a.slack ? a.slack->pixel(x, y)[c] : 0.0f));
-  const double base = b - r;
-  if (!(base > 0)) return;
-  sum += std::min(excess / base, 4.0);
-  count += 1;
+// Adds a value to the band's worst values when it may be among the n worst. Past 4096 the list
+// is cut to the n worst, whose smallest key then bounds what may enter (ties enter: position
+// decides them).
+void offer_worst(Tally& t, std::size_t n, WorstValue w) {
+  if (n == 0 || worst_key(w) < t.worst_floor) return;
+  t.worst.push_back(std::move(w));
+  if (t.worst.size() > 4096) {
+    keep_worst(t.worst, n);
+    if (t.worst.size() == n) t.worst_floor = worst_key(t.worst.back());
+  }
 }
 
-// The worst window's ratio of excess to bound, over non-overlapping n x n blocks (blocks with
-// nothing to bound left out), and its top-left texel; ties go to the first block in row order.
-double worst_window(ConstImageView gl, ConstImageView oracle, const Image& bound, Storage storage,
-                    const DeviceProfile& p, GateAllowance allowance, int n, int threads, int& wx,
-                    int& wy) {
-  const int bw = (gl.width + n - 1) / n, bh = (gl.height + n - 1) / n;
-  std::vector<double> ratio(std::size_t(bw) * bh, 0.0);
-  parallel_rows(bh, threads, [&](int b0, int b1) {
-    for (int by = b0; by < b1; ++by)
-      for (int bx = 0; bx < bw; ++bx) {
-        double excess = 0, base = 0;
-        for (int y = by * n; y < std::min(gl.height, (by + 1) * n); ++y)
-          for (int x = bx * n; x < std::min(gl.width, (bx + 1) * n); ++x)
-            for (int c = 0; c < 3; ++c) {
-              const double o = oracle.pixel(x, y)[c], g = gl.pixel(x, y)[c];
-              const double b = bound.pixel(x, y)[c];
-              // The values the main loop compares against their bound, no others.
-              if (!(b < INFINITY) || special_case(o, g, storage, p, b) != -1) continue;
-              gate_sums(std::fabs(g - o), b, o, storage, p, allowance, x, y, c, excess, base);
-            }
-        ratio[std::size_t(by) * bw + bx] = base > 0 ? excess / base : 0.0;  // sum / count
-      }
-  });
-  const auto it = std::max_element(ratio.begin(), ratio.end());
-  const std::size_t i = static_cast<std::size_t>(it - ratio.begin());
-  wx = static_cast<int>(i % bw) * n;
-  wy = static_cast<int>(i / bw) * n;
-  return *it;
+// One value's part in the image gates: its error beyond the rounding it is allowed (r, and the
+// slack taken off the error only) over its bound beyond the same, at most 4 (beyond, the value
+// fails anyway); false when nothing is left to bound. A mean of these ratios, not a ratio of
+// sums: the bounds span many orders of magnitude (a light's edge against flat sky), and a ratio
+// of sums would only see the largest.
+inline bool gate_ratio(double err, double b, double r, double slack, double& ratio) {
+  const double excess = std::max(0.0, err - r - slack);
+  const double base = b - r;
+  if (!(base > 0)) return false;
+  ratio = std::min(excess / base, 4.0);
+  return true;
 }
 
 std::string fixed3(double v) {
@@ -135,135 +113,48 @@ std::string fixed3(double v) {
   return b;
 }
 
-}  // namespace
-
-// Whether every texel's RGB equals the first texel's (bit for bit, NaN never equal): on such an
-// image every value has the same error, so a mean or a window mean is one sample of it, not an
-// average over independent roundings, and the image gates would only tighten the per-value bound.
-bool uniform_rgb(ConstImageView img) {
-  if (img.width <= 0 || img.height <= 0) return true;
-  const float* first = img.pixel(0, 0);
-  for (int y = 0; y < img.height; ++y) {
-    const float* p = img.row(y);
-    for (int x = 0; x < img.width; ++x, p += kChannels)
-      if (!(p[0] == first[0] && p[1] == first[1] && p[2] == first[2])) return false;
+// The image gates of a stage (profile.h, ImageGates): the mean excess ratio, the worst window's,
+// and the first gate exceeded ("" when none).
+void apply_gates(StageComparison& s, const Tally& t, const ImageGates& gates, int window,
+                 int width) {
+  s.mean_excess = t.base > 0 ? t.excess / t.base : 0.0;  // sum / count
+  if (gates.window > 0 && window > 0 && !t.window_excess.empty()) {
+    // Windows with nothing to bound count as 0; ties go to the first in row order.
+    const int per_row = (width + window - 1) / window;
+    std::size_t best = 0;
+    double worst = -1;
+    for (std::size_t i = 0; i < t.window_excess.size(); ++i) {
+      const double r = t.window_count[i] > 0 ? t.window_excess[i] / t.window_count[i] : 0.0;
+      if (r > worst) {
+        worst = r;
+        best = i;
+      }
+    }
+    s.worst_window = worst;
+    s.worst_window_x = static_cast<int>(best % per_row) * window;
+    s.worst_window_y = static_cast<int>(best / per_row) * window;
   }
-  return true;
+  const double over = s.values ? double(s.over_bound) / double(s.values) : 0.0;
+  if (gates.mean > 0 && s.mean_excess > gates.mean)
+    s.gate = "the mean error is " + fixed3(s.mean_excess) + " of the bound beyond rounding (gate " +
+             fixed3(gates.mean) + ")";
+  else if (gates.window > 0 && s.worst_window > gates.window)
+    s.gate = "the " + std::to_string(gates.window_size) + "x" + std::to_string(gates.window_size) +
+             " window at (" + std::to_string(s.worst_window_x) + ", " +
+             std::to_string(s.worst_window_y) + ") has a mean error of " + fixed3(s.worst_window) +
+             " of its bound beyond rounding (gate " + fixed3(gates.window) + ")";
+  else if (gates.over_fraction > 0 && over > gates.over_fraction)
+    s.gate = fixed3(100 * over) + "% of the values exceed their bound (gate " +
+             fixed3(100 * gates.over_fraction) + "%)";
 }
 
-StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
-                      const Image& bound, const StageBounds& terms, Storage storage,
-                      const DeviceProfile& p, const CompareOptions& opt, int threads,
-                      const ImageGates* gates, const Image* allowance, const Image* slack) {
-  const GateAllowance ga{allowance, slack};
-  const std::size_t n_worst = static_cast<std::size_t>(opt.worst_count);
-  if (gl.width != oracle.width || gl.height != oracle.height) {
-    StageComparison s;
-    s.stage = stage;
-    s.verdict = Verdict::fail;
-    s.ulp_histogram.assign(17, 0);
-    s.max_ratio = INFINITY;
-    s.reason = "the GL image is " + std::to_string(gl.width) + "x" + std::to_string(gl.height) +
-               ", the oracle's is " + std::to_string(oracle.width) + "x" +
-               std::to_string(oracle.height);
-    return s;
-  }
-  Tally total;
-  std::mutex m;
-  parallel_rows(gl.height, threads, [&](int y0, int y1) {
-    Tally t;
-    for (int y = y0; y < y1; ++y)
-      for (int x = 0; x < gl.width; ++x)
-        for (int c = 0; c < 3; ++c) {
-          const double o = oracle.pixel(x, y)[c], g = gl.pixel(x, y)[c];
-          const double b = bound.pixel(x, y)[c];
-          ++t.values;
-          // An infinite (or NaN, from non-finite data) bound: unpinned by GL (NaN/Inf in the
-          // footprint, max(NaN, 0)); where NaN/Inf appear is still compared through the stages.
-          if (!(b < INFINITY)) continue;
-          const int special = special_case(o, g, storage, p, b);
-          if (special == 0) {
-            ++t.mismatch;
-            t.worst.push_back({x, y, c, o, g, INFINITY, b, {}});
-            continue;
-          }
-          if (special == 1) continue;
-          const double err = std::fabs(g - o);
-          if (gates) gate_sums(err, b, o, storage, p, ga, x, y, c, t.excess, t.base);
-          if (err == 0) {
-            t.hist[8]++;
-            continue;
-          }
-          t.max_abs = std::max(t.max_abs, err);
-          if (o != 0) t.max_rel = std::max(t.max_rel, err / std::fabs(o));
-          const double ulps = (g - o) / ulp16_of(o);
-          t.max_ulp16 = std::max(t.max_ulp16, std::fabs(ulps));
-          t.hist[static_cast<int>(std::clamp(std::round(ulps), -8.0, 8.0)) + 8]++;
-          const double ratio = b > 0 ? err / b : INFINITY;
-          t.max_ratio = std::max(t.max_ratio, ratio);
-          if (ratio > 1) {
-            ++t.over;
-            if (ratio > kWarnTier) ++t.beyond_tier;
-          }
-          t.worst.push_back({x, y, c, o, g, err, b, {}});
-          if (t.worst.size() > 4096) keep_worst(t.worst, n_worst);
-        }
-    keep_worst(t.worst, n_worst);
-    std::lock_guard<std::mutex> lock(m);
-    total.values += t.values;
-    total.over += t.over;
-    total.mismatch += t.mismatch;
-    total.beyond_tier += t.beyond_tier;
-    total.excess += t.excess;
-    total.base += t.base;
-    total.max_abs = std::max(total.max_abs, t.max_abs);
-    total.max_rel = std::max(total.max_rel, t.max_rel);
-    total.max_ulp16 = std::max(total.max_ulp16, t.max_ulp16);
-    total.max_ratio = std::max(total.max_ratio, t.max_ratio);
-    for (int i = 0; i < 17; ++i) total.hist[i] += t.hist[i];
-    total.worst.insert(total.worst.end(), t.worst.begin(), t.worst.end());
-  });
-  StageComparison s;
-  s.stage = stage;
-  s.values = total.values;
-  s.over_bound = total.over;
-  s.nonfinite_mismatch = total.mismatch;
-  s.max_abs = total.max_abs;
-  s.max_rel = total.max_rel;
-  s.max_ulp16 = total.max_ulp16;
-  s.max_ratio = total.max_ratio;
-  s.ulp_histogram = total.hist;
-  const std::uint64_t warn_tier = total.beyond_tier;
-  s.beyond_tier = total.beyond_tier;
-  std::vector<WorstValue> worst = std::move(total.worst);
-  keep_worst(worst, n_worst);
-  for (WorstValue& w : worst) w.terms = terms.terms(w.x, w.y, w.channel);
-  s.worst = std::move(worst);
-
-  if (gates && !uniform_rgb(oracle)) {
-    s.mean_excess = total.base > 0 ? total.excess / total.base : 0.0;  // sum / count
-    if (gates->window > 0 && gates->window_size > 0)
-      s.worst_window = worst_window(gl, oracle, bound, storage, p, ga, gates->window_size,
-                                    threads, s.worst_window_x, s.worst_window_y);
-    const double over = s.values ? double(s.over_bound) / double(s.values) : 0.0;
-    if (gates->mean > 0 && s.mean_excess > gates->mean)
-      s.gate = "the mean error is " + fixed3(s.mean_excess) + " of the bound beyond rounding (gate " +
-               fixed3(gates->mean) + ")";
-    else if (gates->window > 0 && s.worst_window > gates->window)
-      s.gate = "the " + std::to_string(gates->window_size) + "x" +
-               std::to_string(gates->window_size) + " window at (" +
-               std::to_string(s.worst_window_x) + ", " + std::to_string(s.worst_window_y) +
-               ") has a mean error of " + fixed3(s.worst_window) +
-               " of its bound beyond rounding (gate " + fixed3(gates->window) + ")";
-    else if (gates->over_fraction > 0 && over > gates->over_fraction)
-      s.gate = fixed3(100 * over) + "% of the values exceed their bound (gate " +
-               fixed3(100 * gates->over_fraction) + "%)";
-  }
-  if (s.nonfinite_mismatch > 0 || warn_tier > 0) {
+// The verdict and its reason from the counts and the gate.
+void decide(StageComparison& s) {
+  if (s.nonfinite_mismatch > 0 || s.beyond_tier > 0) {
     s.verdict = Verdict::fail;
     s.reason = s.nonfinite_mismatch > 0
                    ? std::to_string(s.nonfinite_mismatch) + " values are NaN/Inf on one side only"
-                   : std::to_string(warn_tier) + " values exceed " +
+                   : std::to_string(s.beyond_tier) + " values exceed " +
                          std::to_string(static_cast<int>(kWarnTier)) +
                          "x their derived bound (worst " + fixed3(s.max_ratio) + "x)";
   } else if (!s.gate.empty()) {
@@ -274,17 +165,243 @@ StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageVie
     s.reason = std::to_string(s.over_bound) + " values exceed their derived bound, by at most " +
                fixed3(s.max_ratio) + "x (within the 4x quality tier)";
   } else {
-    s.reason = "every value within its bound (largest error / bound " +
-               fixed3(s.max_ratio) + ")";
+    s.reason = "every value within its bound (largest error / bound " + fixed3(s.max_ratio) + ")";
   }
-  if (opt.keep_images && !(opt.keep_failing_only && s.verdict == Verdict::pass)) {
-    s.oracle = Image(gl.width, gl.height);
-    for (int y = 0; y < gl.height; ++y)
-      std::copy(oracle.row(y), oracle.row(y) + std::size_t(gl.width) * kChannels,
-                s.oracle.view().row(y));
-    s.bound = bound;
+}
+
+// Whether texels [x0, x1) of a row have the oracle's RGB values (== : -0 and +0 too), finite and
+// at most `limit` in magnitude (f16: within half's range), with finite bounds: values judge_row
+// would only count (an error of 0, neither special nor unbounded).
+bool same_values(const float* gl, const float* oracle, const float* bound, int x0, int x1,
+                 float limit) {
+  bool ok = true;
+  for (std::size_t i = std::size_t(x0) * kChannels; i < std::size_t(x1) * kChannels; i += kChannels)
+    for (int c = 0; c < 3; ++c)  // alpha is not judged
+      ok &= (gl[i + c] == oracle[i + c]) & (std::fabs(oracle[i + c]) <= limit) &
+            (bound[i + c] < INFINITY);
+  return ok;
+}
+
+// How many RGB values of texels [x0, x1) have a bound beyond their rounding allowance (the
+// storage term where `allowance` is null): double(b) - double(r) > 0, which for floats is b > r.
+std::uint64_t beyond_rounding(const float* oracle, const float* bound, const float* allowance,
+                              int x0, int x1, Storage storage, const DeviceProfile& p) {
+  std::uint32_t n = 0;
+  const std::size_t i0 = std::size_t(x0) * kChannels, i1 = std::size_t(x1) * kChannels;
+  if (allowance) {
+    for (std::size_t i = i0; i < i1; i += kChannels)
+      n += (bound[i] > allowance[i]) + (bound[i + 1] > allowance[i + 1]) +
+           (bound[i + 2] > allowance[i + 2]);
+    return n;
   }
+  for (std::size_t i = i0; i < i1; ++i)
+    if (i % kChannels != 3) n += double(bound[i]) - storage_term(oracle[i], storage, p) > 0;
+  return n;
+}
+
+}  // namespace
+
+StageComparison size_fault(const std::string& stage, ConstImageView gl, ConstImageView oracle) {
+  StageComparison s;
+  s.stage = stage;
+  s.verdict = Verdict::fail;
+  s.ulp_histogram.assign(17, 0);
+  s.max_ratio = INFINITY;
+  s.reason = "the GL image is " + std::to_string(gl.width) + "x" + std::to_string(gl.height) +
+             ", the oracle's is " + std::to_string(oracle.width) + "x" +
+             std::to_string(oracle.height);
   return s;
+}
+
+void Tally::merge(Tally&& band, std::size_t keep) {
+  values += band.values;
+  over += band.over;
+  mismatch += band.mismatch;
+  beyond_tier += band.beyond_tier;
+  excess += band.excess;
+  base += band.base;
+  max_abs = std::max(max_abs, band.max_abs);
+  max_rel = std::max(max_rel, band.max_rel);
+  max_ulp16 = std::max(max_ulp16, band.max_ulp16);
+  max_ratio = std::max(max_ratio, band.max_ratio);
+  for (std::size_t i = 0; i < hist.size(); ++i) hist[i] += band.hist[i];
+  worst.insert(worst.end(), std::make_move_iterator(band.worst.begin()),
+               std::make_move_iterator(band.worst.end()));
+  keep_worst(worst, keep);
+  window_excess.insert(window_excess.end(), band.window_excess.begin(), band.window_excess.end());
+  window_count.insert(window_count.end(), band.window_count.begin(), band.window_count.end());
+}
+
+void judge_row(const JudgeRules& rules, int y, const float* gl, const float* oracle,
+               const float* bound, const float* allowance, const float* slack, Tally& t) {
+  const DeviceProfile& p = *rules.profile;
+  const int n = rules.gates && rules.window > 0 ? rules.window : rules.width;
+  const bool windows = rules.gates && rules.window > 0;
+  const std::size_t per_row = std::size_t(rules.width + n - 1) / n;
+  if (windows && y % n == 0) {  // a new row of windows
+    t.window_excess.resize(t.window_excess.size() + per_row, 0.0);
+    t.window_count.resize(t.window_count.size() + per_row, 0.0);
+  }
+  double* w_excess = windows ? t.window_excess.data() + t.window_excess.size() - per_row : nullptr;
+  double* w_count = windows ? t.window_count.data() + t.window_count.size() - per_row : nullptr;
+  // Window by window along the row (chunks of 16 texels when there are none), texel by texel;
+  // a chunk whose values all equal the oracle's, finite, within a finite bound, only counts.
+  const int chunk = windows ? n : 16;
+  const float limit = rules.storage == Storage::f16 ? 65504.0f : FLT_MAX;
+  for (int x0 = 0, wi = 0; x0 < rules.width; x0 += chunk, ++wi) {
+    const int x1 = std::min(rules.width, x0 + chunk);
+    if (same_values(gl, oracle, bound, x0, x1, limit)) {
+      const std::uint64_t m = 3 * std::uint64_t(x1 - x0);
+      t.values += m;
+      t.hist[8] += m;
+      if (!rules.gates) continue;
+      // No error: no excess, a ratio of +0 wherever there is a bound beyond rounding.
+      const double count =
+          double(beyond_rounding(oracle, bound, allowance, x0, x1, rules.storage, p));
+      t.base += count;
+      if (windows) w_count[wi] += count;
+      continue;
+    }
+    for (int x = x0; x < x1; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t i = std::size_t(x) * kChannels + c;
+        const double o = oracle[i], g = gl[i], b = bound[i];
+        ++t.values;
+        // An infinite (or NaN, from non-finite data) bound: unpinned by GL (NaN/Inf in the
+        // footprint, max(NaN, 0)); where NaN/Inf appear is still compared through the stages.
+        if (!(b < INFINITY)) continue;
+        const int special = special_case(o, g, rules.storage, p, b);
+        if (special == 0) {
+          ++t.mismatch;
+          offer_worst(t, rules.worst_count, {x, y, c, o, g, INFINITY, b, {}});
+          continue;
+        }
+        if (special == 1) continue;
+        const double err = std::fabs(g - o);
+        double gate = 0;
+        if (rules.gates) {
+          const double r = allowance ? allowance[i] : storage_term(o, rules.storage, p);
+          if (err == 0 ? b - r > 0 : gate_ratio(err, b, r, slack ? slack[i] : 0.0f, gate)) {
+            t.excess += gate;
+            t.base += 1;
+            if (windows) {
+              w_excess[wi] += gate;
+              w_count[wi] += 1;
+            }
+          }
+        }
+        if (err == 0) {
+          t.hist[8]++;
+          continue;
+        }
+        t.max_abs = std::max(t.max_abs, err);
+        if (o != 0) t.max_rel = std::max(t.max_rel, err / std::fabs(o));
+        const double ulps = (g - o) * inverse_ulp16(o);  // a power of two: exact
+        t.max_ulp16 = std::max(t.max_ulp16, std::fabs(ulps));
+        t.hist[static_cast<int>(std::clamp(std::round(ulps), -8.0, 8.0)) + 8]++;
+        const double ratio = b > 0 ? err / b : INFINITY;
+        t.max_ratio = std::max(t.max_ratio, ratio);
+        if (ratio > 1) {
+          ++t.over;
+          if (ratio > kWarnTier) ++t.beyond_tier;
+        }
+        offer_worst(t, rules.worst_count, {x, y, c, o, g, err, b, {}});
+      }
+  }
+}
+
+StageComparison conclude(const std::string& stage, Tally total, const JudgeRules& rules,
+                         const StageBounds& terms, const ImageGates* gates, bool uniform) {
+  StageComparison s;
+  s.stage = stage;
+  s.values = total.values;
+  s.over_bound = total.over;
+  s.nonfinite_mismatch = total.mismatch;
+  s.beyond_tier = total.beyond_tier;
+  s.max_abs = total.max_abs;
+  s.max_rel = total.max_rel;
+  s.max_ulp16 = total.max_ulp16;
+  s.max_ratio = total.max_ratio;
+  s.ulp_histogram.assign(total.hist.begin(), total.hist.end());
+  keep_worst(total.worst, rules.worst_count);
+  for (WorstValue& w : total.worst) w.terms = terms.terms(w.x, w.y, w.channel);
+  s.worst = std::move(total.worst);
+  if (gates && !uniform) apply_gates(s, total, *gates, rules.window, rules.width);
+  decide(s);
+  return s;
+}
+
+int judge_band(int window) {
+  constexpr int kRows = 32;  // a band's rows: a few MB of scratch at 3840 texels a row
+  return window > 0 ? std::max(1, kRows / window) * window : kRows;
+}
+
+// Whether every texel's RGB equals the first texel's (bit for bit, NaN never equal): on such an
+// image every value has the same error, so a mean or a window mean is one sample of it, not an
+// average over independent roundings, and the image gates would only tighten the per-value bound.
+bool uniform_rgb(ConstImageView img, bool clamped) {
+  if (img.width <= 0 || img.height <= 0) return true;
+  auto value = [clamped](float v) { return clamped && !std::isnan(v) ? std::clamp(v, 0.0f, 1.0f) : v; };
+  const float* first = img.pixel(0, 0);
+  const float f[3] = {value(first[0]), value(first[1]), value(first[2])};
+  for (int y = 0; y < img.height; ++y) {
+    const float* p = img.row(y);
+    for (int x = 0; x < img.width; ++x, p += kChannels)
+      if (!(value(p[0]) == f[0] && value(p[1]) == f[1] && value(p[2]) == f[2])) return false;
+  }
+  return true;
+}
+
+StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
+                      const Image& bound, const StageBounds& terms, Storage storage,
+                      const DeviceProfile& p, const CompareOptions& opt, int threads,
+                      const ImageGates* gates, const Image* allowance, const Image* slack) {
+  if (gl.width != oracle.width || gl.height != oracle.height) return size_fault(stage, gl, oracle);
+  const bool uniform = gates && uniform_rgb(oracle);
+  JudgeRules rules{storage, &p, static_cast<std::size_t>(opt.worst_count), gates != nullptr,
+                   gates && !uniform && gates->window > 0 ? gates->window_size : 0, gl.width};
+  const int band = judge_band(rules.window);
+  const int bands = (gl.height + band - 1) / band;
+  std::vector<Tally> tallies(bands);
+  parallel_rows(bands, threads, [&](int b0, int b1) {
+    for (int b = b0; b < b1; ++b)
+      for (int y = b * band; y < std::min(gl.height, (b + 1) * band); ++y)
+        judge_row(rules, y, gl.row(y), oracle.row(y), bound.cview().row(y),
+                  allowance ? allowance->cview().row(y) : nullptr,
+                  slack ? slack->cview().row(y) : nullptr, tallies[b]);
+  });
+  Tally total;
+  for (Tally& t : tallies) total.merge(std::move(t), rules.worst_count);
+  return conclude(stage, std::move(total), rules, terms, gates, uniform);
+}
+
+double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound, double relative,
+                    Storage storage, const DeviceProfile& p, int threads) {
+  if (gl.width != oracle.width || gl.height != oracle.height) return 0.0;
+  std::vector<std::uint64_t> outside(std::size_t(gl.height), 0);
+  parallel_rows(gl.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y) {
+      const float *g = gl.row(y), *o = oracle.row(y), *b = bound.cview().row(y);
+      std::uint64_t n = 0;
+      for (int i = 0; i < gl.width * kChannels; ++i) {
+        if (i % kChannels == 3) continue;
+        const float relaxed = b[i] + static_cast<float>(relative * std::fabs(o[i]));
+        if (!(relaxed < INFINITY)) continue;
+        const int special = special_case(o[i], g[i], storage, p, relaxed);
+        if (special != -1) {
+          n += special == 0;
+          continue;
+        }
+        const double err = std::fabs(double(g[i]) - double(o[i]));
+        if (err != 0 && (relaxed > 0 ? err / relaxed : INFINITY) > 1) ++n;
+      }
+      outside[std::size_t(y)] = n;
+    }
+  });
+  std::uint64_t out = 0;
+  for (std::uint64_t n : outside) out += n;
+  const std::uint64_t values = std::uint64_t(gl.width) * gl.height * 3;
+  return values ? double(values - out) / double(values) : 1.0;
 }
 
 }  // namespace detail

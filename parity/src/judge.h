@@ -1,24 +1,83 @@
 // The one comparison of a stage (compare.cpp), shared by compare_captured and the cause
 // hypotheses (internal to parity).
+//
+// Judging runs band by band: `judge_row` adds a row's values to the band's Tally, the bands'
+// tallies are merged in row order (so every sum is the same for any thread count), and
+// `conclude` turns the total into the stage's verdict. `judge` does all three over whole images.
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "bloomref/parity/compare.h"
 #include "tolerance.h"
 
 namespace bloomref::parity::detail {
 
+/// How a stage's values are judged.
+struct JudgeRules {
+  Storage storage = Storage::f32;
+  const DeviceProfile* profile = nullptr;
+  std::size_t worst_count = 8;  ///< the worst values kept (0: none)
+  bool gates = false;           ///< add up the image gates' sums
+  int window = 0;               ///< with gates: the gates' window size (0: no window gate)
+  int width = 0;                ///< the stage's width
+};
+
+/// What judging adds up over a band of rows: counts, sums, maxima, the worst values, and with a
+/// window gate the sums of each window of the band (its rows must start on a window boundary).
+struct Tally {
+  std::uint64_t values = 0, over = 0, mismatch = 0, beyond_tier = 0;
+  double excess = 0, base = 0;  // the image gates' sums: ratios, and their count
+  double max_abs = 0, max_rel = 0, max_ulp16 = 0, max_ratio = 0;
+  std::array<std::uint64_t, 17> hist{};
+  std::vector<WorstValue> worst;
+  double worst_floor = 0;  // a value whose error / bound is below this cannot be among the worst
+  std::vector<double> window_excess, window_count;  // per window, row-major over the band
+  /// Adds a later band's tally (rows below this one's), keeping the worst `keep`.
+  void merge(Tally&& band, std::size_t keep);
+};
+
+/// Judges the RGB of row y: `gl`, `oracle`, `bound` (RGBA rows of rules.width texels); with the
+/// gates, `allowance` is the rounding each value is allowed (null: the storage term) and `slack`
+/// (null: none) is taken off the error only.
+void judge_row(const JudgeRules& rules, int y, const float* gl, const float* oracle,
+               const float* bound, const float* allowance, const float* slack, Tally& t);
+
+/// The stage's comparison from the tally of all its rows: counts, the worst values with their
+/// bound's terms (from `terms`), the image gates (when given, unless `uniform`: an oracle of one
+/// colour has one error, not an average), the verdict and its reason. `height` is the stage's.
+StageComparison conclude(const std::string& stage, Tally total, const JudgeRules& rules,
+                         const StageBounds& terms, const ImageGates* gates, bool uniform);
+
+/// A stage whose capture is not the oracle's size: FAIL, nothing compared.
+StageComparison size_fault(const std::string& stage, ConstImageView gl, ConstImageView oracle);
+
+/// Whether every texel's RGB equals the first texel's (==: NaN never equal), with every value
+/// first clamped to [0, 1] when `clamped` (an 8-bit capture's oracle, as judged).
+bool uniform_rgb(ConstImageView img, bool clamped = false);
+
+/// The band height for judging a stage: a multiple of the gates' window (when there is one).
+int judge_band(int window);
+
 /// Judges `gl` against `oracle` value by value with `bound` (RGB); `terms` names the terms of
 /// the worst values' bounds. PASS / WARN / FAIL as compare.h says. With `gates`, also the image
 /// gates, on the error beyond the rounding allowed (`allowance`, RGB per value: the stage's
 /// rounding terms and a capture's codes; without it, the storage term) against the bound beyond
 /// the same; `slack` (optional) is taken off the error only (f16 roundings carried from stages
-/// without capture).
+/// without capture). Keeps no images.
 StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
                       const Image& bound, const StageBounds& terms, Storage storage,
                       const DeviceProfile& p, const CompareOptions& opt, int threads,
                       const ImageGates* gates = nullptr, const Image* allowance = nullptr,
                       const Image* slack = nullptr);
+
+/// The fraction of values of `gl` within their bound against `oracle` (StageComparison::within
+/// of judge's result, without the rest), the bound of each value being `bound`'s plus
+/// `relative` x |oracle value| (rounded to float, then added in float).
+double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound, double relative,
+                    Storage storage, const DeviceProfile& p, int threads);
 
 }  // namespace bloomref::parity::detail

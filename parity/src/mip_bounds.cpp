@@ -121,7 +121,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
         return Values{coord, arith, thresh, kterm,
                       storage_term(v, ctx.storage, *ctx.profile) + denormal_floor(*ctx.profile)};
       },
-      ctx.threads);
+      tw, ctx.threads);
 }
 
 std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView current,
@@ -153,7 +153,7 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
         return Values{coord, arith, ecur,
                       storage_term(v, ctx.storage, *ctx.profile) + denormal_floor(*ctx.profile), 0};
       },
-      ctx.threads);
+      tw, ctx.threads);
 }
 
 }  // namespace bloomref::parity::detail

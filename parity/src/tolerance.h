@@ -1,6 +1,6 @@
-// Per-value bounds of each stage (internal to parity). Every function fills `bound` (RGB per
-// pixel) for its stage given the stage's input; `terms_at` re-derives one value's bound as named
-// terms for the report.
+// Per-value bounds of each stage (internal to parity). Every function gives its stage's bound
+// given the stage's input, as rows of a band (StageBounds::rows) or one value's named terms for
+// the report (StageBounds::terms).
 #pragma once
 
 #include <array>
@@ -25,20 +25,26 @@ double storage_term(double v, Storage s, const DeviceProfile& p);
 /// Denormal flush floor: results below 2^-126 may become 0 in shader arithmetic.
 double denormal_floor(const DeviceProfile& p);
 
+/// The rows a band of a stage works on: RGBA rows of `width` texels packed one after the other
+/// (alpha unused), row y0 first. The bounds below fill such rows band by band, so that a stage's
+/// bound is never held whole unless a caller asks for it (fill).
 struct StageBounds {
-  /// Fills `bound` with the isolated bound of each value; `terms` (optional) for one value.
-  virtual void fill(Image& bound) const = 0;
+  /// Rows [y0, y1) of the bound (the sum of the terms) and of its rounding part (the terms
+  /// rounding_term names: storage, the arithmetic's ULPs; the rest is what sampling may change:
+  /// coordinates, a threshold's band, Karis weights). Either may be null. Called from several
+  /// threads at once on disjoint bands.
+  virtual void rows(int y0, int y1, float* bound, float* rounding) const = 0;
+  /// One value's bound as named terms (for the report's worst values).
   virtual std::vector<Term> terms(int x, int y, int c) const = 0;
-  /// Fills `rounding` with the part of each value's bound that rounding makes (storage, the
-  /// arithmetic's ULPs): the rest is what sampling may change (coordinates, a threshold's
-  /// band, Karis weights). The image gates measure errors beyond the rounding.
-  virtual void fill_rounding(Image& rounding) const = 0;
   virtual ~StageBounds() = default;
+  /// The whole bound, or its rounding part, into an image of the stage's size, on `threads`.
+  void fill(Image& bound) const;
+  void fill_rounding(Image& rounding) const;
+  int threads = 0;
 };
 
-/// Whether a term named `name` is rounding (StageBounds::fill_rounding), by the names the
-/// bounds give their terms: the sampling terms are the coordinates', the threshold's and the
-/// Karis weights'.
+/// Whether a term named `name` is rounding (StageBounds::rows), by the names the bounds give
+/// their terms: the sampling terms are the coordinates', the threshold's and the Karis weights'.
 inline bool rounding_term(const char* name) {
   const std::string n(name);
   return n.find("coordinate") == std::string::npos && n.find("threshold") == std::string::npos &&
@@ -55,33 +61,43 @@ inline double coordinate_error(int n, const DeviceProfile& p) {
   return n * p.unit_roundoff * (2 * p.division_ulps + 4) + (bits > 0 ? std::ldexp(1.0, -bits) : 0.0);
 }
 
-/// Fills an image's RGB by a per-value function, in parallel.
-template <class F>
-void fill_values(Image& out, int threads, F f) {
-  parallel_rows(out.height(), threads, [&](int y0, int y1) {
-    for (int y = y0; y < y1; ++y)
-      for (int x = 0; x < out.width(); ++x)
-        for (int c = 0; c < 3; ++c) out.pixel(x, y)[c] = static_cast<float>(f(x, y, c));
-  });
-}
-
 /// Up to five named terms per value; the names are fixed per stage, the values computed per
 /// value by `f(x, y, c)`.
 using Values = std::array<double, 5>;
 
+/// Bounds whose terms are a function of the value's position: `f(x, y, c)` gives them. The
+/// bound sums all five in order, the rounding part the rounding ones (in double, then rounded
+/// to float once).
 template <class F>
 struct TermBounds : StageBounds {
   std::vector<const char*> names;
   F f;
-  int threads;
-  TermBounds(std::vector<const char*> n, F fn, int t)
-      : names(std::move(n)), f(std::move(fn)), threads(t) {}
-  void fill(Image& bound) const override {
-    fill_values(bound, threads, [&](int x, int y, int c) {
-      double s = 0;
-      for (double v : f(x, y, c)) s += v;
-      return s;
-    });
+  int width;
+  std::array<bool, 5> rounding_mask{};
+  TermBounds(std::vector<const char*> n, F fn, int w, int t)
+      : names(std::move(n)), f(std::move(fn)), width(w) {
+    threads = t;
+    for (std::size_t i = 0; i < names.size(); ++i) rounding_mask[i] = rounding_term(names[i]);
+  }
+  void rows(int y0, int y1, float* bound, float* rounding) const override {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < width; ++x) {
+        const std::size_t at = (std::size_t(y - y0) * width + x) * kChannels;
+        for (int c = 0; c < 3; ++c) {
+          const Values v = f(x, y, c);
+          if (bound) {
+            double s = 0;
+            for (double t : v) s += t;
+            bound[at + c] = static_cast<float>(s);
+          }
+          if (rounding) {
+            double s = 0;
+            for (std::size_t i = 0; i < names.size(); ++i)
+              if (rounding_mask[i]) s += v[i];
+            rounding[at + c] = static_cast<float>(s);
+          }
+        }
+      }
   }
   std::vector<Term> terms(int x, int y, int c) const override {
     const Values v = f(x, y, c);
@@ -89,22 +105,12 @@ struct TermBounds : StageBounds {
     for (std::size_t i = 0; i < names.size(); ++i) out.push_back({names[i], v[i]});
     return out;
   }
-  void fill_rounding(Image& rounding) const override {
-    std::array<bool, 5> mask{};
-    for (std::size_t i = 0; i < names.size(); ++i) mask[i] = rounding_term(names[i]);
-    fill_values(rounding, threads, [&](int x, int y, int c) {
-      const Values v = f(x, y, c);
-      double s = 0;
-      for (std::size_t i = 0; i < names.size(); ++i)
-        if (mask[i]) s += v[i];
-      return s;
-    });
-  }
 };
 
 template <class F>
-std::unique_ptr<StageBounds> make_bounds(std::vector<const char*> names, F f, int threads) {
-  return std::make_unique<TermBounds<F>>(std::move(names), std::move(f), threads);
+std::unique_ptr<StageBounds> make_bounds(std::vector<const char*> names, F f, int width,
+                                         int threads) {
+  return std::make_unique<TermBounds<F>>(std::move(names), std::move(f), width, threads);
 }
 
 struct BoundContext {
@@ -135,7 +141,22 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
                                        const Image* current_error, BoundContext ctx);
 
 /// The blur of an error image with the kernel's weights over each tap's window (end-to-end
-/// propagation through one pass).
+/// propagation through one pass): sum_k w_k * (largest magnitude in tap k's window).
+class BlurPropagation {
+ public:
+  BlurPropagation(ConstImageView error, Axis axis, const Kernel& k);
+  ~BlurPropagation();
+  /// Rows [y0, y1) of the propagated error (StageBounds' row layout).
+  void rows(int y0, int y1, float* out) const;
+  struct Taps;
+
+ private:
+  ConstImageView error_;
+  Axis axis_;
+  std::shared_ptr<const Taps> taps_;
+};
+
+/// BlurPropagation of the whole image, on `threads`.
 Image propagate_blur(ConstImageView error, Axis axis, const Kernel& k, int threads);
 
 }  // namespace bloomref::parity::detail
