@@ -11,8 +11,9 @@
 //
 // Writing: EXR holds 32-bit float RGBA; PNG holds opaque 8-bit RGB, round(clamp(x, 0, 1) * 255)
 // (alpha after a bloom is not a coverage a viewer can use; it stays in the EXR).
-// Every write goes to a temporary file in the destination folder and is renamed into place, so
-// a failure leaves no partial file and never touches what was there.
+// Every write goes to an unnamed file in the destination folder and is given its name when
+// complete (output_files.h), so a failure or a kill leaves no partial file and never touches
+// what was there.
 #pragma once
 
 #include <cstddef>
@@ -59,6 +60,8 @@ void check_size(const std::string& path, long long width, long long height,
 void save_image(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
 void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
 void save_png(const std::string& path, ConstImageView img);
+/// The bytes of the PNG save_png would write (for pages that embed images).
+std::string encode_png(ConstImageView img);
 
 /// Threads OpenEXR may use to decompress and compress (its chunks are independent, the bytes do
 /// not depend on the count): 0 = all hardware threads (the default), 1 = none besides the
