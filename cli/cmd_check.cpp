@@ -15,6 +15,7 @@
 
 #include "bloomref/error.h"
 #include "bloomref/io.h"
+#include "bloomref/output_files.h"
 #include "bloomref/parity/compare.h"
 #include "check_manifest.h"
 #include "check_output.h"
@@ -40,42 +41,6 @@ struct CheckArgs {
   ShaderArgs shaders;
   CLI::App* sub = nullptr;
 };
-
-// A destination file must be writable where it is named, before any work: its folder exists and
-// is writable, and it is not a folder or an input.
-void require_writable_file(const std::string& path, const char* option) {
-  const fs::path p(path);
-  fs::path dir = p.parent_path();
-  if (dir.empty()) dir = ".";
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec))
-    throw InputError(path, std::string("cannot be written (") + option + "): the folder " +
-                               dir.string() + " does not exist");
-  if (fs::is_directory(p, ec))
-    throw InputError(path, std::string("is a folder; ") + option + " needs a file name");
-  if (::access(dir.c_str(), W_OK) != 0)
-    throw InputError(path, std::string("cannot be written (") + option + "): the folder " +
-                               dir.string() + " is not writable");
-  if (fs::exists(p, ec) && ::access(p.c_str(), W_OK) != 0)
-    throw InputError(path, std::string("cannot be written (") + option + "): not writable");
-}
-
-void require_writable_dir(const std::string& path, const char* option) {
-  const fs::path p(path);
-  std::error_code ec;
-  if (fs::exists(p, ec)) {
-    if (!fs::is_directory(p, ec))
-      throw InputError(path, std::string("exists and is not a folder (") + option + ")");
-    if (::access(p.c_str(), W_OK) != 0)
-      throw InputError(path, std::string("is not writable (") + option + ")");
-    return;
-  }
-  fs::path parent = p.parent_path();
-  if (parent.empty()) parent = ".";
-  if (!fs::is_directory(parent, ec) || ::access(parent.c_str(), W_OK) != 0)
-    throw InputError(path, std::string("cannot be created (") + option + "): " + parent.string() +
-                               " is not a writable folder");
-}
 
 double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();

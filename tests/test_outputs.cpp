@@ -5,9 +5,11 @@
 // The command runs as a separate process (BLOOMREF_EXE) in a temporary folder; "what was there"
 // is the folder's listing and the bytes of the file the output would replace.
 #include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <chrono>
 #include <thread>
 
@@ -121,4 +123,68 @@ TEST_CASE("a staged folder appears whole, and keeps the other files of a folder 
   CHECK(dir.listing() == std::vector<std::string>{"rep"});
   CHECK(bloomref::test::read_bytes(dir / "rep/index.html") == "newer");
   CHECK(bloomref::test::read_bytes(dir / "rep/mine.txt") == "the user's");
+}
+
+namespace {
+
+// Runs `args` in `dir`; returns its exit status, or -1 after killing it when it takes longer
+// than `seconds`.
+int run_within(const TempDir& dir, const std::vector<std::string>& args, int seconds) {
+  const int pid = bloomref::test::spawn_cli(args, dir.path());
+  const auto t0 = std::chrono::steady_clock::now();
+  while (std::chrono::steady_clock::now() - t0 < std::chrono::seconds(seconds)) {
+    int status = 0;
+    if (::waitpid(pid, &status, WNOHANG) == pid)
+      return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ::kill(pid, SIGKILL);
+  bloomref::test::wait_cli(pid);
+  return -1;
+}
+
+}  // namespace
+
+TEST_CASE("run replaces no output when another cannot be written", "[outputs]") {
+  TempDir dir;
+  bloomref::test::write_bytes(dir / "keep.exr", "what was there");
+  const auto listing = dir.listing();
+  const auto r = bloomref::test::run_cli(
+      "run --scene demo --size 64x64 -o keep.exr -o nosuch/y.png --json r.json", "", dir.path());
+  INFO(r.err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("nosuch") != std::string::npos);
+  CHECK(dir.listing() == listing);
+  CHECK(bloomref::test::read_bytes(dir / "keep.exr") == "what was there");
+}
+
+TEST_CASE("run refuses a missing output folder before the computation", "[outputs]") {
+  TempDir dir;
+  // 1000 reference passes over 2048 x 2048 take minutes; the refusal must come at once.
+  for (const auto& bad : std::vector<std::vector<std::string>>{
+           {"-o", "nosuch/y.exr"}, {"--json", "nosuch/r.json"}, {"-o", "ok.exr", "-o", "ok.exr"}}) {
+    std::vector<std::string> args{"run",      "--scene", "demo",   "--size", "2048x2048",
+                                  "--passes", "1000",    "--blur", "reference"};
+    args.insert(args.end(), bad.begin(), bad.end());
+    INFO(bad.back());
+    CHECK(run_within(dir, args, 20) == 2);
+    CHECK(dir.listing().empty());
+  }
+}
+
+TEST_CASE("run publishes its outputs together, stage dumps included", "[outputs]") {
+  TempDir dir;
+  const auto r = bloomref::test::run_cli(
+      "run --scene demo --size 32x16 --passes 2 -o a.exr -o b.png --json r.json "
+      "--dump-stages st -q", "", dir.path());
+  REQUIRE(r.code == 0);
+  CHECK(dir.listing() == std::vector<std::string>{"a.exr", "b.png", "r.json", "st"});
+  const TempDir& d = dir;
+  std::vector<std::string> stages;
+  for (const auto& e : fs::directory_iterator(d / "st")) stages.push_back(e.path().filename());
+  std::sort(stages.begin(), stages.end());
+  // input, bright, blur.1, blur.2, composite, tonemap, output (DESIGN.md, the pipeline).
+  CHECK(stages == std::vector<std::string>{"blur.1.exr", "blur.2.exr", "bright.exr",
+                                           "composite.exr", "input.exr", "output.exr",
+                                           "tonemap.exr"});
 }

@@ -41,10 +41,13 @@ bool unnamed_files_wanted() {
   return wanted;
 }
 
+// The same path however it is spelled, whether it exists yet or not (weakly_canonical of a
+// relative path whose first component does not exist stays relative: made absolute first).
 fs::path key_of(const std::string& path) {
   std::error_code ec;
-  const fs::path k = fs::weakly_canonical(path, ec);
-  return ec ? fs::path(path).lexically_normal() : k;
+  const fs::path abs = fs::absolute(path, ec);
+  const fs::path k = fs::weakly_canonical(ec ? fs::path(path) : abs, ec);
+  return ec ? abs.lexically_normal() : k;
 }
 
 }  // namespace
