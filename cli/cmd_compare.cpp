@@ -153,6 +153,8 @@ std::function<int()> add_compare(CLI::App& app) {
   return [args, sub]() -> int {
     if (!sub->parsed()) return -1;
     args->pipeline.finish();
+    args->pipeline.kept_traces = 3;  // GL's trace, the oracle's and the driver's textures
+    args->pipeline.gl = true;
     return compare_cmd(*args);
   };
 }

@@ -175,6 +175,8 @@ std::function<int()> add_run(CLI::App& app) {
   return [args, sub]() -> int {
     if (!sub->parsed()) return -1;
     args->pipeline.finish();
+    args->pipeline.kept_traces = args->dump_dir.empty() ? 0 : 1;
+    args->pipeline.gl = args->backend == "gl";
     return run(*args);
   };
 }

@@ -56,6 +56,7 @@ void check_size(const std::string& path, long long width, long long height,
                                std::to_string(limits.max_pixels) +
                                " pixels (the size of one float RGBA image is capped at " +
                                std::to_string(limits.max_pixels * 16 >> 20) + " MiB)");
+  if (limits.accept) limits.accept(path, static_cast<int>(width), static_cast<int>(height));
 }
 
 LoadedImage load_image(const std::string& path, const SizeLimits& limits) {

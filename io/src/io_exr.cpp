@@ -99,6 +99,8 @@ void check_part_sizes(const std::string& path, const SizeLimits& limits,
   int parts = 0;
   exr_get_count(ctxt, &parts);
   unsigned long long chunks = 0;
+  SizeLimits headers = limits;
+  headers.accept = nullptr;  // the part read is judged by it once chosen (load_exr)
   try {
     for (int p = 0; p < parts; ++p) {
       int32_t n = 0;
@@ -107,7 +109,7 @@ void check_part_sizes(const std::string& path, const SizeLimits& limits,
       if (exr_get_data_window(ctxt, p, &b) != EXR_ERR_SUCCESS) continue;
       const long long w = (long long)b.max.x - b.min.x + 1, h = (long long)b.max.y - b.min.y + 1;
       try {
-        check_size(path, w, h, limits);
+        check_size(path, w, h, headers);
       } catch (const InputError& e) {
         if (parts == 1) throw;
         throw InputError(path, "part " + std::to_string(p) + " of " + std::to_string(parts) +

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <string>
 
 #include "bloomref/image.h"
@@ -26,6 +27,10 @@ namespace bloomref {
 struct SizeLimits {
   int max_side = 65536;                     ///< per axis
   std::size_t max_pixels = std::size_t(1) << 27;  ///< 134M pixels = 2 GiB per float RGBA image
+  /// Optional: called with the size once it is within the limits above, before any pixel
+  /// memory is allocated; throws InputError naming the path to refuse it (a command's memory
+  /// budget).
+  std::function<void(const std::string& path, int width, int height)> accept;
 };
 
 struct Window {
