@@ -9,6 +9,7 @@
 #include "bloomref/executor.h"
 #include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
+#include "bloomref/output_files.h"
 #include "bloomref/parity/compare.h"
 #include "bloomref/scenes.h"
 #include "commands.h"
@@ -48,7 +49,11 @@ nlohmann::ordered_json stage_json(const parity::StageComparison& s) {
 int compare_cmd(CompareArgs& a) {
   const gpu::Fault fault = a.fault == "none" ? gpu::Fault::none : gpu::parse_fault(a.fault);
   const gpu::ShaderKind shaders = gpu::parse_shader_kind(a.shaders);
-  if (!a.json_path.empty() && !a.input.empty()) refuse_overwrite(a.json_path, a.input);
+  // Destinations checked before the work; the JSON and the report published together.
+  OutputSet outs;
+  outs.protect(a.input);
+  if (!a.json_path.empty()) outs.add_file(a.json_path, "--json");
+  if (!a.report_dir.empty()) outs.add_folder(a.report_dir, "--report", /*whole=*/true);
 
   std::string source;
   const LoadedImage in = a.pipeline.load_input(a.input, source);
@@ -118,12 +123,13 @@ int compare_cmd(CompareArgs& a) {
                         {"isolated", stage_json(r.isolated[i])},
                         {"end_to_end", stage_json(r.end_to_end[i])}});
     j["stages"] = stages;
-    save_text(a.json_path, j.dump(2) + "\n");
+    outs.write_text(a.json_path, j.dump(2) + "\n");
   }
-  if (!a.report_dir.empty()) {
-    write_report(a.report_dir, source, renderer, plan, gl, r, a.fault);
-    if (!a.quiet) std::printf("report: %s/index.html\n", a.report_dir.c_str());
-  }
+  if (!a.report_dir.empty())
+    write_report_files(outs.folder(a.report_dir), source, renderer, plan, gl, r, a.fault);
+  outs.publish();
+  if (!a.report_dir.empty() && !a.quiet)
+    std::printf("report: %s/index.html\n", a.report_dir.c_str());
   return r.verdict == parity::Verdict::fail ? 1 : 0;
 }
 
@@ -147,6 +153,8 @@ std::function<int()> add_compare(CLI::App& app) {
   return [args, sub]() -> int {
     if (!sub->parsed()) return -1;
     args->pipeline.finish();
+    args->pipeline.kept_traces = 3;  // GL's trace, the oracle's and the driver's textures
+    args->pipeline.gl = true;
     return compare_cmd(*args);
   };
 }

@@ -3,12 +3,12 @@
 #include <stdexcept>
 #include <iostream>
 #include <memory>
-#include <set>
 
 #include "bloomref/error.h"
 #include "bloomref/executor.h"
 #include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
+#include "bloomref/output_files.h"
 #include "bloomref/scenes.h"
 #include "batch/run_sequence.h"
 #include "commands.h"
@@ -76,34 +76,26 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
   if (a.outputs.empty() && a.dump_dir.empty() && a.json_path.empty() && !record)
     throw ParamError("nothing to write: give -o OUT.exr and/or -o OUT.png (or --dump-stages, --json)");
 
-  // Check every destination before the (possibly long) work starts, so a refusal leaves
-  // nothing half-written: the input is never a destination, and no file is written twice.
+  // Every destination is checked before the (possibly long) work starts, and the outputs are
+  // published together at the end (OutputSet): a refusal or a failure leaves every destination
+  // as it was. The input is never a destination, and no file is written twice.
   namespace fs = std::filesystem;
-  std::vector<std::string> destinations = a.outputs;
+  OutputSet outs;
+  outs.protect(a.input);
   for (const std::string& o : a.outputs) {
     const std::string e = fs::path(o).extension().string();
     if (e != ".exr" && e != ".png" && e != ".EXR" && e != ".PNG")
       throw InputError(o, "cannot write '" + e + "' files: the output must end in .exr or .png");
+    outs.add_file(o, "-o");
   }
-  if (!a.json_path.empty()) destinations.push_back(a.json_path);
-  if (!a.dump_dir.empty()) {
-    std::error_code ec;
-    if (fs::exists(a.dump_dir, ec) && !fs::is_directory(a.dump_dir, ec))
-      throw InputError(a.dump_dir, "exists and is not a folder (--dump-stages needs a folder)");
-  }
+  if (!a.json_path.empty()) outs.add_file(a.json_path, "--json");
+  if (!a.dump_dir.empty()) outs.add_folder(a.dump_dir, "--dump-stages", /*whole=*/false);
   std::string source;
   LoadedImage in = a.pipeline.load_input(a.input, source);
   if (!a.dump_dir.empty())
     for (const std::string& name :
          stage_names(a.pipeline.params, in.image.width(), in.image.height()))
-      destinations.push_back((fs::path(a.dump_dir) / (name + ".exr")).string());
-  std::set<fs::path> seen;
-  for (const std::string& d : destinations) {
-    if (!a.input.empty()) refuse_overwrite(d, a.input);
-    std::error_code ec;
-    if (!seen.insert(fs::weakly_canonical(d, ec)).second)
-      throw InputError(d, "is named twice as an output");
-  }
+      outs.add_file((fs::path(a.dump_dir) / (name + ".exr")).string(), "--dump-stages");
 
   const Plan plan = make_plan(a.pipeline.params, in.image.cview(), source);
   StageTrace trace;
@@ -130,14 +122,11 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
   }
 
   const ImageInfo* windows = a.input.empty() ? nullptr : &in.info;
-  for (const std::string& o : a.outputs) save_image(o, trace.final_image().cview(), windows);
-  if (!a.dump_dir.empty()) {
-    std::error_code ec;
-    fs::create_directories(a.dump_dir, ec);
-    if (ec) throw InputError(a.dump_dir, "cannot create the folder: " + ec.message());
+  for (const std::string& o : a.outputs) outs.write_image(o, trace.final_image().cview(), windows);
+  if (!a.dump_dir.empty())
     for (const StageResult& s : trace.stages)
-      save_exr((fs::path(a.dump_dir) / (s.name + ".exr")).string(), s.image.cview(), windows);
-  }
+      outs.write_image((fs::path(a.dump_dir) / (s.name + ".exr")).string(), s.image.cview(),
+                       windows);
   if (!a.json_path.empty()) {
     nlohmann::ordered_json j = run_json(plan, trace);
     if (a.backend == "gl") j["renderer"] = renderer;
@@ -146,8 +135,9 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
                   {"has_alpha", in.info.has_alpha}};
     j["outputs"] = a.outputs;
     if (!repeated.is_null()) j["repeat"] = repeated;
-    save_text(a.json_path, j.dump(2) + "\n");
+    outs.write_text(a.json_path, j.dump(2) + "\n");
   }
+  outs.publish();
   if (record)
     *record = {{"width", plan.facts.width}, {"height", plan.facts.height},
                {"bright_pixels", plan.facts.bright_pixels},
@@ -193,6 +183,8 @@ std::function<int()> add_run(CLI::App& app) {
   return [args, sub]() -> int {
     if (!sub->parsed()) return -1;
     args->pipeline.finish();
+    args->pipeline.kept_traces = args->dump_dir.empty() ? 0 : 1;
+    args->pipeline.gl = args->backend == "gl";
     const RunSequenceArgs seq{args->input,     args->outputs, args->dump_dir,
                               args->json_path, args->quiet,   args->pipeline.params,
                               args->sequence};

@@ -1,6 +1,9 @@
 #include "options.h"
 
+#include <cmath>
+
 #include "bloomref/error.h"
+#include "bloomref/memory_budget.h"
 #include "bloomref/scenes.h"
 
 namespace bloomref::cli {
@@ -41,6 +44,9 @@ void PipelineOptions::add_to(CLI::App& app) {
   app.add_option("--scene", scene, "built-in scene used when no IN is given")
       ->capture_default_str();
   app.add_option("--size", size, "WxH of the built-in scene (default: the scene's own)");
+  app.add_option("--max-memory", max_memory,
+                 "refuse (exit 2) an image whose run would need more memory than this, e.g. "
+                 "8G (default: 80% of physical memory or the control group's limit)");
 }
 
 void PipelineOptions::finish() {
@@ -53,6 +59,7 @@ void PipelineOptions::finish() {
   params.blur = parse_blur_impl(blur);
   params.composite = parse_composite_order(composite);
   validate(params);
+  if (!max_memory.empty()) parse_byte_size(max_memory, "--max-memory");  // a usage error now
 }
 
 void PipelineOptions::scene_size(int& w, int& h) const {
@@ -64,15 +71,46 @@ LoadedImage PipelineOptions::load_input(const std::string& input, std::string& s
   LoadedImage in;
   set_io_threads(params.threads);  // the EXR reader and writers use as many as the pipeline
   if (!input.empty()) {
-    in = load_image(input);
+    SizeLimits limits;
+    limits.accept = [this](const std::string& path, int w, int h) { check_memory(path, w, h, true); };
+    in = load_image(input, limits);
     source = input;
     return in;
   }
   int w = 0, h = 0;
   scene_size(w, h);
+  if (w == 0 || h == 0)
+    for (const SceneInfo& s : scene_list())
+      if (s.name == scene) {
+        w = w ? w : s.width;
+        h = h ? h : s.height;
+      }
+  check_memory("--scene " + scene + " --size " + std::to_string(w) + "x" + std::to_string(h), w, h,
+               false);
   in.image = make_scene(scene, w, h);
   in.info.path = source = "scene:" + scene;
   return in;
+}
+
+void PipelineOptions::check_memory(const std::string& what, int width, int height,
+                                   bool is_file) const {
+  const std::uint64_t budget =
+      max_memory.empty() ? default_memory_budget() : parse_byte_size(max_memory, "--max-memory");
+  const WorkingSet ws = working_set(params, width, height, kept_traces, gl);
+  if (ws.bytes <= budget) return;
+  const std::string problem =
+      "a run over " + std::to_string(width) + "x" + std::to_string(height) + " (" +
+      to_string(params.method) + ", " + to_string(params.precision) +
+      (kept_traces > 0 ? ", every stage kept" : "") + ") needs up to " + byte_size_text(ws.bytes) +
+      " (" + std::to_string(int(std::ceil(ws.images))) + " images of " +
+      byte_size_text(ws.image_bytes) + " at once), beyond --max-memory " +
+      byte_size_text(budget) +
+      (max_memory.empty() ? " (the default: 80% of the " +
+                                byte_size_text(available_memory_bytes()) + " available)"
+                          : std::string()) +
+      "; give a larger --max-memory, or a smaller image";
+  if (is_file) throw InputError(what, problem);
+  throw ParamError(what + ": " + problem);
 }
 
 void parse_size(const std::string& s, int& w, int& h) {

@@ -16,13 +16,22 @@ struct PipelineOptions {
               composite = "before-tonemap";
   std::string scene = "demo";
   std::string size;  ///< "WxH" for built-in scenes
+  std::string max_memory;  ///< --max-memory; empty: default_memory_budget()
+  /// Set by the command before load_input: images kept per stage (working_set's kept_traces)
+  /// and whether it runs GL.
+  int kept_traces = 0;
+  bool gl = false;
 
   void add_to(CLI::App& app);
   /// Parses the enum names into `params` and validates; throws ParamError.
   void finish();
   void scene_size(int& w, int& h) const;
   /// Loads IN, or builds --scene at --size when IN is empty; `source` names it in messages.
+  /// Refuses (InputError, ParamError for a scene) an image whose run would need more memory
+  /// than --max-memory (working_set), before its pixels are allocated.
   LoadedImage load_input(const std::string& input, std::string& source) const;
+  /// Throws unless a run over width x height fits --max-memory; `what` names the image.
+  void check_memory(const std::string& what, int width, int height, bool is_file) const;
 };
 
 /// Parses "WxH"; throws ParamError.

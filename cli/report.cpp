@@ -4,11 +4,11 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
 
 #include "bloomref/error.h"
 #include "bloomref/io.h"
+#include "bloomref/output_files.h"
 
 namespace fs = std::filesystem;
 
@@ -32,13 +32,6 @@ std::string base64(const std::string& in) {
   if (bits > -6) out.push_back(t[((val << 8) >> (bits + 8)) & 0x3F]);
   while (out.size() % 4) out.push_back('=');
   return out;
-}
-
-std::string read_file(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
 }
 
 std::string esc(const std::string& s) {
@@ -168,11 +161,8 @@ Image preview(const Image& img, bool keep_peaks) {
   return out;
 }
 
-std::string png_data_uri(const Image& img, const fs::path& tmp) {
-  save_png(tmp.string(), img.cview());
-  const std::string bytes = read_file(tmp.string());
-  fs::remove(tmp);
-  return "data:image/png;base64," + base64(bytes);
+std::string png_data_uri(const Image& img) {
+  return "data:image/png;base64," + base64(encode_png(img.cview()));
 }
 
 std::string histogram_svg(const std::vector<std::uint64_t>& h) {
@@ -313,9 +303,8 @@ void write_stage(std::ostringstream& html, const fs::path& root, const parity::S
       {&diff, "under test - oracle, full scale " + num(scale)},
       {&heat, "error / bound"},
       {&mask, "pass (green) / fail (red)"}};
-  const fs::path tmp = root / ".preview.png";
   for (const auto& [img, caption] : figs)
-    html << "<figure><img src='" << png_data_uri(preview(*img, img != &d_or && img != &d_gl), tmp)
+    html << "<figure><img src='" << png_data_uri(preview(*img, img != &d_or && img != &d_gl))
          << "'><figcaption>" << esc(caption) << "</figcaption></figure>";
   write_worst(html, s);
   html << "</section>";
@@ -336,9 +325,15 @@ std::string cause_line(const parity::StageComparison& s) {
 void write_report(const std::string& dir, const std::string& source, const std::string& renderer,
                   const Plan& plan, const StageTrace& gl, const parity::ParityResult& r,
                   const std::string& fault) {
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec || !fs::is_directory(dir)) throw InputError(dir, "cannot create the report folder");
+  StagedFolder staged(dir);
+  write_report_files(staged.path(), source, renderer, plan, gl, r, fault);
+  staged.publish();
+}
+
+void write_report_files(const std::string& dir, const std::string& source,
+                        const std::string& renderer, const Plan& plan, const StageTrace& gl,
+                        const parity::ParityResult& r, const std::string& fault) {
+  if (!fs::is_directory(dir)) throw InputError(dir, "is not a folder");
   const fs::path root(dir);
   const std::string first = r.first_divergent_stage.value_or("");
   std::ostringstream html;

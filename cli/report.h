@@ -14,8 +14,14 @@ namespace bloomref::cli {
 /// The best-supported cause of a stage's failure, in one line ("" when the stage passed).
 std::string cause_line(const parity::StageComparison& s);
 
+/// Builds the report in a hidden folder beside `dir` and moves it into place when complete
+/// (StagedFolder): an interrupted run leaves no half-written report.
 void write_report(const std::string& dir, const std::string& source, const std::string& renderer,
                   const Plan& plan, const StageTrace& gl, const parity::ParityResult& r,
                   const std::string& fault);
+/// The report's files, written into the existing folder `dir` (a staged one).
+void write_report_files(const std::string& dir, const std::string& source,
+                        const std::string& renderer, const Plan& plan, const StageTrace& gl,
+                        const parity::ParityResult& r, const std::string& fault);
 
 }  // namespace bloomref::cli

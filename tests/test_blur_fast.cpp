@@ -742,6 +742,52 @@ TEST_CASE("the approximate blur fused gives its pass-by-pass bits", "[blur][appr
   }
 }
 
+TEST_CASE("passes beyond one fused group give the pass-by-pass bits", "[blur][fast][fused]") {
+  // blur_passes_fused fuses at most 16 passes (stage bright counted) at once and writes each
+  // group into an image the next reads (blur_fused.cpp, kMaxFusedDepth): 15 and 16 passes lie
+  // at the boundary with and without bright, 17 and 40 make two and three groups. Into an
+  // image, into a sink, with bright in front, exact and approximate.
+  const Axis H = Axis::horizontal, V = Axis::vertical;
+  const std::pair<int, int> sizes[] = {{37, 23}, {533, 19}};
+  unsigned seed = 240;
+  for (auto [w, h] : sizes) {
+    const Image src = hostile_image(w, h, seed++);
+    Image bright(w, h);
+    extract_bright(src.cview(), bright.view(), 1.0f, 1);
+    for (int n : {15, 16, 17, 40}) {
+      std::vector<Axis> axes;
+      for (int k = 0; k < n; ++k) axes.push_back(k % 2 ? V : H);
+      for (BlurImpl impl : {BlurImpl::fast, BlurImpl::approx}) {
+        const BlurIsa isa = test::isas().back();
+        const auto by_pass = [&](const Image& from) {
+          Image a = from, b(w, h);
+          for (Axis axis : axes) {
+            const BlurPassOptions o{axis, &kernel_discrete9(), 0};
+            if (impl == BlurImpl::approx) blur_pass_approx(a.cview(), b.view(), o, 2, isa);
+            else blur_pass(a.cview(), b.view(), o, 2);
+            std::swap(a, b);
+          }
+          return a;
+        };
+        const Image expected = by_pass(src), expected_bright = by_pass(bright);
+        INFO(w << "x" << h << " passes " << n << (impl == BlurImpl::approx ? " approx" : " fast"));
+        Image fused(w, h, 7.0f);
+        blur_passes_fused(src.cview(), fused.view(), axes, kernel_discrete9(), 0, 2, isa, impl);
+        CHECK(test::same_bits_nan_agnostic(expected.cview(), fused.cview()));
+        SinkCapture sunk(w, h);
+        blur_passes_fused(src.cview(), sunk.sink(), axes, kernel_discrete9(), 0, 2, isa, impl);
+        CHECK(sunk.each_once());
+        CHECK(test::same_bits_nan_agnostic(expected.cview(), sunk.image.cview()));
+        SinkCapture from_bright(w, h);
+        blur_bright_fused(src.cview(), 1.0f, from_bright.sink(), axes, kernel_discrete9(), 0, 2,
+                          isa, impl);
+        CHECK(from_bright.each_once());
+        CHECK(test::same_bits_nan_agnostic(expected_bright.cview(), from_bright.image.cview()));
+      }
+    }
+  }
+}
+
 TEST_CASE("the approximate blur's fused multiply-adds give the same bits at every width",
           "[blur][approx]") {
   // The 32- and 64-byte builds both fuse each multiply-add (intrinsics, not contraction), so

@@ -1,5 +1,7 @@
 #include "test_util.h"
 
+#include <fcntl.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -161,6 +163,54 @@ CliResult run_cli(const std::string& args, const std::string& env, const fs::pat
   r.out = read_bytes(logs / "out");
   r.err = read_bytes(logs / "err");
   return r;
+}
+
+int spawn_cli(const std::vector<std::string>& args, const fs::path& cwd,
+              const std::vector<std::string>& env) {
+  std::vector<std::string> argv_s{BLOOMREF_EXE};
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (std::string& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  // The environment is made before fork: the child calls only async-signal-safe functions.
+  // `env` first: getenv takes the first entry of a name.
+  std::vector<std::string> env_s(env);
+  for (char** e = environ; *e; ++e) env_s.emplace_back(*e);
+  std::vector<char*> envp;
+  for (std::string& e : env_s) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    if (!cwd.empty() && ::chdir(cwd.c_str()) != 0) ::_exit(127);
+    const int null = ::open("/dev/null", O_WRONLY);
+    ::dup2(null, 1);
+    ::dup2(null, 2);
+    ::execve(argv[0], argv.data(), envp.data());
+    ::_exit(127);
+  }
+  return pid;
+}
+
+int wait_cli(int pid, long* max_rss_kb) {
+  int status = 0;
+  struct rusage usage {};
+  if (::wait4(pid, &status, 0, &usage) != pid) throw std::runtime_error("wait4 failed");
+  if (max_rss_kb) *max_rss_kb = usage.ru_maxrss;
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
+  return -1;
+}
+
+bool has_open_file_in(int pid, const fs::path& dir) {
+  std::error_code ec;
+  const std::string prefix = fs::canonical(dir).string() + "/";
+  for (const auto& e : fs::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec)) {
+    std::error_code lec;
+    const std::string target = fs::read_symlink(e.path(), lec).string();
+    if (!lec && target.compare(0, prefix.size(), prefix) == 0) return true;
+  }
+  return false;
 }
 
 }  // namespace bloomref::test

@@ -87,4 +87,16 @@ struct CliResult {
 /// of the call's own, so test cases run in parallel by ctest never read each other's.
 CliResult run_cli(const std::string& args, const std::string& env = "", const fs::path& cwd = {});
 
+/// Starts `bloomref ARGS` in `cwd` without waiting for it, with `env` (NAME=value) added to the
+/// environment, stdout and stderr discarded; returns its process id.
+int spawn_cli(const std::vector<std::string>& args, const fs::path& cwd,
+              const std::vector<std::string>& env = {});
+/// Waits for a process spawn_cli started; returns its exit status, 128 + signal when a signal
+/// ended it. `max_rss_kb`, when given, receives its peak resident memory (getrusage's
+/// ru_maxrss through wait4, in KiB).
+int wait_cli(int pid, long* max_rss_kb = nullptr);
+/// Whether process `pid` has a file open in the folder `dir`, named or not (/proc/PID/fd: an
+/// unnamed O_TMPFILE file shows as "DIR/#INODE (deleted)").
+bool has_open_file_in(int pid, const fs::path& dir);
+
 }  // namespace bloomref::test

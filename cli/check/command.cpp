@@ -16,6 +16,7 @@
 #include "batch/sequence.h"
 #include "bloomref/error.h"
 #include "bloomref/io.h"
+#include "bloomref/output_files.h"
 #include "bloomref/parity/compare.h"
 #include "check/command.h"
 #include "check/manifest.h"
@@ -43,42 +44,6 @@ struct CheckArgs {
   SequenceOptions sequence;  ///< --frames, --shard (batch/sequence.h)
   CLI::App* sub = nullptr;
 };
-
-// A destination file must be writable where it is named, before any work: its folder exists and
-// is writable, and it is not a folder or an input.
-void require_writable_file(const std::string& path, const char* option) {
-  const fs::path p(path);
-  fs::path dir = p.parent_path();
-  if (dir.empty()) dir = ".";
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec))
-    throw InputError(path, std::string("cannot be written (") + option + "): the folder " +
-                               dir.string() + " does not exist");
-  if (fs::is_directory(p, ec))
-    throw InputError(path, std::string("is a folder; ") + option + " needs a file name");
-  if (::access(dir.c_str(), W_OK) != 0)
-    throw InputError(path, std::string("cannot be written (") + option + "): the folder " +
-                               dir.string() + " is not writable");
-  if (fs::exists(p, ec) && ::access(p.c_str(), W_OK) != 0)
-    throw InputError(path, std::string("cannot be written (") + option + "): not writable");
-}
-
-void require_writable_dir(const std::string& path, const char* option) {
-  const fs::path p(path);
-  std::error_code ec;
-  if (fs::exists(p, ec)) {
-    if (!fs::is_directory(p, ec))
-      throw InputError(path, std::string("exists and is not a folder (") + option + ")");
-    if (::access(p.c_str(), W_OK) != 0)
-      throw InputError(path, std::string("is not writable (") + option + ")");
-    return;
-  }
-  fs::path parent = p.parent_path();
-  if (parent.empty()) parent = ".";
-  if (!fs::is_directory(parent, ec) || ::access(parent.c_str(), W_OK) != 0)
-    throw InputError(path, std::string("cannot be created (") + option + "): " + parent.string() +
-                               " is not a writable folder");
-}
 
 bool is_profile_file(const CheckArgs& a) {
   return a.profile.size() > 5 && a.profile.substr(a.profile.size() - 5) == ".json";

@@ -624,12 +624,12 @@ class StripWorker {
   PixelBuffer<float> approx_scratch_;
 };
 
-// The entry points: the last pass writes into dst, or (sink given) into a block of kChunk rows
-// of the strip handed to the sink as each is done; with `threshold`, src is the scene and pass 0
-// is stage bright of it (blur_bright_fused).
-void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink* sink,
-           const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits, int threads,
-           BlurIsa isa, BlurImpl impl, std::optional<float> threshold = std::nullopt) {
+// One group of passes fused: the last pass writes into dst, or (sink given) into a block of
+// kChunk rows of the strip handed to the sink as each is done; with `threshold`, src is the
+// scene and pass 0 is stage bright of it (blur_bright_fused).
+void fused_group(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink* sink,
+                 const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
+                 int threads, BlurIsa isa, BlurImpl impl, std::optional<float> threshold) {
   FusedRun r;
   r.src = src;
   r.sink = sink;
@@ -669,6 +669,41 @@ void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink
     for (int taken; (taken = next.fetch_add(1)) < r.strips.count;)
       worker.run_strip(r.strips.order[taken]);
   });
+}
+
+// The entry points. At most kMaxFusedDepth passes (stage bright included) are fused at once:
+// every pass keeps a ring per worker, as wide as its strip plus the reach of the passes after it
+// in the group, so a deeper group costs memory in proportion to its depth (1000 passes fused
+// at once over 4096x64 held 4.2 GB, the reference blur 27 MB) and recomputes more columns
+// beside each strip. Deeper runs are cut into groups, each written whole into one of two
+// images that the next group reads (a ring holds the same floats as such an image: the bits do
+// not change, tested); the first group starts with stage bright, the last writes into dst or
+// the sink. 16 keeps the seeds' ten passes, with bright, in one group.
+constexpr int kMaxFusedDepth = 16;
+
+void fused(BasicView<const float> src, BasicView<float> dst, const FusedBlurSink* sink,
+           const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits, int threads,
+           BlurIsa isa, BlurImpl impl, std::optional<float> threshold = std::nullopt) {
+  const std::size_t depth = axes.size() + (threshold ? 1 : 0);
+  if (depth <= std::size_t(kMaxFusedDepth) || src.width == 0 || src.height == 0)
+    return fused_group(src, dst, sink, axes, kernel, subtexel_bits, threads, isa, impl, threshold);
+  Image images[2];
+  BasicView<const float> in = src;
+  int next = 0;
+  for (std::size_t k = 0; k < axes.size();) {
+    const std::size_t len =
+        std::min(axes.size() - k, std::size_t(kMaxFusedDepth) - (k == 0 && threshold ? 1 : 0));
+    const std::vector<Axis> group(axes.begin() + k, axes.begin() + k + len);
+    const std::optional<float> bright = k == 0 ? threshold : std::nullopt;
+    k += len;
+    if (k == axes.size())
+      return fused_group(in, dst, sink, group, kernel, subtexel_bits, threads, isa, impl, bright);
+    Image& out = images[next];
+    if (out.empty()) out = Image::uninitialised(src.width, src.height);  // written whole
+    fused_group(in, out.view(), nullptr, group, kernel, subtexel_bits, threads, isa, impl, bright);
+    in = out.cview();
+    next ^= 1;
+  }
 }
 
 }  // namespace

@@ -3,8 +3,11 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
+#include <functional>
 #include <system_error>
 
 #include "bloomref/error.h"
@@ -21,34 +24,13 @@ std::string lower_extension(const std::string& path) {
   return e;
 }
 
-// Writes through `write` into a temporary file beside `path`, then renames it into place: a
-// reader never sees a partial file, and a failed write leaves the old file untouched.
-template <class Write>
-void write_atomically(const std::string& path, Write write) {
-  const fs::path target(path);
-  fs::path dir = target.parent_path();
-  if (dir.empty()) dir = ".";
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw InputError(path, "the output folder does not exist");
-  if (fs::is_directory(target, ec)) throw InputError(path, "is a folder, not a file");
-  // Unique per process and per call, so concurrent writes of one path never share a temporary.
-  static std::atomic<unsigned> serial{0};
-  const fs::path tmp = dir / ("." + target.stem().string() + ".tmp-" + std::to_string(::getpid()) +
-                              "-" + std::to_string(serial++) + target.extension().string());
-  try {
-    write(tmp.string());
-  } catch (const InputError& e) {
-    fs::remove(tmp, ec);
-    throw InputError(path, e.problem());  // named after the destination, not the temporary
-  } catch (const std::exception& e) {
-    fs::remove(tmp, ec);
-    throw InputError(path, std::string("cannot write: ") + e.what());
-  }
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw InputError(path, "cannot move the finished file into place: " + ec.message());
-  }
+// Writes through `write` into a pending file of `path` (output_files.h) and publishes it: a
+// reader never sees a partial file, and a failed or interrupted write leaves the old file as it
+// was and nothing beside it.
+void write_atomically(const std::string& path, const std::function<void(std::FILE*)>& write) {
+  PendingFile file(path);
+  detail::write_pending(file, write);
+  file.publish();
 }
 
 // An image with no pixels cannot be written (EXR and PNG need at least 1x1); refusing it
@@ -74,6 +56,7 @@ void check_size(const std::string& path, long long width, long long height,
                                std::to_string(limits.max_pixels) +
                                " pixels (the size of one float RGBA image is capped at " +
                                std::to_string(limits.max_pixels * 16 >> 20) + " MiB)");
+  if (limits.accept) limits.accept(path, static_cast<int>(width), static_cast<int>(height));
 }
 
 LoadedImage load_image(const std::string& path, const SizeLimits& limits) {
@@ -91,12 +74,12 @@ LoadedImage load_image(const std::string& path, const SizeLimits& limits) {
 
 void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows) {
   require_pixels(path, img);
-  write_atomically(path, [&](const std::string& tmp) { detail::write_exr_file(tmp, img, windows); });
+  write_atomically(path, [&](std::FILE* f) { detail::write_exr_stream(f, path, img, windows); });
 }
 
 void save_png(const std::string& path, ConstImageView img) {
   require_pixels(path, img);
-  write_atomically(path, [&](const std::string& tmp) { detail::write_png_file(tmp, img); });
+  write_atomically(path, [&](std::FILE* f) { detail::write_png_stream(f, img); });
 }
 
 void save_image(const std::string& path, ConstImageView img, const ImageInfo* windows) {
@@ -119,15 +102,52 @@ void refuse_overwrite(const std::string& output, const std::string& input) {
 
 }  // namespace bloomref
 
-#include <fstream>
-
 namespace bloomref {
+
 void save_text(const std::string& path, const std::string& text) {
-  write_atomically(path, [&](const std::string& tmp) {
-    std::ofstream f(tmp, std::ios::binary);
-    f << text;
-    f.close();
-    if (!f) throw InputError(tmp, "cannot write");
+  write_atomically(path, [&](std::FILE* f) {
+    if (std::fwrite(text.data(), 1, text.size(), f) != text.size())
+      throw InputError(path, std::string("cannot write: ") + std::strerror(errno));
   });
 }
+
+namespace detail {
+
+void write_pending(PendingFile& file, const std::function<void(std::FILE*)>& write) {
+  const std::string& path = file.destination();
+  const int fd = ::dup(file.fd());
+  std::FILE* f = fd >= 0 ? ::fdopen(fd, "wb") : nullptr;
+  if (!f) {
+    const int e = errno;
+    if (fd >= 0) ::close(fd);
+    throw InputError(path, std::string("cannot write: ") + std::strerror(e));
+  }
+  try {
+    write(f);
+  } catch (const InputError& e) {
+    std::fclose(f);
+    throw InputError(path, e.problem());  // named after the destination
+  } catch (const std::exception& e) {
+    std::fclose(f);
+    throw InputError(path, std::string("cannot write: ") + e.what());
+  }
+  const bool failed = std::fflush(f) != 0 || std::ferror(f);
+  const int e = errno;
+  if (std::fclose(f) != 0 || failed)
+    throw InputError(path, std::string("cannot write: ") + std::strerror(failed ? e : errno));
+}
+
+void write_image_pending(PendingFile& file, ConstImageView img, const ImageInfo* windows) {
+  const std::string& path = file.destination();
+  const std::string e = lower_extension(path);
+  if (e != ".exr" && e != ".png")
+    throw InputError(path, "cannot write '" + e + "' files: the output must end in .exr or .png");
+  require_pixels(path, img);
+  write_pending(file, [&](std::FILE* f) {
+    if (e == ".exr") write_exr_stream(f, path, img, windows);
+    else write_png_stream(f, img);
+  });
+}
+
+}  // namespace detail
 }  // namespace bloomref

@@ -6,6 +6,7 @@
 #include <ImfHeader.h>
 #include <ImfInputPart.h>
 #include <ImfMultiPartInputFile.h>
+#include <ImfIO.h>
 #include <ImfOutputFile.h>
 #include <ImfPartType.h>
 #include <ImfRgbaFile.h>
@@ -14,6 +15,9 @@
 #include <openexr.h>
 
 #include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <set>
 #include <thread>
@@ -95,6 +99,8 @@ void check_part_sizes(const std::string& path, const SizeLimits& limits,
   int parts = 0;
   exr_get_count(ctxt, &parts);
   unsigned long long chunks = 0;
+  SizeLimits headers = limits;
+  headers.accept = nullptr;  // the part read is judged by it once chosen (load_exr)
   try {
     for (int p = 0; p < parts; ++p) {
       int32_t n = 0;
@@ -103,7 +109,7 @@ void check_part_sizes(const std::string& path, const SizeLimits& limits,
       if (exr_get_data_window(ctxt, p, &b) != EXR_ERR_SUCCESS) continue;
       const long long w = (long long)b.max.x - b.min.x + 1, h = (long long)b.max.y - b.min.y + 1;
       try {
-        check_size(path, w, h, limits);
+        check_size(path, w, h, headers);
       } catch (const InputError& e) {
         if (parts == 1) throw;
         throw InputError(path, "part " + std::to_string(p) + " of " + std::to_string(parts) +
@@ -227,7 +233,30 @@ LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
   return out;
 }
 
-void write_exr_file(const std::string& path, ConstImageView img, const ImageInfo* windows) {
+namespace {
+
+// OpenEXR's output stream over a stdio stream (the pending file of output_files.h).
+class StdioOStream : public Imf::OStream {
+ public:
+  StdioOStream(std::FILE* f, const std::string& name) : Imf::OStream(name.c_str()), f_(f) {}
+  void write(const char c[], int n) override {
+    if (std::fwrite(c, 1, static_cast<std::size_t>(n), f_) != static_cast<std::size_t>(n))
+      throw std::runtime_error(std::strerror(errno));
+  }
+  uint64_t tellp() override { return static_cast<uint64_t>(::ftello(f_)); }
+  void seekp(uint64_t pos) override {
+    if (::fseeko(f_, static_cast<off_t>(pos), SEEK_SET) != 0)
+      throw std::runtime_error(std::strerror(errno));
+  }
+
+ private:
+  std::FILE* f_;
+};
+
+}  // namespace
+
+void write_exr_stream(std::FILE* f, const std::string& name, ConstImageView img,
+                      const ImageInfo* windows) {
   Imf::Header header(img.width, img.height);
   if (windows && windows->data_window.width() == img.width &&
       windows->data_window.height() == img.height) {
@@ -249,7 +278,8 @@ void write_exr_file(const std::string& path, ConstImageView img, const ImageInfo
   const char* names[] = {"R", "G", "B", "A"};
   for (int c = 0; c < 4; ++c)
     fb.insert(names[c], Imf::Slice::Make(Imf::FLOAT, base + c * sizeof(float), dw, xs, ys));
-  Imf::OutputFile file(path.c_str(), header, exr_threads());
+  StdioOStream stream(f, name);
+  Imf::OutputFile file(stream, header, exr_threads());
   file.setFrameBuffer(fb);
   file.writePixels(img.height);
 }

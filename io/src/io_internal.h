@@ -1,16 +1,30 @@
-// Internal to the I/O module: the two readers and writers behind io.h.
+// Internal to the I/O module: the readers and writers behind io.h and output_files.h.
 #pragma once
 
+#include <cstdio>
+#include <functional>
 #include <string>
 
 #include "bloomref/io.h"
+#include "bloomref/output_files.h"
 
 namespace bloomref::detail {
 
 bool has_exr_magic(const std::string& path);
 LoadedImage load_exr(const std::string& path, const SizeLimits& limits);
 LoadedImage load_oiio(const std::string& path, const SizeLimits& limits);
-void write_exr_file(const std::string& path, ConstImageView img, const ImageInfo* windows);
-void write_png_file(const std::string& path, ConstImageView img);
+
+/// The writers, into an open stream (`name` for OpenEXR's messages).
+void write_exr_stream(std::FILE* f, const std::string& name, ConstImageView img,
+                      const ImageInfo* windows);
+void write_png_stream(std::FILE* f, ConstImageView img);
+
+/// Runs `write` on a stdio stream over the pending file, then flushes it; every failure is an
+/// InputError naming the destination.
+void write_pending(PendingFile& file, const std::function<void(std::FILE*)>& write);
+
+/// Writes `img` by the extension of `path` (.exr or .png) into the pending file; InputError for
+/// another extension or an empty image.
+void write_image_pending(PendingFile& file, ConstImageView img, const ImageInfo* windows);
 
 }  // namespace bloomref::detail

@@ -5,7 +5,9 @@
 // ~2.7 s for a 3840x2160 picture on this project's machine (figures below).
 #include <png.h>
 
+#include <cstdio>
 #include <cstring>
+#include <string>
 #include <vector>
 
 #include "bloomref/error.h"
@@ -14,35 +16,65 @@
 
 namespace bloomref::detail {
 
-void write_png_file(const std::string& path, ConstImageView img) {
-  // Opaque RGB: the PNG is the display-referred picture. Alpha after a bloom is not a coverage
-  // any viewer can use (CandleGlass.exr's flame has A = 0 and bright RGB; a viewer would show
-  // it transparent), so it stays in the EXR output only.
-  constexpr int kOut = 3;
-  std::vector<unsigned char> px(static_cast<std::size_t>(img.width) * img.height * kOut);
-  for (int y = 0; y < img.height; ++y) {
-    const float* row = img.row(y);
-    unsigned char* out = &px[std::size_t(y) * img.width * kOut];
-    for (int x = 0; x < img.width; ++x)
-      for (int c = 0; c < kOut; ++c) out[x * kOut + c] = quantize_8bit(row[x * kChannels + c]);
-  }
+namespace {
+
+// The picture's 8-bit codes and libpng's description of it, for either destination.
+struct PngPicture {
+  std::vector<unsigned char> px;
   png_image image;
-  std::memset(&image, 0, sizeof image);
-  image.version = PNG_IMAGE_VERSION;
-  image.width = static_cast<png_uint_32>(img.width);
-  image.height = static_cast<png_uint_32>(img.height);
-  image.format = PNG_FORMAT_RGB;
-  // NOT_sRGB: the codes are pow(x, 1 / gamma), not the sRGB curve, so no sRGB chunk is claimed;
-  // libpng then writes gAMA 1/2.2 (the default gamma; it does not follow --gamma).
-  // FAST: libpng's quicker row filter and zlib settings. Measured on the demo scene at
-  // 3840x2160: the run with the PNG took 0.85 s longer than without, against 3.4 s without FAST
-  // (and 2.7 s through OIIO); the file was 9.2 MB, against 10.0 MB (9.7 MB through OIIO).
-  image.flags = PNG_IMAGE_FLAG_COLORSPACE_NOT_sRGB | PNG_IMAGE_FLAG_FAST;
-  const int ok = png_image_write_to_file(&image, path.c_str(), /*convert_to_8bit=*/0, px.data(),
-                                         /*row_stride=*/0, /*colormap=*/nullptr);
-  const std::string message = image.message;
-  png_image_free(&image);
-  if (!ok) throw InputError(path, "cannot write the PNG: " + message);
+
+  explicit PngPicture(ConstImageView img) {
+    // Opaque RGB: the PNG is the display-referred picture. Alpha after a bloom is not a
+    // coverage any viewer can use (CandleGlass.exr's flame has A = 0 and bright RGB; a viewer
+    // would show it transparent), so it stays in the EXR output only.
+    constexpr int kOut = 3;
+    px.resize(static_cast<std::size_t>(img.width) * img.height * kOut);
+    for (int y = 0; y < img.height; ++y) {
+      const float* row = img.row(y);
+      unsigned char* out = &px[std::size_t(y) * img.width * kOut];
+      for (int x = 0; x < img.width; ++x)
+        for (int c = 0; c < kOut; ++c) out[x * kOut + c] = quantize_8bit(row[x * kChannels + c]);
+    }
+    std::memset(&image, 0, sizeof image);
+    image.version = PNG_IMAGE_VERSION;
+    image.width = static_cast<png_uint_32>(img.width);
+    image.height = static_cast<png_uint_32>(img.height);
+    image.format = PNG_FORMAT_RGB;
+    // NOT_sRGB: the codes are pow(x, 1 / gamma), not the sRGB curve, so no sRGB chunk is
+    // claimed; libpng then writes gAMA 1/2.2 (the default gamma; it does not follow --gamma).
+    // FAST: libpng's quicker row filter and zlib settings. Measured on the demo scene at
+    // 3840x2160: the run with the PNG took 0.85 s longer than without, against 3.4 s without
+    // FAST (and 2.7 s through OIIO); the file was 9.2 MB, against 10.0 MB (9.7 MB through OIIO).
+    image.flags = PNG_IMAGE_FLAG_COLORSPACE_NOT_sRGB | PNG_IMAGE_FLAG_FAST;
+  }
+  ~PngPicture() { png_image_free(&image); }
+
+  void check(int ok) {
+    if (!ok) throw InputError("", std::string("cannot write the PNG: ") + image.message);
+  }
+};
+
+}  // namespace
+
+void write_png_stream(std::FILE* f, ConstImageView img) {
+  PngPicture p(img);
+  p.check(png_image_write_to_stdio(&p.image, f, /*convert_to_8bit=*/0, p.px.data(),
+                                   /*row_stride=*/0, /*colormap=*/nullptr));
 }
 
 }  // namespace bloomref::detail
+
+namespace bloomref {
+
+std::string encode_png(ConstImageView img) {
+  if (img.empty() || img.data == nullptr) throw InputError("", "nothing to encode: the image is empty");
+  detail::PngPicture p(img);
+  png_alloc_size_t size = 0;
+  p.check(png_image_write_to_memory(&p.image, nullptr, &size, 0, p.px.data(), 0, nullptr));
+  std::string bytes(size, '\0');
+  p.check(png_image_write_to_memory(&p.image, bytes.data(), &size, 0, p.px.data(), 0, nullptr));
+  bytes.resize(size);
+  return bytes;
+}
+
+}  // namespace bloomref

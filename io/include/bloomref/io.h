@@ -11,11 +11,13 @@
 //
 // Writing: EXR holds 32-bit float RGBA; PNG holds opaque 8-bit RGB, round(clamp(x, 0, 1) * 255)
 // (alpha after a bloom is not a coverage a viewer can use; it stays in the EXR).
-// Every write goes to a temporary file in the destination folder and is renamed into place, so
-// a failure leaves no partial file and never touches what was there.
+// Every write goes to an unnamed file in the destination folder and is given its name when
+// complete (output_files.h), so a failure or a kill leaves no partial file and never touches
+// what was there.
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <string>
 
 #include "bloomref/image.h"
@@ -25,6 +27,10 @@ namespace bloomref {
 struct SizeLimits {
   int max_side = 65536;                     ///< per axis
   std::size_t max_pixels = std::size_t(1) << 27;  ///< 134M pixels = 2 GiB per float RGBA image
+  /// Optional: called with the size once it is within the limits above, before any pixel
+  /// memory is allocated; throws InputError naming the path to refuse it (a command's memory
+  /// budget).
+  std::function<void(const std::string& path, int width, int height)> accept;
 };
 
 struct Window {
@@ -59,6 +65,8 @@ void check_size(const std::string& path, long long width, long long height,
 void save_image(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
 void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
 void save_png(const std::string& path, ConstImageView img);
+/// The bytes of the PNG save_png would write (for pages that embed images).
+std::string encode_png(ConstImageView img);
 
 /// Threads OpenEXR may use to decompress and compress (its chunks are independent, the bytes do
 /// not depend on the count): 0 = all hardware threads (the default), 1 = none besides the

@@ -35,10 +35,12 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
 /// with blur_pass_fast's bits in every texel (tested), but fused: the image is cut into
 /// column strips, and each strip streams through all n passes keeping per pass only the rows
 /// the next pass still reads (a ring of about 2 x (16 + 5) rows of the strip), so the image is
-/// read and written once instead of n times (blur_fused.cpp). Nothing is rounded between passes
-/// (f32 storage). With `impl` approx, every pass is blur_pass_approx's instead, with its bits
-/// (tested; `kernel` and `subtexel_bits` then only shape the strips); `reference` is `fast`
-/// (the same bits).
+/// read and written once instead of n times (blur_fused.cpp). Beyond 16 passes (stage bright
+/// counted) they are fused 16 at a time, each group written into one of two images the next
+/// reads: memory is bounded by the image's size, not the pass count. Nothing is rounded
+/// between passes (f32 storage). With `impl` approx, every pass is blur_pass_approx's instead,
+/// with its bits (tested; `kernel` and `subtexel_bits` then only shape the strips);
+/// `reference` is `fast` (the same bits).
 void blur_passes_fused(BasicView<const float> src, BasicView<float> dst,
                        const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
                        int threads, BlurIsa isa = BlurIsa::best,
