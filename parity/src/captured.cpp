@@ -21,13 +21,13 @@
 #include <map>
 #include <memory>
 
-#include "bloomref/engine/fast_stages.h"
 #include "bloomref/error.h"
-#include "bloomref/mip.h"
 #include "bloomref/parallel.h"
 #include "causes.h"
 #include "chain.h"
+#include "holding.h"
 #include "judge.h"
+#include "stage_terms.h"
 #include "tolerance.h"
 
 namespace bloomref::parity {
@@ -35,9 +35,6 @@ namespace bloomref::parity {
 using namespace detail;
 
 namespace {
-
-// Rows of a band in StageBounds' layout, band-local: a function of the band's isolated bound.
-using BandRows = std::function<void(int y0, int y1, const float* bound, float* out)>;
 
 // A stage's bound terms plus extra per-value terms (the error carried from stages without
 // capture, an 8-bit capture's half code), for the report's worst values.
@@ -57,246 +54,6 @@ struct ExtraTerms : StageBounds {
     return t;
   }
 };
-
-// 1 - exp(-h k) has slope k exp(-h k), largest at the low end of h +- e.
-float through_tonemap(double h, double e, double exposure) {
-  return std::isfinite(h) && std::isfinite(e)
-             ? static_cast<float>(exposure * std::exp(-(h - e) * exposure) * e)
-             : INFINITY;
-}
-
-// Gamma's slope is unbounded near black: bound by the interval's image instead.
-float through_output(double m, double e, double gamma) {
-  const double g = 1.0 / gamma;
-  return std::isfinite(m) && std::isfinite(e)
-             ? static_cast<float>(std::pow(std::max(m + e, 0.0), g) -
-                                  std::pow(std::max(m - e, 0.0), g))
-             : INFINITY;
-}
-
-double srgb_decode(double v) {
-  return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
-}
-double srgb_encode(double v) {
-  return v <= 0.0031308 ? v * 12.92 : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
-}
-
-// An 8-bit capture: the oracle value clamped to [0, 1] (what the capture could hold), in
-// place, and half a code of the capture's encoding at that value.
-float capture_code(const CapturedStage& cap, float& o) {
-  const double h = 0.5 / ((1 << cap.code_bits) - 1);
-  if (!std::isnan(o)) o = std::clamp(o, 0.0f, 1.0f);
-  double step = h;
-  if (cap.srgb && std::isfinite(o)) {
-    const double e = srgb_encode(o);
-    step = std::max(srgb_decode(std::min(e + h, 1.0)) - o, o - srgb_decode(std::max(e - h, 0.0)));
-  }
-  return static_cast<float>(step * (1 + 1e-6));  // the decode's own rounding
-}
-
-// capture_code over n RGBA texels: the oracle clamped in place, the codes into `codes`.
-void capture_codes(const CapturedStage& cap, float* oracle, float* codes, std::size_t n) {
-  for (std::size_t i = 0; i < n * kChannels; ++i)
-    if (i % kChannels != 3) codes[i] = capture_code(cap, oracle[i]);
-}
-
-// The images a comparison holds, each released once no later stage needs it: the captures
-// (loaded when reached), the stages without capture (the oracle's, stored) and the error they
-// carry, the oracle's full run and its end-to-end bounds.
-class Streams {
- public:
-  Streams(const Plan& plan, const std::vector<std::string>& captured, bool causes) {
-    const auto& st = plan.stages;
-    for (std::size_t i = 0; i < st.size(); ++i) index_[st[i].name] = static_cast<int>(i);
-    for (const std::string& c : captured) captured_[c] = true;
-    // A stage is needed until the last stage that reads it. The isolated chain (captures,
-    // recomputed stages) is kept longer for the cause hypotheses, which recompute a failing
-    // stage from the captures before it: until the first capture downstream of each uncaptured
-    // reader has been judged, and pass k - 2 until pass k.
-    for (int i = static_cast<int>(st.size()) - 1; i >= 0; --i)
-      for (const std::string& in : stage_inputs(plan, st[i])) {
-        read_[in] = std::max(get(read_, in), i);
-        int until = i;
-        if (causes && !captured_.count(st[i].name)) until = std::max(until, get(chain_, st[i].name));
-        chain_[in] = std::max(get(chain_, in), until);
-      }
-    if (causes)
-      for (const StageSpec& s : st)
-        if (s.kind == StageKind::blur && s.pass >= 3) {
-          const std::string back = "blur." + std::to_string(s.pass - 2);
-          chain_[back] = std::max(get(chain_, back), index_[s.name]);
-        }
-  }
-  bool captured(const std::string& n) const { return captured_.count(n) > 0; }
-  /// Whether a stage after `index` reads `n`.
-  bool read_after(const std::string& n, int index) const { return get(read_, n) > index; }
-  /// Hands `recycle` every image of the isolated chain no stage after `done` (an index into
-  /// the plan) needs, and drops it from its map.
-  template <class Recycle, class... Maps>
-  void release_chain(int done, Recycle recycle, Maps&... maps) {
-    (release_in(chain_, done, recycle, maps), ...);
-  }
-  /// The same for the images only the stages that read them need: the oracle's full run, its
-  /// bounds, the error stages without capture carry.
-  template <class Recycle, class... Maps>
-  void release_read(int done, Recycle recycle, Maps&... maps) {
-    (release_in(read_, done, recycle, maps), ...);
-  }
-
- private:
-  static int get(const std::map<std::string, int>& m, const std::string& n) {
-    const auto it = m.find(n);
-    return it == m.end() ? -1 : it->second;
-  }
-  template <class Recycle, class Map>
-  static void release_in(const std::map<std::string, int>& need, int done, Recycle& recycle,
-                         Map& m) {
-    for (auto it = m.begin(); it != m.end();) {
-      if (get(need, it->first) > done) {
-        ++it;
-        continue;
-      }
-      recycle(it->second);
-      it = m.erase(it);
-    }
-  }
-  std::map<std::string, int> index_, read_, chain_;
-  std::map<std::string, bool> captured_;
-};
-
-// A capture the comparison reads: a view of the caller's image, or one it loaded and owns.
-struct Held {
-  ConstImageView view;
-  Image owned;
-  int code_bits = 0;
-  bool srgb = false;
-};
-
-// Stage-sized buffers the stages done hand back and the next ones take, instead of freeing them
-// and mapping new ones: a new buffer is faulted in page by page as it is first written (check
-// maps every block from 1 MiB, cmd_check.cpp), which took most of check's system time. Emptied
-// before each stage is judged, so that it never adds to the peak.
-class ImagePool {
- public:
-  Image take(int w, int h) {
-    for (auto it = pool_.begin(); it != pool_.end(); ++it)
-      if (it->width() == w && it->height() == h) {
-        Image img = std::move(*it);
-        pool_.erase(it);
-        return img;
-      }
-    return Image::uninitialised(w, h);
-  }
-  void give(Image& img) {
-    if (!img.empty() && pool_.size() < kKeep) pool_.push_back(std::move(img));
-    img = Image();
-  }
-  void give(Held& h) { give(h.owned); }
-  void clear() { pool_.clear(); }
-
- private:
-  static constexpr std::size_t kKeep = 4;
-  std::vector<Image> pool_;
-};
-
-Image copy_of(ConstImageView v, ImagePool& pool) {
-  Image out = pool.take(v.width, v.height);
-  for (int y = 0; y < v.height; ++y)
-    std::copy(v.row(y), v.row(y) + std::size_t(v.width) * kChannels, out.view().row(y));
-  return out;
-}
-
-// A stage of the oracle from its inputs, unrounded, as the CPU executor computes it: the same
-// functions (the fast blur and finishing stages give the reference's bits).
-Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanitized,
-                   const std::vector<ConstImageView>& in, int subtexel_bits, ImagePool& pool) {
-  const BloomParams& p = plan.params;
-  const int threads = p.threads;
-  Image out;
-  switch (spec.kind) {
-    case StageKind::input:
-      return copy_of(sanitized, pool);
-    case StageKind::bright:
-      out = pool.take(sanitized.width, sanitized.height);
-      extract_bright(sanitized, out.view(), p.threshold, threads);
-      break;
-    case StageKind::blur:
-      out = pool.take(in[0].width, in[0].height);
-      blur_pass_fast(in[0], out.view(), {spec.axis, &kernel_for(p.kernel), subtexel_bits}, threads);
-      break;
-    case StageKind::down: {
-      const LevelSize& l = plan.levels[spec.pass - 1];
-      out = pool.take(l.width, l.height);
-      const bool first = spec.pass == 1;
-      downsample(in[0], out.view(), {first, p.threshold, p.karis && first, subtexel_bits}, threads);
-      break;
-    }
-    case StageKind::up:
-    case StageKind::bloom: {
-      const bool up = spec.kind == StageKind::up;
-      out = up ? pool.take(in[1].width, in[1].height)
-               : pool.take(sanitized.width, sanitized.height);
-      upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads);
-      break;
-    }
-    case StageKind::composite:
-      out = pool.take(in[0].width, in[0].height);
-      composite(in[0], in[1], out.view(), p.strength, threads);
-      break;
-    case StageKind::tonemap:
-      out = pool.take(in[0].width, in[0].height);
-      tonemap_fast(in[0], out.view(), p.exposure, threads);
-      break;
-    case StageKind::output:
-      out = pool.take(in[0].width, in[0].height);
-      encode_output_fast(in[0], out.view(), p.gamma, threads);
-      break;
-  }
-  return out;
-}
-
-// Rows of an input's end-to-end bound as a stage reads them: the image kept, or, for the input
-// stage (a function of the scene, which is held anyway), made again.
-struct BoundRows {
-  const Image* image = nullptr;
-  std::shared_ptr<const StageBounds> made;
-  // Rows [y0, y1) in StageBounds' layout: in the image, or made into `scratch`.
-  const float* rows(int y0, int y1, int w, std::vector<float>& scratch) const {
-    if (image) return image->cview().row(y0);
-    if (scratch.size() < std::size_t(y1 - y0) * w * kChannels) scratch.resize(std::size_t(y1 - y0) * w * kChannels);
-    made->rows(y0, y1, scratch.data(), nullptr);
-    return scratch.data();
-  }
-};
-
-// One stage's isolated oracle and bounds (StageWork::terms): the bound, what inputs without
-// capture carry into it (empty: nothing), and its end-to-end bound; each as band rows given the
-// band's isolated bound.
-struct StageTerms {
-  Image oracle;  // unrounded
-  std::unique_ptr<StageBounds> bound;
-  BandRows inherited, end_to_end;
-};
-
-// Scratch rows of a band, per thread (reused band after band).
-struct BandScratch {
-  std::vector<float> bound, rounding, inherited, e2e, judged, codes, codes_e2e, oracle_e2e, kept;
-  std::vector<float> read[2];  // end-to-end bounds of the inputs made again (BoundRows)
-  static float* rows(std::vector<float>& v, std::size_t n) {
-    if (v.size() < n) v.resize(n);
-    return v.data();
-  }
-};
-
-BandScratch& band_scratch() {
-  thread_local BandScratch s;
-  return s;
-}
-
-// a + b in float, value by value (the bounds' sums: each a float image before).
-void add_rows(float* a, const float* b, std::size_t n) {
-  for (std::size_t i = 0; i < n * kChannels; ++i) a[i] += b[i];
-}
 
 // What a band of a captured stage keeps whole (each null when not wanted): the end-to-end bound
 // as later stages read it, the isolated bound as judged, the error carried in.
@@ -325,10 +82,7 @@ class Comparison {
  private:
   void sanitize_scene();
   void oracle_full(const StageSpec& spec, const std::vector<std::string>& in);
-  StageTerms terms(const StageSpec& spec, const std::vector<std::string>& in);
-  StageTerms point_terms(const StageSpec& spec, const std::vector<std::string>& in);
-  StageTerms blur_terms(const StageSpec& spec, const std::vector<std::string>& in);
-  StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in);
+  TermInputs inputs();
   void judge_captured(std::size_t index, StageTerms& t);
   void band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept, bool judge);
   ExtraTerms iso_terms(const StageTerms& t, const CapturedStage& cap, const Image& inherited) const;
@@ -435,146 +189,13 @@ void Comparison::oracle_full(const StageSpec& spec, const std::vector<std::strin
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Input, bright, composite, tonemap and output: bounds of the value at the same texel.
-StageTerms Comparison::point_terms(const StageSpec& spec, const std::vector<std::string>& in) {
-  std::vector<ConstImageView> cin;
-  for (const std::string& n : in) cin.push_back(V(n));
-  StageTerms t;
-  t.oracle = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits, pool_);
-  const ConstImageView o = t.oracle.cview();
-  const int w = o.width;
-  const float strength = p_.strength;
-  auto same_as_bound = [w](int y0, int y1, const float* b, float* out) {
-    std::copy(b, b + std::size_t(y1 - y0) * w * kChannels, out);
-  };
-  // A per-value function f(at value, image value) of an image's rows (an input's end-to-end
-  // bound, or the error it carries), plus the isolated bound when `plus_bound`.
-  auto through = [w](BoundRows img, ConstImageView at, auto f, bool plus_bound) -> BandRows {
-    return [=](int y0, int y1, const float* b, float* out) {
-      const float* e = img.rows(y0, y1, w, band_scratch().read[0]);
-      for (int y = y0; y < y1; ++y)
-        for (int x = 0; x < w; ++x)
-          for (int c = 0; c < 3; ++c) {
-            const std::size_t i = (std::size_t(y - y0) * w + x) * kChannels + c;
-            const float v = f(at.pixel(x, y)[c], e[i]);
-            out[i] = plus_bound ? v + b[i] : v;
-          }
-    };
-  };
-  switch (spec.kind) {
-    case StageKind::input:
-      t.bound = input_bounds(o, ctx_);
-      t.end_to_end = same_as_bound;
-      break;
-    case StageKind::bright:
-      t.bound = bright_bounds(sanitized_, p_.threshold, ctx_);
-      t.end_to_end = same_as_bound;
-      break;
-    case StageKind::composite: {
-      t.bound = composite_bounds(cin[0], cin[1], o, strength, ctx_);
-      const BoundRows e0 = e2e_rows(in[0]), e1 = e2e_rows(in[1]);
-      t.end_to_end = [=](int y0, int y1, const float* b, float* out) {
-        BandScratch& s = band_scratch();
-        const float *a = e0.rows(y0, y1, w, s.read[0]), *d = e1.rows(y0, y1, w, s.read[1]);
-        for (std::size_t i = 0; i < std::size_t(y1 - y0) * w * kChannels; ++i)
-          out[i] = a[i] + static_cast<float>(double(strength) * d[i]) + b[i];
-      };
-      const Image *es = E(in[0]), *eb = E(in[1]);
-      if (es || eb)
-        t.inherited = [=](int y0, int y1, const float*, float* out) {
-          for (int y = y0; y < y1; ++y)
-            for (int x = 0; x < w; ++x)
-              for (int c = 0; c < 3; ++c) {
-                float v = 0.0f;
-                if (es) v += es->pixel(x, y)[c];
-                if (eb) v += static_cast<float>(double(strength) * eb->pixel(x, y)[c]);
-                out[(std::size_t(y - y0) * w + x) * kChannels + c] = v;
-              }
-        };
-      break;
-    }
-    case StageKind::tonemap:
-    case StageKind::output: {
-      const bool tm = spec.kind == StageKind::tonemap;
-      t.bound = tm ? tonemap_bounds(cin[0], o, p_.exposure, ctx_)
-                   : output_bounds(cin[0], o, p_.gamma, ctx_);
-      const double k = tm ? double(p_.exposure) : double(p_.gamma);
-      auto f = [tm, k](float h, float e) {
-        return tm ? through_tonemap(h, e, k) : through_output(h, e, k);
-      };
-      t.end_to_end = through(e2e_rows(in[0]), C(in[0]), f, true);
-      if (const Image* ce = E(in[0])) t.inherited = through({ce, nullptr}, cin[0], f, false);
-      break;
-    }
-    default:
-      break;
-  }
-  return t;
-}
-
-// blur.k: the bounds of the pass; the end-to-end bound and the carried error propagated
-// through it.
-StageTerms Comparison::blur_terms(const StageSpec& spec, const std::vector<std::string>& in) {
-  const ConstImageView src = V(in[0]);
-  StageTerms t;
-  t.oracle = oracle_stage(plan_, spec, sanitized_, {src}, profile_.subtexel_bits, pool_);
-  t.bound = blur_bounds(src, t.oracle.cview(), spec.axis, kernel_, ctx_);
-  const int w = src.width;
-  auto e = std::make_shared<BlurPropagation>(e2e_.at(in[0]).cview(), spec.axis, kernel_);
-  t.end_to_end = [e, w](int y0, int y1, const float* b, float* out) {
-    e->rows(y0, y1, out);
-    add_rows(out, b, std::size_t(y1 - y0) * w);
-  };
-  if (const Image* ce = E(in[0])) {
-    auto c = std::make_shared<BlurPropagation>(ce->cview(), spec.axis, kernel_);
-    t.inherited = [c](int y0, int y1, const float*, float* out) { c->rows(y0, y1, out); };
-  }
-  return t;
-}
-
-// down.k, up.k, bloom: every tap's window on the level it reads. The carried error enters each
-// tap (and the threshold's band): the bound with it, less the bound without, is what it adds.
-StageTerms Comparison::mip_terms(const StageSpec& spec, const std::vector<std::string>& in) {
-  const bool down = spec.kind == StageKind::down, up = spec.kind == StageKind::up;
-  const int k = spec.pass;
-  std::vector<ConstImageView> cin;
-  for (const std::string& n : in) cin.push_back(V(n));
-  StageTerms t;
-  t.oracle = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits, pool_);
-  const ConstImageView o = t.oracle.cview(), none{};
-  auto bounds = [&](ConstImageView a, ConstImageView b, ConstImageView out, const Image* ea,
-                    const Image* eb) -> std::shared_ptr<StageBounds> {
-    if (down) return down_bounds(a, out, ea, k == 1, p_.threshold, p_.karis, ctx_);
-    return up_bounds(a, up ? b : none, out, ea, up ? eb : nullptr, ctx_);
-  };
-  t.bound = down ? down_bounds(cin[0], o, nullptr, k == 1, p_.threshold, p_.karis, ctx_)
-                 : up_bounds(cin[0], up ? cin[1] : none, o, nullptr, nullptr, ctx_);
-  const Image* es = E(in[0]);
-  const Image* ec = up ? E(in[1]) : nullptr;
-  const int w = o.width;
-  if (es || ec) {
-    std::shared_ptr<StageBounds> with = bounds(cin[0], up ? cin[1] : none, o, es, ec);
-    t.inherited = [with, w](int y0, int y1, const float* b, float* out) {
-      with->rows(y0, y1, out, nullptr);
-      for (std::size_t i = 0; i < std::size_t(y1 - y0) * w * kChannels; ++i)
-        out[i] += static_cast<float>(-1.0 * b[i]);
-    };
-  }
-  std::shared_ptr<StageBounds> e =
-      bounds(C(in[0]), up ? C(in[1]) : none, C(spec.name),
-             &e2e_.at(in[0]), up ? &e2e_.at(in[1]) : nullptr);
-  t.end_to_end = [e](int y0, int y1, const float*, float* out) { e->rows(y0, y1, out, nullptr); };
-  return t;
-}
-
-StageTerms Comparison::terms(const StageSpec& spec, const std::vector<std::string>& in) {
-  switch (spec.kind) {
-    case StageKind::blur: return blur_terms(spec, in);
-    case StageKind::down:
-    case StageKind::up:
-    case StageKind::bloom: return mip_terms(spec, in);
-    default: return point_terms(spec, in);
-  }
+// The comparison's images, by stage name, as the stages' terms read them.
+TermInputs Comparison::inputs() {
+  return {plan_, profile_, ctx_, sanitized_, pool_,
+          [this](const std::string& n) { return V(n); },
+          [this](const std::string& n) { return E(n); },
+          [this](const std::string& n) { return C(n); },
+          [this](const std::string& n) { return e2e_rows(n); }};
 }
 
 // Whether a stage's end-to-end bound is made again where it is read instead of kept: the input
@@ -623,7 +244,7 @@ ParityResult Comparison::run(double* oracle_ms) {
           pool_.give(full_.at(n));
           full_.erase(n);
         }
-    StageTerms t = terms(spec, in);
+    StageTerms t = stage_terms(spec, in, inputs());
     if (streams_.captured(name_)) judge_captured(index, t);
     else keep_uncaptured(index, t);
     pool_.give(t.oracle);
@@ -633,20 +254,6 @@ ParityResult Comparison::run(double* oracle_ms) {
   }
   if (oracle_ms) *oracle_ms = oracle_time_;
   return finish();
-}
-
-// The override of a stage's bound in the profile (bound x scale + absolute), row by row.
-void override_rows(const StageOverride* over, float* b, std::size_t n) {
-  if (over && (over->scale != 1.0 || over->absolute != 0.0))
-    for (std::size_t i = 0; i < n * kChannels; ++i)
-      b[i] = static_cast<float>(b[i] * over->scale + over->absolute);
-}
-
-// Rows [y0, y0 + n / width) of an image from band rows: RGB, alpha 0 (as the bound images
-// always had).
-void put_rows(Image& img, int y0, const float* rows, std::size_t n) {
-  float* d = img.pixel(0, y0);
-  for (std::size_t i = 0; i < n * kChannels; ++i) d[i] = i % kChannels == 3 ? 0.0f : rows[i];
 }
 
 // One band of a captured stage: its bounds made, then both comparisons (none when `judge` is

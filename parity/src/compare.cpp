@@ -352,29 +352,6 @@ bool uniform_rgb(ConstImageView img, bool clamped) {
   return true;
 }
 
-StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
-                      const Image& bound, const StageBounds& terms, Storage storage,
-                      const DeviceProfile& p, const CompareOptions& opt, int threads,
-                      const ImageGates* gates, const Image* allowance, const Image* slack) {
-  if (gl.width != oracle.width || gl.height != oracle.height) return size_fault(stage, gl, oracle);
-  const bool uniform = gates && uniform_rgb(oracle);
-  JudgeRules rules{storage, &p, static_cast<std::size_t>(opt.worst_count), gates != nullptr,
-                   gates && !uniform && gates->window > 0 ? gates->window_size : 0, gl.width};
-  const int band = judge_band(rules.window);
-  const int bands = (gl.height + band - 1) / band;
-  std::vector<Tally> tallies(bands);
-  parallel_rows(bands, threads, [&](int b0, int b1) {
-    for (int b = b0; b < b1; ++b)
-      for (int y = b * band; y < std::min(gl.height, (b + 1) * band); ++y)
-        judge_row(rules, y, gl.row(y), oracle.row(y), bound.cview().row(y),
-                  allowance ? allowance->cview().row(y) : nullptr,
-                  slack ? slack->cview().row(y) : nullptr, tallies[b]);
-  });
-  Tally total;
-  for (Tally& t : tallies) total.merge(std::move(t), rules.worst_count);
-  return conclude(stage, std::move(total), rules, terms, gates, uniform);
-}
-
 double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound, double relative,
                     Storage storage, const DeviceProfile& p, int threads) {
   if (gl.width != oracle.width || gl.height != oracle.height) return 0.0;

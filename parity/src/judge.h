@@ -1,9 +1,12 @@
 // The one comparison of a stage (compare.cpp), shared by compare_captured and the cause
-// hypotheses (internal to parity).
+// hypotheses' scores (internal to parity).
 //
 // Judging runs band by band: `judge_row` adds a row's values to the band's Tally, the bands'
 // tallies are merged in row order (so every sum is the same for any thread count), and
-// `conclude` turns the total into the stage's verdict. `judge` does all three over whole images.
+// `conclude` turns the total into the stage's verdict. PASS / WARN / FAIL as compare.h says; the
+// image gates measure the error beyond the rounding each value is allowed (the stage's rounding
+// terms and a capture's codes; without them, the storage term) against the bound beyond the
+// same.
 #pragma once
 
 #include <array>
@@ -48,7 +51,7 @@ void judge_row(const JudgeRules& rules, int y, const float* gl, const float* ora
 
 /// The stage's comparison from the tally of all its rows: counts, the worst values with their
 /// bound's terms (from `terms`), the image gates (when given, unless `uniform`: an oracle of one
-/// colour has one error, not an average), the verdict and its reason. `height` is the stage's.
+/// colour has one error, not an average), the verdict and its reason.
 StageComparison conclude(const std::string& stage, Tally total, const JudgeRules& rules,
                          const StageBounds& terms, const ImageGates* gates, bool uniform);
 
@@ -62,20 +65,8 @@ bool uniform_rgb(ConstImageView img, bool clamped = false);
 /// The band height for judging a stage: a multiple of the gates' window (when there is one).
 int judge_band(int window);
 
-/// Judges `gl` against `oracle` value by value with `bound` (RGB); `terms` names the terms of
-/// the worst values' bounds. PASS / WARN / FAIL as compare.h says. With `gates`, also the image
-/// gates, on the error beyond the rounding allowed (`allowance`, RGB per value: the stage's
-/// rounding terms and a capture's codes; without it, the storage term) against the bound beyond
-/// the same; `slack` (optional) is taken off the error only (f16 roundings carried from stages
-/// without capture). Keeps no images.
-StageComparison judge(const std::string& stage, ConstImageView gl, ConstImageView oracle,
-                      const Image& bound, const StageBounds& terms, Storage storage,
-                      const DeviceProfile& p, const CompareOptions& opt, int threads,
-                      const ImageGates* gates = nullptr, const Image* allowance = nullptr,
-                      const Image* slack = nullptr);
-
-/// The fraction of values of `gl` within their bound against `oracle` (StageComparison::within
-/// of judge's result, without the rest), the bound of each value being `bound`'s plus
+/// The fraction of values of `gl` within their bound against `oracle` (what
+/// StageComparison::within gives of the whole comparison, without the rest), the bound of each value being `bound`'s plus
 /// `relative` x |oracle value| (rounded to float, then added in float).
 double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound, double relative,
                     Storage storage, const DeviceProfile& p, int threads);

@@ -3,13 +3,11 @@
 #include "tolerance.h"
 
 #include <algorithm>
-#include <array>
-#include <cfloat>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <memory>
-#include <stdexcept>
+#include <vector>
 
 #include "bloomref/parallel.h"
 
@@ -29,399 +27,12 @@ inline double ulp16(double v) {
   return r;
 }
 
-// A NaN or Inf texel where a lookup may touch it makes the lookup's result unpinned: the GL
-// formula (1 - a) t0 + a t1 turns 0 * Inf into NaN, llvmpipe computes t0 + a (t1 - t0) (Inf -
-// Inf = NaN, measured on BrightRingsNanInf.exr), the oracle leaves zero weights out. Such values
-// get an infinite bound ("the footprint holds NaN/Inf"): where NaN/Inf appear is compared, not
-// which of them. The window magnitude carries it as +Inf.
-//
-// Local range (max - min) and magnitude (max |t|) of each channel over the texels a tap based
-// at texel p may touch once its coordinate is a little off: [p-1, p+2] along the blurred axis
-// (linear5 taps sit between p and p+1), [q-1, q+1] across it. Computed for the rows a band's
-// taps reach, in two passes: along the axis, then across. Min and max are exact, so the band's
-// statistics are the whole image's.
-
-// Folds value v into a window's (min, max, magnitude) as std::min, std::max and std::max of |v|
-// in turn would, over finite values only; a non-finite one makes the magnitude +Inf (see above).
-// Written as selects so that the loops below vectorise.
-inline void fold(float v, float& mn, float& mx, float& ma) {
-  const float a = std::fabs(v);
-  const bool finite = a <= FLT_MAX;  // false for NaN and +-Inf
-  mn = finite && v < mn ? v : mn;
-  mx = finite && mx < v ? v : mx;
-  ma = !finite ? INFINITY : ma < a ? a : ma;
-}
-
-// Pass 1 over n values (RGBA interleaved, alpha too: its results are not read): value i folds
-// t0[i], t1[i], t2[i], t3[i] in that order.
-template <bool Range>
-void pass1(const float* __restrict t0, const float* __restrict t1, const float* __restrict t2,
-           const float* __restrict t3, std::size_t n, float* __restrict lo, float* __restrict hi,
-           float* __restrict ma) {
-  for (std::size_t i = 0; i < n; ++i) {
-    float mn = INFINITY, mx = -INFINITY, m = 0;
-    fold(t0[i], mn, mx, m);
-    fold(t1[i], mn, mx, m);
-    fold(t2[i], mn, mx, m);
-    fold(t3[i], mn, mx, m);
-    if (Range) {
-      lo[i] = mn;
-      hi[i] = mx;
-    }
-    ma[i] = m;
-  }
-}
-
-// Pass 2 over n values: value i combines entries i of three pass-1 results (d = 0, 1, 2 in that
-// order; std::min / std::max: none is NaN), into the range and the magnitude.
-template <bool Range>
-void pass2(const float* const lo[3], const float* const hi[3], const float* const ma[3],
-           std::size_t n, float* __restrict range, float* __restrict magnitude) {
-  const float *__restrict l0 = lo[0], *__restrict l1 = lo[1], *__restrict l2 = lo[2];
-  const float *__restrict h0 = hi[0], *__restrict h1 = hi[1], *__restrict h2 = hi[2];
-  const float *__restrict m0 = ma[0], *__restrict m1 = ma[1], *__restrict m2 = ma[2];
-  for (std::size_t i = 0; i < n; ++i) {
-    float m = 0;
-    m = m < m0[i] ? m0[i] : m;
-    m = m < m1[i] ? m1[i] : m;
-    m = m < m2[i] ? m2[i] : m;
-    magnitude[i] = m;
-    if (Range) {
-      float mn = INFINITY, mx = -INFINITY;
-      mn = l0[i] < mn ? l0[i] : mn;
-      mn = l1[i] < mn ? l1[i] : mn;
-      mn = l2[i] < mn ? l2[i] : mn;
-      mx = mx < h0[i] ? h0[i] : mx;
-      mx = mx < h1[i] ? h1[i] : mx;
-      mx = mx < h2[i] ? h2[i] : mx;
-      range[i] = mx >= mn ? mx - mn : 0.0f;
-    }
-  }
-}
-
-// Per-thread scratch of a band (reused band after band: stage-wide buffers would be mapped and
-// faulted in afresh on every allocation).
-struct WindowScratch {
-  std::vector<float> lo, hi, mag;       // pass 1, RGBA rows
-  std::vector<float> range, magnitude;  // the window statistics, RGBA rows
-  std::vector<std::uint8_t> src_const, p1_const, p1_filled, w_const, w_filled;
-  std::vector<std::array<float, 4>> src_c, p1_lo, p1_hi, p1_ma, w_range, w_mag;
-};
-
-WindowScratch& window_scratch() {
-  thread_local WindowScratch s;
-  return s;
-}
-
-template <class T>
-T* sized(std::vector<T>& v, std::size_t n) {
+float* sized(std::vector<float>& v, std::size_t n) {
   if (v.size() < n) v.resize(n);
   return v.data();
 }
 
-// Whether every texel of a row of w has the first texel's bits (then `c` is that texel): rows of
-// one value (dark and empty regions, their bounds) have one window statistic and one sum,
-// computed once.
-bool constant_row(const float* row, int w, std::array<float, 4>& c) {
-  std::uint32_t first[4], diff = 0;
-  std::memcpy(first, row, sizeof first);
-  std::memcpy(c.data(), row, sizeof first);
-  for (int x = 1; x < w; ++x) {
-    std::uint32_t t[4];
-    std::memcpy(t, row + std::size_t(x) * kChannels, sizeof t);
-    diff |= (t[0] ^ first[0]) | (t[1] ^ first[1]) | (t[2] ^ first[2]) | (t[3] ^ first[3]);
-  }
-  return diff == 0;
-}
-
-void fill_row(float* row, int w, const std::array<float, 4>& c) {
-  for (int x = 0; x < w; ++x) std::memcpy(row + std::size_t(x) * kChannels, c.data(), sizeof c);
-}
-
-// The texels of a row of w whose four (pass 1: x-1..x+2) or three (pass 2: x-1..x+1) neighbours
-// along x are all inside: [1, w - reach), the others clamp.
-inline bool inside(int x, int w, int reach) { return x >= 1 && x + reach < w; }
-
-// Pass 1 along x of one row (its texels x-1..x+2, clamped at the edges).
-template <bool Range>
-void pass1_along_x(const float* in, int w, float* lo, float* hi, float* ma) {
-  constexpr int C = kChannels;
-  if (w > 3) pass1<Range>(in, in + C, in + 2 * C, in + 3 * C, std::size_t(w - 3) * C, lo + C, hi + C, ma + C);
-  for (int x = 0; x < w; ++x) {
-    if (inside(x, w, 2)) continue;
-    const float* t[4];
-    for (int d = 0; d < 4; ++d) t[d] = in + std::size_t(std::clamp(x + d - 1, 0, w - 1)) * C;
-    const std::size_t o = std::size_t(x) * C;
-    pass1<Range>(t[0], t[1], t[2], t[3], C, lo + o, hi + o, ma + o);
-  }
-}
-
-// Pass 2 across x of one row (x-1..x+1, clamped at the edges).
-template <bool Range>
-void pass2_across_x(const float* lo, const float* hi, const float* ma, int w, float* range,
-                    float* magnitude) {
-  constexpr int C = kChannels;
-  if (w > 2) {
-    const float* l[3] = {lo, lo + C, lo + 2 * C};
-    const float* g[3] = {hi, hi + C, hi + 2 * C};
-    const float* m[3] = {ma, ma + C, ma + 2 * C};
-    pass2<Range>(l, g, m, std::size_t(w - 2) * C, range + C, magnitude + C);
-  }
-  for (int x = 0; x < w; ++x) {
-    if (inside(x, w, 1)) continue;
-    const float *l[3], *g[3], *m[3];
-    for (int d = 0; d < 3; ++d) {
-      const std::size_t at = std::size_t(std::clamp(x + d - 1, 0, w - 1)) * C;
-      l[d] = lo + at;
-      g[d] = hi + at;
-      m[d] = ma + at;
-    }
-    const std::size_t o = std::size_t(x) * C;
-    pass2<Range>(l, g, m, C, range + o, magnitude + o);
-  }
-}
-
-// Window statistics of rows [r0, r1) of src into range / magnitude (RGBA rows; without Range
-// only the magnitude). Horizontal: pass 1 along x over [x-1, x+2] on rows [r0-1, r1+1), pass 2
-// across the rows y-1..y+1. Vertical: per row, pass 1 along y over [y-1, y+2], pass 2 across
-// x-1..x+1. Edges clamp. A window row all of whose source rows are constant is constant: it is
-// flagged in s.w_const with its values in s.w_range / s.w_mag, and its rows are left unwritten
-// (window_filled writes them).
-template <bool Range>
-void window_rows(ConstImageView src, Axis axis, int r0, int r1, float* range, float* magnitude,
-                 WindowScratch& s) {
-  const int w = src.width, h = src.height;
-  const std::size_t row = std::size_t(w) * kChannels, rows = std::size_t(r1 - r0);
-  auto at = [&](std::vector<float>& v, int i) {
-    return v.empty() ? nullptr : v.data() + std::size_t(i) * row;
-  };
-  const bool hz = axis == Axis::horizontal;
-  // The source rows read: [q0, q1), each tested for one value.
-  const int q0 = std::max(r0 - 1, 0), q1 = std::min(r1 + (hz ? 1 : 2), h);
-  sized(s.src_const, std::size_t(q1 - q0));
-  sized(s.src_c, std::size_t(q1 - q0));
-  for (int y = q0; y < q1; ++y)
-    s.src_const[y - q0] = constant_row(src.row(y), w, s.src_c[y - q0]);
-  sized(s.w_const, rows);
-  std::fill(s.w_const.begin(), s.w_const.begin() + rows, 0);
-  sized(s.w_filled, rows);
-  std::fill(s.w_filled.begin(), s.w_filled.begin() + rows, 0);
-  sized(s.w_range, rows);
-  sized(s.w_mag, rows);
-  if (hz) {
-    // Pass 1 per source row; a constant row's result is its one texel's (made whole when a
-    // window row that is not constant reads it).
-    const std::size_t n = std::size_t(q1 - q0) * row;
-    sized(s.lo, Range ? n : 0);
-    sized(s.hi, Range ? n : 0);
-    sized(s.mag, n);
-    for (auto* v : {&s.p1_const, &s.p1_filled}) sized(*v, std::size_t(q1 - q0));
-    for (auto* v : {&s.p1_lo, &s.p1_hi, &s.p1_ma}) sized(*v, std::size_t(q1 - q0));
-    for (int y = q0; y < q1; ++y) {
-      const int i = y - q0;
-      s.p1_const[i] = s.src_const[i];
-      s.p1_filled[i] = !s.src_const[i];
-      if (s.src_const[i]) {
-        const float* c = s.src_c[i].data();
-        pass1<Range>(c, c, c, c, kChannels, s.p1_lo[i].data(), s.p1_hi[i].data(), s.p1_ma[i].data());
-      } else {
-        pass1_along_x<Range>(src.row(y), w, at(s.lo, i), at(s.hi, i), at(s.mag, i));
-      }
-    }
-    for (int r = r0; r < r1; ++r) {
-      int src_rows[3];
-      bool all_const = true;
-      for (int d = 0; d < 3; ++d) {
-        src_rows[d] = std::clamp(r + d - 1, 0, h - 1) - q0;
-        all_const = all_const && s.p1_const[src_rows[d]];
-      }
-      const std::size_t o = std::size_t(r - r0) * row;
-      const float *l[3], *g[3], *m[3];
-      if (all_const) {
-        for (int d = 0; d < 3; ++d) {
-          l[d] = s.p1_lo[src_rows[d]].data();
-          g[d] = s.p1_hi[src_rows[d]].data();
-          m[d] = s.p1_ma[src_rows[d]].data();
-        }
-        s.w_const[r - r0] = 1;
-        pass2<Range>(l, g, m, kChannels, s.w_range[r - r0].data(), s.w_mag[r - r0].data());
-        continue;
-      }
-      for (int d = 0; d < 3; ++d) {
-        const int i = src_rows[d];
-        if (!s.p1_filled[i]) {
-          if (Range) fill_row(at(s.lo, i), w, s.p1_lo[i]);
-          if (Range) fill_row(at(s.hi, i), w, s.p1_hi[i]);
-          fill_row(at(s.mag, i), w, s.p1_ma[i]);
-          s.p1_filled[i] = 1;
-        }
-        l[d] = at(s.lo, i);
-        g[d] = at(s.hi, i);
-        m[d] = at(s.mag, i);
-      }
-      pass2<Range>(l, g, m, row, Range ? range + o : nullptr, magnitude + o);
-    }
-  } else {
-    float *lo = sized(s.lo, Range ? row : 0), *hi = sized(s.hi, Range ? row : 0);
-    float* ma = sized(s.mag, row);
-    for (int r = r0; r < r1; ++r) {
-      const float* t[4];
-      bool all_const = true;
-      for (int d = 0; d < 4; ++d) {
-        const int y = std::clamp(r + d - 1, 0, h - 1);
-        all_const = all_const && s.src_const[y - q0];
-        t[d] = all_const ? s.src_c[y - q0].data() : src.row(y);
-      }
-      const std::size_t o = std::size_t(r - r0) * row;
-      if (all_const) {
-        float l[4], g[4], m[4];
-        pass1<Range>(t[0], t[1], t[2], t[3], kChannels, l, g, m);
-        const float *ls[3] = {l, l, l}, *gs[3] = {g, g, g}, *ms[3] = {m, m, m};
-        s.w_const[r - r0] = 1;
-        pass2<Range>(ls, gs, ms, kChannels, s.w_range[r - r0].data(), s.w_mag[r - r0].data());
-        continue;
-      }
-      for (int d = 0; d < 4; ++d) t[d] = src.row(std::clamp(r + d - 1, 0, h - 1));
-      pass1<Range>(t[0], t[1], t[2], t[3], row, lo, hi, ma);
-      pass2_across_x<Range>(lo, hi, ma, w, Range ? range + o : nullptr, magnitude + o);
-    }
-  }
-}
-
-// Writes window row i whole if it was left constant (window_rows).
-void window_filled(WindowScratch& s, int i, int w, float* range, float* magnitude) {
-  if (!s.w_const[i] || s.w_filled[i]) return;
-  const std::size_t o = std::size_t(i) * w * kChannels;
-  if (range) fill_row(range + o, w, s.w_range[i]);
-  fill_row(magnitude + o, w, s.w_mag[i]);
-  s.w_filled[i] = 1;
-}
-
 }  // namespace
-
-// For each position along the axis, the base texel of every tap (centre, +o1, -o1, ...: floor of
-// its exact position, clamped) and its weight: computed once per pass instead of per value.
-struct BlurPropagation::Taps {
-  Axis axis = Axis::horizontal;
-  int taps = 0;
-  std::vector<int> base;
-  std::vector<double> weight;
-  // Positions [inner0, inner1) have every tap at a fixed offset from them (offset[k]: none
-  // clamped at an edge).
-  int inner0 = 0, inner1 = 0;
-  std::vector<int> offset;
-
-  static constexpr int kMaxTaps = 16;
-
-  Taps(Axis a, int n, const Kernel& k) : axis(a), taps(k.taps()) {
-    if (taps > kMaxTaps) throw std::logic_error("blur bounds: more than 16 taps");
-    for (int pos = 0; pos < n; ++pos)
-      for (std::size_t i = 0; i < k.offsets_f64.size(); ++i)
-        for (double sign : {1.0, -1.0}) {
-          if (i == 0 && sign < 0) continue;
-          base.push_back(std::clamp(static_cast<int>(std::floor(pos + sign * k.offsets_f64[i])), 0, n - 1));
-          weight.push_back(k.weights_f64[i]);
-        }
-    const int mid = n / 2;
-    for (int t = 0; t < taps; ++t) offset.push_back(base[std::size_t(mid) * taps + t] - mid);
-    auto fixed = [&](int pos) {
-      for (int t = 0; t < taps; ++t)
-        if (base[std::size_t(pos) * taps + t] != pos + offset[t]) return false;
-      return true;
-    };
-    inner0 = inner1 = mid;
-    while (inner0 > 0 && fixed(inner0 - 1)) --inner0;
-    while (inner1 < n && fixed(inner1)) ++inner1;
-  }
-
-  // sum over taps of weight * statistic(tap base), per channel, for rows [y0, y1) of src's
-  // window statistics (range_sum may be null: magnitude only). RGBA rows. In double, tap by tap
-  // in the kernel's order, rounded to float once. Every tap of a position has the same weights,
-  // so where every tap reads constant window rows the row's sums are one texel's.
-  void sums(ConstImageView src, int y0, int y1, float* range_sum, float* magnitude_sum) const {
-    const bool hz = axis == Axis::horizontal;
-    const int w = src.width;
-    // The window rows the band's taps read: its own (horizontal), or every tap's base row.
-    int r0 = y0, r1 = y1;
-    if (!hz) {
-      r0 = *std::min_element(base.begin() + std::ptrdiff_t(y0) * taps, base.begin() + std::ptrdiff_t(y0 + 1) * taps);
-      r1 = 1 + *std::max_element(base.begin() + std::ptrdiff_t(y1 - 1) * taps, base.begin() + std::ptrdiff_t(y1) * taps);
-    }
-    WindowScratch& s = window_scratch();
-    const std::size_t row = std::size_t(w) * kChannels, n = std::size_t(r1 - r0) * row;
-    float* range = range_sum ? sized(s.range, n) : nullptr;
-    float* magnitude = sized(s.magnitude, n);
-    if (range) window_rows<true>(src, axis, r0, r1, range, magnitude, s);
-    else window_rows<false>(src, axis, r0, r1, nullptr, magnitude, s);
-    for (int which = 0; which < 2; ++which) {
-      const float* stat = which == 0 ? range : magnitude;
-      float* out = which == 0 ? range_sum : magnitude_sum;
-      if (!out) continue;
-      const auto& consts = which == 0 ? s.w_range : s.w_mag;
-      for (int y = y0; y < y1; ++y) {
-        float* o = out + std::size_t(y - y0) * row;
-        const int* b = hz ? nullptr : &base[std::size_t(y) * taps];
-        bool all_const = true;
-        for (int t = 0; t < (hz ? 1 : taps) && all_const; ++t) all_const = s.w_const[(hz ? y : b[t]) - r0];
-        if (all_const) {
-          const float* src_c[kMaxTaps];
-          for (int t = 0; t < taps; ++t) src_c[t] = consts[(hz ? y : b[t]) - r0].data();
-          std::array<float, 4> v;
-          weighted_sums(src_c, &weight[0], kChannels, v.data());
-          fill_row(o, w, v);
-          continue;
-        }
-        if (hz) {
-          window_filled(s, y - r0, w, range, magnitude);
-          along_row(stat + std::size_t(y - r0) * row, w, o);
-          continue;
-        }
-        const float* rows[kMaxTaps];
-        for (int t = 0; t < taps; ++t) {
-          window_filled(s, b[t] - r0, w, range, magnitude);
-          rows[t] = stat + std::size_t(b[t] - r0) * row;
-        }
-        weighted_sums(rows, &weight[std::size_t(y) * taps], row, o);
-      }
-    }
-  }
-
-  // out[i] = sum over taps t of w[t] * src[t][i], in double from 0, tap by tap in order, rounded
-  // to float once: the kernels' tap counts unrolled.
-  template <int T>
-  static void sums_of(const float* const* src, const double* w, std::size_t n, float* out) {
-    for (std::size_t i = 0; i < n; ++i) {
-      double a = 0;
-      for (int t = 0; t < T; ++t) a += w[t] * src[t][i];
-      out[i] = static_cast<float>(a);
-    }
-  }
-  void weighted_sums(const float* const* src, const double* w, std::size_t n, float* out) const {
-    if (taps == 9) return sums_of<9>(src, w, n, out);
-    if (taps == 5) return sums_of<5>(src, w, n, out);
-    for (std::size_t i = 0; i < n; ++i) {
-      double a = 0;
-      for (int t = 0; t < taps; ++t) a += w[t] * src[t][i];
-      out[i] = static_cast<float>(a);
-    }
-  }
-
-  // A horizontal pass's sums over one row of statistics: the inner texels by fixed offsets, the
-  // edges by their clamped bases.
-  void along_row(const float* stat, int w, float* out) const {
-    constexpr int C = kChannels;
-    const float* src[kMaxTaps];
-    if (inner1 > inner0) {
-      for (int t = 0; t < taps; ++t) src[t] = stat + std::ptrdiff_t(inner0 + offset[t]) * C;
-      weighted_sums(src, weight.data(), std::size_t(inner1 - inner0) * C, out + std::size_t(inner0) * C);
-    }
-    for (int x = 0; x < w; ++x) {
-      if (x >= inner0 && x < inner1) continue;
-      for (int t = 0; t < taps; ++t) src[t] = stat + std::size_t(base[std::size_t(x) * taps + t]) * C;
-      weighted_sums(src, &weight[std::size_t(x) * taps], C, out + std::size_t(x) * C);
-    }
-  }
-};
 
 double storage_term(double v, Storage s, const DeviceProfile& p) {
   if (s == Storage::f32 || !std::isfinite(v)) return 0.0;
@@ -473,7 +84,7 @@ class BlurBounds : public StageBounds {
  public:
   BlurBounds(ConstImageView src, ConstImageView oracle, Axis axis, const Kernel& k, BoundContext ctx)
       : src_(src), oracle_(oracle), ctx_(ctx), taps_(k.taps()),
-        bases_(std::make_shared<BlurPropagation::Taps>(
+        bases_(std::make_shared<BlurTaps>(
             axis, axis == Axis::horizontal ? src.width : src.height, k)) {
     threads = ctx.threads;
     const bool hz = axis == Axis::horizontal;
@@ -534,7 +145,7 @@ class BlurBounds : public StageBounds {
   BoundContext ctx_;
   int taps_;
   double delta_ = 0;
-  std::shared_ptr<const BlurPropagation::Taps> bases_;
+  std::shared_ptr<const BlurTaps> bases_;
 };
 
 }  // namespace
@@ -616,7 +227,7 @@ std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView
 
 BlurPropagation::BlurPropagation(ConstImageView error, Axis axis, const Kernel& k)
     : error_(error), axis_(axis),
-      taps_(std::make_shared<Taps>(axis, axis == Axis::horizontal ? error.width : error.height, k)) {}
+      taps_(std::make_shared<BlurTaps>(axis, axis == Axis::horizontal ? error.width : error.height, k)) {}
 
 BlurPropagation::~BlurPropagation() = default;
 

@@ -13,6 +13,7 @@
 #include "bloomref/parity/compare.h"
 #include "bloomref/parallel.h"
 #include "bloomref/stages.h"
+#include "window_sums.h"
 
 namespace bloomref::parity::detail {
 
@@ -148,12 +149,11 @@ class BlurPropagation {
   ~BlurPropagation();
   /// Rows [y0, y1) of the propagated error (StageBounds' row layout).
   void rows(int y0, int y1, float* out) const;
-  struct Taps;
 
  private:
   ConstImageView error_;
   Axis axis_;
-  std::shared_ptr<const Taps> taps_;
+  std::shared_ptr<const BlurTaps> taps_;
 };
 
 /// BlurPropagation of the whole image, on `threads`.

@@ -75,7 +75,7 @@ struct StageComparison {
   double mean_excess = 0, worst_window = 0;
   int worst_window_x = 0, worst_window_y = 0;
   std::string gate;
-  Image oracle, bound;                   ///< kept when CompareOptions::keep_images
+  Image oracle, bound;                   ///< isolated comparisons, with CompareOptions::keep_images
   /// Fraction of the values within their bound (1 for PASS).
   double within() const {
     return values ? double(values - over_bound - nonfinite_mismatch) / double(values) : 1.0;
@@ -98,7 +98,7 @@ struct ParityResult {
 };
 
 struct CompareOptions {
-  bool keep_images = false;
+  bool keep_images = false;        ///< the isolated oracle and bound of each stage (the report's)
   bool keep_failing_only = false;  ///< with keep_images: only of stages that are not PASS
   int worst_count = 8;
   bool causes = false;  ///< test the usual causes on every isolated stage that is not PASS

@@ -1,0 +1,295 @@
+// The terms of each kind of stage (stage_terms.h), and the row operations a band shares.
+#include "stage_terms.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include "bloomref/engine/fast_stages.h"
+#include "bloomref/mip.h"
+#include "bloomref/stages.h"
+
+namespace bloomref::parity::detail {
+
+BandScratch& band_scratch() {
+  thread_local BandScratch s;
+  return s;
+}
+
+void add_rows(float* a, const float* b, std::size_t n) {
+  for (std::size_t i = 0; i < n * kChannels; ++i) a[i] += b[i];
+}
+
+void override_rows(const StageOverride* over, float* b, std::size_t n) {
+  if (over && (over->scale != 1.0 || over->absolute != 0.0))
+    for (std::size_t i = 0; i < n * kChannels; ++i)
+      b[i] = static_cast<float>(b[i] * over->scale + over->absolute);
+}
+
+void put_rows(Image& img, int y0, const float* rows, std::size_t n) {
+  float* d = img.pixel(0, y0);
+  for (std::size_t i = 0; i < n * kChannels; ++i) d[i] = i % kChannels == 3 ? 0.0f : rows[i];
+}
+
+namespace {
+
+// 1 - exp(-h k) has slope k exp(-h k), largest at the low end of h +- e.
+float through_tonemap(double h, double e, double exposure) {
+  return std::isfinite(h) && std::isfinite(e)
+             ? static_cast<float>(exposure * std::exp(-(h - e) * exposure) * e)
+             : INFINITY;
+}
+
+// Gamma's slope is unbounded near black: bound by the interval's image instead.
+float through_output(double m, double e, double gamma) {
+  const double g = 1.0 / gamma;
+  return std::isfinite(m) && std::isfinite(e)
+             ? static_cast<float>(std::pow(std::max(m + e, 0.0), g) -
+                                  std::pow(std::max(m - e, 0.0), g))
+             : INFINITY;
+}
+
+double srgb_decode(double v) {
+  return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
+}
+double srgb_encode(double v) {
+  return v <= 0.0031308 ? v * 12.92 : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+}
+
+}  // namespace
+
+float capture_code(const CapturedStage& cap, float& o) {
+  const double h = 0.5 / ((1 << cap.code_bits) - 1);
+  if (!std::isnan(o)) o = std::clamp(o, 0.0f, 1.0f);
+  double step = h;
+  if (cap.srgb && std::isfinite(o)) {
+    const double e = srgb_encode(o);
+    step = std::max(srgb_decode(std::min(e + h, 1.0)) - o, o - srgb_decode(std::max(e - h, 0.0)));
+  }
+  return static_cast<float>(step * (1 + 1e-6));  // the decode's own rounding
+}
+
+void capture_codes(const CapturedStage& cap, float* oracle, float* codes, std::size_t n) {
+  for (std::size_t i = 0; i < n * kChannels; ++i)
+    if (i % kChannels != 3) codes[i] = capture_code(cap, oracle[i]);
+}
+
+namespace {
+
+Image copy_of(ConstImageView v, ImagePool& pool) {
+  Image out = pool.take(v.width, v.height);
+  for (int y = 0; y < v.height; ++y)
+    std::copy(v.row(y), v.row(y) + std::size_t(v.width) * kChannels, out.view().row(y));
+  return out;
+}
+
+}  // namespace
+
+Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanitized,
+                   const std::vector<ConstImageView>& in, int subtexel_bits, ImagePool& pool) {
+  const BloomParams& p = plan.params;
+  const int threads = p.threads;
+  Image out;
+  switch (spec.kind) {
+    case StageKind::input:
+      return copy_of(sanitized, pool);
+    case StageKind::bright:
+      out = pool.take(sanitized.width, sanitized.height);
+      extract_bright(sanitized, out.view(), p.threshold, threads);
+      break;
+    case StageKind::blur:
+      out = pool.take(in[0].width, in[0].height);
+      blur_pass_fast(in[0], out.view(), {spec.axis, &kernel_for(p.kernel), subtexel_bits}, threads);
+      break;
+    case StageKind::down: {
+      const LevelSize& l = plan.levels[spec.pass - 1];
+      out = pool.take(l.width, l.height);
+      const bool first = spec.pass == 1;
+      downsample(in[0], out.view(), {first, p.threshold, p.karis && first, subtexel_bits}, threads);
+      break;
+    }
+    case StageKind::up:
+    case StageKind::bloom: {
+      const bool up = spec.kind == StageKind::up;
+      out = up ? pool.take(in[1].width, in[1].height)
+               : pool.take(sanitized.width, sanitized.height);
+      upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads);
+      break;
+    }
+    case StageKind::composite:
+      out = pool.take(in[0].width, in[0].height);
+      composite(in[0], in[1], out.view(), p.strength, threads);
+      break;
+    case StageKind::tonemap:
+      out = pool.take(in[0].width, in[0].height);
+      tonemap_fast(in[0], out.view(), p.exposure, threads);
+      break;
+    case StageKind::output:
+      out = pool.take(in[0].width, in[0].height);
+      encode_output_fast(in[0], out.view(), p.gamma, threads);
+      break;
+  }
+  return out;
+}
+
+namespace {
+
+// The isolated oracle of a stage, from what the isolated oracle reads.
+StageTerms with_oracle(const StageSpec& spec, const std::vector<ConstImageView>& cin,
+                       const TermInputs& at) {
+  StageTerms t;
+  t.oracle = oracle_stage(at.plan, spec, at.sanitized, cin, at.profile.subtexel_bits, at.pool);
+  return t;
+}
+
+std::vector<ConstImageView> isolated_inputs(const std::vector<std::string>& in,
+                                            const TermInputs& at) {
+  std::vector<ConstImageView> cin;
+  for (const std::string& n : in) cin.push_back(at.isolated(n));
+  return cin;
+}
+
+// A per-value function f(value of `at`, value of the rows) of an image's rows (an input's
+// end-to-end bound, or the error it carries), plus the isolated bound when `plus_bound`.
+template <class F>
+BandRows through(BoundRows rows, ConstImageView at, F f, bool plus_bound) {
+  return [=](int y0, int y1, const float* b, float* out) {
+    const int w = at.width;
+    const float* e = rows.rows(y0, y1, w, band_scratch().read[0]);
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int c = 0; c < 3; ++c) {
+          const std::size_t i = (std::size_t(y - y0) * w + x) * kChannels + c;
+          const float v = f(at.pixel(x, y)[c], e[i]);
+          out[i] = plus_bound ? v + b[i] : v;
+        }
+  };
+}
+
+// Input, bright, tonemap and output: bounds of the value at the same texel; the end-to-end
+// bound through the tone map's and gamma's slopes.
+StageTerms point_terms(const StageSpec& spec, const std::vector<std::string>& in,
+                       const TermInputs& at) {
+  const BloomParams& p = at.plan.params;
+  const std::vector<ConstImageView> cin = isolated_inputs(in, at);
+  StageTerms t = with_oracle(spec, cin, at);
+  const ConstImageView o = t.oracle.cview();
+  if (spec.kind == StageKind::input || spec.kind == StageKind::bright) {
+    t.bound = spec.kind == StageKind::input ? input_bounds(o, at.ctx)
+                                            : bright_bounds(at.sanitized, p.threshold, at.ctx);
+    t.end_to_end = [w = o.width](int y0, int y1, const float* b, float* out) {
+      std::copy(b, b + std::size_t(y1 - y0) * w * kChannels, out);
+    };
+    return t;
+  }
+  const bool tm = spec.kind == StageKind::tonemap;
+  t.bound = tm ? tonemap_bounds(cin[0], o, p.exposure, at.ctx)
+               : output_bounds(cin[0], o, p.gamma, at.ctx);
+  const double k = tm ? double(p.exposure) : double(p.gamma);
+  auto f = [tm, k](float h, float e) { return tm ? through_tonemap(h, e, k) : through_output(h, e, k); };
+  t.end_to_end = through(at.end_to_end(in[0]), at.full(in[0]), f, true);
+  if (const Image* ce = at.carried(in[0])) t.inherited = through(BoundRows{ce, nullptr}, cin[0], f, false);
+  return t;
+}
+
+// composite: scene + strength * bloom; both inputs' end-to-end bounds and carried errors add,
+// the bloom's scaled.
+StageTerms composite_terms(const StageSpec& spec, const std::vector<std::string>& in,
+                           const TermInputs& at) {
+  const float strength = at.plan.params.strength;
+  const std::vector<ConstImageView> cin = isolated_inputs(in, at);
+  StageTerms t = with_oracle(spec, cin, at);
+  const int w = t.oracle.width();
+  t.bound = composite_bounds(cin[0], cin[1], t.oracle.cview(), strength, at.ctx);
+  const BoundRows e0 = at.end_to_end(in[0]), e1 = at.end_to_end(in[1]);
+  t.end_to_end = [=](int y0, int y1, const float* b, float* out) {
+    BandScratch& s = band_scratch();
+    const float *a = e0.rows(y0, y1, w, s.read[0]), *d = e1.rows(y0, y1, w, s.read[1]);
+    for (std::size_t i = 0; i < std::size_t(y1 - y0) * w * kChannels; ++i)
+      out[i] = a[i] + static_cast<float>(double(strength) * d[i]) + b[i];
+  };
+  const Image *es = at.carried(in[0]), *eb = at.carried(in[1]);
+  if (es || eb)
+    t.inherited = [=](int y0, int y1, const float*, float* out) {
+      for (int y = y0; y < y1; ++y)
+        for (int x = 0; x < w; ++x)
+          for (int c = 0; c < 3; ++c) {
+            float v = 0.0f;
+            if (es) v += es->pixel(x, y)[c];
+            if (eb) v += static_cast<float>(double(strength) * eb->pixel(x, y)[c]);
+            out[(std::size_t(y - y0) * w + x) * kChannels + c] = v;
+          }
+    };
+  return t;
+}
+
+// blur.k: the bounds of the pass; the end-to-end bound and the carried error propagated
+// through it.
+StageTerms blur_terms(const StageSpec& spec, const std::vector<std::string>& in,
+                      const TermInputs& at) {
+  const Kernel& kernel = kernel_for(at.plan.params.kernel);
+  const ConstImageView src = at.isolated(in[0]);
+  StageTerms t = with_oracle(spec, {src}, at);
+  t.bound = blur_bounds(src, t.oracle.cview(), spec.axis, kernel, at.ctx);
+  const int w = src.width;
+  auto e = std::make_shared<BlurPropagation>(at.end_to_end(in[0]).image->cview(), spec.axis, kernel);
+  t.end_to_end = [e, w](int y0, int y1, const float* b, float* out) {
+    e->rows(y0, y1, out);
+    add_rows(out, b, std::size_t(y1 - y0) * w);
+  };
+  if (const Image* ce = at.carried(in[0])) {
+    auto c = std::make_shared<BlurPropagation>(ce->cview(), spec.axis, kernel);
+    t.inherited = [c](int y0, int y1, const float*, float* out) { c->rows(y0, y1, out); };
+  }
+  return t;
+}
+
+// down.k, up.k, bloom: every tap's window on the level it reads. The carried error enters each
+// tap (and the threshold's band): the bound with it, less the bound without, is what it adds.
+// The end-to-end bound is the same bound on the full run with the inputs' end-to-end bounds.
+StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in,
+                     const TermInputs& at) {
+  const BloomParams& p = at.plan.params;
+  const bool down = spec.kind == StageKind::down, up = spec.kind == StageKind::up;
+  const std::vector<ConstImageView> cin = isolated_inputs(in, at);
+  StageTerms t = with_oracle(spec, cin, at);
+  const ConstImageView o = t.oracle.cview(), none{};
+  auto bounds = [&](ConstImageView a, ConstImageView b, ConstImageView out, const Image* ea,
+                    const Image* eb) -> std::unique_ptr<StageBounds> {
+    if (down) return down_bounds(a, out, ea, spec.pass == 1, p.threshold, p.karis, at.ctx);
+    return up_bounds(a, up ? b : none, out, ea, up ? eb : nullptr, at.ctx);
+  };
+  t.bound = bounds(cin[0], up ? cin[1] : none, o, nullptr, nullptr);
+  const Image* es = at.carried(in[0]);
+  const Image* ec = up ? at.carried(in[1]) : nullptr;
+  const int w = o.width;
+  if (es || ec) {
+    std::shared_ptr<StageBounds> with = bounds(cin[0], up ? cin[1] : none, o, es, ec);
+    t.inherited = [with, w](int y0, int y1, const float* b, float* out) {
+      with->rows(y0, y1, out, nullptr);
+      for (std::size_t i = 0; i < std::size_t(y1 - y0) * w * kChannels; ++i)
+        out[i] += static_cast<float>(-1.0 * b[i]);
+    };
+  }
+  std::shared_ptr<StageBounds> e =
+      bounds(at.full(in[0]), up ? at.full(in[1]) : none, at.full(spec.name),
+             at.end_to_end(in[0]).image, up ? at.end_to_end(in[1]).image : nullptr);
+  t.end_to_end = [e](int y0, int y1, const float*, float* out) { e->rows(y0, y1, out, nullptr); };
+  return t;
+}
+
+}  // namespace
+
+StageTerms stage_terms(const StageSpec& spec, const std::vector<std::string>& in,
+                       const TermInputs& at) {
+  switch (spec.kind) {
+    case StageKind::blur: return blur_terms(spec, in, at);
+    case StageKind::down:
+    case StageKind::up:
+    case StageKind::bloom: return mip_terms(spec, in, at);
+    case StageKind::composite: return composite_terms(spec, in, at);
+    default: return point_terms(spec, in, at);
+  }
+}
+
+}  // namespace bloomref::parity::detail
