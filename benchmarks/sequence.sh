@@ -4,7 +4,8 @@
 # timed run's outputs are compared byte for byte with the first configuration's, and the medians
 # of REPEAT runs are printed (configurations alternate within each repeat, so that a change in
 # the machine's load falls on all of them). Run by ctest (label benchmark):
-#   benchmarks/sequence.sh BLOOMREF OUTDIR [processes|shards|jobs|all]
+#   benchmarks/sequence.sh BLOOMREF OUTDIR [processes|shards|hd|jobs|all]
+# (hd: processes and shards, alternating in each repeat)
 # Environment: FRAMES (default 240, 1920x1080), REPEAT (default 3), LARGE_FRAMES (default 12,
 # 3840x2160), SMALL_FRAMES (default 240, 256x256).
 set -euo pipefail
@@ -47,7 +48,7 @@ fps() { awk -v n="$1" -v s="$2" 'BEGIN { printf "%.2f", n / s }'; }
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.2f", a / b }'; }
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'); load $(cut -d' ' -f1-3 /proc/loadavg)"
 
-if [ "$what" = processes ] || [ "$what" = shards ] || [ "$what" = all ]; then
+if [ "$what" = processes ] || [ "$what" = shards ] || [ "$what" = hd ] || [ "$what" = all ]; then
   make_sequence hd 1920x1080 "$frames"
   one=() many=() two=() two1=()
   for ((r = 1; r <= repeat; r++)); do
