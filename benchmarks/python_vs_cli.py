@@ -1,0 +1,88 @@
+"""bloomref.run from Python against the command's own in-process time, in one process.
+
+For each built-in scene at --size (default 3840x2160: `demo`, sparse, the adaptive plan's case;
+`constant`, every pixel bright), rounds alternate between
+  * the command in this process, `run SCENE.exr --repeat N+1` (bloomref.run_command_line): its
+    JSON's per-run totals of the N warm runs (the first of each call is left out), and
+  * N calls of bloomref.run(array) on the loaded scene, each timed around the call (parsing the
+    options, the run reading the array in place, wrapping the output as an array);
+the medians of both, their ratio and the median of the rounds' own ratios (each round's two
+sides ran under the same load) are printed and written to --out/python_vs_cli.json. Every timed
+Python output must have the bits of the command's output file (exit 1 otherwise).
+
+  PYTHONPATH=build/python python3 benchmarks/python_vs_cli.py [--size WxH] [--rounds R]
+      [--repeat N] [--out DIR]
+"""
+import argparse
+import json
+import os
+import pathlib
+import statistics
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+import bloomref
+
+
+def command(*args):
+    rc = bloomref.run_command_line([str(a) for a in args])
+    if rc != 0:
+        sys.exit(f"bloomref {' '.join(map(str, args))}: exit {rc}")
+
+
+def bench_scene(name, size, rounds, repeat, work):
+    scene = work / f"{name}.exr"
+    command("scenes", name, "--size", size, "-o", scene)
+    command("run", scene, "-o", work / f"{name}.out.exr", "-q")
+    expected = bloomref.load(work / f"{name}.out.exr").view(np.uint32)
+    image = bloomref.load(scene)
+    cli_ms, py_ms, paired = [], [], []
+    bloomref.run(image)  # warm-up, outside the figures
+    for _ in range(rounds):
+        command("run", scene, "--repeat", repeat + 1, "--json", work / "t.json", "-q")
+        cli = json.loads((work / "t.json").read_text())["repeat"]["total_ms"][1:]
+        py = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            out = bloomref.run(image)
+            py.append((time.perf_counter() - t0) * 1e3)
+            if not np.array_equal(out.view(np.uint32), expected):
+                sys.exit(f"{name}: bloomref.run gave other bits than the command's output")
+        cli_ms += cli
+        py_ms += py
+        paired.append(statistics.median(py) / statistics.median(cli))
+    cli, py = statistics.median(cli_ms), statistics.median(py_ms)
+    return {"scene": name, "size": size, "cli_in_process_ms": cli_ms, "python_ms": py_ms,
+            "cli_median_ms": cli, "python_median_ms": py, "ratio": py / cli,
+            "cli_min_ms": min(cli_ms), "python_min_ms": min(py_ms),
+            "paired_ratio_median": statistics.median(paired), "same_bits": True}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", default="3840x2160")
+    ap.add_argument("--scenes", default="demo,constant")
+    ap.add_argument("--rounds", type=int, default=12)
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--out", default=None, help="folder for python_vs_cli.json")
+    a = ap.parse_args()
+    results = []
+    with tempfile.TemporaryDirectory(prefix="bloomref-pybench-") as tmp:
+        for name in a.scenes.split(","):
+            r = bench_scene(name, a.size, a.rounds, a.repeat, pathlib.Path(tmp))
+            results.append(r)
+            print(f"{name} {a.size}: command in-process median {r['cli_median_ms']:.1f} ms "
+                  f"(min {r['cli_min_ms']:.1f}), bloomref.run median {r['python_median_ms']:.1f} "
+                  f"ms (min {r['python_min_ms']:.1f}), ratio {r['ratio']:.3f}, per round "
+                  f"{r['paired_ratio_median']:.3f} ({len(r['python_ms'])} runs each, same bits)")
+    doc = {"threads": os.cpu_count(), "loadavg": os.getloadavg(), "results": results}
+    if a.out:
+        pathlib.Path(a.out).mkdir(parents=True, exist_ok=True)
+        (pathlib.Path(a.out) / "python_vs_cli.json").write_text(json.dumps(doc, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
