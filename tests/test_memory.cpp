@@ -83,7 +83,7 @@ TEST_CASE("the working-set bound lies above the measured peaks", "[memory]") {
   }
 }
 
-TEST_CASE("--max-memory refuses an image whose run would not fit, before any work",
+TEST_CASE("max memory: an image whose run would not fit is refused before any work",
           "[memory][cli]") {
   TempDir dir;
   SECTION("a built-in scene") {
