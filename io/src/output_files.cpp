@@ -46,8 +46,11 @@ bool unnamed_files_wanted() {
 fs::path key_of(const std::string& path) {
   std::error_code ec;
   const fs::path abs = fs::absolute(path, ec);
-  const fs::path k = fs::weakly_canonical(ec ? fs::path(path) : abs, ec);
-  return ec ? abs.lexically_normal() : k;
+  fs::path k = fs::weakly_canonical(ec ? fs::path(path) : abs, ec);
+  if (ec) k = abs.lexically_normal();
+  // A folder named with a trailing separator ("st.0001/") is the same destination without it.
+  if (!k.has_filename() && k.has_parent_path()) k = k.parent_path();
+  return k;
 }
 
 }  // namespace
@@ -78,7 +81,9 @@ void require_writable_dir(const std::string& path, const std::string& option) {
       throw InputError(path, "is not writable (" + option + ")");
     return;
   }
-  const fs::path parent = folder_of(p.lexically_normal());
+  fs::path normal = p.lexically_normal();  // "st.0001/" names the folder st.0001
+  if (!normal.has_filename() && normal.has_parent_path()) normal = normal.parent_path();
+  const fs::path parent = folder_of(normal);
   if (!fs::is_directory(parent, ec) || ::access(parent.c_str(), W_OK | X_OK) != 0)
     throw InputError(path, "cannot be created (" + option + "): " + parent.string() +
                                " is not a writable folder");
