@@ -5,6 +5,9 @@
 // columns), where the sample is a 2-D bilinear mix of two lines and the kernel's one-line form
 // does not apply.
 #include <algorithm>
+#if defined(__x86_64__)
+#include <cpuid.h>
+#endif
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -44,8 +47,10 @@ constexpr std::size_t kSmallTilesBelow = 8;
 bool cpu_has_avx2() {
 #if defined(__x86_64__) && defined(BLOOMREF_HAVE_AVX2_KERNEL)
   __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
-         __builtin_cpu_supports("f16c");
+  // F16C from CPUID leaf 1 (ECX bit 29): Clang 14's __builtin_cpu_supports has no "f16c".
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  const bool f16c = __get_cpuid(1, &eax, &ebx, &ecx, &edx) && (ecx & bit_F16C);
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && f16c;
 #else
   return false;
 #endif
