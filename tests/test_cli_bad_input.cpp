@@ -146,6 +146,52 @@ TEST_CASE("bloomref run refuses bad input with exit code 2", "[cli]") {
   }
 }
 
+TEST_CASE("an EXR attribute larger than its file is refused before it is allocated", "[cli]") {
+  // A valid 1x1 header plus an attribute of unknown type declaring 1.9 GB: OpenEXR's C++ reader
+  // allocated it whole before reading (found by scripts/fuzz exr). The command runs with its
+  // address space capped at 1.5 GB (not under AddressSanitizer, whose shadow needs more), so an
+  // allocation of that size would fail.
+  TempDir dir;
+  std::string b = "\x76\x2f\x31\x01";  // magic
+  const auto i32 = [](std::int32_t v) {
+    std::string s(4, '\0');
+    for (int k = 0; k < 4; ++k) s[k] = char((std::uint32_t(v) >> (8 * k)) & 0xff);
+    return s;
+  };
+  const auto f32 = [&](float v) {
+    std::int32_t i;
+    std::memcpy(&i, &v, 4);
+    return i32(i);
+  };
+  const auto attr = [&](const std::string& name, const std::string& type, const std::string& v) {
+    return name + '\0' + type + '\0' + i32(std::int32_t(v.size())) + v;
+  };
+  b += i32(2);  // version 2, single part, scanline
+  // channels: "R", FLOAT (2), pLinear and reserved, x and y sampling 1; then the list's end.
+  b += attr("channels", "chlist", std::string("R\0", 2) + i32(2) + std::string(4, '\0') + i32(1) +
+                                      i32(1) + std::string(1, '\0'));
+  b += attr("compression", "compression", std::string(1, '\0'));
+  b += attr("dataWindow", "box2i", i32(0) + i32(0) + i32(0) + i32(0));
+  b += attr("displayWindow", "box2i", i32(0) + i32(0) + i32(0) + i32(0));
+  b += attr("lineOrder", "lineOrder", std::string(1, '\0'));
+  b += attr("pixelAspectRatio", "float", f32(1.0f));
+  b += attr("screenWindowCenter", "v2f", f32(0.0f) + f32(0.0f));
+  b += attr("screenWindowWidth", "float", f32(1.0f));
+  b += std::string("mystery\0unknownType\0", 20) + i32(1900000000) + std::string(16, '\0');
+  bloomref::test::write_bytes(dir / "huge.exr", b);
+#if defined(__SANITIZE_ADDRESS__)
+  const std::string cap;
+#else
+  const std::string cap = "ulimit -v 1500000;";
+#endif
+  const CliResult r = run_cli("run huge.exr -o out.exr", cap, dir.path());
+  INFO(r.err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("huge.exr") != std::string::npos);
+  CHECK(r.err.find("'mystery' (unknownType) declares 1900000000 bytes") != std::string::npos);
+  CHECK(dir.listing() == std::vector<std::string>{"huge.exr"});
+}
+
 TEST_CASE("bloomref run refuses truncated corpus files with exit code 2", "[cli][corpus]") {
   const std::string corpus = bloomref::test::corpus_dir();
   if (corpus.empty()) {
