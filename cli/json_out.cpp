@@ -1,10 +1,9 @@
 #include "json_out.h"
 
-#include <sys/resource.h>
-
 #include <charconv>
 #include <string>
 
+#include "bloomref/memory_budget.h"
 #include "bloomref/parallel.h"
 #include "bloomref/stages.h"
 #include "bloomref/engine/fast_stages.h"
@@ -65,11 +64,7 @@ nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace) {
           // The adaptive plan's verdict on the scene: blurred whole, no support tracked.
           {"dense_scene", plan.dense_scene},
           {"mip_levels_used", plan.levels.size()},
-          {"peak_rss_bytes", [] {
-             rusage u{};
-             getrusage(RUSAGE_SELF, &u);
-             return static_cast<long long>(u.ru_maxrss) * 1024;  // Linux: KiB
-           }()},
+          {"peak_rss_bytes", peak_rss_bytes()},
           {"width", plan.facts.width},
           {"height", plan.facts.height}};
 }

@@ -207,11 +207,11 @@ TEST_CASE("blur_support is exactly the texels whose lookups read a set texel", "
 
 TEST_CASE("a masked fast pass told dst is zero outside leaves those texels alone",
           "[blur][fast]") {
-  // The adaptive plan's passes after the first (stages.h: dst_zero_outside): texels outside the
-  // mask keep whatever dst held (a sentinel here, to see that nothing wrote them), texels inside
-  // get blur_pass's bits; and blur_support's output contains its input, the growth the plan's
-  // claim rests on (pass k's buffer was zeroed outside pass k - 2's support). Inactive texels in
-  // a tile with an active one are computed, and come out (+0, +0, +0, 1).
+  // The adaptive plan's passes after the first (fast_stages.h: dst_zero_outside): texels
+  // outside the mask keep whatever dst held (a sentinel here, to see that nothing wrote them),
+  // texels inside get blur_pass's bits; and blur_support's output contains its input, the
+  // growth the plan's claim rests on (pass k's buffer was zeroed outside pass k - 2's support).
+  // Inactive texels in a tile with an active one are computed, and come out (+0, +0, +0, 1).
   const std::pair<int, int> sizes[] = {{1, 1}, {7, 1}, {3, 5}, {37, 23}, {257, 131},
                                        {1920, 9}, {9, 1080}, {131, 2160}};
   unsigned seed = 90;
@@ -245,11 +245,12 @@ TEST_CASE("a masked fast pass told dst is zero outside leaves those texels alone
           RowSpans spans;
           mask_spans(active.data(), w, h, spans, 1);
           for (auto [isa, with_spans] : isa_and_spans()) {
-            o.dst_zero_outside = true;
-            o.active_spans = with_spans ? &spans : nullptr;
+            FastPassOptions fo;
+            fo.dst_zero_outside = true;
+            fo.active_spans = with_spans ? &spans : nullptr;
             const float sentinel = -123.25f;
             Image fast(w, h, sentinel);
-            blur_pass_fast(src.cview(), fast.view(), o, 2, isa);
+            blur_pass_fast(src.cview(), fast.view(), o, 2, isa, fo);
             std::size_t kept = 0, zeroed = 0, differ = 0;
             for (int y = 0; y < h; ++y)
               for (int x = 0; x < w; ++x) {
@@ -480,13 +481,14 @@ TEST_CASE("with page ledgers, a sparse fast pass faults in every page it reads o
       RowSpans spans;
       mask_spans(active.data(), w, h, spans, 1);
       o.active = active.data();
-      o.active_spans = &spans;
-      o.dst_zero_outside = true;
-      blur_pass_fast(plain[from].cview(), plain[to].view(), o, 2);
+      FastPassOptions fo;
+      fo.active_spans = &spans;
+      fo.dst_zero_outside = true;
+      blur_pass_fast(plain[from].cview(), plain[to].view(), o, 2, BlurIsa::best, fo);
       const std::vector<unsigned char> before[2] = {resident(0), resident(1)};
-      o.src_pages = &ledger[from];
-      o.dst_pages = &ledger[to];
-      blur_pass_fast(BasicView<const float>{w, h, w, buf[from]}, view(to), o, 2);
+      fo.src_pages = &ledger[from];
+      fo.dst_pages = &ledger[to];
+      blur_pass_fast(BasicView<const float>{w, h, w, buf[from]}, view(to), o, 2, BlurIsa::best, fo);
       INFO(w << "x" << h << " seed " << seed << " pass " << pass);
       for (int i = 0; i < 2; ++i) {
         const std::vector<unsigned char> after = resident(i);

@@ -92,9 +92,8 @@ CliResult run_cli(const std::string& args, const std::string& env = "", const fs
 int spawn_cli(const std::vector<std::string>& args, const fs::path& cwd,
               const std::vector<std::string>& env = {});
 /// Waits for a process spawn_cli started; returns its exit status, 128 + signal when a signal
-/// ended it. `max_rss_kb`, when given, receives its peak resident memory (getrusage's
-/// ru_maxrss through wait4, in KiB).
-int wait_cli(int pid, long* max_rss_kb = nullptr);
+/// ended it.
+int wait_cli(int pid);
 /// Whether process `pid` has a file open in the folder `dir`, named or not (/proc/PID/fd: an
 /// unnamed O_TMPFILE file shows as "DIR/#INODE (deleted)").
 bool has_open_file_in(int pid, const fs::path& dir);

@@ -292,7 +292,9 @@ parity::DeviceProfile read_profile_file(const std::string& path) {
   }
   p.source = "profile file " + path + " (based on " + p.name + ")";
   p.name = fs::path(path).stem().string();
-  for (const auto& [k, v] : j.items()) {
+  for (const auto& kv : j.items()) {
+    const std::string& k = kv.key();  // the lambdas below read k and v (C++17: no bindings)
+    const json& v = kv.value();
     auto boolean = [&]() {
       if (!v.is_boolean()) bad(path, k, "must be true or false");
       return v.get<bool>();

@@ -5,6 +5,9 @@
 // columns), where the sample is a 2-D bilinear mix of two lines and the kernel's one-line form
 // does not apply.
 #include <algorithm>
+#if defined(__x86_64__)
+#include <cpuid.h>
+#endif
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -44,8 +47,10 @@ constexpr std::size_t kSmallTilesBelow = 8;
 bool cpu_has_avx2() {
 #if defined(__x86_64__) && defined(BLOOMREF_HAVE_AVX2_KERNEL)
   __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
-         __builtin_cpu_supports("f16c");
+  // F16C from CPUID leaf 1 (ECX bit 29): Clang 14's __builtin_cpu_supports has no "f16c".
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  const bool f16c = __get_cpuid(1, &eax, &ebx, &ecx, &edx) && (ecx & bit_F16C);
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && f16c;
 #else
   return false;
 #endif
@@ -309,7 +314,7 @@ void populate_tile_pages(const detail::TileJob& job,
                          const std::shared_ptr<const detail::PassTables>& tables,
                          const std::vector<int>& listed, std::size_t grid,
                          BasicView<const float> src, BasicView<float> dst,
-                         const BlurPassOptions& opt, int threads) {
+                         const FastPassOptions& opt, int threads) {
   using detail::PageLedger;
   const detail::PassTables& t = *tables;
   // Texels [x0, x1) of rows [y0, y1).
@@ -361,7 +366,7 @@ void populate_tile_pages(const detail::TileJob& job,
 }  // namespace
 
 void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
-                    int threads, BlurIsa isa) {
+                    int threads, BlurIsa isa, const FastPassOptions& fast) {
   const detail::TileKernel kernel = detail::tile_kernel_for(isa);
   const detail::InexactKernels inexact_kernels = detail::inexact_kernels_for(isa);
   const std::shared_ptr<const detail::PassTables> kept =
@@ -383,10 +388,10 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   job.n_across = n_across;
   // With the support's spans and nothing to write outside it, only the tiles the spans touch are
   // visited (below), and small tiles follow a sparse support more closely.
-  const bool listing = opt.active && opt.active_spans && opt.dst_zero_outside;
+  const bool listing = opt.active && fast.active_spans && fast.dst_zero_outside;
   std::size_t support = 0;
   if (listing)
-    for (const std::vector<Span>& row : *opt.active_spans)
+    for (const std::vector<Span>& row : *fast.active_spans)
       for (const Span& sp : row) support += std::size_t(sp.x1 - sp.x0);
   const bool small_tiles =
       listing && support * kSmallTilesBelow < std::size_t(src.width) * std::size_t(src.height);
@@ -401,7 +406,7 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   const std::vector<float>& w = opt.kernel->weights_f32;
   job.weights = w.data();
   job.active = opt.active;
-  job.dst_zero_outside = opt.active && opt.dst_zero_outside;
+  job.dst_zero_outside = opt.active && fast.dst_zero_outside;
   job.width = src.width;
   const int tiles_across = (n_across + job.tile_across - 1) / job.tile_across;
 
@@ -414,7 +419,7 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
   if (listing) {
     std::vector<std::uint8_t> touched(std::size_t(job.tiles_along) * tiles_across);
     for (int y = 0; y < src.height; ++y) {
-      for (const Span& s : (*opt.active_spans)[y]) {
+      for (const Span& s : (*fast.active_spans)[y]) {
         // Horizontal: x runs along (blocks of tile_along), y across; vertical the other way.
         const int block = horizontal ? s.x0 / job.tile_along : s.x0 / job.tile_across;
         const int last = horizontal ? (s.x1 - 1) / job.tile_along : (s.x1 - 1) / job.tile_across;
@@ -434,14 +439,14 @@ void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const Blur
       span_rows.resize(std::size_t(src.height));
       span_counts.resize(std::size_t(src.height));
       for (int y = 0; y < src.height; ++y) {
-        span_rows[std::size_t(y)] = (*opt.active_spans)[std::size_t(y)].data();
-        span_counts[std::size_t(y)] = int((*opt.active_spans)[std::size_t(y)].size());
+        span_rows[std::size_t(y)] = (*fast.active_spans)[std::size_t(y)].data();
+        span_counts[std::size_t(y)] = int((*fast.active_spans)[std::size_t(y)].size());
       }
       job.row_spans = span_rows.data();
       job.row_span_counts = span_counts.data();
     }
-    if (opt.src_pages || opt.dst_pages)
-      populate_tile_pages(job, kept, listed, touched.size(), src, dst, opt, threads);
+    if (fast.src_pages || fast.dst_pages)
+      populate_tile_pages(job, kept, listed, touched.size(), src, dst, fast, threads);
   }
   const int n_tiles = job.tile_ids ? int(listed.size()) : job.tiles_along * tiles_across;
 

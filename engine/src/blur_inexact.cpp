@@ -35,7 +35,8 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
   auto per_texel = [&](int b, int p0, int p1) {
     if (p0 >= p1) return;
     const AxisTap<float>& o = t.across[b];
-    const auto [lo, hi] = t.reach(p0, p1);
+    const auto reach = t.reach(p0, p1);
+    const int lo = reach.first, hi = reach.second;  // a lambda below reads lo (C++17: no binding)
     mixed.resize(std::size_t(hi - lo + 1));
     for (int i = lo; i <= hi; ++i) {
       const AxisTap<float> one{i, i, 1.0f, 0.0f};

@@ -57,7 +57,7 @@ struct TileJob {
   /// Optional: the tiles to compute, in order; tiles [t0, t1) of the kernel are then entries
   /// [t0, t1) of this list (the adaptive plan's touched tiles), the others left alone.
   const int* tile_ids = nullptr;
-  bool dst_zero_outside = false;  ///< tiles without an active texel are left alone (stages.h)
+  bool dst_zero_outside = false;  ///< tiles without an active texel are left alone (fast_stages.h)
   /// Optional, with dst_zero_outside and listed tiles, the vertical pass with RGBA rows only: per
   /// output row, the support's spans (sorted, disjoint; row_span_counts of them). Only those
   /// texels of a tile's lines are computed: the others are +0 in the destination already.

@@ -59,6 +59,22 @@ void check_size(const std::string& path, long long width, long long height,
   if (limits.accept) limits.accept(path, static_cast<int>(width), static_cast<int>(height));
 }
 
+Window make_window(const std::string& path, const std::string& which, long long x, long long y,
+                   long long width, long long height) {
+  const long long x1 = x + width - 1, y1 = y + height - 1;  // |x|, |w| < 2^31: no overflow
+  if (width < 1 || height < 1)
+    throw InputError(path, "the " + which + " is empty (" + std::to_string(width) + "x" +
+                               std::to_string(height) + ")");
+  const auto inside = [](long long v) { return v > -kWindowLimit && v < kWindowLimit; };
+  if (!inside(x) || !inside(y) || !inside(x1) || !inside(y1))
+    throw InputError(path, "the " + which + " (" + std::to_string(width) + "x" +
+                               std::to_string(height) + " at " + std::to_string(x) + ", " +
+                               std::to_string(y) + ") reaches beyond +-" +
+                               std::to_string(kWindowLimit) +
+                               ", where an image window may lie (OpenEXR's limit)");
+  return {int(x), int(y), int(x1), int(y1)};
+}
+
 LoadedImage load_image(const std::string& path, const SizeLimits& limits) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw InputError(path, "no such file");

@@ -131,6 +131,18 @@ OiioReadFn oiio_reader(const std::string& path) {
   return loaded.read;
 }
 
+// The windows, held to io.h's limits: TIFF's XPosition/YPosition reach OIIO's origin as any
+// int (2147483520 made x + width - 1 overflow). OIIO gives a format without a display window
+// the data window's size at the data window's origin; a display window of no pixels is taken
+// as none.
+Window data_window(const std::string& path, const OiioHeader& h) {
+  return make_window(path, "data window", h.x, h.y, h.width, h.height);
+}
+Window display_window(const std::string& path, const OiioHeader& h) {
+  if (h.full_width == 0 || h.full_height == 0) return data_window(path, h);
+  return make_window(path, "display window", h.full_x, h.full_y, h.full_width, h.full_height);
+}
+
 struct AcceptContext {
   const std::string* path;
   const SizeLimits* limits;
@@ -145,6 +157,8 @@ void accept_header(const OiioHeader& h, void* ctx) {
     throw InputError(*a.path, "unsupported channel layout: the image has no channels");
   if (map_channels(h).colours == 0)
     throw InputError(*a.path, "unsupported channel layout: alpha only");
+  data_window(*a.path, h);
+  display_window(*a.path, h);
 }
 
 }  // namespace
@@ -169,9 +183,8 @@ LoadedImage load_oiio(const std::string& path, const SizeLimits& limits) {
   ImageInfo& info = out.info;
   info.path = path;
   info.format = spec.format;
-  info.data_window = {spec.x, spec.y, spec.x + spec.width - 1, spec.y + spec.height - 1};
-  info.display_window = {spec.full_x, spec.full_y, spec.full_x + spec.full_width - 1,
-                         spec.full_y + spec.full_height - 1};
+  info.data_window = data_window(path, spec);
+  info.display_window = display_window(path, spec);
   for (int c = 0; c < nch; ++c)
     info.channels += (c ? ", " : "") + spec.channel_names[c];
   const ChannelMap map = map_channels(spec);

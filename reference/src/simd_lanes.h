@@ -7,6 +7,7 @@
 
 #include "bloomref/stages.h"
 #include "isa_namespace.h"  // each instruction set its own symbols
+#include "vector_shuffle.h"
 
 namespace bloomref::detail {
 inline namespace BLOOMREF_ISA_NAMESPACE {
@@ -27,13 +28,13 @@ inline V load(const float* p) {
 /// so each lane's value, and any comparison of it, is the scalar one.
 inline v4f luminance4(const float* p) {
   const v4f a = load<v4f>(p), b = load<v4f>(p + 4), c = load<v4f>(p + 8), d = load<v4f>(p + 12);
-  const v4f rg01 = __builtin_shuffle(a, b, v4i{0, 4, 1, 5});  // r0 r1 g0 g1
-  const v4f rg23 = __builtin_shuffle(c, d, v4i{0, 4, 1, 5});
-  const v4f b01 = __builtin_shuffle(a, b, v4i{2, 6, 3, 7});  // b0 b1 a0 a1
-  const v4f b23 = __builtin_shuffle(c, d, v4i{2, 6, 3, 7});
-  return luminance<v4f, float>(__builtin_shuffle(rg01, rg23, v4i{0, 1, 4, 5}),
-                               __builtin_shuffle(rg01, rg23, v4i{2, 3, 6, 7}),
-                               __builtin_shuffle(b01, b23, v4i{0, 1, 4, 5}));
+  const v4f rg01 = BLOOMREF_SHUFFLE2(v4i, a, b, 0, 4, 1, 5);  // r0 r1 g0 g1
+  const v4f rg23 = BLOOMREF_SHUFFLE2(v4i, c, d, 0, 4, 1, 5);
+  const v4f b01 = BLOOMREF_SHUFFLE2(v4i, a, b, 2, 6, 3, 7);  // b0 b1 a0 a1
+  const v4f b23 = BLOOMREF_SHUFFLE2(v4i, c, d, 2, 6, 3, 7);
+  return luminance<v4f, float>(BLOOMREF_SHUFFLE2(v4i, rg01, rg23, 0, 1, 4, 5),
+                               BLOOMREF_SHUFFLE2(v4i, rg01, rg23, 2, 3, 6, 7),
+                               BLOOMREF_SHUFFLE2(v4i, b01, b23, 0, 1, 4, 5));
 }
 
 /// RGB kept, alpha set to exactly 1 (what every blur writes); I is V's integer twin.

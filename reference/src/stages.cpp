@@ -154,13 +154,12 @@ void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold) {
     const float* s = rgba + std::size_t(x) * kChannels;
     const v4i bright = luminance4(s) > threshold;
     const auto kept = [&](int i) {  // pixel i's RGBA, all bits kept or all cleared
-      return reinterpret_cast<v4i>(load<v4f>(s + 4 * i)) &
-             __builtin_shuffle(bright, v4i{i, i, i, i});
+      return reinterpret_cast<v4i>(load<v4f>(s + 4 * i)) & (v4i{} + bright[i]);
     };
     const v4i a = kept(0), b = kept(1), c = kept(2), d = kept(3);
-    const v4i out[3] = {__builtin_shuffle(a, b, v4i{0, 1, 2, 4}),   // r0 g0 b0 r1
-                        __builtin_shuffle(b, c, v4i{1, 2, 4, 5}),   // g1 b1 r2 g2
-                        __builtin_shuffle(c, d, v4i{2, 4, 5, 6})};  // b2 r3 g3 b3
+    const v4i out[3] = {BLOOMREF_SHUFFLE2(v4i, a, b, 0, 1, 2, 4),   // r0 g0 b0 r1
+                        BLOOMREF_SHUFFLE2(v4i, b, c, 1, 2, 4, 5),   // g1 b1 r2 g2
+                        BLOOMREF_SHUFFLE2(v4i, c, d, 2, 4, 5, 6)};  // b2 r3 g3 b3
     std::memcpy(rgb + std::size_t(x) * 3, out, sizeof out);
   }
   for (; x < n; ++x) {

@@ -186,7 +186,7 @@ Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt) {
   const std::uint64_t pixels = std::uint64_t(plan.facts.width) * std::uint64_t(plan.facts.height);
   s.sparse_bright = adaptive && !opt.keep_all && plan.facts.bright_pixels * 100 <= pixels;
   // No stage kept, so the texels left alone (alpha 0, which nothing after the blur reads) are
-  // never seen (stages.h: dst_zero_outside).
+  // never seen (fast_stages.h: FastPassOptions::dst_zero_outside).
   s.zeroed_blur_target =
       adaptive && p.blur == BlurImpl::fast && p.precision == Precision::f32 && !opt.keep_all;
   return s;
@@ -378,7 +378,8 @@ class Executor {
       return;
     }
     BlurPassOptions o{stage.axis, &kernel_for(p_.kernel), p_.subtexel_bits};
-    if (sched_.track_support) follow_support(stage, o);
+    FastPassOptions fo;
+    if (sched_.track_support) follow_support(stage, o, fo);
     // Dense from here on (the full plan, or the adaptive plan once its support covers half the
     // image): the rest of the passes run fused.
     if (sched_.blur != BlurPath::staged && o.active == nullptr) {
@@ -394,11 +395,11 @@ class Executor {
       }
     }
     if (sched_.track_support) {
-      o.src_pages = ledger_of(src);
-      o.dst_pages = ledger_of(pong_);
-      o.page_threads = threads_;
+      fo.src_pages = ledger_of(src);
+      fo.dst_pages = ledger_of(pong_);
+      fo.page_threads = threads_;
     }
-    blur_one_pass(src, o);
+    blur_one_pass(src, o, fo);
     store_image(pong_);
     std::swap(ping_, pong_);
     // After the first pass the bright image is not read again: its buffer becomes the other
@@ -409,19 +410,21 @@ class Executor {
 
   // Blur only the bright pixels' support (started by the input stage), dilated pass by pass by
   // the taps' reach; every pass on all the run's threads.
-  void follow_support(const StageSpec& stage, BlurPassOptions& o) {
+  void follow_support(const StageSpec& stage, BlurPassOptions& o, FastPassOptions& fo) {
     o.active = support_.advance<T>(o, threads_);
-    o.active_spans = support_.spans();
+    fo.active_spans = support_.spans();
     // Pass k > 1 writes the buffer pass k - 2 (pass 2: bright) left +0 outside a support
-    // contained in this one (stages.h); pass 1 a zeroed one, or a new one it fills.
-    o.dst_zero_outside = stage.pass != 1 || sched_.zeroed_blur_target;
+    // contained in this one (fast_stages.h); pass 1 a zeroed one, or a new one it fills.
+    fo.dst_zero_outside = stage.pass != 1 || sched_.zeroed_blur_target;
     trace_.skipped_fraction.emplace_back(stage.name,
                                          1.0 - double(support_.count()) / (double(w_) * h_));
   }
 
-  void blur_one_pass(const BasicImage<T>& src, const BlurPassOptions& o) {
+  void blur_one_pass(const BasicImage<T>& src, const BlurPassOptions& o,
+                     const FastPassOptions& fo) {
     if constexpr (kF32) {
-      if (p_.blur == BlurImpl::fast) return blur_pass_fast(src.cview(), pong_.view(), o, threads_);
+      if (p_.blur == BlurImpl::fast)
+        return blur_pass_fast(src.cview(), pong_.view(), o, threads_, BlurIsa::best, fo);
       if (p_.blur == BlurImpl::approx)
         return blur_pass_approx(src.cview(), pong_.view(), o, threads_);
     }

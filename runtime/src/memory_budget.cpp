@@ -1,5 +1,6 @@
 #include "bloomref/memory_budget.h"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -64,6 +65,21 @@ std::uint64_t available_memory_bytes() {
 std::uint64_t default_memory_budget() {
   const std::uint64_t m = available_memory_bytes();
   return m == 0 ? ~std::uint64_t(0) : m / 5 * 4;
+}
+
+std::uint64_t peak_rss_bytes() {
+  std::ifstream f("/proc/self/status");
+  for (std::string line; std::getline(f, line);)
+    if (line.rfind("VmHWM:", 0) == 0) {
+      try {
+        return std::stoull(line.substr(6)) * 1024;  // "VmHWM:    12345 kB"
+      } catch (...) {
+        break;
+      }
+    }
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<std::uint64_t>(u.ru_maxrss) * 1024;  // Linux: KiB
 }
 
 std::uint64_t parse_byte_size(const std::string& text, const std::string& option) {

@@ -39,14 +39,28 @@ struct Window {
   int height() const { return y1 - y0 + 1; }
 };
 
+/// Image windows (placement): the data window holds the pixels, and is what bloomref blooms (its
+/// edges are the clamp-to-edge edges; pixels of the display window outside it do not exist);
+/// the display window is where they sit in the picture. Every window read is held to OpenEXR's
+/// limits, so that every EXR output can keep it: at least one pixel, corners strictly inside
+/// +-kWindowLimit (INT_MAX / 2, which keeps max - min + 1 and max + min from overflowing;
+/// Imf::Header::sanityCheck). A window beyond them is an InputError naming the input (exit 2).
+constexpr long long kWindowLimit = 1073741823;
+
+/// The window of `width` x `height` pixels whose first is (x, y), computed without overflow;
+/// InputError naming `path` and `which` ("data window", "display window") when it breaks the
+/// limits above.
+Window make_window(const std::string& path, const std::string& which, long long x, long long y,
+                   long long width, long long height);
+
 struct ImageInfo {
   std::string path;
   std::string format;       ///< "exr", or OIIO's format name ("hdr", "png", "tiff", ...)
   std::string layout;       ///< how the pixels were obtained, e.g. "part 0 of 10, RGBA"
   std::string channels;     ///< the source channels used, comma-separated
   bool has_alpha = false;
-  Window data_window;       ///< the pixels we have
-  Window display_window;
+  Window data_window;       ///< the pixels we have (the image's size), where they sit
+  Window display_window;    ///< the picture's frame (the data window's, when a file has none)
 };
 
 struct LoadedImage {
@@ -61,7 +75,10 @@ void check_size(const std::string& path, long long width, long long height,
                 const SizeLimits& limits);
 
 /// Writes by extension (.exr or .png, case-insensitive); InputError for anything else.
-/// `windows` (optional) gives the EXR data/display windows to keep the input's placement.
+/// `windows` (optional) gives the EXR data/display windows to keep the input's placement: they
+/// are written when the data window has the image's size (the run's output, a stage of the
+/// input's size); otherwise, and without `windows`, both windows are the image at (0, 0). A
+/// PNG holds the data window's pixels alone.
 void save_image(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
 void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
 void save_png(const std::string& path, ConstImageView img);

@@ -111,20 +111,7 @@ namespace detail {
 void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold);
 }  // namespace detail
 
-namespace detail {
-class PageLedger;  // bloomref/engine/page_ledger.h: the fast engine's, ignored by blur_pass
-}  // namespace detail
-
 enum class Axis { horizontal, vertical };
-
-/// A run of set texels on one row: x in [x0, x1).
-struct Span {
-  int x0 = 0, x1 = 0;
-};
-/// A set of texels as spans per row (rows[y] for image row y): sorted, disjoint and not
-/// touching (x1 of one < x0 of the next). The adaptive plan's supports in this form cost time in
-/// proportion to their spans, not to the image (a mask costs a sweep of every byte per pass).
-using RowSpans = std::vector<std::vector<Span>>;
 
 struct BlurPassOptions {
   Axis axis = Axis::horizontal;
@@ -134,27 +121,6 @@ struct BlurPassOptions {
   /// (+0, +0, +0, 1) -- exactly what the blur gives when every texel it reads is +0, which is what
   /// blur_support guarantees for its zeros (the adaptive plan's tiles, at texel resolution).
   const std::uint8_t* active = nullptr;
-  /// With `active`: dst already holds +0 in R, G and B wherever active is 0, so the fast pass
-  /// (blur_pass_fast) does not write its tiles without an active texel (texels of the other
-  /// tiles are computed, the inactive ones (+0, +0, +0, 1)); the tiles left alone keep dst's
-  /// alpha. The adaptive plan sets it from pass 2 on (its supports only grow, and pass k writes
-  /// the buffer pass k - 2 wrote; pass 2: the bright image, (+0, +0, +0, 1) outside its nonzero
-  /// support), and on pass 1 when it writes into a zeroed image (alpha 0 where left alone: no
-  /// stage after the blur reads the bloom's alpha). The other passes write them anyway.
-  bool dst_zero_outside = false;
-  /// Optional, with `active` and dst_zero_outside: the same set as `active`, as spans per row.
-  /// blur_pass_fast then visits only the tiles these spans touch (found without reading the
-  /// mask), shared out between threads by count, not by position in the image.
-  const RowSpans* active_spans = nullptr;
-  /// Optional: ledgers of src's and dst's pages (image.h). Where blur_pass_fast lists its tiles
-  /// (active, active_spans and dst_zero_outside all set) it marks what they read and write there
-  /// and faults the new pages in writable before the pass, so that no page of a zeroed buffer
-  /// is read before it exists. The other passes and blur_pass / blur_pass_approx ignore them.
-  detail::PageLedger* src_pages = nullptr;
-  detail::PageLedger* dst_pages = nullptr;
-  /// Threads that fault the ledgers' new pages in (0: the pass's own). The adaptive plan runs a
-  /// small support's pass on one thread but faults its pages in on all of them.
-  int page_threads = 0;
 };
 
 /// Stage `blur.k`: one single-direction pass of a separable kernel, through GL_LINEAR /

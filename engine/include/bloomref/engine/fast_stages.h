@@ -20,6 +20,45 @@ bool blur_isa_available(BlurIsa isa);
 /// The instruction set `best` resolves to here ("avx512", "avx2" or "generic").
 std::string blur_isa_name(BlurIsa isa = BlurIsa::best);
 
+/// A run of set texels on one row: x in [x0, x1).
+struct Span {
+  int x0 = 0, x1 = 0;
+};
+/// A set of texels as spans per row (rows[y] for image row y): sorted, disjoint and not
+/// touching (x1 of one < x0 of the next). The adaptive plan's supports in this form cost time in
+/// proportion to their spans, not to the image (a mask costs a sweep of every byte per pass).
+using RowSpans = std::vector<std::vector<Span>>;
+
+namespace detail {
+class PageLedger;  // bloomref/engine/page_ledger.h
+}  // namespace detail
+
+/// What the adaptive plan tells blur_pass_fast beyond BlurPassOptions (whose mask `active`
+/// every blur honours): the engine's own facts about its buffers.
+struct FastPassOptions {
+  /// With `active`: dst already holds +0 in R, G and B wherever active is 0, so the pass does
+  /// not write its tiles without an active texel (texels of the other tiles are computed, the
+  /// inactive ones (+0, +0, +0, 1)); the tiles left alone keep dst's alpha. The adaptive plan
+  /// sets it from pass 2 on (its supports only grow, and pass k writes the buffer pass k - 2
+  /// wrote; pass 2: the bright image, (+0, +0, +0, 1) outside its nonzero support), and on pass
+  /// 1 when it writes into a zeroed image (alpha 0 where left alone: no stage after the blur
+  /// reads the bloom's alpha). The other passes write them anyway.
+  bool dst_zero_outside = false;
+  /// Optional, with `active` and dst_zero_outside: the same set as `active`, as spans per row.
+  /// The pass then visits only the tiles these spans touch (found without reading the mask),
+  /// shared out between threads by count, not by position in the image.
+  const RowSpans* active_spans = nullptr;
+  /// Optional: ledgers of src's and dst's pages (page_ledger.h). Where the pass lists its tiles
+  /// (active, active_spans and dst_zero_outside all set) it marks what they read and write
+  /// there and faults the new pages in writable before the pass, so that no page of a zeroed
+  /// buffer is read before it exists.
+  detail::PageLedger* src_pages = nullptr;
+  detail::PageLedger* dst_pages = nullptr;
+  /// Threads that fault the ledgers' new pages in (0: the pass's own). The adaptive plan runs a
+  /// small support's pass on one thread but faults its pages in on all of them.
+  int page_threads = 0;
+};
+
 /// Stage `blur.k` in f32, fast and bit-identical to blur_pass (same IEEE operations in the same
 /// order per channel, tested on every scene and corpus image): tiled, one whole output line at
 /// a time from whole input lines, vectorised across the blur (blur_fast.cpp). Two provisos:
@@ -29,7 +68,7 @@ std::string blur_isa_name(BlurIsa isa = BlurIsa::best);
 /// so none reaches a blur. `dst` must not overlap `src`. Throws ParamError for an instruction
 /// set this CPU lacks.
 void blur_pass_fast(BasicView<const float> src, BasicView<float> dst, const BlurPassOptions& opt,
-                    int threads, BlurIsa isa = BlurIsa::best);
+                    int threads, BlurIsa isa = BlurIsa::best, const FastPassOptions& fast = {});
 
 /// Stages `blur.1` ... `blur.n` of the dense plan in f32 at once (pass k along axes[k - 1]),
 /// with blur_pass_fast's bits in every texel (tested), but fused: the image is cut into
