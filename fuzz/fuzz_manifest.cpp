@@ -1,4 +1,4 @@
-// libFuzzer target: bloomref check's JSON inputs (cli/check_manifest.h): one file read as a
+// libFuzzer target: bloomref check's JSON inputs (cli/check/manifest.h): one file read as a
 // manifest, as an expectations file and as a profile file. A bad file must come out as an
 // InputError naming it (exit 2); any other exception (exit 4), a crash, a leak or undefined
 // behaviour is a finding. The manifest sits in a folder holding a scene (scene.exr) and a folder
@@ -14,7 +14,7 @@
 
 #include "bloomref/error.h"
 #include "bloomref/io.h"
-#include "check_manifest.h"
+#include "check/manifest.h"
 #include "options.h"
 
 namespace fs = std::filesystem;

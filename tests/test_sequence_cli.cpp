@@ -3,7 +3,11 @@
 // a missing frame is named and the rest go on; --resume redoes only what is not whole; Ctrl-C
 // leaves no partial file; every engine's shard variables split the frames so that merge finds
 // each exactly once; check takes frames and shards too; bad values are exit 2, named.
+#include <signal.h>
 #include <sys/wait.h>
+
+#include <chrono>
+#include <thread>
 
 #include <catch2/catch.hpp>
 #include <cstdlib>
@@ -67,10 +71,16 @@ std::vector<std::string> ids(const json& results) {
   return v;
 }
 
-bool has_hidden_files(const TempDir& dir) {
-  for (const std::string& n : dir.listing())
+bool has_hidden_files(const fs::path& dir) {
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string n = e.path().filename().string();
     if (!n.empty() && n[0] == '.') return true;
+  }
   return false;
+}
+
+bool has_hidden_files(const TempDir& dir) {
+  return has_hidden_files(dir.path());
 }
 
 }  // namespace
@@ -208,6 +218,66 @@ TEST_CASE("SIGINT stops after the frame in flight and leaves no partial file", "
                   "--resume -q")
               .code == 0);
   CHECK(run_cli(dir, "merge r.json -q").code == 0);
+}
+
+TEST_CASE("a sequence killed while it writes, then resumed, has every frame whole, once",
+          "[sequence]") {
+  TempDir dir;
+  write_frames(dir, 8);
+  // 8 frames of 48x40 with every stage dumped, written with one thread so that each frame
+  // spends a while writing. SIGKILL cannot be caught: whatever the process was writing is cut.
+  const std::vector<std::string> args = {
+      "run", "in.####.exr", "-o", "out.####.exr", "--dump-stages", "st.####/", "--threads", "1",
+      "--json", "r.json", "-q"};
+  const int pid = bloomref::test::spawn_cli(args, dir.path(), {});
+  const auto t0 = std::chrono::steady_clock::now();
+  bool mid = false;
+  while (std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60)) {
+    if (fs::exists(dir / "out.0002.exr") && bloomref::test::has_open_file_in(pid, dir.path())) {
+      mid = true;
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  ::kill(pid, SIGKILL);
+  const int status = bloomref::test::wait_cli(pid);
+  REQUIRE(mid);
+  REQUIRE(status == 128 + SIGKILL);
+  int whole_before = 0;
+  for (int f = 1; f <= 8; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "out.%04d.exr", f);
+    if (fs::exists(dir / name)) ++whole_before;
+  }
+  CHECK(whole_before < 8);  // killed before the end
+
+  const CliResult r = run_cli(dir,
+                              "run 'in.####.exr' -o 'out.####.exr' --dump-stages 'st.####/' "
+                              "--json r.json --resume --progress lines");
+  INFO(r.out << r.err);
+  REQUIRE(r.code == 0);
+  CHECK_FALSE(has_hidden_files(dir));  // the killed run's temporaries are gone
+  const json j = read_json(dir / "r.json");
+  std::vector<std::string> expected;
+  for (int f = 1; f <= 8; ++f) {
+    char id[8];
+    std::snprintf(id, sizeof id, "%04d", f);
+    expected.push_back(id);
+    CHECK_THAT(r.out, Catch::Contains(std::string(id) + ": "));
+    const fs::path stages = dir / ("st." + std::string(id));
+    CHECK_FALSE(has_hidden_files(stages));
+    for (const char* stage : {"input", "bright", "blur.10", "composite", "output"})
+      CHECK(load(stages / (std::string(stage) + ".exr")).width() == 48);
+  }
+  CHECK(ids(j) == expected);  // every frame once, in order
+  CHECK(run_cli(dir, "merge r.json -q").code == 0);
+  for (int f : {2, 3, 8}) {
+    char name[32];
+    std::snprintf(name, sizeof name, "in.%04d.exr", f);
+    const std::string in = dir / name;
+    std::snprintf(name, sizeof name, "out.%04d.exr", f);
+    CHECK(bloomref::test::bit_identical(load(dir / name).cview(), single_run(in).cview()));
+  }
 }
 
 TEST_CASE("every engine's shard variables split a sequence that merge puts together",
