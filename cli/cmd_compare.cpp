@@ -77,6 +77,8 @@ int compare_cmd(CompareArgs& a) {
   const double gl_ms = ms(t0);
   parity::CompareOptions co;
   co.keep_images = !a.report_dir.empty();
+  co.direct_exp_tonemap = false;  // bloomref's shaders compute the specification's series
+  co.interpolated_reads = false;  // and read the composite's inputs with texelFetch
   t0 = Clock::now();
   double cpu_ms = 0;
   const parity::ParityResult r =

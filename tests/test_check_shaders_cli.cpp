@@ -1,5 +1,6 @@
 // bloomref check --shaders learnopengl as a CI job runs it: shaders written here from DESIGN.md
-// (tests/user_shader_sources.h) pass; a copy with one blur weight 1% too large fails at blur.1;
+// (tests/user_shader_sources.h) pass, every pass; a copy with one blur weight 1% too large fails
+// at blur.1, a final pass reading half a texel off or clamping exposure at output;
 // a shader that does not compile, or a missing --final-fs, is exit 2 naming the problem.
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
@@ -33,28 +34,43 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
                     replaced(test::kBlur9, "0.1945945946", "0.1965405405"));  // w1 * 1.01
   test::write_bytes(dir / "bad.fs", "#version 330 core\nvoid main() { undeclared = 1.0; }\n");
 
-  SECTION("as written, in f16 and f32: every blur pass within its bound") {
-    // The final pass (composite, tone map and gamma in one shader, reading the scene at
-    // interpolated coordinates) is not asserted: parity's output bound does not yet carry the
-    // terms that pass adds on llvmpipe (a sliver of the neighbouring texels in the scene read,
-    // and 1 - exp(-0) a few ULPs from 0 under gamma's unbounded slope near black).
+  SECTION("as written, in f16 and f32: every pass within its bound, the final one included") {
+    // The final pass computes 1 - exp(x) directly and reads the scene at interpolated
+    // coordinates: the bounds of a user's implementation allow both (CompareOptions).
     for (const char* storage : {"f16", "f32"}) {
       const test::CliResult r = test::run_cli(
           kArgs + "--blur-fs blur.fs --final-fs final.fs --json r.json --storage " + storage, "",
           dir.path());
-      INFO(r.out << r.err);
-      CHECK((r.code == 0 || r.code == 1));
+      INFO(storage << "\n" << r.out << r.err);
+      CHECK(r.code == 0);
       const json j = json::parse(test::read_bytes(dir / "r.json"));
       // The stages come from the user's shaders, not from a folder of theirs.
       CHECK(j["items"][0]["stages_from"] == "the passes of blur.fs and final.fs");
       int blurs = 0;
       for (const json& st : j["items"][0]["stages"]) {
         const std::string name = st["stage"];
-        if (name.rfind("blur.", 0) != 0) continue;
-        ++blurs;
+        blurs += name.rfind("blur.", 0) == 0;
         CHECK(st["isolated"]["verdict"] == "PASS");
+        CHECK(st["end_to_end"]["verdict"] == "PASS");
       }
       CHECK(blurs == 10);
+      CHECK(j["items"][0]["stages"].back()["stage"] == "output");
+    }
+  }
+  SECTION("a final pass that reads the scene half a texel off, or clamps exposure to 1, fails at output") {
+    test::write_bytes(dir / "shifted.fs",
+                      replaced(test::kFinal, "texture(scene, TexCoords)",
+                               "texture(scene, TexCoords + 0.5 / vec2(textureSize(scene, 0)))"));
+    test::write_bytes(dir / "no_exposure.fs",
+                      replaced(test::kFinal, "-hdr * exposure", "-hdr * min(exposure, 1.0)"));
+    for (const char* final_fs : {"shifted.fs", "no_exposure.fs"}) {
+      const test::CliResult r =
+          test::run_cli(kArgs + "--blur-fs blur.fs --storage f32 --exposure 1.5 --json r.json "
+                        "--final-fs " + final_fs, "", dir.path());
+      INFO(final_fs << "\n" << r.out << r.err);
+      CHECK(r.code == 1);
+      const json j = json::parse(test::read_bytes(dir / "r.json"));
+      CHECK(j["items"][0]["first_divergent_stage"] == "output");
     }
   }
   SECTION("an 8-bit final target, as the tutorial's window: the output's codes are judged") {

@@ -67,7 +67,7 @@ class Comparison {
              const std::function<Held(const std::string&)>& load, const StageTrace* cpu,
              const DeviceProfile& profile, const CompareOptions& opt)
       : plan_(plan), p_(plan.params), scene_(scene), load_(load), cpu_(cpu), profile_(profile),
-        opt_(opt), threads_(p_.threads), ctx_{&profile, p_.storage, threads_},
+        opt_(opt), threads_(p_.threads), ctx_{&profile, p_.storage, threads_, opt.direct_exp_tonemap, opt.interpolated_reads},
         kernel_(kernel_for(p_.kernel)), rounding_(half_rounding_for(profile)),
         streams_(plan, names, opt.causes) {
     result_.profile = profile;

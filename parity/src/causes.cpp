@@ -37,6 +37,7 @@ struct Hypothesis {
   float strength_scale = 1.0f;     // the composite adds strength * scale * bloom
   bool ge = false, clamp_bright = false, f16 = false, no_exposure = false;
   int gamma_times = 1;
+  bool pow_negative = false;  // gamma as pow(x, 1 / gamma) without max(x, 0): NaN below 0
   bool sampled() const { return !sampling.is_default(); }
 };
 
@@ -54,7 +55,7 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
     case StageKind::bloom: return h.sampled() || h.f16;
     case StageKind::composite: return h.f16 || h.strength_scale != 1.0f;
     case StageKind::tonemap: return h.no_exposure || h.f16;
-    case StageKind::output: return h.gamma_times != 1 || h.f16;
+    case StageKind::output: return h.gamma_times != 1 || h.pow_negative || h.f16;
   }
   return false;
 }
@@ -235,6 +236,11 @@ class Evaluator {
         Image out(in[0].width, in[0].height);
         if (h_.gamma_times == 0) return copy(in[0]);
         encode_output(in[0], out.view(), p_.gamma, threads);
+        if (h_.pow_negative)  // GLSL's pow(x, y) is undefined for x < 0: NaN on every GPU seen
+          for (int y = 0; y < out.height(); ++y)
+            for (int x = 0; x < out.width(); ++x)
+              for (int c = 0; c < 3; ++c)
+                if (in[0].pixel(x, y)[c] < 0) out.pixel(x, y)[c] = NAN;
         for (int t = 1; t < h_.gamma_times; ++t) {
           Image again(out.width(), out.height());
           encode_output(out.cview(), again.view(), p_.gamma, threads);
@@ -432,6 +438,9 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   if (has(StageKind::output)) {
     add("gamma-missing", "gamma not applied")->gamma_times = 0;
     add("gamma-twice", "gamma applied twice")->gamma_times = 2;
+    add("pow-negative",
+        "negative values through pow (gamma without max(x, 0); GLSL's pow is undefined for "
+        "x < 0)")->pow_negative = true;
   }
   if (has(StageKind::tonemap) && p.exposure != 1.0f)
     add("exposure-ignored", "exposure ignored (tone map with exposure 1)")->no_exposure = true;

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstring>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "bloomref/parallel.h"
@@ -159,13 +160,33 @@ std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageVi
                                               ConstImageView oracle, float strength,
                                               BoundContext ctx) {
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
+  // Reads through texture() at interpolated coordinates (CompareOptions::interpolated_reads):
+  // a coordinate off the texel's centre by d texels blends in d of the neighbour on that side
+  // (LINEAR), so d times the larger difference to a neighbour, per axis (clamp to edge: none
+  // beyond it). d is coordinate_error, the rounding of s * n - 0.5 and the weight quantum.
+  const double dx = ctx.interpolated_reads ? coordinate_error(scene.width, *ctx.profile) : 0.0;
+  const double dy = ctx.interpolated_reads ? coordinate_error(scene.height, *ctx.profile) : 0.0;
+  auto steps = [](ConstImageView v, int x, int y, int c) {
+    const double m = v.pixel(x, y)[c];
+    const double l = v.pixel(std::max(x - 1, 0), y)[c], r = v.pixel(std::min(x + 1, v.width - 1), y)[c];
+    const double u = v.pixel(x, std::max(y - 1, 0))[c], d = v.pixel(x, std::min(y + 1, v.height - 1))[c];
+    return std::pair<double, double>(std::max(std::fabs(l - m), std::fabs(r - m)),
+                                     std::max(std::fabs(u - m), std::fabs(d - m)));
+  };
   return make_bounds(
-      {"product and sum rounding", "storage", "denormal flush"},
+      {"product and sum rounding", "storage", "denormal flush",
+       "interpolated coordinates (x neighbour difference)"},
       [=](int x, int y, int c) {
         const double s = scene.pixel(x, y)[c], b = bloom.pixel(x, y)[c];
+        double reads = 0.0;
+        if (dx > 0 || dy > 0) {
+          const auto [sx, sy] = steps(scene, x, y, c);
+          const auto [bx, by] = steps(bloom, x, y, c);
+          reads = dx * (sx + std::fabs(strength) * bx) + dy * (sy + std::fabs(strength) * by);
+        }
         return Values{2 * U * (std::fabs(s) + std::fabs(strength * b)),
                       storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
-                      denormal_floor(*ctx.profile)};
+                      denormal_floor(*ctx.profile), reads};
       },
       scene.width, ctx.threads);
 }
@@ -183,9 +204,17 @@ std::unique_ptr<StageBounds> tonemap_bounds(ConstImageView hdr, ConstImageView o
           // The series path (stages.cpp): 7 Horner steps of 3 roundings each, and the rounding
           // of the argument (slope ~1 there). Both sides run it `precise`, so usually 0.
           const double m = -std::expm1(a);
-          return Values{0, std::fabs(a) * U * 1.7, (3 * 7 + 1) * U * std::fabs(m),
-                        storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
-                        denormal_floor(*ctx.profile)};
+          Values v{0, std::fabs(a) * U * 1.7, (3 * 7 + 1) * U * std::fabs(m),
+                   storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),
+                   denormal_floor(*ctx.profile)};
+          if (ctx.direct_exp) {
+            // 1 - exp(x) computed directly: exp's (3 + 2|x|) ULP at e = exp(x) in (0.6, 1.7),
+            // absolute, whatever the size of the result (1 - e itself is exact there, Sterbenz).
+            const double e = std::exp(a);
+            v[0] = e * (3 + 2 * std::fabs(a)) * 2 * U;
+            v[1] = std::max(v[1], e * std::fabs(a) * U);
+          }
+          return v;
         }
         const double e = std::exp(a);
         return Values{e * (3 + 2 * std::fabs(a)) * 2 * U, e * std::fabs(a) * U, (1 + e) * U,

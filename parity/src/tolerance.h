@@ -118,6 +118,8 @@ struct BoundContext {
   const DeviceProfile* profile;
   Storage storage;
   int threads;
+  bool direct_exp = false;          // CompareOptions::direct_exp_tonemap
+  bool interpolated_reads = false;  // CompareOptions::interpolated_reads
 };
 
 std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ctx);

@@ -102,6 +102,16 @@ struct CompareOptions {
   bool keep_failing_only = false;  ///< with keep_images: only of stages that are not PASS
   int worst_count = 8;
   bool causes = false;  ///< test the usual causes on every isolated stage that is not PASS
+  /// What an implementation may do that the specification allows and bloomref's own shaders
+  /// avoid; each widens a bound (docs/design.md, "What a user's implementation may do").
+  /// direct_exp_tonemap: the tone map computed as 1 - exp(x) directly, as the LearnOpenGL
+  /// tutorial's 7.bloom_final.fs does: near 0 its error is exp's near 1, absolute, where the
+  /// specification's series (stages.cpp) has a relative one. interpolated_reads: the composite's
+  /// inputs read with texture() at interpolated coordinates (the tutorial's TexCoords), whose
+  /// rounding blends in the neighbours, instead of texelFetch. `compare` (bloomref's own
+  /// shaders) turns both off; captures and user shaders keep them on.
+  bool direct_exp_tonemap = true;
+  bool interpolated_reads = true;
 };
 
 /// A stage image from outside the CPU oracle: a GL readback, or a user's file.
