@@ -317,6 +317,38 @@ TEST_CASE("bugs of the finishing stages are named, also from the output alone", 
   }
 }
 
+TEST_CASE("another gamma is fitted and named; negative values through pow are named", "[check]") {
+  const BloomParams p = test_params();
+  SECTION("an output encoded with gamma 2.0 where 2.2 was declared") {
+    const Image scene = test_scene();
+    BloomParams other = p;
+    other.gamma = 2.0f;
+    const auto r = check(p, scene, {{"output", trace_of(other, scene).at("output")}});
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == "output");
+    REQUIRE(best_cause(stage(r, "output")) == "gamma-other");
+    CHECK(stage(r, "output").causes.front().within > 0.999);
+    CHECK_THAT(stage(r, "output").causes.front().detail, Catch::Contains("gamma 2 "));
+  }
+  SECTION("pow(x, 1 / gamma) without max(x, 0): NaN where the scene is negative") {
+    Image scene = test_scene();
+    for (int x = 30; x < 34; ++x) scene.pixel(x, 25)[0] = -0.75f;  // a negative red, far from lights
+    const auto cpu = trace_of(p, scene);
+    Image out = cpu.at("output");
+    int nans = 0;
+    for (int y = 0; y < out.height(); ++y)
+      for (int x = 0; x < out.width(); ++x)
+        for (int c = 0; c < 3; ++c)
+          if (cpu.at("tonemap").pixel(x, y)[c] < 0) out.pixel(x, y)[c] = NAN, ++nans;
+    REQUIRE(nans > 0);
+    const auto r = check(p, scene, {{"output", out}});
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == "output");
+    CHECK(best_cause(stage(r, "output")) == "pow-negative");
+    CHECK(stage(r, "output").causes.front().within == 1.0);
+  }
+}
+
 TEST_CASE("a pass too few or too many, a scaled bloom, f16 storage are named", "[check]") {
   const Image scene = test_scene();
   const BloomParams p = test_params();

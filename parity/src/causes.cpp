@@ -38,6 +38,7 @@ struct Hypothesis {
   bool ge = false, clamp_bright = false, f16 = false, no_exposure = false;
   int gamma_times = 1;
   bool pow_negative = false;  // gamma as pow(x, 1 / gamma) without max(x, 0): NaN below 0
+  float gamma = 0.0f;         // another gamma (fitted); 0: the plan's
   bool sampled() const { return !sampling.is_default(); }
 };
 
@@ -55,7 +56,7 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
     case StageKind::bloom: return h.sampled() || h.f16;
     case StageKind::composite: return h.f16 || h.strength_scale != 1.0f;
     case StageKind::tonemap: return h.no_exposure || h.f16;
-    case StageKind::output: return h.gamma_times != 1 || h.pow_negative || h.f16;
+    case StageKind::output: return h.gamma_times != 1 || h.pow_negative || h.gamma > 0 || h.f16;
   }
   return false;
 }
@@ -235,7 +236,7 @@ class Evaluator {
       case StageKind::output: {
         Image out(in[0].width, in[0].height);
         if (h_.gamma_times == 0) return copy(in[0]);
-        encode_output(in[0], out.view(), p_.gamma, threads);
+        encode_output(in[0], out.view(), h_.gamma > 0 ? h_.gamma : p_.gamma, threads);
         if (h_.pow_negative)  // GLSL's pow(x, y) is undefined for x < 0: NaN on every GPU seen
           for (int y = 0; y < out.height(); ++y)
             for (int x = 0; x < out.width(); ++x)
@@ -392,6 +393,34 @@ std::optional<float> fit_bloom_scale(const CauseContext& ctx, const StageSpec& t
   return static_cast<float>(k);
 }
 
+// The gamma g that best explains the output as pow(t, 1 / g) of its input t: the median of
+// ln(t) / ln(out) over the values where both lie well inside (0, 1) (robust to the values a
+// different bug touches). nullopt when it is the plan's within 0.1%, or nothing to fit.
+std::optional<float> fit_gamma(const CauseContext& ctx, const StageSpec& target) {
+  if (target.kind != StageKind::output) return std::nullopt;
+  const ConstImageView user = ctx.view(target.name);
+  const ConstImageView in = ctx.view(stage_inputs(ctx.plan, target)[0]);
+  if (!user.data || !in.data || user.width != in.width || user.height != in.height)
+    return std::nullopt;
+  std::vector<double> g;
+  const std::size_t values = std::size_t(user.width) * user.height * 3;
+  const std::size_t step = std::max<std::size_t>(1, values / 1000000);
+  std::size_t i = 0;
+  for (int y = 0; y < user.height; ++y)
+    for (int x = 0; x < user.width; ++x)
+      for (int c = 0; c < 3; ++c, ++i) {
+        if (i % step) continue;
+        const double t = in.pixel(x, y)[c], o = user.pixel(x, y)[c];
+        if (t > 1e-3 && t < 0.99 && o > 1e-3 && o < 0.999) g.push_back(std::log(t) / std::log(o));
+      }
+  if (g.size() < 16) return std::nullopt;
+  std::nth_element(g.begin(), g.begin() + g.size() / 2, g.end());
+  const double gamma = g[g.size() / 2];
+  if (!std::isfinite(gamma) || gamma <= 0 || std::fabs(gamma / ctx.plan.params.gamma - 1) < 1e-3)
+    return std::nullopt;
+  return static_cast<float>(gamma);
+}
+
 std::string weights_text(const std::vector<float>& w) {
   std::string s = "{";
   double sum = 0;
@@ -486,6 +515,13 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       std::snprintf(b, sizeof b, "the bloom fits best scaled by %.6g", *k);
       h->detail = b;
     }
+  if (const auto g = fit_gamma(ctx, target)) {
+    Hypothesis* h = add("gamma-other", "another gamma");
+    h->gamma = *g;
+    char b[96];
+    std::snprintf(b, sizeof b, "the output fits gamma %.4g (specified %.4g)", *g, double(p.gamma));
+    h->detail = b;
+  }
   if (target.kind == StageKind::blur) {
     const Kernel& k = kernel_for(p.kernel);
     const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]);
