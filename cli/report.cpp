@@ -270,7 +270,8 @@ void write_worst(std::ostringstream& html, const parity::StageComparison& s) {
 // One stage's section: the full-size files beside the page, previews, the causes, the worst
 // values and the ULP histogram.
 void write_stage(std::ostringstream& html, const fs::path& root, const parity::StageComparison& s,
-                 const parity::StageComparison& end_to_end, const Image& captured, bool first) {
+                 const parity::StageComparison& end_to_end, const Image& captured, bool first,
+                 const std::string& captured_file) {
   const bool scene_referred = s.stage != "tonemap" && s.stage != "output";
   double scale = 0;
   Image raw, heat, mask;
@@ -281,7 +282,15 @@ void write_stage(std::ostringstream& html, const fs::path& root, const parity::S
     signed_raw.values()[k] = k % 4 == 3 ? 1.0f : captured.values()[k] - s.oracle.values()[k];
   const std::string base = (root / s.stage).string();
   save_exr(base + ".oracle.exr", s.oracle.cview());
-  save_exr(base + ".gl.exr", captured.cview());
+  // The user's own file is linked, not copied (a float EXR is most of a report's size).
+  std::string under_test = s.stage + ".gl.exr";
+  if (captured_file.empty()) {
+    save_exr(base + ".gl.exr", captured.cview());
+  } else {
+    std::error_code ec;
+    const fs::path rel = fs::proximate(fs::absolute(captured_file, ec), fs::absolute(root, ec), ec);
+    under_test = ec ? captured_file : rel.generic_string();
+  }
   save_exr(base + ".diff.exr", signed_raw.cview());
   save_exr(base + ".ratio.exr", raw.cview());
   const Image d_or = display(s.oracle, scene_referred), d_gl = display(captured, scene_referred);
@@ -295,7 +304,10 @@ void write_stage(std::ostringstream& html, const fs::path& root, const parity::S
        << s.stage << ": <span class='" << parity::to_string(s.verdict) << "'>"
        << parity::to_string(s.verdict) << "</span>" << (first ? " (first divergent)" : "")
        << "</h2><p>" << esc(s.reason) << "; end to end " << parity::to_string(end_to_end.verdict)
-       << ": " << esc(end_to_end.reason) << "</p>";
+       << ": " << esc(end_to_end.reason) << "</p><p class='files'>full size: <a href='"
+       << esc(s.stage) << ".oracle.exr'>oracle</a>, <a href='" << esc(under_test)
+       << "'>under test</a>, <a href='" << esc(s.stage) << ".diff.exr'>difference</a>, <a href='"
+       << esc(s.stage) << ".ratio.exr'>error / bound</a> (EXR)</p>";
   write_causes(html, s);
   const std::pair<const Image*, std::string> figs[] = {
       {&d_or, "oracle (CPU from the previous stage under test)"},
@@ -324,15 +336,16 @@ std::string cause_line(const parity::StageComparison& s) {
 
 void write_report(const std::string& dir, const std::string& source, const std::string& renderer,
                   const Plan& plan, const StageTrace& gl, const parity::ParityResult& r,
-                  const std::string& fault) {
+                  const std::string& fault, const CapturedFiles& files) {
   StagedFolder staged(dir);
-  write_report_files(staged.path(), source, renderer, plan, gl, r, fault);
+  write_report_files(staged.path(), source, renderer, plan, gl, r, fault, files);
   staged.publish();
 }
 
 void write_report_files(const std::string& dir, const std::string& source,
                         const std::string& renderer, const Plan& plan, const StageTrace& gl,
-                        const parity::ParityResult& r, const std::string& fault) {
+                        const parity::ParityResult& r, const std::string& fault,
+                        const CapturedFiles& files) {
   if (!fs::is_directory(dir)) throw InputError(dir, "is not a folder");
   const fs::path root(dir);
   const std::string first = r.first_divergent_stage.value_or("");
@@ -348,7 +361,10 @@ void write_report_files(const std::string& dir, const std::string& source,
   for (std::size_t i : order) {
     const auto& s = r.isolated[i];
     const StageResult* g = gl.find(s.stage);
-    if (g && !s.oracle.empty()) write_stage(html, root, s, r.end_to_end[i], g->image, s.stage == first);
+    const auto file = files.find(s.stage);
+    if (g && !s.oracle.empty())
+      write_stage(html, root, s, r.end_to_end[i], g->image, s.stage == first,
+                  file == files.end() ? "" : file->second);
   }
   html << "<script>if(!location.hash&&'" << first << "')location.hash='stage-" << first
        << "';</script></body></html>\n";

@@ -4,6 +4,7 @@
 // stage.
 #pragma once
 
+#include <map>
 #include <string>
 
 #include "bloomref/executor.h"
@@ -14,14 +15,20 @@ namespace bloomref::cli {
 /// The best-supported cause of a stage's failure, in one line ("" when the stage passed).
 std::string cause_line(const parity::StageComparison& s);
 
+/// The user's own files of the stages under test (stage -> path): the report links to them
+/// instead of writing a copy (<stage>.gl.exr) of each.
+using CapturedFiles = std::map<std::string, std::string>;
+
 /// Builds the report in a hidden folder beside `dir` and moves it into place when complete
 /// (StagedFolder): an interrupted run leaves no half-written report.
 void write_report(const std::string& dir, const std::string& source, const std::string& renderer,
                   const Plan& plan, const StageTrace& gl, const parity::ParityResult& r,
-                  const std::string& fault);
-/// The report's files, written into the existing folder `dir` (a staged one).
+                  const std::string& fault, const CapturedFiles& files = {});
+/// The report's files, written into the existing folder `dir` (a staged one, beside the
+/// report's final name: links to `files` are relative to its parent).
 void write_report_files(const std::string& dir, const std::string& source,
                         const std::string& renderer, const Plan& plan, const StageTrace& gl,
-                        const parity::ParityResult& r, const std::string& fault);
+                        const parity::ParityResult& r, const std::string& fault,
+                        const CapturedFiles& files = {});
 
 }  // namespace bloomref::cli

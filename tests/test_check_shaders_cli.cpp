@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "bloomref/io.h"
 #include "gl_fixture.h"
 #include "test_util.h"
 #include "user_shader_sources.h"
@@ -89,12 +90,14 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
   }
   SECTION("a blur weight 1% too large fails at blur.1") {
     const test::CliResult r = test::run_cli(
-        kArgs + "--blur-fs broken_blur.fs --final-fs final.fs --storage f32 --json r.json", "",
-        dir.path());
+        kArgs + "--blur-fs broken_blur.fs --final-fs final.fs --storage f32 --json r.json "
+        "--report rep", "", dir.path());
     INFO(r.out << r.err);
     CHECK(r.code == 1);
     const json j = json::parse(test::read_bytes(dir / "r.json"));
     CHECK(j["items"][0]["first_divergent_stage"] == "blur.1");
+    // The passes were read back into a temporary folder, gone now: the report keeps a copy.
+    CHECK(bloomref::load_image(dir / "rep/learnopengl/blur.1.gl.exr").image.width() == 48);
   }
   SECTION("a shader that does not compile, or a missing file option, is exit 2") {
     test::CliResult r =

@@ -118,7 +118,7 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
       if (!s.oracle.empty()) trace.stages.push_back({s.stage, read(s.stage).image, 0, false});
     const std::string dir = a.report_dir + (item.id.empty() ? "" : "/" + item.id);
     write_report(dir, source, "captured stages: " + (r.stages_from.empty() ? item.id : r.stages_from),
-                 plan, trace, r.parity, "none");
+                 plan, trace, r.parity, "none", item.scratch ? CapturedFiles{} : r.file_of);
   }
   return r;
 }
@@ -192,6 +192,7 @@ CheckItem shaders_item(CheckArgs& a, CheckRun& run, ScratchDir& scratch) {
   item.stages_dir = scratch.path().string();
   item.from = "the passes of " + a.shaders.blur_fs + " and " + a.shaders.final_fs;
   item.id = "learnopengl";
+  item.scratch = true;
   return item;
 }
 

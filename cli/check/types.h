@@ -29,6 +29,7 @@ struct CheckItem {
   std::vector<StageFile> files;  ///< the files one by one (a manifest's stage map)
   StageFile defaults;      ///< encoding, origin, channels for a folder's files
   std::map<std::string, std::string> aliases;  ///< a folder's file names -> stage names
+  bool scratch = false;  ///< the files are bloomref's, in a temporary folder (--shaders)
 };
 
 /// A known deviation (--expectations): stages matching `stage` in items matching `item`
