@@ -264,6 +264,45 @@ TEST_CASE("composite and tone map bounds", "[parity][bounds]") {
   CHECK(close(term(t, "1 - e"), 22 * u * -std::expm1(-0.25)));
 }
 
+TEST_CASE("a user's implementation: direct 1 - exp(x), composite inputs read at interpolated "
+          "coordinates", "[parity][bounds]") {
+  const DeviceProfile p = profile_llvmpipe();
+  const BoundContext user{&p, Storage::f32, 1, true, true};
+  SECTION("1 - exp(x) computed directly below |a| = 0.5: exp's ULPs near 1, absolute") {
+    // a = -0.001: exp's (3 + 2|a|) ULP at e = exp(-0.001), counted as 2u e each: 2u e (3.002),
+    // about 6e-7 on a result of 1e-3; the series alone allowed 22u of it (1.3e-9).
+    const Image small = row({0.001f});
+    const auto t = tol::tonemap_bounds(small.cview(), small.cview(), 1.0f, user)->terms(0, 0, 0);
+    const double e = std::exp(-0.001);
+    CHECK(close(term(t, "exp"), 2 * u * e * 3.002));
+    CHECK(close(term(t, "argument"), 1.7 * 0.001 * u));  // the larger of 1.7 |a| u and e |a| u
+    const BoundContext spec{&p, Storage::f32, 1};
+    CHECK(term(tol::tonemap_bounds(small.cview(), small.cview(), 1.0f, spec)->terms(0, 0, 0),
+               "exp") == 0.0);
+  }
+  SECTION("interpolated reads: the coordinate error times the larger neighbour step, per axis") {
+    // A 3 x 3 scene: 0 everywhere but 8 at the centre; bloom 0 but 2 at the top-right corner.
+    // At the centre (1, 1): the scene's steps are 8 on both axes, the bloom's 0: the term is
+    // d(3) 8 + d(3) 8 with d(n) = n u (2 * 2.5 + 4) = 27u (the profile's 2.5-ULP division).
+    Image scene(3, 3, 0.0f), bloom(3, 3, 0.0f);
+    scene.pixel(1, 1)[0] = 8;
+    bloom.pixel(2, 0)[0] = 2;
+    const float strength = 0.5f;
+    const auto c = tol::composite_bounds(scene.cview(), bloom.cview(), scene.cview(), strength, user);
+    CHECK(term(c->terms(1, 1, 0), "interpolated") == 27 * u * 8 * 2);
+    // At (2, 1): the scene's x step is 8 (to the centre), y step 0; the bloom's y step is 2
+    // (to (2, 0)), scaled by the strength: 27u (8 + 0.5 * 2).
+    CHECK(term(c->terms(2, 1, 0), "interpolated") == 27 * u * (8 + 0.5 * 2));
+    // Clamp to edge: (0, 0) has neighbours only inside; none differ. Green is 0 everywhere.
+    CHECK(term(c->terms(0, 0, 0), "interpolated") == 0.0);
+    CHECK(term(c->terms(1, 1, 1), "interpolated") == 0.0);
+    // texelFetch (bloomref's own shaders): no such term.
+    const BoundContext own{&p, Storage::f32, 1};
+    CHECK(term(tol::composite_bounds(scene.cview(), bloom.cview(), scene.cview(), strength, own)
+                   ->terms(1, 1, 0), "interpolated") == 0.0);
+  }
+}
+
 TEST_CASE("output: the bound follows pow's slope towards black", "[parity][bounds]") {
   const DeviceProfile p = profile_llvmpipe();
   const BoundContext ctx{&p, Storage::f32, 1};
