@@ -32,6 +32,8 @@ struct RunArgs {
   SequenceOptions sequence;  ///< --frames, --shard, --resume, --jobs (batch/run_sequence.h)
 };
 
+constexpr int kMaxRepeat = 100000;
+
 /// Runs 2..repeat of the CPU pipeline in this process. The first run (the trace given) pays a
 /// page fault for every page its buffers touch; later runs reuse what earlier ones freed as far
 /// as the C library's allocator keeps it (glibc gave large buffers back to the kernel for the
@@ -70,6 +72,10 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
   if (a.backend != "cpu" && a.backend != "gl")
     throw ParamError("--backend '" + a.backend + "' is not one of: cpu, gl");
   if (a.repeat < 1) throw ParamError("--repeat must be >= 1");
+  // Every run's timings are kept for the medians and listed in the JSON: bounded memory.
+  if (a.repeat > kMaxRepeat)
+    throw ParamError("--repeat must be at most " + std::to_string(kMaxRepeat) +
+                     " (every run's timings are kept for the medians and the JSON)");
   if (a.repeat > 1 && a.backend != "cpu") throw ParamError("--repeat times the CPU backend only");
   if (a.repeat > 1 && !a.dump_dir.empty())
     throw ParamError("--repeat and --dump-stages do not go together (stages kept change the timings)");

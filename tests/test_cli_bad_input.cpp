@@ -287,6 +287,7 @@ TEST_CASE("bloomref run --repeat times later runs in the same process, same bits
   // Bad counts and combinations are refused before any work.
   expect_bad_input(dir, "run in.exr -o x.exr --repeat 0", {"--repeat"}, {"in.exr"});
   expect_bad_input(dir, "run in.exr -o x.exr --repeat 2 --backend gl", {"--repeat", "CPU"}, {"in.exr"});
+  expect_bad_input(dir, "run in.exr -o x.exr --repeat 100001", {"--repeat", "100000"}, {"in.exr"});
   expect_bad_input(dir, "run in.exr -o x.exr --repeat 2 --dump-stages d", {"--repeat", "--dump-stages"},
                    {"in.exr"});
 }
