@@ -47,7 +47,15 @@ int merge(const MergeArgs& a) {
     }
   std::vector<batch::ResultsFile> files;
   for (const std::string& f : a.files) files.push_back(read_results(f));
-  const batch::Merged m = batch::merge_results(files);
+  batch::Merged m;
+  try {
+    m = batch::merge_results(files);
+  } catch (const nlohmann::json::exception& e) {
+    // merge_results checks the type of every field it reads; this is the backstop (exit 2, not 4).
+    std::string names;
+    for (const std::string& f : a.files) names += (names.empty() ? "" : ", ") + f;
+    throw InputError(names, std::string("could not be merged: ") + e.what());
+  }
 
   if (!a.json_path.empty()) save_text(a.json_path, m.doc.dump(2) + "\n");
   if (!a.junit_path.empty()) save_text(a.junit_path, batch::merged_junit(m));

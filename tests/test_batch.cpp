@@ -2,6 +2,7 @@
 // an environment map for every engine --shard auto reads, the progress line, and merging results
 // documents written here by hand. Expected values are written out by hand.
 #include <catch2/catch.hpp>
+#include <functional>
 
 #include "batch/frames.h"
 #include "batch/merge.h"
@@ -60,6 +61,13 @@ TEST_CASE("frame wildcards: the frame a file name stands for", "[batch]") {
   CHECK_FALSE(p.frame_of("dir/shot.0042.exr.tmp"));
   CHECK_FALSE(p.frame_of("other/shot.0042.exr"));
   CHECK(FramePattern::parse("f.%d.exr").frame_of("f.7.exr") == 7);
+  // Padding beyond 10 digits (found by fuzzing): the zeros are the pattern's, the frame reads back.
+  const FramePattern wide = FramePattern::parse("f.################.exr");  // 16
+  CHECK(wide.name(7) == "f.0000000000000007.exr");
+  CHECK(wide.frame_of("f.0000000000000007.exr") == 7);
+  CHECK(wide.frame_of("f.-000000000000007.exr") == -7);
+  CHECK(FramePattern::parse("f.%016d.exr").frame_of("f.0000001234567890.exr") == std::nullopt);
+  CHECK(FramePattern::parse("f.%016d.exr").frame_of("f.0000000123456789.exr") == 123456789);
 }
 
 TEST_CASE("bad frame patterns are named", "[batch]") {
@@ -69,6 +77,10 @@ TEST_CASE("bad frame patterns are named", "[batch]") {
              Catch::Contains("mixes '#' and '@'"));
   CHECK_THAT(error_of([] { FramePattern::parse("a.%4d.exr"); }), Catch::Contains("write '%04d'"));
   CHECK_THAT(error_of([] { FramePattern::parse("a.%020d.exr"); }),
+             Catch::Contains("more than 16 digits"));
+  CHECK_THAT(error_of([] { FramePattern::parse("a.#################.exr"); }),  // 17
+             Catch::Contains("more than 16 digits"));
+  CHECK_THAT(error_of([] { FramePattern::parse("a.@@@@@@@@@@@@@@@@@.exr"); }),
              Catch::Contains("more than 16 digits"));
   CHECK(has_frame_wildcard("a.#@.exr"));  // malformed, still meant as a sequence
 }
@@ -448,4 +460,34 @@ TEST_CASE("merge refuses files of different runs, naming them", "[batch]") {
                merge_results({{"x.json", ordered_json::array()}});
              }),
              Catch::Contains("x.json: is not a bloomref results file"));
+}
+
+TEST_CASE("merge refuses a field of another type than it reads, naming file and field",
+          "[batch]") {
+  // Found by fuzzing: such a field made nlohmann's value() throw a type_error (exit 4).
+  struct Case {
+    const char* what;
+    std::function<void(ordered_json&)> spoil;
+  };
+  const Case cases[] = {
+      {"\"version\" is not a number", [](ordered_json& d) { d["version"] = {{"a", 1}}; }},
+      {"\"kind\" is not a string", [](ordered_json& d) { d["kind"] = 3; }},
+      {"batch: \"finished\" is not true or false", [](ordered_json& d) { d["batch"]["finished"] = "yes"; }},
+      {"batch.shard: \"label\" is not a string", [](ordered_json& d) { d["batch"]["shard"]["label"] = 2; }},
+      {"batch.item_ids: an id is not a string", [](ordered_json& d) { d["batch"]["item_ids"][1] = 2; }},
+      {"item \"1\": \"wall_ms\" is not a number", [](ordered_json& d) { d["items"][0]["wall_ms"] = "10"; }},
+      {"item \"1\": \"status\" is not a string", [](ordered_json& d) { d["items"][0]["status"] = true; }},
+      {"item \"1\": \"outputs\" is not an array", [](ordered_json& d) { d["items"][0]["outputs"] = "o.exr"; }},
+  };
+  for (const Case& c : cases) {
+    ordered_json d = run_doc("1/1", {run_item("1")});
+    c.spoil(d);
+    INFO(c.what);
+    CHECK_THAT(input_error_of([&] { merge_results({{"r.json", d}}); }),
+               Catch::Contains(std::string("r.json: ") + c.what));
+  }
+  ordered_json c = check_doc({check_item("a", "PASS", {"pass"})});
+  c["items"][0]["stages"][0]["isolated"] = "r";
+  CHECK_THAT(input_error_of([&] { merge_results({{"c.json", c}}); }),
+             Catch::Contains("c.json: item \"a\": stage: \"isolated\" is not an object"));
 }

@@ -300,6 +300,15 @@ TEST_CASE("a manifest: raw half, bottom row first, BGRA, aliases, device keys", 
     CHECK(r.err.find("bad.json") != std::string::npos);
     CHECK(r.err.find("items[0]") != std::string::npos);
   }
+  // A parameter that is no option of check (found by fuzzing: it was an internal error, exit 4).
+  std::string m = manifest;
+  m.replace(m.find(R"("passes": 10)"), 12, R"("th(eshold": 1)");
+  bloomref::test::write_bytes(dir / "bad.json", m);
+  r = run_cli(dir, "check --manifest bad.json");
+  INFO(r.err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("bad.json") != std::string::npos);
+  CHECK(r.err.find("params.th(eshold") != std::string::npos);
 }
 
 TEST_CASE("expectations: a known deviation is expected, and reported when fixed", "[check-cli]") {

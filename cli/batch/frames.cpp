@@ -34,6 +34,8 @@ std::optional<Wildcard> wildcard_at(const std::string& text, std::size_t i) {
     const bool hashes = run.find('@') == std::string::npos,
                ats = run.find('#') == std::string::npos;
     if (!hashes && !ats) bad_pattern(text, "'" + run + "' mixes '#' and '@'; use one kind");
+    if (run.size() > static_cast<std::size_t>(kMaxPadding))
+      bad_pattern(text, "'" + run + "' pads to more than " + std::to_string(kMaxPadding) + " digits");
     const int n = static_cast<int>(run.size());
     return Wildcard{i, run.size(), hashes && n == 1 ? 4 : n};
   }
@@ -130,7 +132,9 @@ std::optional<int> FramePattern::frame_of(const std::string& name) const {
       name.substr(prefix_.size(), name.size() - prefix_.size() - suffix_.size());
   const std::size_t sign = mid[0] == '-' ? 1 : 0;
   const std::size_t digits = mid.size() - sign;
-  if (digits == 0 || digits > 10 || static_cast<int>(mid.size()) < padding_ ||
+  // Up to 10 significant digits (|frame| <= 1e9), more when the padding asks for zeros.
+  if (digits == 0 || digits > static_cast<std::size_t>(std::max(10, padding_)) ||
+      static_cast<int>(mid.size()) < padding_ ||
       !std::all_of(mid.begin() + sign, mid.end(), [](char c) { return c >= '0' && c <= '9'; }))
     return std::nullopt;
   const long long v = std::stoll(mid);

@@ -23,10 +23,66 @@ ordered_json deciding_params(const ordered_json& doc) {
   return p;
 }
 
+using TypeTest = bool (ordered_json::*)() const noexcept;
+
+// InputError naming the file and the field when `obj` has `key` of another type than merge
+// reads (found by fuzzing: nlohmann's value() throws a type_error deep inside the merge).
+void require_type(const ResultsFile& f, const ordered_json& obj, const char* key, TypeTest is,
+                  const char* type, const std::string& where, bool null_ok = false) {
+  if (obj.is_object() && obj.contains(key) && !(obj[key].*is)() && !(null_ok && obj[key].is_null()))
+    throw InputError(f.name, where + "\"" + key + "\" is not " + type);
+}
+
+// Every field merge and its writers read, where present, of the type they read it as.
+void require_types(const ResultsFile& f) {
+  const ordered_json& d = f.doc;
+  using J = ordered_json;
+  for (const char* k : {"kind", "verdict"}) require_type(f, d, k, &J::is_string, "a string", "");
+  require_type(f, d, "version", &J::is_number, "a number", "");
+  require_type(f, d, "warn_as_error", &J::is_boolean, "true or false", "");
+  require_type(f, d, "batch", &J::is_object, "an object", "");
+  if (d.contains("batch")) {
+    const ordered_json& b = d["batch"];
+    for (const char* k : {"finished", "interrupted"})
+      require_type(f, b, k, &J::is_boolean, "true or false", "batch: ");
+    require_type(f, b, "shard", &J::is_object, "an object or null", "batch: ", true);
+    if (b.contains("shard") && b["shard"].is_object())
+      for (const char* k : {"label", "source"})
+        require_type(f, b["shard"], k, &J::is_string, "a string", "batch.shard: ");
+    if (b.contains("item_ids") && b["item_ids"].is_array())
+      for (const ordered_json& id : b["item_ids"])
+        if (!id.is_string()) throw InputError(f.name, "batch.item_ids: an id is not a string");
+  }
+  if (!d.contains("items") || !d["items"].is_array()) return;
+  for (const ordered_json& it : d["items"]) {
+    if (!it.is_object()) continue;  // require_results names it
+    const std::string where = "item " + (it.contains("id") ? it["id"].dump() : "?") + ": ";
+    for (const char* k : {"verdict", "status"}) require_type(f, it, k, &J::is_string, "a string", where);
+    require_type(f, it, "first_divergent_stage", &J::is_string, "a string or null", where, true);
+    for (const char* k : {"exit_code", "wall_ms"}) require_type(f, it, k, &J::is_number, "a number", where);
+    require_type(f, it, "first_divergent_cause", &J::is_object, "an object or null", where, true);
+    require_type(f, it, "outputs", &J::is_array, "an array", where);
+    if (it.contains("outputs"))
+      for (const ordered_json& o : it["outputs"])
+        if (!o.is_string()) throw InputError(f.name, where + "an output is not a string");
+    require_type(f, it, "stages", &J::is_array, "an array", where);
+    if (!it.contains("stages")) continue;
+    for (const ordered_json& s : it["stages"]) {
+      if (!s.is_object()) throw InputError(f.name, where + "a stage is not an object");
+      for (const char* k : {"stage", "status"})
+        require_type(f, s, k, &J::is_string, "a string", where + "stage: ");
+      require_type(f, s, "isolated", &J::is_object, "an object", where + "stage: ");
+      if (s.contains("isolated"))
+        require_type(f, s["isolated"], "reason", &J::is_string, "a string", where + "stage.isolated: ");
+    }
+  }
+}
+
 void require_results(const ResultsFile& f) {
   const ordered_json& d = f.doc;
   if (!d.is_object() || !d.contains("tool") || !d["tool"].is_string())
     throw InputError(f.name, "is not a bloomref results file (no \"tool\")");
+  require_types(f);
   const std::string tool = d["tool"].get<std::string>();
   if (tool != "bloomref check" && tool != "bloomref run")
     throw InputError(f.name, "holds results of '" + tool + "'; merge takes run and check results");

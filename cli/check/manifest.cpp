@@ -52,7 +52,8 @@ void apply_param(const std::string& file, const std::string& key, const json& v,
   std::string option = "--" + key;
   for (char& c : option)
     if (c == '_') c = '-';
-  if (sub.count(option) > 0) return;  // the command line wins
+  // The command line wins. A key that names no option (count() would throw) is refused below.
+  if (const CLI::Option* o = sub.get_option_no_throw(option); o && o->count() > 0) return;
   const std::string field = "params." + key;
   auto num = [&]() {
     if (!v.is_number()) bad(file, field, "must be a number");
