@@ -1,0 +1,195 @@
+"""scripts/gpu-bench: its own parts (ldd's output, which libraries travel, the markdown report)
+and both verbs end to end on this machine's GL (llvmpipe in CI): pack a built-in scene, run from
+a copy of the packed folder, and run with no EGL vendor at all.
+"""
+import hashlib
+import importlib.machinery
+import importlib.util
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SCRIPT = os.path.join(HERE, "..", "scripts", "gpu-bench")
+EXE = os.environ.get("BLOOMREF_EXE", os.path.join(HERE, "..", "build", "cli", "bloomref"))
+OUTPUTS = {"gpu-bench.json", "gpu-bench.md", "gpu-bench.log", "compare-full.json",
+           "bench-full.json"}
+
+
+def load_script():
+    loader = importlib.machinery.SourceFileLoader("gpu_bench", SCRIPT)
+    spec = importlib.util.spec_from_loader("gpu_bench", loader)
+    mod = importlib.util.module_from_spec(spec)
+    loader.exec_module(mod)
+    return mod
+
+
+gb = load_script()
+
+
+def test_parse_ldd_reads_found_missing_and_bare_lines():
+    text = ("\tlinux-vdso.so.1 (0x00007ffd1e5f0000)\n"
+            "\tlibpng16.so.16 => /lib/x86_64-linux-gnu/libpng16.so.16 (0x00007f03f5732000)\n"
+            "\tlibfoo.so.3 => not found\n"
+            "\t/lib64/ld-linux-x86-64.so.2 (0x00007f03f5785000)\n")
+    assert gb.parse_ldd(text) == [
+        ("linux-vdso.so.1", "linux-vdso.so.1"),
+        ("libpng16.so.16", "/lib/x86_64-linux-gnu/libpng16.so.16"),
+        ("libfoo.so.3", None),
+        ("ld-linux-x86-64.so.2", "/lib64/ld-linux-x86-64.so.2"),
+    ]
+
+
+@pytest.mark.parametrize("soname,kind", [
+    ("libc.so.6", "skip"), ("libm.so.6", "skip"), ("libdl.so.2", "skip"),
+    ("libpthread.so.0", "skip"), ("librt.so.1", "skip"), ("ld-linux-x86-64.so.2", "skip"),
+    ("linux-vdso.so.1", "skip"), ("libEGL.so.1", "skip"), ("libGL.so.1", "skip"),
+    ("libGLX.so.0", "skip"), ("libGLdispatch.so.0", "skip"), ("libOpenGL.so.0", "skip"),
+    ("libgbm.so.1", "skip"), ("libdrm.so.2", "skip"), ("libglapi.so.0", "skip"),
+    ("libstdc++.so.6", "fallback"), ("libgcc_s.so.1", "fallback"),
+    ("libtbb.so.12", "pack"), ("libepoxy.so.0", "pack"), ("libOpenEXR-3_1.so.30", "pack"),
+    ("libz.so.1", "pack"), ("libcrypt.so.1", "pack"), ("libmd.so.0", "pack"),
+])
+def test_classify(soname, kind):
+    assert gb.classify(soname) == kind
+
+
+def synthetic_result():
+    gl_row = {"size": "64x64", "pixels": 4096, "backend": "gl-fragment", "plan": "full",
+              "threads": 0, "total_ms": 12.25, "blur_ms": 4.0,
+              "stages_ms": {"input": 0.5, "blur.1": 2.5}, "check": "max |gl - cpu| output 1e-07",
+              "check_ok": True}
+    cpu_row = {"size": "64x64", "pixels": 4096, "backend": "cpu", "plan": "adaptive",
+               "threads": 4, "total_ms": 3.0, "blur_ms": 1.0,
+               "stages_ms": {"input": 0.25, "composite+tonemap+output": 1.5},
+               "check": "DIFFERS from 1-thread full", "check_ok": False}
+    stages = [{"stage": "input", "verdict": "PASS", "max_abs": 0, "max_f16_ulps": 0,
+               "max_error_over_bound": 0.0, "end_to_end_verdict": "PASS",
+               "end_to_end_max_error_over_bound": 0.0},
+              {"stage": "blur.1", "verdict": "FAIL", "max_abs": 0.1, "max_f16_ulps": 40,
+               "max_error_over_bound": 6.5, "end_to_end_verdict": "FAIL",
+               "end_to_end_max_error_over_bound": 6.5}]
+    return {
+        "machine": {"os": "TestOS", "cpu_model": "TestCPU", "cpus": 4, "memory_gib": 8},
+        "gl": {"renderer": "llvmpipe (LLVM 15)", "version": "4.5", "gpu": False,
+               "note": "renderer is llvmpipe: not a GPU"},
+        "environment": {"loaders": "the machine's own"},
+        "pack": {"commit": "0123456789abcdef", "build_type": "Release"},
+        "elapsed_s": 9.0, "budget_s": 300,
+        "steps": [
+            {"name": "bench f32 64x64", "kind": "bench", "status": "failed", "rc": 1,
+             "storage": "f32", "repeat": 5, "threads_available": 4, "rows": [gl_row, cpu_row]},
+            {"name": "compare demo@64x64", "kind": "compare", "status": "failed", "rc": 1,
+             "image": "demo@64x64", "width": 64, "height": 64, "method": "gaussian",
+             "storage": "f32", "shaders": "fragment", "profile_asked": "auto",
+             "profile_used": "llvmpipe", "verdict": "FAIL", "first_divergent_stage": "blur.1",
+             "timings_ms": {"total": 20.0}, "stages": stages},
+        ],
+    }
+
+
+def test_markdown_tables_escape_pipes_and_list_failures():
+    md = gb.markdown(synthetic_result())
+    assert "- **renderer is llvmpipe: not a GPU**" in md
+    assert "\n  - `bench f32 64x64`: failed, exit 1" in md
+    assert "\n  - `compare demo@64x64`: failed, exit 1 (FAIL)" in md
+    # The check text's '|' is escaped, so the row keeps its 8 cells.
+    assert ("| 64x64 | f32 | gl-fragment | full |  | 12.2 | 4.00 | "
+            "max \\|gl - cpu\\| output 1e-07 |") in md
+    assert "| 64x64 | f32 | cpu | adaptive | 4 | 3.00 | 1.00 | **FAIL** DIFFERS" in md
+    # Per stage: GL's time beside the compare's err/bound for the same frame, CPU's beside.
+    assert "| blur.1 | 2.50 | 6.5 |  |" in md
+    assert "| input | 0.500 | 0 | 0.250 |" in md
+    assert "| composite+tonemap+output |  |  | 1.50 |" in md
+    assert ("| demo@64x64 | 64x64 | gaussian | f32 | fragment | auto=llvmpipe | FAIL | blur.1 "
+            "| blur.1 6.5 | 20.0 | 1 |") in md
+    assert "blur.1 6.5 **FAIL**" in md
+    brief = gb.markdown(synthetic_result(), brief=True)
+    assert "0 of 1 compares PASS; the others:" in brief
+    assert "### 64x64 f32: per stage" not in brief
+
+
+needs_exe = pytest.mark.skipif(not os.path.isfile(EXE), reason=f"{EXE} not built")
+
+
+def run_script(args, env=None, timeout=300):
+    return subprocess.run([sys.executable, SCRIPT, *args], capture_output=True, text=True,
+                          env=env, timeout=timeout)
+
+
+@needs_exe
+def test_pack_then_run_from_a_copy(tmp_path):
+    scene = tmp_path / "impulse.exr"
+    subprocess.run([EXE, "scenes", "impulse", "-o", str(scene)], check=True)
+    build = tmp_path / "build" / "cli"
+    build.mkdir(parents=True)
+    os.symlink(os.path.abspath(EXE), build / "bloomref")
+    packed = tmp_path / "packed"
+    r = run_script(["pack", str(packed), "--build", str(tmp_path / "build"), "--images",
+                    str(scene), "--no-debs"])
+    assert r.returncode == 0, r.stderr
+    assert '"carry": [' in r.stdout
+    manifest = json.loads((packed / "manifest.json").read_text())
+    assert [i["name"] for i in manifest["images"]] == ["impulse.exr"]
+    assert manifest["images"][0]["sha256"] == hashlib.sha256(scene.read_bytes()).hexdigest()
+    for f in os.listdir(packed / "lib"):
+        if f != "fallback":
+            assert gb.classify(f) == "pack", f
+    assert not any(n.startswith(("libc.so", "libEGL", "libGL", "ld-linux"))
+                   for n in os.listdir(packed / "lib"))
+
+    copy = tmp_path / "copy"
+    shutil.copytree(packed, copy)
+    env = {k: v for k, v in os.environ.items() if k != "LD_LIBRARY_PATH"}
+    out = tmp_path / "out"
+    r = run_script(["run", str(copy), "--out", str(out), "--sizes", "32x32", "--repeat", "1",
+                    "--budget", "240"], env=env)
+    assert set(os.listdir(out)) == OUTPUTS
+    res = json.loads((out / "gpu-bench.json").read_text())
+    assert res["environment"]["LD_LIBRARY_PATH"].split(":")[0] == str(copy / "lib")
+    assert res["environment"]["packed_libs_resolved_elsewhere"] == []
+    names = [s["name"] for s in res["steps"]]
+    assert names[0] == "gl-info"
+    assert "bench f32 32x32" in names and "bench f16 32x32" in names
+    assert all("rc" in s and s["status"] in ("ok", "failed", "timeout", "skipped")
+               for s in res["steps"])
+    if res["steps"][0]["rc"] != 0:
+        pytest.skip("no GL here: " + res["gl"]["note"])
+    compares = [s for s in res["steps"] if s["kind"] == "compare"]
+    # One image and the scene at one size: f32 and f16, fragment and compute (8), mip on the
+    # image (2), and the nvidia profile on the fragment ones wherever auto chose another.
+    others = sum(1 for s in compares if s["profile_asked"] == "auto" and s["shaders"] ==
+                 "fragment" and s["method"] == "gaussian" and s["profile_used"] != "nvidia")
+    assert len(compares) == 10 + others
+    assert r.returncode == (0 if all(s["status"] == "ok" for s in res["steps"]) else 1)
+    if "llvmpipe" in res["gl"]["renderer"]:
+        assert res["gl"]["note"] == "renderer is llvmpipe: not a GPU"
+        assert "**renderer is llvmpipe: not a GPU**" in (out / "gpu-bench.md").read_text()
+
+
+@needs_exe
+def test_run_without_egl_records_it_and_still_benches_the_cpu(tmp_path):
+    build = tmp_path / "build" / "cli"
+    build.mkdir(parents=True)
+    os.symlink(os.path.abspath(EXE), build / "bloomref")
+    scene = tmp_path / "impulse.exr"
+    subprocess.run([EXE, "scenes", "impulse", "-o", str(scene)], check=True)
+    packed = tmp_path / "packed"
+    assert run_script(["pack", str(packed), "--build", str(tmp_path / "build"), "--images",
+                       str(scene), "--no-debs"]).returncode == 0
+    env = dict(os.environ, __EGL_VENDOR_LIBRARY_FILENAMES=str(tmp_path / "none.json"))
+    env.pop("LD_LIBRARY_PATH", None)
+    out = tmp_path / "out"
+    r = run_script(["run", str(packed), "--out", str(out), "--sizes", "32x32", "--repeat", "1",
+                    "--expect-gpu"], env=env)
+    assert r.returncode == 3
+    res = json.loads((out / "gpu-bench.json").read_text())
+    assert res["steps"][0]["name"] == "gl-info" and res["steps"][0]["rc"] == 3
+    assert res["gl"]["note"].startswith("GL unavailable (gl-info exit 3)")
+    assert [s["kind"] for s in res["steps"]] == ["gl-info", "bench", "bench"]
+    assert all(s["rc"] == 0 for s in res["steps"][1:])
+    assert "GL unavailable (gl-info exit 3)" in (out / "gpu-bench.md").read_text()
