@@ -29,7 +29,7 @@ batch::ResultsFile read_results(const std::string& path) {
   ss << in.rdbuf();
   try {
     return {path, nlohmann::ordered_json::parse(ss.str())};
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range (1e999)
     throw InputError(path,
                      std::string("is not valid JSON (a results file cut short?): ") + e.what());
   }

@@ -309,6 +309,14 @@ TEST_CASE("a manifest: raw half, bottom row first, BGRA, aliases, device keys", 
   CHECK(r.code == 2);
   CHECK(r.err.find("bad.json") != std::string::npos);
   CHECK(r.err.find("params.th(eshold") != std::string::npos);
+  // A number beyond a double (found by fuzzing: nlohmann's out_of_range escaped the reader).
+  m = manifest;
+  m.replace(m.find(R"("passes": 10)"), 12, R"("passes": 1e999)");
+  bloomref::test::write_bytes(dir / "bad.json", m);
+  r = run_cli(dir, "check --manifest bad.json");
+  INFO(r.err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("bad.json") != std::string::npos);
 }
 
 TEST_CASE("expectations: a known deviation is expected, and reported when fixed", "[check-cli]") {

@@ -504,7 +504,9 @@ TEST_CASE("bad patterns, frame lists, shards and results files are exit 2, named
       {"check 'in.####.exr' --manifest m.json", "give no SCENE"},
       {"check --manifest missing.json --shard 1/2", "missing.json: cannot be opened"},
       {"merge in.0001.exr", "in.0001.exr: is not valid JSON"},
+      {"merge in.huge.json", "in.huge.json: is not valid JSON"},  // 1e999: out of a double's range
   };
+  bloomref::test::write_bytes(dir / "in.huge.json", R"({"version": 1e999})");
   for (const auto& [args, message] : cases) {
     const CliResult r = run_cli(dir, args, kNoShardVars);
     INFO(args << "\n" << r.err);

@@ -23,7 +23,7 @@ json read_json(const std::string& path) {
   ss << in.rdbuf();
   try {
     return json::parse(ss.str());
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range (a number like 1e999)
     throw InputError(path, std::string("is not valid JSON: ") + e.what());
   }
 }
