@@ -1,6 +1,7 @@
 // Stages composite, tonemap and output in f32, the fast way (stages.h: tonemap_fast,
 // encode_output_fast, finish_fast): rows handed to the instruction set's kernel
 // (finish_kernels.inc), which computes what stages.cpp computes, value by value.
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <cstring>
@@ -215,6 +216,41 @@ std::size_t finish_fast(BasicView<const float> scene, BasicView<const float> blo
                         int threads, BlurIsa isa, const RowSpans* bloom_support) {
   return run_rows(scene, bloom, dst, finish_job(strength, exposure, gamma), threads, isa,
                   bloom_support);
+}
+
+std::shared_ptr<const std::vector<float>> finish_fast_table(BasicView<const float> scene,
+                                                            const RowSpans& support,
+                                                            float strength, float exposure,
+                                                            float gamma, int threads,
+                                                            BlurIsa isa) {
+  if (support.size() != static_cast<std::size_t>(scene.height) ||
+      !table_pays(scene, support, strength * 0.0f))
+    return nullptr;
+  return kept_half_table(kernel_for(isa), finish_job(strength, exposure, gamma), threads);
+}
+
+std::size_t finish_fast_parts(const FinishPart* parts, std::size_t n, float strength,
+                              float exposure, float gamma, const float* table, BlurIsa isa) {
+  detail::FinishRow job = finish_job(strength, exposure, gamma);
+  job.table = table;
+  const detail::FinishKernel kernel = kernel_for(isa);
+  int widest = 0;
+  for (std::size_t i = 0; i < n; ++i) widest = std::max(widest, parts[i].width);
+  std::vector<float> line(detail::finish_line_floats(widest) + detail::kFinishLineSlack);
+  std::vector<detail::PackedRun> runs(static_cast<std::size_t>(widest));
+  std::size_t looked_up = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const FinishPart& f = parts[i];
+    if (f.width <= 0) continue;
+    detail::BloomRow b;
+    b.pixels = f.bloom ? f.bloom : f.scene;  // not read without spans
+    b.in_spans = true;
+    b.spans = f.bloom ? f.spans : nullptr;
+    b.span_count = f.bloom ? f.span_count : 0;
+    looked_up += static_cast<std::size_t>(
+        kernel(job, f.scene, b, f.dst, f.width, line.data(), runs.data()));
+  }
+  return looked_up;
 }
 
 void finish_fast_rows(const float* const* scene_rows, const float* const* bloom_rows,
