@@ -52,7 +52,8 @@ struct PassLayout {
   bool horizontal = true;
   int n_along = 0, n_across = 0, tile_across = 0, tiles_along = 0;
   std::vector<int> tiles;  // the tiles the support touches, ascending
-  // Vertical passes: the support's spans per row (TileJob::row_spans).
+  // The support's spans per row (TileJob::row_spans: the vertical pass's; and the inexact
+  // lines').
   std::vector<const Span*> span_rows;
   std::vector<int> span_counts;
   // Tile t's output texels along [a0, a1) and across [b0, b1).
@@ -244,13 +245,11 @@ BoxedBlur::BoxedBlur(int width, int height, RowSpans bright_support,
     p.tiles_along = (p.n_along + kTileAlong - 1) / kTileAlong;
     const RowSpans& s = l->supports[std::size_t(k)];
     p.tiles = listed_tiles(p, s, height);
-    if (!p.horizontal) {
-      p.span_rows.resize(std::size_t(height));
-      p.span_counts.resize(std::size_t(height));
-      for (int y = 0; y < height; ++y) {
-        p.span_rows[std::size_t(y)] = s[std::size_t(y)].data();
-        p.span_counts[std::size_t(y)] = int(s[std::size_t(y)].size());
-      }
+    p.span_rows.resize(std::size_t(height));
+    p.span_counts.resize(std::size_t(height));
+    for (int y = 0; y < height; ++y) {
+      p.span_rows[std::size_t(y)] = s[std::size_t(y)].data();
+      p.span_counts[std::size_t(y)] = int(s[std::size_t(y)].size());
     }
     for (int t : p.tiles) {
       const Box f = footprint(p, t, width, height);
@@ -351,7 +350,8 @@ void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::ui
           int a0, a1, b0, b1;
           p.tile_range(tiles[std::size_t(i)], a0, a1, b0, b1);
           detail::blur_inexact_lines(*p.tables, job.src_rows, job.dst_rows, l.weights, a0, a1,
-                                     b0, b1, nullptr, l.width, true, 4, 4, inexact);
+                                     b0, b1, nullptr, l.width, true, 4, 4, inexact,
+                                     p.span_rows.data(), p.span_counts.data());
         }
       });
     }
