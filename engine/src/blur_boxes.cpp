@@ -20,6 +20,7 @@
 #include "bloomref/engine/boxes.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <mutex>
 #include <optional>
@@ -166,23 +167,26 @@ std::vector<Box> cell_boxes(const std::vector<std::uint8_t>& marked, int gw, int
 }
 
 // Two zeroed buffers for a box's passes: q (stage bright, then the even passes) and p (the odd
-// passes), rows `stride` texels apart.
+// passes), rows `stride` texels apart. Only what an earlier box may have written (`dirty`
+// floats from the start) is zeroed again: the rest of a buffer is still zero, most of it never
+// written, and its pages are only materialised where a box writes.
 struct BoxBuffers {
   PixelBuffer<float> q, p;
-  std::size_t floats = 0;  // of each, in use
-  void prepare(const Box& b, std::ptrdiff_t stride, bool fresh) {
-    floats = std::size_t(stride) * kChannels * std::size_t(b.y1 - b.y0);
-    if (q.size() < floats + kPad) {
-      q = PixelBuffer<float>(floats + kPad);
-      p = PixelBuffer<float>(floats + kPad);
-      fresh = true;
-    }
-    // A new buffer is zeroed lazily (pages materialised where written), a reused one over the
-    // box's part.
-    for (PixelBuffer<float>* v : {&q, &p}) {
-      if (fresh) detail::zero_lazily(v->data(), v->size() * sizeof(float));
-      else std::memset(v->data(), 0, (floats + kPad) * sizeof(float));
-    }
+  std::size_t dirty = 0;
+  // Room for `floats` floats each, zero.
+  void reserve(std::size_t floats) {
+    if (q.size() >= floats) return;
+    q = PixelBuffer<float>(floats);
+    p = PixelBuffer<float>(floats);
+    for (PixelBuffer<float>* v : {&q, &p}) detail::zero_lazily(v->data(), v->size() * sizeof(float));
+    dirty = 0;
+  }
+  // Zero over the box's rows (and the padding after them), for the box to write there.
+  void prepare(const Box& b, std::ptrdiff_t stride) {
+    const std::size_t need = std::size_t(stride) * kChannels * std::size_t(b.y1 - b.y0) + kPad;
+    reserve(need);
+    for (PixelBuffer<float>* v : {&q, &p}) std::memset(v->data(), 0, std::min(dirty, need) * sizeof(float));
+    dirty = std::max(dirty, need);
   }
 };
 
@@ -222,15 +226,31 @@ BoxedBlur::BoxedBlur(int width, int height, RowSpans bright_support,
     for (const Span& s : row) count0 += std::size_t(s.x1 - s.x0);
   l->supports.push_back(std::move(bright_support));
   l->counts.push_back(count0);
-  for (int k = 1; k <= n; ++k) {
-    BlurPassOptions o{axes[std::size_t(k - 1)], &kernel, subtexel_bits};
-    RowSpans next;
-    const std::optional<std::size_t> c =
-        blur_support_spans<float>(l->supports.back(), next, width, height, o, threads);
-    if (!c) return;
-    l->supports.push_back(std::move(next));
-    l->counts.push_back(*c);
-  }
+  // The supports pass after pass, and beside them the passes' tables (one per axis), which the
+  // tiles' footprints need next.
+  std::vector<Axis> distinct;
+  for (Axis a : axes)
+    if (std::find(distinct.begin(), distinct.end(), a) == distinct.end()) distinct.push_back(a);
+  bool shaped = true;
+  parallel_rows(1 + int(distinct.size()), threads, [&](int i0, int i1) {
+    for (int i = i0; i < i1; ++i) {
+      if (i > 0) {
+        detail::pass_tables(distinct[std::size_t(i - 1)], width, height, kernel, subtexel_bits);
+        continue;
+      }
+      for (int k = 1; k <= n && shaped; ++k) {
+        BlurPassOptions o{axes[std::size_t(k - 1)], &kernel, subtexel_bits};
+        RowSpans next;
+        const std::optional<std::size_t> c =
+            blur_support_spans<float>(l->supports.back(), next, width, height, o, threads);
+        shaped = c.has_value();
+        if (!shaped) break;
+        l->supports.push_back(std::move(next));
+        l->counts.push_back(*c);
+      }
+    }
+  });
+  if (!shaped) return;
 
   // Each pass's tiles, and the cells their footprints cover.
   const int gw = (width + kCell - 1) / kCell, gh = (height + kCell - 1) / kCell;
@@ -288,6 +308,7 @@ BoxedBlur::BoxedBlur(int width, int height, RowSpans bright_support,
   layout_ = std::move(l);
 }
 
+BoxedBlur::BoxedBlur() = default;
 BoxedBlur::~BoxedBlur() = default;
 BoxedBlur::BoxedBlur(BoxedBlur&&) noexcept = default;
 BoxedBlur& BoxedBlur::operator=(BoxedBlur&&) noexcept = default;
@@ -297,7 +318,8 @@ const RowSpans& BoxedBlur::support(int k) const { return layout_->supports[std::
 std::size_t BoxedBlur::support_count(int k) const { return layout_->counts[std::size_t(k)]; }
 
 void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::uint8_t* bright_rows,
-                    const Sink& sink, int threads, BlurIsa isa) const {
+                    const Sink& sink, int threads, BlurIsa isa,
+                    const std::function<void(int)>& also, int also_items) const {
   const BoxedBlurLayout& l = *layout_;
   if (scene.width != l.width || scene.height != l.height) return;
   const detail::TileKernel kernel = detail::tile_kernel_for(isa);
@@ -305,11 +327,11 @@ void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::ui
   const int nthreads = resolve_threads(threads);
 
   // One box: stage bright into q, the passes (tiles shared out over `box_threads`), the sink.
-  auto run_box = [&](std::size_t bi, BoxBuffers& buf, bool fresh, int box_threads) {
+  auto run_box = [&](std::size_t bi, BoxBuffers& buf, int box_threads) {
     const Box& b = l.boxes[bi];
     const int bw = b.x1 - b.x0, bh = b.y1 - b.y0;
     const std::ptrdiff_t stride = std::ptrdiff_t((bw + 3) / 4 * 4);
-    buf.prepare(b, stride, fresh);
+    buf.prepare(b, stride);
     const BasicView<const float> in{bw, bh, scene.stride, scene.pixel(b.x0, b.y0)};
     extract_bright<float>(in, BasicView<float>{bw, bh, stride, buf.q.data()}, threshold,
                           box_threads, /*dst_zeroed=*/true, nullptr,
@@ -369,12 +391,12 @@ void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::ui
   for (std::size_t i = 0; i < l.boxes.size(); ++i) {
     if (nthreads > 1 && l.box_work[i] * std::size_t(2 * nthreads) > total) {
       BoxBuffers own;
-      run_box(i, own, true, nthreads);
+      run_box(i, own, nthreads);
     } else {
       small.push_back(i);
     }
   }
-  // The largest first, so that the last ones taken are short.
+  // The largest first, so that the last ones taken are short; then the other work.
   std::sort(small.begin(), small.end(),
             [&](std::size_t a, std::size_t b) { return l.box_work[a] > l.box_work[b]; });
   std::size_t most = 0;
@@ -382,17 +404,23 @@ void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::ui
     const Box& b = l.boxes[i];
     most = std::max(most, std::size_t((b.x1 - b.x0 + 3) / 4 * 4) * std::size_t(b.y1 - b.y0));
   }
+  const int items = int(small.size()) + (also ? also_items : 0);
+  std::atomic<int> next{0};
   BufferPool pool;
-  parallel_rows(int(small.size()), threads, [&](int i0, int i1) {
-    std::unique_ptr<BoxBuffers> buf = pool.take();
-    // Sized once for the largest box, so that it is not made again for a larger one.
-    const bool fresh = buf->q.empty();
-    if (fresh) {
-      buf->q = PixelBuffer<float>(most * kChannels + kPad);
-      buf->p = PixelBuffer<float>(most * kChannels + kPad);
+  parallel_rows(std::min(nthreads, items), threads, [&](int, int) {
+    std::unique_ptr<BoxBuffers> buf;
+    for (int i = next++; i < items; i = next++) {
+      if (i >= int(small.size())) {
+        also(i - int(small.size()));
+        continue;
+      }
+      if (!buf) {
+        buf = pool.take();
+        buf->reserve(most * kChannels + kPad);  // the largest box's, so that it is made once
+      }
+      run_box(small[std::size_t(i)], *buf, 1);
     }
-    for (int i = i0; i < i1; ++i) run_box(small[std::size_t(i)], *buf, fresh && i == i0, 1);
-    pool.give(std::move(buf));
+    if (buf) pool.give(std::move(buf));
   });
 }
 

@@ -46,16 +46,21 @@ detail::FinishRow finish_job(float strength, float exposure, float gamma) {
   return job;
 }
 
-// Whether a table of finished values pays for this scene: enough pixels outside the support,
-// and of 1024 pixels sampled evenly over the image at least half with three binary16 values
-// s + t (a scene read from a half-float file; a float scene has next to none).
-bool table_pays(BasicView<const float> scene, const RowSpans& support, float t) {
-  std::size_t outside = 0;
+// The pixels outside a support.
+std::size_t outside(BasicView<const float> scene, const RowSpans& support) {
+  std::size_t n = 0;
   for (const std::vector<Span>& row : support) {
     std::size_t inside = 0;
     for (const Span& s : row) inside += static_cast<std::size_t>(s.x1 - s.x0);
-    outside += static_cast<std::size_t>(scene.width) - inside;
+    n += static_cast<std::size_t>(scene.width) - inside;
   }
+  return n;
+}
+
+// Whether a table of finished values pays for this scene: enough pixels outside the support,
+// and of 1024 pixels sampled evenly over the image at least half with three binary16 values
+// s + t (a scene read from a half-float file; a float scene has next to none).
+bool table_pays(BasicView<const float> scene, std::size_t outside, float t) {
   if (outside < kTableMinPixels) return false;
   const std::size_t pixels = static_cast<std::size_t>(scene.width) * scene.height;
   constexpr std::size_t kSamples = 1024;
@@ -165,7 +170,7 @@ std::size_t run_rows(BasicView<const float> scene, BasicView<const float> bloom,
   const bool with_bloom = !bloom.empty();
   std::shared_ptr<const std::vector<float>> table;
   if (with_bloom && bloom_support && job.tonemap && job.encode &&
-      table_pays(scene, *bloom_support, job.strength * 0.0f)) {
+      table_pays(scene, outside(scene, *bloom_support), job.strength * 0.0f)) {
     table = kept_half_table(kernel, job, threads);
     job.table = table->data();
   }
@@ -219,13 +224,10 @@ std::size_t finish_fast(BasicView<const float> scene, BasicView<const float> blo
 }
 
 std::shared_ptr<const std::vector<float>> finish_fast_table(BasicView<const float> scene,
-                                                            const RowSpans& support,
-                                                            float strength, float exposure,
-                                                            float gamma, int threads,
-                                                            BlurIsa isa) {
-  if (support.size() != static_cast<std::size_t>(scene.height) ||
-      !table_pays(scene, support, strength * 0.0f))
-    return nullptr;
+                                                            std::size_t outside, float strength,
+                                                            float exposure, float gamma,
+                                                            int threads, BlurIsa isa) {
+  if (!table_pays(scene, outside, strength * 0.0f)) return nullptr;
   return kept_half_table(kernel_for(isa), finish_job(strength, exposure, gamma), threads);
 }
 

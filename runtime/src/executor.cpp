@@ -175,10 +175,19 @@ bool may_box(const Plan& plan, const ExecuteOptions& opt) {
 // instead (the adaptive plan's support tracking stops at half the image too).
 constexpr double kMaxBoxedFraction = 0.5;
 
-// The adaptive plan's boxes for this scene, or an empty layout.
-BoxedBlur boxes_for(const Plan& plan, const ExecuteOptions& opt, ConstImageView scene) {
+// The adaptive plan's boxes for this scene (an empty layout where it blurs otherwise), and the
+// finishing stages' table of binary16 values (finish_fast_table), built beside them: the
+// boxes cover at most kMaxBoxedFraction of the image, so at least the rest lies outside the
+// support.
+struct Boxes {
+  BoxedBlur layout;
+  std::shared_ptr<const std::vector<float>> table;
+};
+
+Boxes boxes_for(const Plan& plan, const ExecuteOptions& opt, ConstImageView scene) {
   const BloomParams& p = plan.params;
-  if (!may_box(plan, opt)) return BoxedBlur(0, 0, {}, {}, kernel_for(p.kernel), 0, 0, 1);
+  Boxes b;
+  if (!may_box(plan, opt)) return b;
   const std::uint8_t* rows = plan.facts.bright_rows.size() == std::size_t(scene.height)
                                  ? plan.facts.bright_rows.data()
                                  : nullptr;
@@ -187,8 +196,19 @@ BoxedBlur boxes_for(const Plan& plan, const ExecuteOptions& opt, ConstImageView 
   std::vector<Axis> axes;
   for (const StageSpec& s : plan.stages)
     if (s.kind == StageKind::blur) axes.push_back(s.axis);
-  return BoxedBlur(scene.width, scene.height, std::move(bright), axes, kernel_for(p.kernel),
-                   p.subtexel_bits, kMaxBoxedFraction, p.threads);
+  const auto pixels = std::size_t(scene.width) * std::size_t(scene.height);
+  parallel_rows(2, p.threads, [&](int i0, int i1) {
+    for (int i = i0; i < i1; ++i) {
+      if (i == 0)
+        b.layout = BoxedBlur(scene.width, scene.height, std::move(bright), axes,
+                             kernel_for(p.kernel), p.subtexel_bits, kMaxBoxedFraction, p.threads);
+      else
+        b.table = finish_fast_table(scene, pixels - std::size_t(kMaxBoxedFraction * pixels),
+                                    static_cast<float>(p.strength), static_cast<float>(p.exposure),
+                                    static_cast<float>(p.gamma), p.threads);
+    }
+  });
+  return b;
 }
 
 Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt, bool boxed) {
@@ -244,7 +264,7 @@ class Executor {
         opt_(opt),
         boxed_(boxes_for(plan, opt, scene_in)),
         boxes_ms_(ms_since(t_total_)),
-        sched_(choose_schedule(plan, opt, boxed_.ok())),
+        sched_(choose_schedule(plan, opt, boxed_.layout.ok())),
         scene_in_(scene_in),
         owned_(owned),
         output_(output),
@@ -519,19 +539,30 @@ class Executor {
 
   // Stages bright, blur.1 .. blur.n, composite, tonemap and output, box by box (engine/boxes.h):
   // each box's bloom finished in place as it comes (finish_fast_parts, with the last pass's
-  // support), then the pixels outside every box, whose bloom is +0.
+  // support), and the pixels outside every box, whose bloom is +0, by the same threads.
   void blur_boxed(Clock::time_point t0) {
     const int n = p_.passes;
     const BasicView<const float> scene = scene_source();
     const BasicView<float> out = scene_.view();
-    const RowSpans& last = boxed_.support(n);
-    const auto table = finish_fast_table(scene, last, p_.strength, p_.exposure, p_.gamma, threads_);
-    const float* tab = table ? table->data() : nullptr;
+    const RowSpans& last = boxed_.layout.support(n);
+    const float* tab = boxed_.table ? boxed_.table->data() : nullptr;
     std::atomic<std::size_t> from_table{0};
     const std::uint8_t* rows = plan_.facts.bright_rows.size() == std::size_t(h_)
                                    ? plan_.facts.bright_rows.data()
                                    : nullptr;
-    boxed_.run(
+    // The pixels outside every box, in blocks of rows, taken by the threads after the boxes.
+    const RowSpans rest = outside_boxes(boxed_.layout.boxes(), w_, h_);
+    constexpr int kRestRows = 16;
+    const auto finish_rest = [&](int block) {
+      std::vector<FinishPart> parts;
+      for (int y = block * kRestRows; y < std::min(h_, (block + 1) * kRestRows); ++y)
+        for (const Span& s : rest[std::size_t(y)])
+          parts.push_back({scene.pixel(s.x0, y), nullptr, nullptr, 0, out.pixel(s.x0, y),
+                           s.x1 - s.x0});
+      from_table += finish_fast_parts(parts.data(), parts.size(), p_.strength, p_.exposure,
+                                      p_.gamma, tab);
+    };
+    boxed_.layout.run(
         scene, static_cast<float>(p_.threshold), rows,
         [&](const Box& b, const float* const* bloom) {
           const int bh = b.y1 - b.y0;
@@ -550,21 +581,11 @@ class Executor {
           from_table += finish_fast_parts(parts.data(), parts.size(), p_.strength, p_.exposure,
                                           p_.gamma, tab);
         },
-        threads_);
-    const RowSpans rest = outside_boxes(boxed_.boxes(), w_, h_);
-    parallel_rows(h_, threads_, [&](int y0, int y1) {
-      std::vector<FinishPart> parts;
-      for (int y = y0; y < y1; ++y)
-        for (const Span& s : rest[std::size_t(y)])
-          parts.push_back({scene.pixel(s.x0, y), nullptr, nullptr, 0, out.pixel(s.x0, y),
-                           s.x1 - s.x0});
-      from_table += finish_fast_parts(parts.data(), parts.size(), p_.strength, p_.exposure,
-                                      p_.gamma, tab);
-    });
+        threads_, BlurIsa::best, finish_rest, (h_ + kRestRows - 1) / kRestRows);
     const double pixels = double(w_) * double(h_);
     for (int k = 1; k <= n; ++k)
       trace_.skipped_fraction.emplace_back("blur." + std::to_string(k),
-                                           1.0 - double(boxed_.support_count(k)) / pixels);
+                                           1.0 - double(boxed_.layout.support_count(k)) / pixels);
     if (from_table)
       trace_.skipped_fraction.emplace_back("composite+tonemap+output", double(from_table) / pixels);
     finished_in_blur_ = true;
@@ -782,7 +803,7 @@ class Executor {
   const Plan& plan_;
   const BloomParams& p_;
   const ExecuteOptions& opt_;
-  const BoxedBlur boxed_;  // the adaptive plan's boxes (engine/boxes.h), where it blurs in boxes
+  const Boxes boxed_;  // the adaptive plan's boxes (engine/boxes.h), where it blurs in boxes
   const double boxes_ms_;  // laying them out (the supports of every pass), timed with the blur
   const Schedule sched_;
   const ConstImageView scene_in_;

@@ -35,6 +35,7 @@ class BoxedBlur {
   /// `max_fraction` of the image.
   BoxedBlur(int width, int height, RowSpans bright_support, const std::vector<Axis>& axes,
             const Kernel& kernel, int subtexel_bits, double max_fraction, int threads);
+  BoxedBlur();  ///< empty
   ~BoxedBlur();
   BoxedBlur(BoxedBlur&&) noexcept;
   BoxedBlur& operator=(BoxedBlur&&) noexcept;
@@ -57,8 +58,12 @@ class BoxedBlur {
   /// boxes run side by side, one thread each (their buffers reused from box to box); a box with
   /// a large share of the work runs alone, its passes' tiles shared between the threads.
   /// `bright_rows` (one entry a row, optional): rows without a bright pixel, not read.
+  /// `also` (optional): other work for the same threads, also(i) for i in [0, also_items), taken
+  /// after the small boxes (the largest first) from one queue, so that no thread waits while
+  /// another finishes the last box.
   void run(BasicView<const float> scene, float threshold, const std::uint8_t* bright_rows,
-           const Sink& sink, int threads, BlurIsa isa = BlurIsa::best) const;
+           const Sink& sink, int threads, BlurIsa isa = BlurIsa::best,
+           const std::function<void(int)>& also = {}, int also_items = 0) const;
 
  private:
   std::unique_ptr<BoxedBlurLayout> layout_;

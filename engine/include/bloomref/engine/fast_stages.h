@@ -163,12 +163,13 @@ struct FinishPart {
 std::size_t finish_fast_parts(const FinishPart* parts, std::size_t n, float strength,
                               float exposure, float gamma, const float* table,
                               BlurIsa isa = BlurIsa::best);
-/// The table of finished binary16 values finish_fast uses for this scene and bloom support
-/// (built once, kept between runs), or null where it does not pay.
+/// The table of finished binary16 values finish_fast uses for this scene when `outside` of its
+/// pixels lie outside the bloom's support (built once, kept between runs), or null where it
+/// does not pay.
 std::shared_ptr<const std::vector<float>> finish_fast_table(BasicView<const float> scene,
-                                                            const RowSpans& support,
-                                                            float strength, float exposure,
-                                                            float gamma, int threads,
+                                                            std::size_t outside, float strength,
+                                                            float exposure, float gamma,
+                                                            int threads,
                                                             BlurIsa isa = BlurIsa::best);
 
 /// finish_fast's composite, tone map and output over `rows` row segments of `width` RGBA
