@@ -87,10 +87,9 @@ TEST_CASE("boxes: far clusters apart, near ones together, every support inside",
   // texel of a bilinear pair), so five horizontal passes spread a pixel at most 25 texels each
   // way; a tile (8 texels along), its footprint's reach (5) and the 16-texel cells add under 50
   // more. Pixels 180 texels apart keep their own box; 20 apart share one.
-  const std::vector<Axis> axes = {Axis::horizontal, Axis::vertical, Axis::horizontal,
-                                  Axis::vertical,   Axis::horizontal, Axis::vertical,
-                                  Axis::horizontal, Axis::vertical, Axis::horizontal,
-                                  Axis::vertical};
+  const std::vector<Axis> axes = {
+      Axis::horizontal, Axis::vertical,   Axis::horizontal, Axis::vertical,   Axis::horizontal,
+      Axis::vertical,   Axis::horizontal, Axis::vertical,   Axis::horizontal, Axis::vertical};
   auto layout = [&](std::vector<int> xs) {
     RowSpans bright(60);
     for (int x : xs) bright[30].push_back({x, x + 1});
@@ -135,9 +134,16 @@ TEST_CASE("the adaptive plan's boxed blur gives the full plan's bits", "[boxes][
     Image img(w, h);
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x)
-        set(img, x, y, base * float((x * 7 + y * 3) % 11), base * 0.5f, base * float(y % 5) * 0.25f);
-    const int at[][2] = {{0, 0}, {w - 1, 0}, {0, h - 1}, {w - 1, h - 1}, {w / 2, 0},
-                         {w / 3, h / 2}, {w / 3 + 9, h / 2 + 4}, {w - 1, h / 3}};
+        set(img, x, y, base * float((x * 7 + y * 3) % 11), base * 0.5f,
+            base * float(y % 5) * 0.25f);
+    const int at[][2] = {{0, 0},
+                         {w - 1, 0},
+                         {0, h - 1},
+                         {w - 1, h - 1},
+                         {w / 2, 0},
+                         {w / 3, h / 2},
+                         {w / 3 + 9, h / 2 + 4},
+                         {w - 1, h / 3}};
     for (const auto& p : at) set(img, p[0], p[1], 40.0f, 20.0f, -0.5f);
     set(img, w / 2, h - 1, 3.0f, -0.0f, 0.0f);
     if (big)

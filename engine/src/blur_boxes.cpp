@@ -106,7 +106,8 @@ Box footprint(const PassLayout& p, int t, int width, int height) {
   const auto [lo, hi] = p.tables->reach(a0, a1);
   const int along0 = std::min(lo, a0), along1 = std::max(hi + 1, a1);
   const int across0 = b0 - 1, across1 = b1 + 1;
-  Box b = p.horizontal ? Box{along0, across0, along1, across1} : Box{across0, along0, across1, along1};
+  Box b =
+      p.horizontal ? Box{along0, across0, along1, across1} : Box{across0, along0, across1, along1};
   b.x0 = std::max(b.x0, 0);
   b.y0 = std::max(b.y0, 0);
   b.x1 = std::min(b.x1, width);
@@ -178,14 +179,16 @@ struct BoxBuffers {
     if (q.size() >= floats) return;
     q = PixelBuffer<float>(floats);
     p = PixelBuffer<float>(floats);
-    for (PixelBuffer<float>* v : {&q, &p}) detail::zero_lazily(v->data(), v->size() * sizeof(float));
+    for (PixelBuffer<float>* v : {&q, &p})
+      detail::zero_lazily(v->data(), v->size() * sizeof(float));
     dirty = 0;
   }
   // Zero over the box's rows (and the padding after them), for the box to write there.
   void prepare(const Box& b, std::ptrdiff_t stride) {
     const std::size_t need = std::size_t(stride) * kChannels * std::size_t(b.y1 - b.y0) + kPad;
     reserve(need);
-    for (PixelBuffer<float>* v : {&q, &p}) std::memset(v->data(), 0, std::min(dirty, need) * sizeof(float));
+    for (PixelBuffer<float>* v : {&q, &p})
+      std::memset(v->data(), 0, std::min(dirty, need) * sizeof(float));
     dirty = std::max(dirty, need);
   }
 };
@@ -212,9 +215,8 @@ class BufferPool {
 
 }  // namespace
 
-BoxedBlur::BoxedBlur(int width, int height, RowSpans bright_support,
-                     const std::vector<Axis>& axes, const Kernel& kernel, int subtexel_bits,
-                     double max_fraction, int threads) {
+BoxedBlur::BoxedBlur(int width, int height, RowSpans bright_support, const std::vector<Axis>& axes,
+                     const Kernel& kernel, int subtexel_bits, double max_fraction, int threads) {
   auto l = std::make_unique<BoxedBlurLayout>();
   l->width = width;
   l->height = height;
@@ -313,9 +315,15 @@ BoxedBlur::~BoxedBlur() = default;
 BoxedBlur::BoxedBlur(BoxedBlur&&) noexcept = default;
 BoxedBlur& BoxedBlur::operator=(BoxedBlur&&) noexcept = default;
 
-const std::vector<Box>& BoxedBlur::boxes() const { return layout_->boxes; }
-const RowSpans& BoxedBlur::support(int k) const { return layout_->supports[std::size_t(k)]; }
-std::size_t BoxedBlur::support_count(int k) const { return layout_->counts[std::size_t(k)]; }
+const std::vector<Box>& BoxedBlur::boxes() const {
+  return layout_->boxes;
+}
+const RowSpans& BoxedBlur::support(int k) const {
+  return layout_->supports[std::size_t(k)];
+}
+std::size_t BoxedBlur::support_count(int k) const {
+  return layout_->counts[std::size_t(k)];
+}
 
 void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::uint8_t* bright_rows,
                     const Sink& sink, int threads, BlurIsa isa,
@@ -371,15 +379,16 @@ void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::ui
         for (int i = i0; i < i1; ++i) {
           int a0, a1, b0, b1;
           p.tile_range(tiles[std::size_t(i)], a0, a1, b0, b1);
-          detail::blur_inexact_lines(*p.tables, job.src_rows, job.dst_rows, l.weights, a0, a1,
-                                     b0, b1, nullptr, l.width, true, 4, 4, inexact,
-                                     p.span_rows.data(), p.span_counts.data());
+          detail::blur_inexact_lines(*p.tables, job.src_rows, job.dst_rows, l.weights, a0, a1, b0,
+                                     b1, nullptr, l.width, true, 4, 4, inexact, p.span_rows.data(),
+                                     p.span_counts.data());
         }
       });
     }
     const float* last = l.passes.size() % 2 == 1 ? buf.p.data() : buf.q.data();
     std::vector<const float*> rows(static_cast<std::size_t>(bh));
-    for (int i = 0; i < bh; ++i) rows[std::size_t(i)] = last + std::ptrdiff_t(i) * stride * kChannels;
+    for (int i = 0; i < bh; ++i)
+      rows[std::size_t(i)] = last + std::ptrdiff_t(i) * stride * kChannels;
     sink(b, rows.data());
   };
 
@@ -436,8 +445,10 @@ std::size_t bright_support_spans(BasicView<const float> scene, float threshold,
       for (int x = 0; x < scene.width; ++x) {
         const float* s = scene.pixel(x, y);
         if (!(luminance(s[0], s[1], s[2]) > threshold && rgb_not_plus_zero(s))) continue;
-        if (!row.empty() && row.back().x1 == x) ++row.back().x1;
-        else row.push_back({x, x + 1});
+        if (!row.empty() && row.back().x1 == x)
+          ++row.back().x1;
+        else
+          row.push_back({x, x + 1});
         ++n;
       }
       counts[std::size_t(y)] = n;
