@@ -233,7 +233,7 @@ BoxedBlur::BoxedBlur(int width, int height, RowSpans bright_support, const std::
   std::vector<Axis> distinct;
   for (Axis a : axes)
     if (std::find(distinct.begin(), distinct.end(), a) == distinct.end()) distinct.push_back(a);
-  bool shaped = true;
+  bool shaped = true;  // and small enough
   parallel_rows(1 + int(distinct.size()), threads, [&](int i0, int i1) {
     for (int i = i0; i < i1; ++i) {
       if (i > 0) {
@@ -245,7 +245,8 @@ BoxedBlur::BoxedBlur(int width, int height, RowSpans bright_support, const std::
         RowSpans next;
         const std::optional<std::size_t> c =
             blur_support_spans<float>(l->supports.back(), next, width, height, o, threads);
-        shaped = c.has_value();
+        // The boxes hold the support: past max_fraction, no need to go on.
+        shaped = c.has_value() && double(*c) <= max_fraction * double(width) * double(height);
         if (!shaped) break;
         l->supports.push_back(std::move(next));
         l->counts.push_back(*c);
