@@ -40,9 +40,10 @@ namespace {
 constexpr int kTileAlong = 8;
 constexpr int kTileAcrossH = 16;
 constexpr int kTileAcrossV = 32;
-// Boxes are unions of cells of kCell x kCell texels: a box's left edge is then a multiple of 16
-// texels, so that its rows sit in 64-byte lines as an image's do.
-constexpr int kCell = 16;
+// Boxes are unions of cells of kCell x kCell texels: a box's left edge is then a multiple of 8
+// texels (128 bytes), so that its rows sit in 64-byte lines as an image's do. (16: StarField.exr's
+// boxes cover 20.3% of it, 8: 16.5%.)
+constexpr int kCell = 8;
 // Floats after a box buffer: the kernels' vector loads may read a few floats past a line's end.
 constexpr std::size_t kPad = 64;
 
