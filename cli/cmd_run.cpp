@@ -3,12 +3,14 @@
 #include <stdexcept>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "bloomref/error.h"
 #include "bloomref/executor.h"
 #include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
 #include "bloomref/output_files.h"
+#include "bloomref/parallel.h"
 #include "bloomref/scenes.h"
 #include "batch/run_sequence.h"
 #include "commands.h"
@@ -96,6 +98,9 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
   }
   if (!a.json_path.empty()) outs.add_file(a.json_path, "--json");
   if (!a.dump_dir.empty()) outs.add_folder(a.dump_dir, "--dump-stages", /*whole=*/false);
+  // The CPU pipeline's threads start while the input is read.
+  std::optional<ThreadsStarting> starting;
+  if (a.backend == "cpu") starting.emplace(a.pipeline.params.threads);
   std::string source;
   LoadedImage in = a.pipeline.load_input(a.input, source);
   if (!a.dump_dir.empty())

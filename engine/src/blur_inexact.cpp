@@ -1,5 +1,6 @@
 // The fast blur's lines whose lookup across the blur is off them (blur_internal.h), with the
 // reference texel's bits (texel.h).
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -20,10 +21,22 @@ namespace detail {
 // blur_texel_f32 does, and both lookups (off one line, or on another line: across weights {1, 0})
 // are the same bilinear_v4 (convolve_v4's sample_pair on one fixed line is bilinear_v4 with
 // across weights {1, 0}: the same terms, each weight times exactly 1).
+namespace {
+
+// Whether x lies in one of the n sorted spans s.
+bool in_spans(const Span* s, int n, int x) {
+  const Span* e = s + n;
+  const Span* it = std::upper_bound(s, e, x, [](int v, const Span& sp) { return v < sp.x1; });
+  return it != e && it->x0 <= x;
+}
+
+}  // namespace
+
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
                         const std::uint8_t* active, int width, bool dst_zero_outside,
-                        int in_channels, int out_channels, InexactKernels kernels) {
+                        int in_channels, int out_channels, InexactKernels kernels,
+                        const Span* const* spans, const int* span_counts) {
   if (a0 >= a1) return;
   const RowTable src{in, in_channels};
   const bool h = t.horizontal;
@@ -49,6 +62,7 @@ void blur_inexact_lines(const PassTables& t, const float* const* in, float* cons
         if (!dst_zero_outside) fill_zero_texels(d, 1, out_channels);
         continue;
       }
+      if (spans && dst_zero_outside && !in_spans(spans[y], span_counts[y], x)) continue;
       const AxisTap<float>* kt = t.kernel_taps.at(a);
       const AxisTap<float>* at = t.along.at(a);
       const TapForm* forms = t.forms.data() + std::size_t(a) * per;

@@ -324,7 +324,10 @@ void set_tables(TileJob& job, const PassTables& t);
 /// float after it); R, G, B are written, and alpha 1 when `out_channels` is 4.
 /// `kernels` are the vector kernels (inexact_kernels_for; none: every texel the per-texel way):
 /// the horizontal pass's lines take `group` for whole groups of positions, the vertical pass's
-/// columns `columns` for all of [a0, a1) at once where it applies.
+/// columns `columns` for all of [a0, a1) at once where it applies. `spans` (optional, with
+/// dst_zero_outside; per image row y, span_counts[y] sorted spans: TileJob::row_spans): the
+/// support; texels outside it are +0 in the destination already and the per-texel way leaves
+/// them alone (the vector kernels compute their groups whole).
 using InexactGroupKernel = void (*)(const PassTables& t, const float* const* in,
                                     float* const* out, const float* w, int b, int g0, int g1,
                                     const std::uint8_t* active, int width, bool dst_zero_outside,
@@ -341,7 +344,8 @@ struct InexactKernels {
 void blur_inexact_lines(const PassTables& t, const float* const* in, float* const* out,
                         const std::vector<float>& w, int a0, int a1, int b0, int b1,
                         const std::uint8_t* active, int width, bool dst_zero_outside = false,
-                        int in_channels = 4, int out_channels = 4, InexactKernels kernels = {});
+                        int in_channels = 4, int out_channels = 4, InexactKernels kernels = {},
+                        const Span* const* spans = nullptr, const int* span_counts = nullptr);
 
 /// Inexact row b's positions (a horizontal pass) in the groups [g0, g1) whose group_ok is set,
 /// blur_texel's bits

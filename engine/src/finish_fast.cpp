@@ -1,6 +1,7 @@
 // Stages composite, tonemap and output in f32, the fast way (stages.h: tonemap_fast,
 // encode_output_fast, finish_fast): rows handed to the instruction set's kernel
 // (finish_kernels.inc), which computes what stages.cpp computes, value by value.
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <cstring>
@@ -45,16 +46,21 @@ detail::FinishRow finish_job(float strength, float exposure, float gamma) {
   return job;
 }
 
-// Whether a table of finished values pays for this scene: enough pixels outside the support,
-// and of 1024 pixels sampled evenly over the image at least half with three binary16 values
-// s + t (a scene read from a half-float file; a float scene has next to none).
-bool table_pays(BasicView<const float> scene, const RowSpans& support, float t) {
-  std::size_t outside = 0;
+// The pixels outside a support.
+std::size_t outside(BasicView<const float> scene, const RowSpans& support) {
+  std::size_t n = 0;
   for (const std::vector<Span>& row : support) {
     std::size_t inside = 0;
     for (const Span& s : row) inside += static_cast<std::size_t>(s.x1 - s.x0);
-    outside += static_cast<std::size_t>(scene.width) - inside;
+    n += static_cast<std::size_t>(scene.width) - inside;
   }
+  return n;
+}
+
+// Whether a table of finished values pays for this scene: enough pixels outside the support,
+// and of 1024 pixels sampled evenly over the image at least half with three binary16 values
+// s + t (a scene read from a half-float file; a float scene has next to none).
+bool table_pays(BasicView<const float> scene, std::size_t outside, float t) {
   if (outside < kTableMinPixels) return false;
   const std::size_t pixels = static_cast<std::size_t>(scene.width) * scene.height;
   constexpr std::size_t kSamples = 1024;
@@ -164,7 +170,7 @@ std::size_t run_rows(BasicView<const float> scene, BasicView<const float> bloom,
   const bool with_bloom = !bloom.empty();
   std::shared_ptr<const std::vector<float>> table;
   if (with_bloom && bloom_support && job.tonemap && job.encode &&
-      table_pays(scene, *bloom_support, job.strength * 0.0f)) {
+      table_pays(scene, outside(scene, *bloom_support), job.strength * 0.0f)) {
     table = kept_half_table(kernel, job, threads);
     job.table = table->data();
   }
@@ -215,6 +221,38 @@ std::size_t finish_fast(BasicView<const float> scene, BasicView<const float> blo
                         int threads, BlurIsa isa, const RowSpans* bloom_support) {
   return run_rows(scene, bloom, dst, finish_job(strength, exposure, gamma), threads, isa,
                   bloom_support);
+}
+
+std::shared_ptr<const std::vector<float>> finish_fast_table(BasicView<const float> scene,
+                                                            std::size_t outside, float strength,
+                                                            float exposure, float gamma,
+                                                            int threads, BlurIsa isa) {
+  if (!table_pays(scene, outside, strength * 0.0f)) return nullptr;
+  return kept_half_table(kernel_for(isa), finish_job(strength, exposure, gamma), threads);
+}
+
+std::size_t finish_fast_parts(const FinishPart* parts, std::size_t n, float strength,
+                              float exposure, float gamma, const float* table, BlurIsa isa) {
+  detail::FinishRow job = finish_job(strength, exposure, gamma);
+  job.table = table;
+  const detail::FinishKernel kernel = kernel_for(isa);
+  int widest = 0;
+  for (std::size_t i = 0; i < n; ++i) widest = std::max(widest, parts[i].width);
+  std::vector<float> line(detail::finish_line_floats(widest) + detail::kFinishLineSlack);
+  std::vector<detail::PackedRun> runs(static_cast<std::size_t>(widest));
+  std::size_t looked_up = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const FinishPart& f = parts[i];
+    if (f.width <= 0) continue;
+    detail::BloomRow b;
+    b.pixels = f.bloom ? f.bloom : f.scene;  // not read without spans
+    b.in_spans = true;
+    b.spans = f.bloom ? f.spans : nullptr;
+    b.span_count = f.bloom ? f.span_count : 0;
+    looked_up += static_cast<std::size_t>(
+        kernel(job, f.scene, b, f.dst, f.width, line.data(), runs.data()));
+  }
+  return looked_up;
 }
 
 void finish_fast_rows(const float* const* scene_rows, const float* const* bloom_rows,

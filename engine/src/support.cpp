@@ -274,7 +274,10 @@ std::optional<std::size_t> blur_support_spans(const RowSpans& in, RowSpans& out,
         merge_sorted(gathered, merged);
         row = &merged;
       }
-      // Then along x: the blur's reach (horizontal) or the lookup across (vertical).
+      // Then along x: the blur's reach (horizontal) or the lookup across (vertical): at most as
+      // many spans (reserved at once: growing each row's vector span by span was a quarter of
+      // the adaptive plan's support tracking).
+      o.reserve(row->size());
       if (horizontal) dilate(*row, lo, hi, o);
       else dilate(*row, alo, ahi, o);
       std::size_t n = 0;

@@ -58,5 +58,13 @@ void parallel_rows(int height, int threads, const std::function<void(int, int)>&
   });
 }
 
+ThreadsStarting::ThreadsStarting(int threads) {
+  if (resolve_threads(threads) > 1)
+    starter_ = std::thread([threads] { parallel_rows(64, threads, [](int, int) {}); });
+}
+
+ThreadsStarting::~ThreadsStarting() {
+  if (starter_.joinable()) starter_.join();
+}
 
 }  // namespace bloomref

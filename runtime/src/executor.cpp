@@ -2,6 +2,7 @@
 #include "bloomref/parallel.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <cstring>
@@ -11,6 +12,7 @@
 
 #include "bloomref/error.h"
 #include "bloomref/mip.h"
+#include "bloomref/engine/boxes.h"
 #include "bloomref/engine/fast_stages.h"
 #include "bloomref/engine/support.h"
 #include "bloomref/engine/page_ledger.h"
@@ -126,6 +128,9 @@ enum class BlurPath {
   // Stage bright and every pass at once from pass 1 (blur_bright_fused), the finishing stages
   // in its sink: no bright image is made.
   fused_from_bright,
+  // Adaptive plan, a sparse support in a few clusters: stage bright, every pass and the
+  // finishing stages box by box (engine/boxes.h), no whole-image buffer made.
+  boxed,
 };
 
 // How the finishing stages (composite, tonemap, output) run.
@@ -154,7 +159,59 @@ bool blurs_from_pass_1(const Plan& plan) {
   });
 }
 
-Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt) {
+// Whether the adaptive plan may blur this scene in boxes (engine/boxes.h): the fused f32 path
+// (the fast blur, nothing kept, no value to sanitise first), something to blur, and at most 1%
+// of the pixels bright (as sparse_bright below; the boxes then decide).
+bool may_box(const Plan& plan, const ExecuteOptions& opt) {
+  const BloomParams& p = plan.params;
+  const std::uint64_t pixels = std::uint64_t(plan.facts.width) * std::uint64_t(plan.facts.height);
+  return p.plan == PlanMode::adaptive && p.method == Method::gaussian &&
+         p.precision == Precision::f32 && p.storage == Storage::f32 &&
+         p.blur == BlurImpl::fast && !opt.keep_all && !plan.sanitize && !plan.dense_scene &&
+         p.passes > 0 && blurs_from_pass_1(plan) && plan.facts.bright_pixels * 100 <= pixels;
+}
+
+// The boxes' share of the image beyond which the scene is blurred whole-image pass by pass
+// instead (the adaptive plan's support tracking stops at half the image too).
+constexpr double kMaxBoxedFraction = 0.5;
+
+// The adaptive plan's boxes for this scene (an empty layout where it blurs otherwise), and the
+// finishing stages' table of binary16 values (finish_fast_table), built beside them: the
+// boxes cover at most kMaxBoxedFraction of the image, so at least the rest lies outside the
+// support.
+struct Boxes {
+  BoxedBlur layout;
+  std::shared_ptr<const std::vector<float>> table;
+};
+
+Boxes boxes_for(const Plan& plan, const ExecuteOptions& opt, ConstImageView scene) {
+  const BloomParams& p = plan.params;
+  Boxes b;
+  if (!may_box(plan, opt)) return b;
+  const std::uint8_t* rows = plan.facts.bright_rows.size() == std::size_t(scene.height)
+                                 ? plan.facts.bright_rows.data()
+                                 : nullptr;
+  RowSpans bright;
+  bright_support_spans(scene, static_cast<float>(p.threshold), rows, bright, p.threads);
+  std::vector<Axis> axes;
+  for (const StageSpec& s : plan.stages)
+    if (s.kind == StageKind::blur) axes.push_back(s.axis);
+  const auto pixels = std::size_t(scene.width) * std::size_t(scene.height);
+  parallel_rows(2, p.threads, [&](int i0, int i1) {
+    for (int i = i0; i < i1; ++i) {
+      if (i == 0)
+        b.layout = BoxedBlur(scene.width, scene.height, std::move(bright), axes,
+                             kernel_for(p.kernel), p.subtexel_bits, kMaxBoxedFraction, p.threads);
+      else
+        b.table = finish_fast_table(scene, pixels - std::size_t(kMaxBoxedFraction * pixels),
+                                    static_cast<float>(p.strength), static_cast<float>(p.exposure),
+                                    static_cast<float>(p.gamma), p.threads);
+    }
+  });
+  return b;
+}
+
+Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt, bool boxed) {
   const BloomParams& p = plan.params;
   const bool adaptive = p.plan == PlanMode::adaptive;
   // The vectorised f32 kernels, unless the staged reference was asked for (--blur reference)
@@ -179,7 +236,8 @@ Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt) {
     s.blur =
         dense && blurs_from_pass_1(plan) ? BlurPath::fused_from_bright : BlurPath::fused_once_dense;
   }
-  s.track_support = adaptive && s.blur != BlurPath::fused_from_bright;
+  if (boxed) s.blur = BlurPath::boxed;
+  s.track_support = adaptive && s.blur != BlurPath::fused_from_bright && s.blur != BlurPath::boxed;
   // At most 1% of the pixels bright: the corpus's images are either sparse (0.03-0.6%:
   // StarField, GoldenGate, CandleGlass, the demo) or not (10-25%). A blur that reads all of the
   // bright image pays a fault for every page never written.
@@ -204,7 +262,9 @@ class Executor {
       : plan_(plan),
         p_(plan.params),
         opt_(opt),
-        sched_(choose_schedule(plan, opt)),
+        boxed_(boxes_for(plan, opt, scene_in)),
+        boxes_ms_(ms_since(t_total_)),
+        sched_(choose_schedule(plan, opt, boxed_.layout.ok())),
         scene_in_(scene_in),
         owned_(owned),
         output_(output),
@@ -273,7 +333,8 @@ class Executor {
 
   // The gaussian method's bright image, unless stage bright runs inside the fused blur.
   bool makes_bright_image() const {
-    return p_.method == Method::gaussian && sched_.blur != BlurPath::fused_from_bright;
+    return p_.method == Method::gaussian && sched_.blur != BlurPath::fused_from_bright &&
+           sched_.blur != BlurPath::boxed;
   }
   // Written by the input stage (extract_bright): whole, or when sparse only its bright pixels
   // into a zeroed image (its pages exist where written; nothing after it reads its alpha).
@@ -362,7 +423,8 @@ class Executor {
 
   // Stage bright: made by the input stage; here only stored.
   void bright(const StageSpec& stage) {
-    if (sched_.blur == BlurPath::fused_from_bright) return;  // in the fused blur, timed with it
+    if (sched_.blur == BlurPath::fused_from_bright || sched_.blur == BlurPath::boxed)
+      return;  // in the fused or boxed blur, timed with it
     const auto t1 = Clock::now();
     store_image(bright_);
     record(stage.name, bright_, ms_since(t1), false);
@@ -371,6 +433,8 @@ class Executor {
   // Stage blur.k: one pass, or (fused) this pass and the rest with the finishing stages.
   void blur(const StageSpec& stage, Clock::time_point t0) {
     if (finished_in_blur_) return;  // this pass ran inside the fused blur
+    if constexpr (kF32)
+      if (sched_.blur == BlurPath::boxed) return blur_boxed(t0);
     const BasicImage<T>& src = stage.pass == 1 ? bright_ : ping_;
     if (stage.skipped) {
       // Blur of an all-zero image is exactly zero: the bloom is `bright` itself.
@@ -471,6 +535,62 @@ class Executor {
     bright_ = BasicImage<T>();  // not read again
     finished_in_blur_ = true;
     trace_.timings.emplace_back(name + "+composite+tonemap+output", ms_since(t0));
+  }
+
+  // Stages bright, blur.1 .. blur.n, composite, tonemap and output, box by box (engine/boxes.h):
+  // each box's bloom finished in place as it comes (finish_fast_parts, with the last pass's
+  // support), and the pixels outside every box, whose bloom is +0, by the same threads.
+  void blur_boxed(Clock::time_point t0) {
+    const int n = p_.passes;
+    const BasicView<const float> scene = scene_source();
+    const BasicView<float> out = scene_.view();
+    const RowSpans& last = boxed_.layout.support(n);
+    const float* tab = boxed_.table ? boxed_.table->data() : nullptr;
+    std::atomic<std::size_t> from_table{0};
+    const std::uint8_t* rows = plan_.facts.bright_rows.size() == std::size_t(h_)
+                                   ? plan_.facts.bright_rows.data()
+                                   : nullptr;
+    // The pixels outside every box, in blocks of rows, taken by the threads after the boxes.
+    const RowSpans rest = outside_boxes(boxed_.layout.boxes(), w_, h_);
+    constexpr int kRestRows = 16;
+    const auto finish_rest = [&](int block) {
+      std::vector<FinishPart> parts;
+      for (int y = block * kRestRows; y < std::min(h_, (block + 1) * kRestRows); ++y)
+        for (const Span& s : rest[std::size_t(y)])
+          parts.push_back({scene.pixel(s.x0, y), nullptr, nullptr, 0, out.pixel(s.x0, y),
+                           s.x1 - s.x0});
+      from_table += finish_fast_parts(parts.data(), parts.size(), p_.strength, p_.exposure,
+                                      p_.gamma, tab);
+    };
+    boxed_.layout.run(
+        scene, static_cast<float>(p_.threshold), rows,
+        [&](const Box& b, const float* const* bloom) {
+          const int bh = b.y1 - b.y0;
+          std::vector<std::vector<Span>> spans(static_cast<std::size_t>(bh));
+          std::vector<FinishPart> parts(static_cast<std::size_t>(bh));
+          for (int i = 0; i < bh; ++i) {
+            const int y = b.y0 + i;
+            for (const Span& s : last[std::size_t(y)]) {
+              const int x0 = std::max(s.x0, b.x0), x1 = std::min(s.x1, b.x1);
+              if (x0 < x1) spans[std::size_t(i)].push_back({x0 - b.x0, x1 - b.x0});
+            }
+            parts[std::size_t(i)] = {scene.pixel(b.x0, y), bloom[i], spans[std::size_t(i)].data(),
+                                     spans[std::size_t(i)].size(), out.pixel(b.x0, y),
+                                     b.x1 - b.x0};
+          }
+          from_table += finish_fast_parts(parts.data(), parts.size(), p_.strength, p_.exposure,
+                                          p_.gamma, tab);
+        },
+        threads_, BlurIsa::best, finish_rest, (h_ + kRestRows - 1) / kRestRows);
+    const double pixels = double(w_) * double(h_);
+    for (int k = 1; k <= n; ++k)
+      trace_.skipped_fraction.emplace_back("blur." + std::to_string(k),
+                                           1.0 - double(boxed_.layout.support_count(k)) / pixels);
+    if (from_table)
+      trace_.skipped_fraction.emplace_back("composite+tonemap+output", double(from_table) / pixels);
+    finished_in_blur_ = true;
+    trace_.timings.emplace_back("bright+blur.1-" + std::to_string(n) + "+composite+tonemap+output",
+                                boxes_ms_ + ms_since(t0));
   }
 
   // Method mip. Adaptive plan: the texels of a chain stage that can be nonzero (mip_support),
@@ -683,6 +803,8 @@ class Executor {
   const Plan& plan_;
   const BloomParams& p_;
   const ExecuteOptions& opt_;
+  const Boxes boxed_;  // the adaptive plan's boxes (engine/boxes.h), where it blurs in boxes
+  const double boxes_ms_;  // laying them out (the supports of every pass), timed with the blur
   const Schedule sched_;
   const ConstImageView scene_in_;
   Image* const owned_;

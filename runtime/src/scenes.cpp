@@ -121,6 +121,29 @@ Image threshold_tie(int w, int h) {
   return img;
 }
 
+// Dense: gamma noise (shape 2, scale 0.35: a sum of two exponentials from the hash; about 22% of
+// its pixels above the default threshold, P(X > 1) = e^-2.857 (1 + 2.857)) on every row, and 40
+// sources (discs of radius 1.5-6 pixels, red 2-20) placed by the hash. The adaptive plan's
+// worst case: bright pixels everywhere, so tracking the blur's support saves nothing.
+Image noise(int w, int h) {
+  Image img(w, h);
+  fill(img, [](int x, int y, float* p) {
+    const float u1 = 1.0f - hash01(x, y, 5), u2 = 1.0f - hash01(x, y, 6);  // in (0, 1]
+    const float v = -0.35f * (std::log(u1) + std::log(u2));
+    set(p, v, 0.9f * v, 0.8f * v);
+  });
+  for (std::uint32_t i = 0; i < 40; ++i) {
+    const int cx = int(hash01(i, 0, 7) * w), cy = int(hash01(i, 1, 7) * h);
+    const float r = 1.5f + 4.5f * hash01(i, 2, 7), v = 2.0f + 18.0f * hash01(i, 3, 7);
+    for (int y = std::max(0, int(cy - r)); y <= std::min(h - 1, int(cy + r)); ++y)
+      for (int x = std::max(0, int(cx - r)); x <= std::min(w - 1, int(cx + r)); ++x)
+        if (float((x - cx) * (x - cx) + (y - cy) * (y - cy)) <= r * r)
+          set(img.pixel(x, y), v, v * (0.5f + 0.5f * hash01(i, 4, 7)),
+              v * (0.5f + 0.5f * hash01(i, 5, 7)));
+  }
+  return img;
+}
+
 struct Entry {
   SceneInfo info;
   Image (*make)(int, int);
@@ -138,6 +161,9 @@ const std::vector<Entry>& entries() {
                     "(clamp-to-edge)", 96, 64}, hot_edge},
       {{"threshold-tie", "three bands of luminance exactly 1, one float above and one below "
                          "(threshold strictness)", 96, 32}, threshold_tie},
+      {{"noise", "dense: gamma noise (about 22% of the pixels above the threshold, on every row) "
+                 "and 40 sources (brightness 2 to 20): the adaptive plan's worst case", 383, 257},
+       noise},
   };
   return e;
 }

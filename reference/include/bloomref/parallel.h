@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <thread>
 
 namespace bloomref {
 
@@ -12,5 +13,20 @@ int resolve_threads(int threads);
 
 /// Calls fn(y0, y1) over disjoint half-open row ranges covering [0, height).
 void parallel_rows(int height, int threads, const std::function<void(int y0, int y1)>& fn);
+
+/// Starts parallel_rows's threads for `threads` on a thread of its own, for a caller with other
+/// work to do first (a command reading its input): a fresh process's first parallel loop
+/// otherwise waits for them (the 2-core AMD EPYC virtual machine: median 1.3 ms, up to 6 ms;
+/// 0.3 ms once started during a 20 ms read). Waits for that thread when destroyed.
+class ThreadsStarting {
+ public:
+  explicit ThreadsStarting(int threads);
+  ~ThreadsStarting();
+  ThreadsStarting(const ThreadsStarting&) = delete;
+  ThreadsStarting& operator=(const ThreadsStarting&) = delete;
+
+ private:
+  std::thread starter_;
+};
 
 }  // namespace bloomref

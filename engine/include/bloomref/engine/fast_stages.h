@@ -5,6 +5,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -142,6 +143,34 @@ std::size_t finish_fast(BasicView<const float> scene, BasicView<const float> blo
                         BasicView<float> dst, float strength, float exposure, float gamma,
                         int threads, BlurIsa isa = BlurIsa::best,
                         const RowSpans* bloom_support = nullptr);
+
+/// One part of a row for finish_fast_parts: `width` RGBA pixels of the scene, the bloom's
+/// (texel 0 first; its R, G and B +0 outside `spans`, where it is not read; null: +0
+/// throughout), the support's spans relative to the part's first texel (sorted, disjoint), and
+/// where the result goes (may be the scene).
+struct FinishPart {
+  const float* scene = nullptr;
+  const float* bloom = nullptr;
+  const Span* spans = nullptr;
+  std::size_t span_count = 0;
+  float* dst = nullptr;
+  int width = 0;
+};
+/// finish_fast over parts of rows that the caller cuts out itself (the boxed blur's boxes, and
+/// what lies outside them), on the calling thread, with finish_fast's bits (every value is
+/// finished on its own). `table`: finish_fast_table's, or null. Returns the pixels finished
+/// from the table.
+std::size_t finish_fast_parts(const FinishPart* parts, std::size_t n, float strength,
+                              float exposure, float gamma, const float* table,
+                              BlurIsa isa = BlurIsa::best);
+/// The table of finished binary16 values finish_fast uses for this scene when `outside` of its
+/// pixels lie outside the bloom's support (built once, kept between runs), or null where it
+/// does not pay.
+std::shared_ptr<const std::vector<float>> finish_fast_table(BasicView<const float> scene,
+                                                            std::size_t outside, float strength,
+                                                            float exposure, float gamma,
+                                                            int threads,
+                                                            BlurIsa isa = BlurIsa::best);
 
 /// finish_fast's composite, tone map and output over `rows` row segments of `width` RGBA
 /// pixels (scene_rows[i], bloom_rows[i], dst_rows[i]; dst may be the scene), on the calling
