@@ -132,6 +132,84 @@ bool is_run_sequence(const RunSequenceArgs& a) {
   return false;
 }
 
+// The results document (--json) of a sequence run: an item per frame run so far (frames not
+// run yet are left out: merge reports them missing), the counts and the rates.
+ordered_json sequence_results(const RunSequenceArgs& a, const Patterns& p,
+                              const std::vector<int>& frames, const std::vector<std::string>& ids,
+                              const ItemSelection& sel, const std::vector<ItemOutcome>& outcomes,
+                              bool finished, bool interrupted, int code,
+                              std::chrono::steady_clock::time_point t0) {
+  ordered_json items = ordered_json::array();
+  std::size_t counts[4] = {0, 0, 0, 0};
+  for (std::size_t i = 0; i < outcomes.size(); ++i) {
+    const ItemOutcome& o = outcomes[i];
+    ++counts[static_cast<int>(o.status)];
+    if (o.status == ItemOutcome::Status::not_run) continue;  // merge reports it missing
+    const int f = frames[sel.mine[i]];
+    const FrameFiles files = p.files(f, 0);
+    ordered_json item = {
+        {"id", ids[sel.mine[i]]},
+        {"frame", f},
+        {"status", to_string(o.status)},
+        {"input", files.input.empty() ? ordered_json(nullptr) : ordered_json(files.input)},
+        {"outputs", files.outputs},
+        {"dump_stages",
+         files.dump_dir.empty() ? ordered_json(nullptr) : ordered_json(files.dump_dir)},
+        {"wall_ms", o.ms},
+        {"error", o.status == ItemOutcome::Status::error ? ordered_json(o.message)
+                                                         : ordered_json(nullptr)}};
+    if (o.status == ItemOutcome::Status::error) item["exit_code"] = o.exit_code;
+    for (const auto& [k, v] : o.record.items()) item[k] = v;
+    items.push_back(std::move(item));
+  }
+  const double wall =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return ordered_json{
+      {"version", 1},
+      {"tool", "bloomref run"},
+      {"kind", "sequence"},
+      {"params", params_json(a.params)},
+      {"input", a.input.empty() ? ordered_json(nullptr) : ordered_json(a.input)},
+      {"outputs", a.outputs},
+      {"dump_stages", a.dump_dir.empty() ? ordered_json(nullptr) : ordered_json(a.dump_dir)},
+      {"frames", batch::format_frame_list(frames)},
+      {"batch", sel.json(finished, interrupted)},
+      {"exit_code", code},
+      {"summary",
+       {{"done", counts[0]},
+        {"resumed", counts[1]},
+        {"error", counts[2]},
+        {"not_run", counts[3]}}},
+      {"wall_ms", 1000 * wall},
+      {"frames_per_second", wall > 0 ? (counts[0] + counts[2]) / wall : 0.0},
+      {"items", items}};
+}
+
+// The line a sequence run ends with: frames done, resumed and failed (named), time and rate.
+void print_sequence_summary(const std::vector<ItemOutcome>& outcomes,
+                            const std::vector<int>& frames, const ItemSelection& sel,
+                            std::chrono::steady_clock::time_point t0, bool interrupted) {
+  std::size_t done = 0, resumed = 0, failed = 0;
+  std::vector<int> failed_frames;
+  for (std::size_t i = 0; i < outcomes.size(); ++i) {
+    done += outcomes[i].status == ItemOutcome::Status::done;
+    resumed += outcomes[i].status == ItemOutcome::Status::resumed;
+    if (outcomes[i].status == ItemOutcome::Status::error) {
+      ++failed;
+      failed_frames.push_back(frames[sel.mine[i]]);
+    }
+  }
+  const double wall =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("%zu frames: %zu done, %zu resumed (outputs existed), %zu failed", outcomes.size(),
+              done, resumed, failed);
+  if (!failed_frames.empty())
+    std::printf(" (frame%s %s)", failed_frames.size() > 1 ? "s" : "",
+                batch::format_frame_list(failed_frames).c_str());
+  std::printf("; %.1f s, %.2f frames/s%s\n", wall, wall > 0 ? (done + failed) / wall : 0.0,
+              interrupted ? "; interrupted" : "");
+}
+
 int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
   const Patterns p = check_patterns(a);
   const std::vector<int> frames = sequence_frames(a.sequence, p.input, "IN");
@@ -153,50 +231,7 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
   const auto t0 = std::chrono::steady_clock::now();
   auto results = [&](const std::vector<ItemOutcome>& outcomes, bool finished, bool interrupted,
                      int code) {
-    ordered_json items = ordered_json::array();
-    std::size_t counts[4] = {0, 0, 0, 0};
-    for (std::size_t i = 0; i < outcomes.size(); ++i) {
-      const ItemOutcome& o = outcomes[i];
-      ++counts[static_cast<int>(o.status)];
-      if (o.status == ItemOutcome::Status::not_run) continue;  // merge reports it missing
-      const int f = frames[sel.mine[i]];
-      const FrameFiles files = p.files(f, 0);
-      ordered_json item = {
-          {"id", ids[sel.mine[i]]},
-          {"frame", f},
-          {"status", to_string(o.status)},
-          {"input", files.input.empty() ? ordered_json(nullptr) : ordered_json(files.input)},
-          {"outputs", files.outputs},
-          {"dump_stages",
-           files.dump_dir.empty() ? ordered_json(nullptr) : ordered_json(files.dump_dir)},
-          {"wall_ms", o.ms},
-          {"error", o.status == ItemOutcome::Status::error ? ordered_json(o.message)
-                                                           : ordered_json(nullptr)}};
-      if (o.status == ItemOutcome::Status::error) item["exit_code"] = o.exit_code;
-      for (const auto& [k, v] : o.record.items()) item[k] = v;
-      items.push_back(std::move(item));
-    }
-    const double wall =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return ordered_json{
-        {"version", 1},
-        {"tool", "bloomref run"},
-        {"kind", "sequence"},
-        {"params", params_json(a.params)},
-        {"input", a.input.empty() ? ordered_json(nullptr) : ordered_json(a.input)},
-        {"outputs", a.outputs},
-        {"dump_stages", a.dump_dir.empty() ? ordered_json(nullptr) : ordered_json(a.dump_dir)},
-        {"frames", batch::format_frame_list(frames)},
-        {"batch", sel.json(finished, interrupted)},
-        {"exit_code", code},
-        {"summary",
-         {{"done", counts[0]},
-          {"resumed", counts[1]},
-          {"error", counts[2]},
-          {"not_run", counts[3]}}},
-        {"wall_ms", 1000 * wall},
-        {"frames_per_second", wall > 0 ? (counts[0] + counts[2]) / wall : 0.0},
-        {"items", items}};
+    return sequence_results(a, p, frames, ids, sel, outcomes, finished, interrupted, code, t0);
   };
   auto save = [&](const ordered_json& j) {
     if (!a.json_path.empty()) save_text(a.json_path, j.dump(2) + "\n");
@@ -238,27 +273,7 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
   bool finished = !interrupted;
   save(results(outcomes, finished, interrupted, code));
 
-  if (!a.quiet) {
-    std::size_t done = 0, resumed = 0, failed = 0;
-    std::vector<int> failed_frames;
-    for (std::size_t i = 0; i < outcomes.size(); ++i) {
-      done += outcomes[i].status == ItemOutcome::Status::done;
-      resumed += outcomes[i].status == ItemOutcome::Status::resumed;
-      if (outcomes[i].status == ItemOutcome::Status::error) {
-        ++failed;
-        failed_frames.push_back(frames[sel.mine[i]]);
-      }
-    }
-    const double wall =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("%zu frames: %zu done, %zu resumed (outputs existed), %zu failed", outcomes.size(),
-                done, resumed, failed);
-    if (!failed_frames.empty())
-      std::printf(" (frame%s %s)", failed_frames.size() > 1 ? "s" : "",
-                  batch::format_frame_list(failed_frames).c_str());
-    std::printf("; %.1f s, %.2f frames/s%s\n", wall, wall > 0 ? (done + failed) / wall : 0.0,
-                interrupted ? "; interrupted" : "");
-  }
+  if (!a.quiet) print_sequence_summary(outcomes, frames, sel, t0, interrupted);
   return code;
 }
 
