@@ -212,14 +212,54 @@ int batch_exit_code(const std::vector<ItemOutcome>& outcomes, bool interrupted) 
   return code;
 }
 
-std::vector<ItemOutcome> BatchLoop::run(const std::vector<std::string>& labels, bool& interrupted) {
-  const std::size_t n = labels.size();
-  std::vector<ItemOutcome> out(n);
-  std::string mode = progress;
-  if (quiet) mode = "none";
+namespace {
+
+// --progress as it applies here: auto is a bar on a terminal, lines otherwise; --quiet is none.
+std::string progress_mode(const std::string& progress, bool quiet) {
+  std::string mode = quiet ? "none" : progress;
   if (mode == "auto") mode = ::isatty(STDERR_FILENO) ? "bar" : "lines";
   if (mode != "bar" && mode != "lines" && mode != "none")
     throw ParamError("--progress '" + progress + "' is not one of: auto, bar, lines, none");
+  return mode;
+}
+
+ItemOutcome item_error(const std::string& message, int code) {
+  ItemOutcome o;
+  o.status = ItemOutcome::Status::error;
+  o.message = message;
+  o.exit_code = code;
+  return o;
+}
+
+// One item, timed. A bad input or file of this item is its error (exit 2) and the others go
+// on; GL missing and bad parameters concern every item and stop the loop (rethrown).
+template <class Fn>
+ItemOutcome run_item(const Fn& fn, std::size_t i, int threads) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ItemOutcome o;
+  try {
+    o = fn(i, threads);
+  } catch (const gpu::GlUnavailable&) {
+    throw;
+  } catch (const ParamError&) {
+    throw;
+  } catch (const Error& e) {
+    o = item_error(e.what(), 2);
+  } catch (const std::bad_alloc&) {
+    o = item_error("out of memory", 4);
+  } catch (const std::exception& e) {
+    o = item_error(std::string("internal error: ") + e.what(), 4);
+  }
+  if (o.ms == 0) o.ms = 1000 * seconds_since(t0);
+  return o;
+}
+
+}  // namespace
+
+std::vector<ItemOutcome> BatchLoop::run(const std::vector<std::string>& labels, bool& interrupted) {
+  const std::size_t n = labels.size();
+  std::vector<ItemOutcome> out(n);
+  const std::string mode = progress_mode(progress, quiet);
 
   const SignalScope signals;
   const auto t0 = std::chrono::steady_clock::now();
@@ -257,32 +297,7 @@ std::vector<ItemOutcome> BatchLoop::run(const std::vector<std::string>& labels, 
       last_checkpoint = std::chrono::steady_clock::now();
     }
   };
-  auto error = [](const std::string& message, int code) {
-    ItemOutcome o;
-    o.status = ItemOutcome::Status::error;
-    o.message = message;
-    o.exit_code = code;
-    return o;
-  };
-  auto run_one = [&](std::size_t i, int t) {
-    const auto ti = std::chrono::steady_clock::now();
-    ItemOutcome o;
-    try {
-      o = fn(i, t);
-    } catch (const gpu::GlUnavailable&) {
-      throw;
-    } catch (const ParamError&) {
-      throw;
-    } catch (const Error& e) {
-      o = error(e.what(), 2);
-    } catch (const std::bad_alloc&) {
-      o = error("out of memory", 4);
-    } catch (const std::exception& e) {
-      o = error(std::string("internal error: ") + e.what(), 4);
-    }
-    if (o.ms == 0) o.ms = 1000 * seconds_since(ti);
-    finish_item(i, std::move(o));
-  };
+  auto run_one = [&](std::size_t i, int t) { finish_item(i, run_item(fn, i, t)); };
   auto worker = [&](int t) {
     try {
       while (g_signal == 0) {
