@@ -134,6 +134,25 @@ std::map<std::string, std::string> read_aliases(const std::string& file, const s
 
 }  // namespace
 
+namespace {
+
+// A manifest's "device": the keys recorded with every result (api, vendor, renderer, driver).
+DeviceKeys read_device(const std::string& path, const json& d) {
+  if (!d.is_object()) bad(path, "device", "must be an object");
+  DeviceKeys keys;
+  for (const auto& [k, v] : d.items()) {
+    if (!v.is_string()) bad(path, "device." + k, "must be a string");
+    if (k == "api") keys.api = v;
+    else if (k == "vendor") keys.vendor = v;
+    else if (k == "renderer") keys.renderer = v;
+    else if (k == "driver") keys.driver = v;
+    else bad(path, "device." + k, "unknown key (api, vendor, renderer, driver)");
+  }
+  return keys;
+}
+
+}  // namespace
+
 Manifest read_manifest(const std::string& path, const CLI::App& sub, PipelineOptions& pipeline) {
   const json j = read_json(path);
   check_version(path, j);
@@ -151,18 +170,7 @@ Manifest read_manifest(const std::string& path, const CLI::App& sub, PipelineOpt
       bad(path, "params", e.what());
     }
   }
-  if (j.contains("device")) {
-    const json& d = j["device"];
-    if (!d.is_object()) bad(path, "device", "must be an object");
-    for (const auto& [k, v] : d.items()) {
-      if (!v.is_string()) bad(path, "device." + k, "must be a string");
-      if (k == "api") m.device.api = v;
-      else if (k == "vendor") m.device.vendor = v;
-      else if (k == "renderer") m.device.renderer = v;
-      else if (k == "driver") m.device.driver = v;
-      else bad(path, "device." + k, "unknown key (api, vendor, renderer, driver)");
-    }
-  }
+  if (j.contains("device")) m.device = read_device(path, j["device"]);
   StageFile defaults;
   if (j.contains("defaults")) {
     if (!j["defaults"].is_object()) bad(path, "defaults", "must be an object");
