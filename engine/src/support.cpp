@@ -261,14 +261,20 @@ std::optional<std::size_t> blur_support_spans(const RowSpans& in, RowSpans& out,
       gathered.clear();
       merged.clear();
       // The input lines this output row reads: across (horizontal) or along (vertical).
+      // Rows equal to the one before them add nothing: a support grown from a few pixels is a
+      // union of rectangles, so most of a window's rows are alike.
       const int r0 = horizontal ? alo[y] : lo[y], r1 = horizontal ? ahi[y] : hi[y];
-      int nonempty = 0, last = -1;
+      int distinct = 0, last = -1;
       for (int r = r0; r <= r1; ++r)
-        if (!in[r].empty()) ++nonempty, last = r;
-      if (nonempty == 0) continue;
+        if (!in[r].empty() && (last < 0 || in[r] != in[last])) ++distinct, last = r;
+      if (distinct == 0) continue;
       const std::vector<Span>* row = &in[last];
-      if (nonempty > 1) {
-        for (int r = r0; r <= r1; ++r) gathered.insert(gathered.end(), in[r].begin(), in[r].end());
+      if (distinct > 1) {
+        for (int r = r0, prev = -1; r <= r1; ++r) {
+          if (in[r].empty() || (prev >= 0 && in[r] == in[prev])) continue;
+          gathered.insert(gathered.end(), in[r].begin(), in[r].end());
+          prev = r;
+        }
         std::sort(gathered.begin(), gathered.end(),
                   [](const Span& a, const Span& b) { return a.x0 < b.x0; });
         merge_sorted(gathered, merged);

@@ -25,6 +25,8 @@ std::string blur_isa_name(BlurIsa isa = BlurIsa::best);
 struct Span {
   int x0 = 0, x1 = 0;
 };
+inline bool operator==(const Span& a, const Span& b) { return a.x0 == b.x0 && a.x1 == b.x1; }
+inline bool operator!=(const Span& a, const Span& b) { return !(a == b); }
 /// A set of texels as spans per row (rows[y] for image row y): sorted, disjoint and not
 /// touching (x1 of one < x0 of the next). The adaptive plan's supports in this form cost time in
 /// proportion to their spans, not to the image (a mask costs a sweep of every byte per pass).
