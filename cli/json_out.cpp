@@ -38,7 +38,8 @@ std::string cpu_renderer(const BloomParams& p) {
   if (f32 && p.blur == BlurImpl::approx)
     blur = "approximate blur, " + (blur_isa_name() != "generic" ? blur_isa_name() + "+fma" : "generic");
   return "cpu: bloomref " + to_string(p.precision) + " (" + blur + "), " +
-         std::to_string(resolve_threads(p.threads)) + " threads";
+         std::to_string(resolve_threads(p.threads)) +
+         (resolve_threads(p.threads) == 1 ? " thread" : " threads");
 }
 
 nlohmann::ordered_json counts_json(const NonFiniteCounts& c) {

@@ -161,3 +161,28 @@ TEST_CASE("the adaptive plan's kept scratch images carry nothing from one run in
   }
   release_scratch_images();
 }
+
+// make_plan: a scene of at most 128 x 128 pixels whose thread count is left to bloomref runs on
+// one thread; an explicit count is kept, and a larger scene keeps the default (0: all).
+TEST_CASE("a small scene is planned on one thread unless the user chose a count", "[determinism]") {
+  BloomParams p;
+  p.threads = 0;
+  const Image at_limit(128, 128, 0.5f), wide(16385, 1, 0.5f), tiny(256, 8, 0.5f);
+  CHECK(make_plan(p, at_limit.cview()).params.threads == 1);
+  CHECK(make_plan(p, tiny.cview()).params.threads == 1);
+  CHECK(make_plan(p, wide.cview()).params.threads == 0);
+  const Image over(129, 128, 0.5f);
+  CHECK(make_plan(p, over.cview()).params.threads == 0);
+  p.threads = 2;
+  CHECK(make_plan(p, tiny.cview()).params.threads == 2);
+  // The output is the same either way (every stage's bits are independent of the thread count).
+  p.threads = 0;
+  Image scene(64, 64, 0.0f);
+  for (int y = 20; y < 30; ++y)
+    for (int x = 10; x < 40; ++x) scene.pixel(x, y)[0] = 4.0f;
+  BloomParams two = p;
+  two.threads = 2;
+  CHECK(test::same_bits_nan_agnostic(
+      execute(make_plan(p, scene.cview()), scene.cview()).final_image().cview(),
+      execute(make_plan(two, scene.cview()), scene.cview()).final_image().cview()));
+}

@@ -57,7 +57,8 @@ struct Plan {
 
 /// Validates the parameters, scans the scene and builds the plan. Throws ParamError for bad
 /// parameters and InputError (naming `source`) when the policy is `error` and the scene holds
-/// NaN or Inf, or the scene is empty.
+/// NaN or Inf, or the scene is empty. A scene of at most 128x128 pixels whose thread count is
+/// left to bloomref (params.threads 0) is planned (and scanned) on one thread.
 Plan make_plan(const BloomParams& params, ConstImageView scene, const std::string& source = "");
 
 /// The plan's scan of the scene alone (make_plan's first step), its row kernel `isa`'s
