@@ -327,24 +327,63 @@ std::size_t BoxedBlur::support_count(int k) const {
   return layout_->counts[std::size_t(k)];
 }
 
-void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::uint8_t* bright_rows,
-                    const Sink& sink, int threads, BlurIsa isa,
-                    const std::function<void(int)>& also, int also_items) const {
-  const BoxedBlurLayout& l = *layout_;
-  if (scene.width != l.width || scene.height != l.height) return;
-  const detail::TileKernel kernel = detail::tile_kernel_for(isa);
-  const detail::InexactKernels inexact = detail::inexact_kernels_for(isa);
-  const int nthreads = resolve_threads(threads);
+namespace {
 
-  // One box: stage bright into q, the passes (tiles shared out over `box_threads`), the sink.
-  auto run_box = [&](std::size_t bi, BoxBuffers& buf, int box_threads) {
+// One run of the boxed blur over a scene: a box's bright image, its passes and the sink.
+struct BoxRun {
+  const BoxedBlurLayout& l;
+  BasicView<const float> scene;
+  float threshold;
+  const std::uint8_t* bright_rows;
+  const BoxedBlur::Sink& sink;
+  detail::TileKernel kernel;
+  detail::InexactKernels inexact;
+
+  // Pass k + 1 of box bi over its tiles, shared out over `threads`: rows src -> dst.
+  void pass(std::size_t bi, std::size_t k, float* const* src, float* const* dst,
+            int threads) const {
+    const PassLayout& p = l.passes[k];
+    const std::vector<int>& tiles = l.box_tiles[bi][k];
+    if (tiles.empty()) return;
+    detail::TileJob job;
+    job.src_rows = src;
+    job.dst_rows = dst;
+    job.horizontal = p.horizontal;
+    job.n_along = p.n_along;
+    job.n_across = p.n_across;
+    job.tile_along = kTileAlong;
+    job.tile_across = p.tile_across;
+    job.tiles_along = p.tiles_along;
+    detail::set_tables(job, *p.tables);
+    job.weights = l.weights.data();
+    job.tile_ids = tiles.data();
+    job.dst_zero_outside = true;
+    if (!p.horizontal) {
+      job.row_spans = p.span_rows.data();
+      job.row_span_counts = p.span_counts.data();
+    }
+    job.width = l.width;
+    parallel_rows(int(tiles.size()), threads, [&](int i0, int i1) {
+      kernel(job, i0, i1);
+      for (int i = i0; i < i1; ++i) {
+        int a0, a1, b0, b1;
+        p.tile_range(tiles[std::size_t(i)], a0, a1, b0, b1);
+        detail::blur_inexact_lines(*p.tables, job.src_rows, job.dst_rows, l.weights, a0, a1, b0,
+                                   b1, nullptr, l.width, true, 4, 4, inexact, p.span_rows.data(),
+                                   p.span_counts.data());
+      }
+    });
+  }
+
+  // One box: stage bright into q, the passes (tiles shared out over `threads`), the sink.
+  void box(std::size_t bi, BoxBuffers& buf, int threads) const {
     const Box& b = l.boxes[bi];
     const int bw = b.x1 - b.x0, bh = b.y1 - b.y0;
     const std::ptrdiff_t stride = std::ptrdiff_t((bw + 3) / 4 * 4);
     buf.prepare(b, stride);
     const BasicView<const float> in{bw, bh, scene.stride, scene.pixel(b.x0, b.y0)};
     extract_bright<float>(in, BasicView<float>{bw, bh, stride, buf.q.data()}, threshold,
-                          box_threads, /*dst_zeroed=*/true, nullptr,
+                          threads, /*dst_zeroed=*/true, nullptr,
                           bright_rows ? bright_rows + b.y0 : nullptr);
     // Image row y of each buffer, texel x at rows[y] + 4 x (rows outside the box: none).
     std::vector<float*> rq(std::size_t(l.height), nullptr), rp(std::size_t(l.height), nullptr);
@@ -354,45 +393,27 @@ void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::ui
       rp[std::size_t(y)] = buf.p.data() + at;
     }
     for (std::size_t k = 0; k < l.passes.size(); ++k) {
-      const PassLayout& p = l.passes[k];
-      const std::vector<int>& tiles = l.box_tiles[bi][k];
-      if (tiles.empty()) continue;
       const bool odd = k % 2 == 0;  // pass k + 1: bright (q) -> p, then back
-      detail::TileJob job;
-      job.src_rows = odd ? rq.data() : rp.data();
-      job.dst_rows = odd ? rp.data() : rq.data();
-      job.horizontal = p.horizontal;
-      job.n_along = p.n_along;
-      job.n_across = p.n_across;
-      job.tile_along = kTileAlong;
-      job.tile_across = p.tile_across;
-      job.tiles_along = p.tiles_along;
-      detail::set_tables(job, *p.tables);
-      job.weights = l.weights.data();
-      job.tile_ids = tiles.data();
-      job.dst_zero_outside = true;
-      if (!p.horizontal) {
-        job.row_spans = p.span_rows.data();
-        job.row_span_counts = p.span_counts.data();
-      }
-      job.width = l.width;
-      parallel_rows(int(tiles.size()), box_threads, [&](int i0, int i1) {
-        kernel(job, i0, i1);
-        for (int i = i0; i < i1; ++i) {
-          int a0, a1, b0, b1;
-          p.tile_range(tiles[std::size_t(i)], a0, a1, b0, b1);
-          detail::blur_inexact_lines(*p.tables, job.src_rows, job.dst_rows, l.weights, a0, a1, b0,
-                                     b1, nullptr, l.width, true, 4, 4, inexact, p.span_rows.data(),
-                                     p.span_counts.data());
-        }
-      });
+      pass(bi, k, odd ? rq.data() : rp.data(), odd ? rp.data() : rq.data(), threads);
     }
     const float* last = l.passes.size() % 2 == 1 ? buf.p.data() : buf.q.data();
     std::vector<const float*> rows(static_cast<std::size_t>(bh));
     for (int i = 0; i < bh; ++i)
       rows[std::size_t(i)] = last + std::ptrdiff_t(i) * stride * kChannels;
     sink(b, rows.data());
-  };
+  }
+};
+
+}  // namespace
+
+void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::uint8_t* bright_rows,
+                    const Sink& sink, int threads, BlurIsa isa,
+                    const std::function<void(int)>& also, int also_items) const {
+  const BoxedBlurLayout& l = *layout_;
+  if (scene.width != l.width || scene.height != l.height) return;
+  const BoxRun run{l, scene, threshold, bright_rows, sink, detail::tile_kernel_for(isa),
+                   detail::inexact_kernels_for(isa)};
+  const int nthreads = resolve_threads(threads);
 
   // A box with more than its share of the work runs alone, its tiles on every thread; the
   // others side by side.
@@ -402,7 +423,7 @@ void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::ui
   for (std::size_t i = 0; i < l.boxes.size(); ++i) {
     if (nthreads > 1 && l.box_work[i] * std::size_t(2 * nthreads) > total) {
       BoxBuffers own;
-      run_box(i, own, nthreads);
+      run.box(i, own, nthreads);
     } else {
       small.push_back(i);
     }
@@ -429,7 +450,7 @@ void BoxedBlur::run(BasicView<const float> scene, float threshold, const std::ui
         buf = pool.take();
         buf->reserve(most * kChannels + kPad);  // the largest box's, so that it is made once
       }
-      run_box(small[std::size_t(i)], *buf, 1);
+      run.box(small[std::size_t(i)], *buf, 1);
     }
     if (buf) pool.give(std::move(buf));
   });
