@@ -2,6 +2,7 @@
 // (tests/user_shader_sources.h) pass, every pass; a copy with one blur weight 1% too large fails
 // at blur.1, a final pass reading half a texel off or clamping exposure at output;
 // a shader that does not compile, or a missing --final-fs, is exit 2 naming the problem.
+#include <cmath>
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -83,8 +84,15 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
     const json j = json::parse(test::read_bytes(dir / "r.json"));
     CHECK(j["items"][0]["stages"].back()["stage"] == "output");
     CHECK(j["items"][0]["stages"].back()["isolated"]["verdict"] == "PASS");
-    const std::string file = j["items"][0]["stages"].back()["file"];
-    CHECK(file.substr(file.size() - 4) == ".png");  // 8-bit codes, loaded as png-linear
+    // The readback was a temporary file, gone now: no file named.
+    CHECK(j["items"][0]["stages"].back()["file"].is_null());
+    // 8-bit codes, loaded as png-linear: every captured value is a multiple of 1/255.
+    const json& worst = j["items"][0]["stages"].back()["isolated"]["worst"];
+    REQUIRE(!worst.empty());
+    for (const json& w : worst) {
+      const double code = w["captured"].get<double>() * 255.0;
+      CHECK(std::abs(code - std::round(code)) < 1e-3);
+    }
     CHECK(test::run_cli(kArgs + "--blur-fs blur.fs --final-fs final.fs --final-target rgb565", "",
                         dir.path()).code == 2);
   }
@@ -96,8 +104,11 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
     CHECK(r.code == 1);
     const json j = json::parse(test::read_bytes(dir / "r.json"));
     CHECK(j["items"][0]["first_divergent_stage"] == "blur.1");
-    // The passes were read back into a temporary folder, gone now: the report keeps a copy.
+    // The passes were read back into a temporary folder, gone now: the report keeps a copy,
+    // and the results name it.
     CHECK(bloomref::load_image(dir / "rep/learnopengl/blur.1.gl.exr").image.width() == 48);
+    CHECK(j["items"][0]["stages"][0]["stage"] == "blur.1");
+    CHECK(j["items"][0]["stages"][0]["file"] == "rep/learnopengl/blur.1.gl.exr");
   }
   SECTION("a shader that does not compile, or a missing file option, is exit 2") {
     test::CliResult r =

@@ -120,6 +120,17 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
     write_report(dir, source, "captured stages: " + (r.stages_from.empty() ? item.id : r.stages_from),
                  plan, trace, r.parity, "none", item.scratch ? CapturedFiles{} : r.file_of);
   }
+  if (item.scratch) {
+    // The passes' readbacks are in a temporary folder, gone at exit: the results name the
+    // report's copies (<stage>.gl.exr), or no file.
+    for (auto& [stage, path] : r.file_of) {
+      path.clear();
+      if (a.report_dir.empty()) continue;
+      for (const parity::StageComparison& s : r.parity.isolated)
+        if (s.stage == stage && !s.oracle.empty())
+          path = a.report_dir + (item.id.empty() ? "" : "/" + item.id) + "/" + stage + ".gl.exr";
+    }
+  }
   return r;
 }
 

@@ -109,7 +109,8 @@ ordered_json check_json(const CheckRun& run) {
       const auto f = r.file_of.find(s.stage);
       stages.push_back(
           {{"stage", s.stage},
-           {"file", f == r.file_of.end() ? ordered_json(nullptr) : ordered_json(f->second)},
+           {"file", f == r.file_of.end() || f->second.empty() ? ordered_json(nullptr)
+                                                              : ordered_json(f->second)},
            {"status", o.status},
            {"expectation", o.expectation ? ordered_json({{"item", o.expectation->item},
                                                          {"stage", o.expectation->stage},
