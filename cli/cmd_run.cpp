@@ -69,8 +69,8 @@ nlohmann::ordered_json repeat_runs(const Plan& plan, const Image& input, const S
           {"same_bits", true}};
 }
 
-// `record` (sequences): the frame's size, counts and pipeline time.
-int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
+// The options that do not go together, or leave nothing to write: exit 2 before any work.
+void check_run_args(const RunArgs& a, bool records) {
   if (a.backend != "cpu" && a.backend != "gl")
     throw ParamError("--backend '" + a.backend + "' is not one of: cpu, gl");
   if (a.repeat < 1) throw ParamError("--repeat must be >= 1");
@@ -81,9 +81,32 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
   if (a.repeat > 1 && a.backend != "cpu") throw ParamError("--repeat times the CPU backend only");
   if (a.repeat > 1 && !a.dump_dir.empty())
     throw ParamError("--repeat and --dump-stages do not go together (stages kept change the timings)");
-  if (a.outputs.empty() && a.dump_dir.empty() && a.json_path.empty() && !record)
+  if (a.outputs.empty() && a.dump_dir.empty() && a.json_path.empty() && !records)
     throw ParamError("nothing to write: give -o OUT.exr and/or -o OUT.png (or --dump-stages, --json)");
+}
 
+// The console's summary of one run.
+void print_run(const RunArgs& a, const std::string& source, const Plan& plan,
+               const StageTrace& trace, const nlohmann::ordered_json& repeated) {
+  const NonFiniteCounts& c = plan.facts.nonfinite;
+  std::cout << source << ": " << plan.facts.width << "x" << plan.facts.height << ", "
+            << plan.facts.bright_pixels << " bright pixels, " << c.total()
+            << " non-finite values (" << to_string(plan.params.nonfinite) << "), "
+            << trace.total_ms << " ms";
+  if (!repeated.is_null())
+    std::cout << " (first of " << a.repeat << " runs; the others' median "
+              << repeated["warm_median_ms"]["total"].get<double>() << " ms)";
+  const auto skipped = plan.skipped_names();
+  if (!skipped.empty()) std::cout << ", skipped " << skipped.size() << " stage(s)";
+  for (const std::string& o : a.outputs) std::cout << "\n  wrote " << o;
+  if (!a.dump_dir.empty())
+    std::cout << "\n  wrote " << trace.stages.size() << " stages to " << a.dump_dir << "/";
+  std::cout << "\n";
+}
+
+// `record` (sequences): the frame's size, counts and pipeline time.
+int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
+  check_run_args(a, record != nullptr);
   // Every destination is checked before the (possibly long) work starts, and the outputs are
   // published together at the end (OutputSet): a refusal or a failure leaves every destination
   // as it was. The input is never a destination, and no file is written twice.
@@ -153,22 +176,7 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
     *record = {{"width", plan.facts.width}, {"height", plan.facts.height},
                {"bright_pixels", plan.facts.bright_pixels},
                {"nonfinite", plan.facts.nonfinite.total()}, {"pipeline_ms", trace.total_ms}};
-  if (!a.quiet) {
-    const NonFiniteCounts& c = plan.facts.nonfinite;
-    std::cout << source << ": " << plan.facts.width << "x" << plan.facts.height << ", "
-              << plan.facts.bright_pixels << " bright pixels, " << c.total()
-              << " non-finite values (" << to_string(plan.params.nonfinite) << "), "
-              << trace.total_ms << " ms";
-    if (!repeated.is_null())
-      std::cout << " (first of " << a.repeat << " runs; the others' median "
-                << repeated["warm_median_ms"]["total"].get<double>() << " ms)";
-    const auto skipped = plan.skipped_names();
-    if (!skipped.empty()) std::cout << ", skipped " << skipped.size() << " stage(s)";
-    for (const std::string& o : a.outputs) std::cout << "\n  wrote " << o;
-    if (!a.dump_dir.empty())
-      std::cout << "\n  wrote " << trace.stages.size() << " stages to " << a.dump_dir << "/";
-    std::cout << "\n";
-  }
+  if (!a.quiet) print_run(a, source, plan, trace, repeated);
   return 0;
 }
 
