@@ -1,5 +1,5 @@
 # Peak memory of `bloomref run` at 7680x4320 must stay within 3.5 full-size float RGBA images
-# (issue 5's target), under the plan given (-DPLAN=adaptive, the default, or full). Run by ctest
+# (the peak-memory target, docs/performance.md), under the plan given (-DPLAN=adaptive, the default, or full). Run by ctest
 # (label benchmark): cmake -DBLOOMREF=... -DOUT=... -DPLAN=... -P this.
 if(NOT PLAN)
   set(PLAN adaptive)

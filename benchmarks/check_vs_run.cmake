@@ -1,9 +1,9 @@
-# bloomref check against bloomref run on one frame (issue 37, part 5): a frame with every stage
+# bloomref check against bloomref run on one frame (docs/check.md, "Speed and memory"): a frame with every stage
 # captured (bloomref's own CPU stages, dumped), judged by check, beside run --plan full of the
 # same frame, alternated REPEAT times in one script run; prints the medians of both times (each
 # command's own timings, I/O of the scene and the output excluded: check's include reading the
 # stage images), their ratio, the ratio without the stage images' decoding, and check's peak
-# memory; warns where the issue's targets are not met (check within 3x of run at 1920x1080;
+# memory; warns where the targets are not met (check within 3x of run at 1920x1080;
 # check's peak under 1.5 GB at 3840x2160). Run by ctest (label benchmark):
 #   cmake -DBLOOMREF=... -DOUT=... -DSIZE=1920x1080 [-DREPEAT=3] -P this
 if(NOT SIZE)
@@ -80,8 +80,8 @@ message(STATUS "${SIZE}, medians of ${REPEAT}: run --plan full ${run_ms} ms; che
                "oracle and judging ${judging_ms} ms = ${judging10}/10 x run); check peak RSS "
                "${peak_mb} MB")
 if(SIZE STREQUAL "1920x1080" AND ratio10 GREATER 30)
-  message(WARNING "check takes ${ratio10}/10 x run --plan full (the issue's target: at most 3x)")
+  message(WARNING "check takes ${ratio10}/10 x run --plan full (the target: at most 3x)")
 endif()
 if(SIZE STREQUAL "3840x2160" AND peak GREATER 1500000000)
-  message(WARNING "check's peak RSS ${peak_mb} MB (the issue's target: under 1500 MB)")
+  message(WARNING "check's peak RSS ${peak_mb} MB (the target: under 1500 MB)")
 endif()

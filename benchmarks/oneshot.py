@@ -6,7 +6,7 @@ in the machine's load falls on both); the figure is the JSON's `timings_ms.total
 scan and every stage, reading and writing files excluded). Medians of --runs rounds, their ratio
 (full / adaptive), and the outputs compared byte for byte (the plans must give the same bits).
 
-Cases and goals (issue "fast as a user runs it"):
+Cases and goals (docs/performance.md, "one process per run"):
   StarField.exr (from --corpus)      a few stars on black, 1000x1000    >= 3x
   demo 3840x2160 (built-in scene)    four light cubes                   >= 3x
   noise 383x257 (built-in scene)     dense: gamma noise, 40 sources     >= 0.95x
