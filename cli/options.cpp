@@ -10,7 +10,7 @@ namespace bloomref::cli {
 
 void PipelineOptions::add_to(CLI::App& app) {
   BloomParams& p = params;
-  app.add_option("--method", method, "gaussian | mip (seed 003's mip chain)")->capture_default_str();
+  app.add_option("--method", method, "gaussian | mip (the mip chain of Jimenez 2014)")->capture_default_str();
   app.add_option("--threshold", p.threshold, "bright when luminance > threshold")
       ->capture_default_str();
   app.add_option("--exposure", p.exposure, "tone map 1 - exp(-hdr * exposure)")
@@ -39,7 +39,7 @@ void PipelineOptions::add_to(CLI::App& app) {
   app.add_option("--levels", p.levels, "mip: downsample levels (fewer when the image ends)")
       ->capture_default_str();
   app.add_flag("--karis", p.karis, "mip: Karis average on the first downsample");
-  app.add_option("--composite", composite, "before-tonemap | after-tonemap (seed 003)")
+  app.add_option("--composite", composite, "before-tonemap | after-tonemap (after: as the mip-chain tutorial)")
       ->capture_default_str();
   app.add_option("--scene", scene, "built-in scene used when no IN is given")
       ->capture_default_str();
