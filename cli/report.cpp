@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -20,7 +21,8 @@ constexpr int kPreview = 384;  // longest side of the previews embedded in index
 std::string base64(const std::string& in) {
   static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
-  int val = 0, bits = -6;
+  std::uint32_t val = 0;  // unsigned: the bits shifted out at the top are dropped, not overflow
+  int bits = -6;
   for (unsigned char c : in) {
     val = (val << 8) + c;
     bits += 8;
