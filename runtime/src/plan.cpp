@@ -128,10 +128,9 @@ bool dense_scene(const SceneFacts& facts) {
   return facts.bright_pixels * 10 >= pixels && rows * 2 >= std::uint64_t(facts.height);
 }
 
-// At most this many pixels: a run whose thread count was left to bloomref (threads 0) runs on
-// one thread: waking the workers costs more than they save. One process per run on a 2-core
-// EPYC, `noise` scene, medians of 5: 64x64 took 0.86 ms on one thread against 1.29 ms on two,
-// 128x128 2.1 against 2.4, 256x128 5.0 against 3.8; scale.hdr (256x8) 1.0 against 4.3.
+// At most this many pixels, a run whose thread count was left to bloomref (threads 0) runs on
+// one thread: waking the workers costs more than they save (docs/design.md, "A small scene
+// runs on one thread", has the measurements).
 constexpr std::uint64_t kOneThreadPixels = 128 * 128;
 
 Plan make_plan(const BloomParams& params, ConstImageView scene, const std::string& source) {
@@ -139,8 +138,8 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
   if (scene.empty()) throw InputError(source, "the image has no pixels");
   Plan plan;
   plan.params = params;
-  if (params.threads == 0 && std::uint64_t(scene.width) * std::uint64_t(scene.height) <= kOneThreadPixels)
-    plan.params.threads = 1;
+  const std::uint64_t pixels = std::uint64_t(scene.width) * std::uint64_t(scene.height);
+  if (params.threads == 0 && pixels <= kOneThreadPixels) plan.params.threads = 1;
   plan.facts = scan_scene(scene, plan.params);
   if (params.nonfinite == NonFinite::error && plan.facts.nonfinite.total() > 0)
     throw InputError(source, "holds " + describe(plan.facts.nonfinite) +
