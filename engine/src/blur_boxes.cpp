@@ -35,11 +35,10 @@
 namespace bloomref {
 namespace {
 
-// Tiles: 8 texels along the blur, 16 rows across (horizontal) or 32 columns (vertical), as
-// blur_pass_fast's small tiles for sparse supports.
-constexpr int kTileAlong = 8;
-constexpr int kTileAcrossH = 16;
-constexpr int kTileAcrossV = 32;
+// Tiles: blur_pass_fast's small tiles for sparse supports (blur_internal.h).
+constexpr int kTileAlong = detail::kTileAlongListed;
+constexpr int kTileAcrossH = detail::kTileAcrossHListed;
+constexpr int kTileAcrossV = detail::kTileAcrossVListed;
 // Boxes are unions of cells of kCell x kCell texels: a box's left edge is then a multiple of 8
 // texels (128 bytes), so that its rows sit in 64-byte lines as an image's do. (16: StarField.exr's
 // boxes cover 20.3% of it, 8: 16.5%.)

@@ -36,9 +36,9 @@ constexpr int kTileAcrossVMasked = 128;
 // 32 columns (vertical) across. Against 64 x 32 / 64 x 128, `bloomref run IN --threads 2
 // --repeat 9`, blur warm medians, three alternated runs: StarField.exr 31-40 -> 6-19 ms, demo
 // 3840x2160 18-24 -> 15-19, GoldenGate 15-19 -> 16-20 (16 x 16 / 16 x 32: 19-21, 13-18, 14-17).
-constexpr int kTileAlongListed = 8;
-constexpr int kTileAcrossHListed = 16;
-constexpr int kTileAcrossVListed = 32;
+using detail::kTileAlongListed;
+using detail::kTileAcrossHListed;
+using detail::kTileAcrossVListed;
 // ... while the support is under 1/8 of the image: on larger ones (WideColorGamut.exr, 10-25%
 // bright) the small tiles' per-tile work cost more than they left out (adaptive-table, warm:
 // 1.18x -> 0.81x of the dense plan with small tiles at every size).

@@ -21,6 +21,13 @@
 
 namespace bloomref::detail {
 
+/// The small tiles of passes that visit only the tiles their support touches (blur_pass_fast's
+/// listed tiles, the boxed blur's): texels along the blur, rows across a horizontal pass,
+/// columns across a vertical one. blur_fast.cpp gives the measurements behind them.
+constexpr int kTileAlongListed = 8;
+constexpr int kTileAcrossHListed = 16;
+constexpr int kTileAcrossVListed = 32;
+
 /// How the tile kernel forms a tap's term, in blur_texel's form (p0 w0 [+ p1 w1]) wk: `one` when
 /// w0 is exactly 1 and there is no second texel (x * 1 == x: no signalling NaN reaches the blur,
 /// stages.h), `scaled` when there is no second texel (kept as the reference's case; the tap
