@@ -111,13 +111,13 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
                                       &r.oracle_ms);
   r.load_ms += load_ms;
   r.judge_ms = ms_since(t1) - r.oracle_ms - load_ms;
+  const std::string report_dir = a.report_dir + (item.id.empty() ? "" : "/" + item.id);
   if (!a.report_dir.empty()) {
     // The report shows the captures of the stages it holds images of: read again.
     StageTrace trace;
     for (const parity::StageComparison& s : r.parity.isolated)
       if (!s.oracle.empty()) trace.stages.push_back({s.stage, read(s.stage).image, 0, false});
-    const std::string dir = a.report_dir + (item.id.empty() ? "" : "/" + item.id);
-    write_report(dir, source, "captured stages: " + (r.stages_from.empty() ? item.id : r.stages_from),
+    write_report(report_dir, source, "captured stages: " + (r.stages_from.empty() ? item.id : r.stages_from),
                  plan, trace, r.parity, "none", item.scratch ? CapturedFiles{} : r.file_of);
   }
   if (item.scratch) {
@@ -128,7 +128,7 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
       if (a.report_dir.empty()) continue;
       for (const parity::StageComparison& s : r.parity.isolated)
         if (s.stage == stage && !s.oracle.empty())
-          path = a.report_dir + (item.id.empty() ? "" : "/" + item.id) + "/" + stage + ".gl.exr";
+          path = report_dir + "/" + stage + ".gl.exr";
     }
   }
   return r;
