@@ -1,8 +1,9 @@
 # bloomref check against bloomref run on one frame (docs/check.md, "Speed and memory"): a frame with every stage
 # captured (bloomref's own CPU stages, dumped), judged by check, beside run --plan full of the
-# same frame, alternated REPEAT times in one script run; prints the medians of both times (each
-# command's own timings, I/O of the scene and the output excluded: check's include reading the
-# stage images), their ratio, the ratio without the stage images' decoding, and check's peak
+# same frame, alternated REPEAT times in one script run; prints the medians of both times, as
+# whole commands (start to exit, as a user times them) and as each command's own timings (run's
+# compute, I/O of the scene and the output excluded; check's including reading the stage
+# images), their ratios, the ratio without the stage images' decoding, and check's peak
 # memory; warns where the targets are not met (check within 3x of run at 1920x1080;
 # check's peak under 1.5 GB at 3840x2160). Run by ctest (label benchmark):
 #   cmake -DBLOOMREF=... -DOUT=... -DSIZE=1920x1080 [-DREPEAT=3] -P this
@@ -37,16 +38,32 @@ function(whole out json)
   set(${out} ${v} PARENT_SCOPE)
 endfunction()
 
+# Milliseconds since the epoch (whole commands' wall time).
+function(now_ms out)
+  string(TIMESTAMP us "%s%f" UTC)
+  string(REGEX REPLACE "...$" "" ms "${us}")
+  set(${out} ${ms} PARENT_SCOPE)
+endfunction()
+
 bloomref(scenes demo --size ${SIZE} -o scene.exr)
 bloomref(run scene.exr --plan full --dump-stages stages -q)
 set(runs)
+set(run_walls)
+set(check_walls)
 set(checks)
 set(judging)
 set(loads)
 set(peak 0)
 foreach(i RANGE 1 ${REPEAT})
+  now_ms(t0)
   bloomref(run scene.exr --plan full -o out.exr --json run.json -q)
+  now_ms(t1)
   bloomref(check scene.exr --stages stages --json check.json -q)
+  now_ms(t2)
+  math(EXPR run_wall "${t1} - ${t0}")
+  math(EXPR check_wall "${t2} - ${t1}")
+  list(APPEND run_walls ${run_wall})
+  list(APPEND check_walls ${check_wall})
   file(READ ${dir}/run.json run)
   file(READ ${dir}/check.json check)
   whole(run_ms ${run} timings_ms total)
@@ -68,6 +85,9 @@ foreach(i RANGE 1 ${REPEAT})
     set(peak ${p})
   endif()
 endforeach()
+median(run_wall ${run_walls})
+median(check_wall ${check_walls})
+math(EXPR wall10 "${check_wall} * 10 / ${run_wall}")
 median(run_ms ${runs})
 median(check_ms ${checks})
 median(judging_ms ${judging})
@@ -75,12 +95,17 @@ median(load_ms ${loads})
 math(EXPR ratio10 "${check_ms} * 10 / ${run_ms}")
 math(EXPR judging10 "${judging_ms} * 10 / ${run_ms}")
 math(EXPR peak_mb "${peak} / 1000000")
+message(STATUS "${SIZE}, medians of ${REPEAT}, whole commands: run --plan full ${run_wall} ms, "
+               "check of 15 stages ${check_wall} ms = ${wall10}/10 x run")
 message(STATUS "${SIZE}, medians of ${REPEAT}: run --plan full ${run_ms} ms; check of 15 stages "
                "${check_ms} ms = ${ratio10}/10 x run (reading the stage images ${load_ms} ms; "
                "oracle and judging ${judging_ms} ms = ${judging10}/10 x run); check peak RSS "
                "${peak_mb} MB")
+if(SIZE STREQUAL "1920x1080" AND wall10 GREATER 30)
+  message(WARNING "check takes ${wall10}/10 x run --plan full as whole commands (the target: at most 3x)")
+endif()
 if(SIZE STREQUAL "1920x1080" AND ratio10 GREATER 30)
-  message(WARNING "check takes ${ratio10}/10 x run --plan full (the target: at most 3x)")
+  message(WARNING "check takes ${ratio10}/10 x run --plan full's compute (the target: at most 3x)")
 endif()
 if(SIZE STREQUAL "3840x2160" AND peak GREATER 1500000000)
   message(WARNING "check's peak RSS ${peak_mb} MB (the target: under 1500 MB)")
