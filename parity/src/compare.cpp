@@ -16,6 +16,10 @@
 #include "judge.h"
 #include "tolerance.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace bloomref::parity {
 
 using namespace detail;
@@ -174,12 +178,29 @@ void decide(StageComparison& s) {
 // would only count (an error of 0, neither special nor unbounded).
 bool same_values(const float* gl, const float* oracle, const float* bound, int x0, int x1,
                  float limit) {
+  std::size_t i = std::size_t(x0) * kChannels;
+  const std::size_t end = std::size_t(x1) * kChannels;
+#if defined(__SSE2__)
+  // A texel at a time: its four lanes compared at once, alpha's result dropped.
+  const __m128 lim = _mm_set1_ps(limit), inf = _mm_set1_ps(INFINITY);
+  const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  __m128 ok = _mm_castsi128_ps(_mm_set1_epi32(-1));
+  for (; i < end; i += kChannels) {
+    const __m128 o = _mm_loadu_ps(oracle + i);
+    const __m128 same = _mm_cmpeq_ps(_mm_loadu_ps(gl + i), o);
+    const __m128 small = _mm_cmple_ps(_mm_and_ps(o, abs_mask), lim);
+    const __m128 bounded = _mm_cmplt_ps(_mm_loadu_ps(bound + i), inf);
+    ok = _mm_and_ps(ok, _mm_and_ps(same, _mm_and_ps(small, bounded)));
+  }
+  return (_mm_movemask_ps(ok) & 0x7) == 0x7;
+#else
   bool ok = true;
-  for (std::size_t i = std::size_t(x0) * kChannels; i < std::size_t(x1) * kChannels; i += kChannels)
+  for (; i < end; i += kChannels)
     for (int c = 0; c < 3; ++c)  // alpha is not judged
       ok &= (gl[i + c] == oracle[i + c]) & (std::fabs(oracle[i + c]) <= limit) &
             (bound[i + c] < INFINITY);
   return ok;
+#endif
 }
 
 // How many RGB values of texels [x0, x1) have a bound beyond their rounding allowance (the
@@ -192,6 +213,11 @@ std::uint64_t beyond_rounding(const float* oracle, const float* bound, const flo
     for (std::size_t i = i0; i < i1; i += kChannels)
       n += (bound[i] > allowance[i]) + (bound[i + 1] > allowance[i + 1]) +
            (bound[i + 2] > allowance[i + 2]);
+    return n;
+  }
+  if (storage == Storage::f32) {  // a storage term of 0
+    for (std::size_t i = i0; i < i1; i += kChannels)
+      n += (bound[i] > 0.0f) + (bound[i + 1] > 0.0f) + (bound[i + 2] > 0.0f);
     return n;
   }
   for (std::size_t i = i0; i < i1; ++i)

@@ -28,7 +28,14 @@ void override_rows(const StageOverride* over, float* b, std::size_t n) {
 
 void put_rows(Image& img, int y0, const float* rows, std::size_t n) {
   float* d = img.pixel(0, y0);
-  for (std::size_t i = 0; i < n * kChannels; ++i) d[i] = i % kChannels == 3 ? 0.0f : rows[i];
+  for (std::size_t t = 0; t < n; ++t) {
+    float* o = d + t * kChannels;
+    const float* r = rows + t * kChannels;
+    o[0] = r[0];
+    o[1] = r[1];
+    o[2] = r[2];
+    o[3] = 0.0f;
+  }
 }
 
 namespace {

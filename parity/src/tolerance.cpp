@@ -99,18 +99,14 @@ class BlurBounds : public StageBounds {
     float* range = sized(s.range, std::size_t(y1 - y0) * row);
     float* magnitude = sized(s.magnitude, std::size_t(y1 - y0) * row);
     bases_->sums(src_, y0, y1, range, magnitude);
-    const double U = ctx_.profile->unit_roundoff;  // one operation's rounding
-    const double filter = (3 + 2 * taps_) * U, denormal = denormal_floor(*ctx_.profile);
     for (int y = y0; y < y1; ++y) {
       const std::size_t at = std::size_t(y - y0) * row;
-      const float* o = oracle_.row(y);
-      // The terms of values(), value by value (alpha too: its results are not read).
-      for (std::size_t i = 0; i < row; ++i) {
-        const double v0 = delta_ * range[at + i], v1 = filter * magnitude[at + i];
-        const double v2 = storage_term(o[i], ctx_.storage, *ctx_.profile);
-        if (bound) bound[at + i] = static_cast<float>(0.0 + v0 + v1 + v2 + denormal + 0.0);
-        if (rounding) rounding[at + i] = static_cast<float>(0.0 + v1 + v2 + denormal);
-      }
+      if (ctx_.storage == Storage::f32)
+        terms_row<true>(range + at, magnitude + at, oracle_.row(y), row, bound ? bound + at : nullptr,
+                        rounding ? rounding + at : nullptr);
+      else
+        terms_row<false>(range + at, magnitude + at, oracle_.row(y), row, bound ? bound + at : nullptr,
+                         rounding ? rounding + at : nullptr);
     }
   }
 
@@ -134,6 +130,29 @@ class BlurBounds : public StageBounds {
     thread_local Sums s;
     return s;
   }
+  // The terms of values() over n values of a row (alpha too: its results are not read), summed
+  // into the bound and its rounding part (either may be null). With f32 storage the storage term
+  // is 0: the loops then vectorise.
+  template <bool F32>
+  void terms_row(const float* range, const float* magnitude, const float* o, std::size_t n,
+                 float* bound, float* rounding) const {
+    const double U = ctx_.profile->unit_roundoff;  // one operation's rounding
+    const double filter = (3 + 2 * taps_) * U, denormal = denormal_floor(*ctx_.profile);
+    const double delta = delta_;
+    const Storage st = ctx_.storage;
+    const DeviceProfile& p = *ctx_.profile;
+    if (bound)
+      for (std::size_t i = 0; i < n; ++i) {
+        const double v2 = F32 ? 0.0 : storage_term(o[i], st, p);
+        bound[i] = static_cast<float>(0.0 + delta * range[i] + filter * magnitude[i] + v2 + denormal + 0.0);
+      }
+    if (rounding)
+      for (std::size_t i = 0; i < n; ++i) {
+        const double v2 = F32 ? 0.0 : storage_term(o[i], st, p);
+        rounding[i] = static_cast<float>(0.0 + filter * magnitude[i] + v2 + denormal);
+      }
+  }
+
   // The terms from the weighted window sums: the filter's lerp (3 roundings) and the tap sums
   // (2 per tap): (3 + 2 T) u |t|.
   Values values(float range, float magnitude, float oracle) const {
