@@ -4,8 +4,10 @@ For each built-in scene at --size (default 3840x2160: `demo`, sparse, the adapti
 `constant`, every pixel bright), rounds alternate between
   * the command in this process, `run SCENE.exr --repeat N+1` (bloomref.run_command_line): its
     JSON's per-run totals of the N warm runs (the first of each call is left out), and
-  * N calls of bloomref.run(array) on the loaded scene, each timed around the call (parsing the
-    options, the run reading the array in place, wrapping the output as an array);
+  * N+1 calls of bloomref.run(array) on the loaded scene, each timed around the call (parsing
+    the options, the run reading the array in place, wrapping the output as an array), the first
+    left out as the command's is: each side's timed runs follow one run of its own, not the
+    other side's;
 the medians of both, their ratio and the median of the rounds' own ratios (each round's two
 sides ran under the same load) are printed and written to --out/python_vs_cli.json. Every timed
 Python output must have the bits of the command's output file (exit 1 otherwise).
@@ -45,12 +47,13 @@ def bench_scene(name, size, rounds, repeat, work):
         command("run", scene, "--repeat", repeat + 1, "--json", work / "t.json", "-q")
         cli = json.loads((work / "t.json").read_text())["repeat"]["total_ms"][1:]
         py = []
-        for _ in range(repeat):
+        for _ in range(repeat + 1):
             t0 = time.perf_counter()
             out = bloomref.run(image)
             py.append((time.perf_counter() - t0) * 1e3)
             if not np.array_equal(out.view(np.uint32), expected):
                 sys.exit(f"{name}: bloomref.run gave other bits than the command's output")
+        py = py[1:]
         cli_ms += cli
         py_ms += py
         paired.append(statistics.median(py) / statistics.median(cli))
