@@ -396,3 +396,55 @@ TEST_CASE("warn as error: a stage over its bound but within the warning tier fai
   CHECK(read_json(dir / "r.json")["exit_code"] == 1);
   CHECK(count(bloomref::test::read_bytes(dir / "r.xml"), "<failure") == 1);
 }
+
+TEST_CASE("a bad --layout file is exit 2 naming the file and the field before any GL",
+          "[check-cli]") {
+  TempDir dir;
+  // A shader file is read before the layout; GL is never reached, so this runs without it.
+  bloomref::test::write_bytes(dir / "s.frag", "#version 330 core\nvoid main() {}\n");
+  const std::string shaders = "check --scene demo --size 48x40 --shaders learnopengl "
+                              "--blur-fs s.frag --final-fs s.frag --layout layout.json";
+  struct Case {
+    const char* text;
+    const char* field;  // what the message must name besides the file
+  };
+  const Case cases[] = {
+      {"{\"version\": 1, \"blur\": {\"imag\": \"uSource\"}}", "blur.imag"},
+      {"{\"version\": 1, \"blur\": {\"image\": \"9lives\"}}", "blur.image"},
+      {"{\"version\": 1, \"final\": {\"scene\": \"gl_Scene\"}}", "final.scene"},
+      {"{\"version\": 1, \"attributes\": {\"position\": 3}}", "attributes.position"},
+      {"{\"version\": 2}", "version"},
+      {"{\"blur\": {}}", "version"},
+      {"{\"version\": 1, \"colour\": 1}", "colour"},
+      {"{\"version\": 1, \"blur\": {\"horizontal\": \"h\", \"direction\": {\"uniform\": \"d\", "
+       "\"horizontal\": [1, 0], \"vertical\": [0, 1]}}}",
+       "blur.direction"},
+      {"{\"version\": 1, \"blur\": {\"direction\": {\"uniform\": \"d\", \"horizontal\": [1, 0], "
+       "\"vertical\": [0, 1, 0]}}}",
+       "blur.direction"},
+      {"{\"version\": 1, \"blur\": {\"direction\": {\"uniform\": \"d\", \"horizontal\": [1, 0]}}}",
+       "blur.direction.vertical"},
+      {"{\"version\": 1, \"blur\": {\"set\": {\"uTexel\": \"texel\"}}}", "blur.set.uTexel"},
+      {"{\"version\": 1, \"blur\": {\"set\": {\"uTint\": [1, 2, 3, 4, 5]}}}", "blur.set.uTint"},
+      {"{\"version\": 1, \"final\": {\"set\": {\"u x\": 1}}}", "final.set.u x"},
+      {"{\"version\": 1, ", "not valid JSON"},
+  };
+  for (const Case& c : cases) {
+    bloomref::test::write_bytes(dir / "layout.json", c.text);
+    const CliResult r = run_cli(dir, shaders);
+    INFO(c.text << "\n" << r.err);
+    CHECK(r.code == 2);
+    CHECK(r.err.find("layout.json") != std::string::npos);
+    CHECK(r.err.find(c.field) != std::string::npos);
+    // The layout is an input: left as it was.
+    CHECK(bloomref::test::read_bytes(dir / "layout.json") == c.text);
+  }
+  fs::remove(dir / "layout.json");
+  CliResult r = run_cli(dir, shaders);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("layout.json: cannot be opened") != std::string::npos);
+  // A layout names what --shaders binds: alone it is a usage error.
+  r = run_cli(dir, "check --scene demo --size 48x40 --stages d --layout layout.json");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--layout") != std::string::npos);
+}

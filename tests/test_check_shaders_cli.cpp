@@ -1,7 +1,9 @@
 // bloomref check --shaders learnopengl as a CI job runs it: shaders written here from DESIGN.md
 // (tests/user_shader_sources.h) pass, every pass; a copy with one blur weight 1% too large fails
 // at blur.1, a final pass reading half a texel off or clamping exposure at output;
-// a shader that does not compile, or a missing --final-fs, is exit 2 naming the problem.
+// a shader that does not compile, or a missing --final-fs, is exit 2 naming the problem. Shaders
+// under other names (an engine's) pass with a layout file declaring them, and its values reach
+// them.
 #include <cmath>
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
@@ -118,5 +120,116 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
     r = test::run_cli(kArgs + "--blur-fs blur.fs", "", dir.path());
     CHECK(r.code == 2);
     CHECK(r.err.find("--final-fs") != std::string::npos);
+  }
+}
+
+namespace {
+
+// The preset's passes under an engine's names, written for this test from DESIGN.md: a blur
+// stepping along a direction vector by a texel size the host sets (instead of a bool and
+// textureSize), samplers and the varying renamed, a final pass without the `bloom` switch and
+// with its gamma a uniform. Declared to the preset by kEngineLayout.
+const char* kEngineBlur = R"glsl(#version 330 core
+in vec2 vUV;
+out vec4 outColor;
+uniform sampler2D uSource;
+uniform vec2 uDirection;
+uniform vec2 uTexel;
+const float kW[5] = float[](0.2270270270, 0.1945945946, 0.1216216216, 0.0540540541, 0.0162162162);
+void main() {
+  vec2 step = uDirection * uTexel;
+  vec3 sum = texture(uSource, vUV).rgb * kW[0];
+  for (int i = 1; i < 5; ++i) {
+    sum += texture(uSource, vUV + step * float(i)).rgb * kW[i];
+    sum += texture(uSource, vUV - step * float(i)).rgb * kW[i];
+  }
+  outColor = vec4(sum, 1.0);
+}
+)glsl";
+
+const char* kEngineFinal = R"glsl(#version 330 core
+in vec2 vUV;
+out vec4 outColor;
+uniform sampler2D uScene;
+uniform sampler2D uBloom;
+uniform float uExposure;
+uniform float uGamma;
+void main() {
+  vec3 hdr = texture(uScene, vUV).rgb + texture(uBloom, vUV).rgb;
+  vec3 mapped = 1.0 - exp(-hdr * uExposure);
+  outColor = vec4(pow(max(mapped, 0.0), vec3(1.0 / uGamma)), 1.0);
+}
+)glsl";
+
+std::string engine_layout(const std::string& vertical = "[0, 1]", const std::string& gamma = "2.2") {
+  return R"({"version": 1, "varying": "vUV",
+  "blur": {"image": "uSource",
+           "direction": {"uniform": "uDirection", "horizontal": [1, 0], "vertical": )" + vertical + R"(},
+           "set": {"uTexel": "texel-size"}},
+  "final": {"scene": "uScene", "bloomBlur": "uBloom", "exposure": "uExposure",
+            "set": {"uGamma": )" + gamma + "}}}";
+}
+
+}  // namespace
+
+TEST_CASE("check --shaders --layout runs shaders that use other names", "[check-shaders]") {
+  if (!test::gl_context()) return;  // skipped (or failed, with BLOOMREF_REQUIRE_GL) above
+  test::TempDir dir;
+  test::write_bytes(dir / "blur.frag", kEngineBlur);
+  test::write_bytes(dir / "final.frag", kEngineFinal);
+  test::write_bytes(dir / "layout.json", engine_layout());
+  const std::string shaders = "--blur-fs blur.frag --final-fs final.frag --json r.json ";
+
+  SECTION("declared by the layout, in f16 and f32: every pass within its bound") {
+    for (const char* storage : {"f16", "f32"}) {
+      const test::CliResult r = test::run_cli(
+          kArgs + shaders + "--layout layout.json --storage " + storage, "", dir.path());
+      INFO(storage << "\n" << r.out << r.err);
+      CHECK(r.code == 0);
+      const json j = json::parse(test::read_bytes(dir / "r.json"));
+      int blurs = 0;
+      for (const json& st : j["items"][0]["stages"]) {
+        blurs += st["stage"].get<std::string>().rfind("blur.", 0) == 0;
+        CHECK(st["isolated"]["verdict"] == "PASS");
+        CHECK(st["end_to_end"]["verdict"] == "PASS");
+      }
+      CHECK(blurs == 10);
+    }
+  }
+  SECTION("the layout's values are what the shaders get") {
+    // Every pass stepping along x: the first vertical pass, blur.2, is the first wrong one.
+    test::write_bytes(dir / "along_x.json", engine_layout("[1, 0]"));
+    test::CliResult r = test::run_cli(kArgs + shaders + "--layout along_x.json --storage f32",
+                                      "", dir.path());
+    INFO(r.out << r.err);
+    CHECK(r.code == 1);
+    CHECK(json::parse(test::read_bytes(dir / "r.json"))["items"][0]["first_divergent_stage"] ==
+          "blur.2");
+    // A gamma of 1 set by the layout: the output without gamma, and the cause says so.
+    test::write_bytes(dir / "gamma1.json", engine_layout("[0, 1]", "1.0"));
+    r = test::run_cli(kArgs + shaders + "--layout gamma1.json --storage f32", "", dir.path());
+    CHECK(r.code == 1);
+    const json j = json::parse(test::read_bytes(dir / "r.json"));
+    CHECK(j["items"][0]["first_divergent_stage"] == "output");
+    CHECK(j["items"][0]["first_divergent_cause"]["id"] == "gamma-missing");
+  }
+  SECTION("without the layout the same shaders are refused, naming the file and the name") {
+    const test::CliResult r = test::run_cli(kArgs + shaders, "", dir.path());
+    CHECK(r.code == 2);
+    CHECK(r.err.find("blur.frag") != std::string::npos);
+    CHECK(r.err.find("uSource") != std::string::npos);
+  }
+  SECTION("a uniform the layout does not set is refused: it would be 0") {
+    std::string layout = engine_layout();
+    const std::size_t at = layout.find("\"set\": {\"uTexel\": \"texel-size\"}");
+    REQUIRE(at != std::string::npos);
+    test::write_bytes(dir / "no_texel.json",
+                      layout.replace(at, std::string("\"set\": {\"uTexel\": \"texel-size\"}").size(),
+                                     "\"set\": {}"));
+    const test::CliResult r =
+        test::run_cli(kArgs + shaders + "--layout no_texel.json", "", dir.path());
+    CHECK(r.code == 2);
+    CHECK(r.err.find("uTexel") != std::string::npos);
+    CHECK(r.err.find("used at 0") != std::string::npos);
   }
 }

@@ -350,6 +350,8 @@ CheckRun check_cmd(CheckArgs& a) {
     throw ParamError("--artifacts '" + a.artifacts + "' is not one of: fail, all, none");
   if (int(!a.stages_dir.empty()) + int(!a.manifest.empty()) + int(a.shaders.any()) != 1)
     throw ParamError("give one of --stages DIR, --manifest FILE or --shaders learnopengl");
+  if (!a.shaders.layout.empty() && !a.shaders.any())
+    throw ParamError("--layout names what --shaders learnopengl binds: give --shaders too");
   if (!a.manifest.empty() && !a.scene.empty())
     throw ParamError("with --manifest the scenes are the manifest's items; give no SCENE");
   const bool frames = batch::has_frame_wildcard(a.scene) ||
@@ -437,6 +439,9 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
   sub->add_option("--filter", args->shaders.filter, "--shaders: texture filter linear | nearest");
   sub->add_option("--wrap", args->shaders.wrap,
                   "--shaders: texture wrap clamp-to-edge | repeat | mirrored-repeat");
+  sub->add_option("--layout", args->shaders.layout,
+                  "--shaders: JSON file of the names your shaders use for the preset's samplers, "
+                  "uniforms and attributes (docs/check.md)");
   sub->add_option("--final-target", args->shaders.final_target,
                   "--shaders: the final pass draws into a target like the others (same) or an "
                   "8-bit one like the tutorial's window (rgba8)")

@@ -11,6 +11,7 @@
 #include "bloomref/gpu/context.h"
 #include "bloomref/gpu/user_pipeline.h"
 #include "bloomref/io.h"
+#include "check/layout.h"
 
 namespace bloomref::cli {
 
@@ -64,6 +65,7 @@ std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
   opt.filter = gpu::parse_texture_filter(s.filter);
   opt.wrap = gpu::parse_texture_wrap(s.wrap);
   opt.final_target = gpu::parse_final_target(s.final_target);
+  if (!s.layout.empty()) opt.layout = read_layout(s.layout);
   std::string source;
   const LoadedImage scene = pipeline.load_input(scene_path, source);
   auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3

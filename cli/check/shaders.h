@@ -13,6 +13,7 @@ struct ShaderArgs {
   std::string preset;  ///< "learnopengl"
   std::string blur_fs, final_fs, blur_vs, final_vs, bright_fs;
   std::string target_format, filter = "linear", wrap = "clamp-to-edge", final_target = "same";
+  std::string layout;  ///< a layout file: the names the shaders use (check/layout.h)
   bool any() const { return !preset.empty(); }
 };
 

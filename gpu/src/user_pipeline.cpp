@@ -93,24 +93,75 @@ std::string number(float v) {
   return s.str();
 }
 
-// What the preset's host code sets in each program (bloom.cpp's shaderBlur, shaderBloomFinal).
-std::vector<HostUniform> blur_host() {
-  return {{"image", HostUniform::sampler, true,
-           "texture unit 0: the bright image on pass 1, else the other ping-pong target"},
-          {"horizontal", HostUniform::flag, true, "true on odd passes: pass 1 is horizontal"}};
+std::string numbers(const std::vector<float>& v) {
+  std::string s = "(";
+  for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + number(v[i]);
+  return s + ")";
+}
+
+std::string describe(const LayoutValue& v) {
+  switch (v.kind) {
+    case LayoutValue::texel_size:
+      return "the targets' texel size (1 / width, 1 / height)";
+    case LayoutValue::target_size:
+      return "the targets' size (width, height)";
+    case LayoutValue::numbers:
+      break;
+  }
+  return v.values.size() == 1 ? number(v.values[0]) : numbers(v.values);
+}
+
+// A layout's further uniforms of one program, as host uniforms.
+void add_set(std::vector<HostUniform>& host,
+             const std::vector<std::pair<std::string, LayoutValue>>& set,
+             const std::string& layout_file) {
+  for (const auto& [name, value] : set)
+    host.push_back({name, HostUniform::vector, true,
+                    "set to " + describe(value) + ", layout " + layout_file, value.components()});
+}
+
+// What the preset's host code sets in each program (bloom.cpp's shaderBlur, shaderBloomFinal),
+// under the layout's names.
+std::vector<HostUniform> blur_host(const PresetLayout& l) {
+  std::vector<HostUniform> host = {
+      {l.blur_image, HostUniform::sampler, true,
+       "texture unit 0: the bright image on pass 1, else the other ping-pong target"}};
+  if (l.direction.empty())
+    host.push_back({l.horizontal, HostUniform::flag, true, "true on odd passes: pass 1 is horizontal"});
+  else
+    host.push_back({l.direction, HostUniform::vector, true,
+                    describe(l.direction_h) + " on odd (horizontal) passes, " +
+                        describe(l.direction_v) + " on even ones, layout " + l.file,
+                    l.direction_h.components()});
+  add_set(host, l.blur_set, l.file);
+  return host;
 }
 
 std::vector<HostUniform> final_host(const UserPipelineOptions& opt) {
-  return {{"scene", HostUniform::sampler, true, "texture unit 0: the scene"},
-          {"bloomBlur", HostUniform::sampler, true, "texture unit 1: the last blur pass"},
-          // Without `bloom` the shader always adds the bloom: refused only when asked off.
-          {"bloom", HostUniform::flag, !opt.bloom, opt.bloom ? "true" : "false: bloom off"},
-          {"exposure", HostUniform::number, true, "exposure = " + number(opt.exposure)}};
+  const PresetLayout& l = opt.layout;
+  std::vector<HostUniform> host = {
+      {l.final_scene, HostUniform::sampler, true, "texture unit 0: the scene"},
+      {l.final_bloom, HostUniform::sampler, true, "texture unit 1: the last blur pass"},
+      // Without `bloom` the shader always adds the bloom: refused only when asked off.
+      {l.bloom, HostUniform::flag, !opt.bloom, opt.bloom ? "true" : "false: bloom off"},
+      {l.exposure, HostUniform::number, true, "exposure = " + number(opt.exposure)}};
+  add_set(host, l.final_set, l.file);
+  return host;
 }
 
 std::vector<HostUniform> bright_host(const UserPipelineOptions& opt) {
-  return {{"scene", HostUniform::sampler, true, "texture unit 0: the scene"},
-          {"threshold", HostUniform::number, false, "threshold = " + number(opt.threshold)}};
+  const PresetLayout& l = opt.layout;
+  std::vector<HostUniform> host = {
+      {l.bright_scene, HostUniform::sampler, true, "texture unit 0: the scene"},
+      {l.threshold, HostUniform::number, false, "threshold = " + number(opt.threshold)}};
+  add_set(host, l.bright_set, l.file);
+  return host;
+}
+
+// The layout's further uniforms of one program, set for targets of w x h.
+void set_values(const UserProgram& p, const std::vector<std::pair<std::string, LayoutValue>>& set,
+                int w, int h) {
+  for (const auto& [name, value] : set) p.set_vector(name, value.at(w, h));
 }
 
 struct Programs {
@@ -121,23 +172,26 @@ struct Programs {
 Programs build_programs_unchecked(GlContext& ctx, const LearnOpenGLShaders& s,
                                   const UserPipelineOptions& opt) {
   Programs p;
+  const PresetLayout& l = opt.layout;
+  const VertexNames names{l.position, l.texcoords, l.varying};
   if (s.bright_fs) {
     p.bright = build_user_program("bright", s.bright_vs ? &*s.bright_vs : nullptr, *s.bright_fs,
-                                  bright_host(opt));
-    p.bright->set_sampler("scene", 0);
-    p.bright->set_number("threshold", opt.threshold);
+                                  bright_host(opt), names);
+    p.bright->set_sampler(l.bright_scene, 0);
+    p.bright->set_number(l.threshold, opt.threshold);
   } else if (s.bright_vs) {
     throw ParamError("a bright-pass vertex shader (" + s.bright_vs->path +
                      ") was given without a bright-pass fragment shader");
   }
-  p.blur = build_user_program("blur", s.blur_vs ? &*s.blur_vs : nullptr, s.blur_fs, blur_host());
-  p.blur.set_sampler("image", 0);
-  p.final =
-      build_user_program("final", s.final_vs ? &*s.final_vs : nullptr, s.final_fs, final_host(opt));
-  p.final.set_sampler("scene", 0);
-  p.final.set_sampler("bloomBlur", 1);
-  p.final.set_flag("bloom", opt.bloom);
-  p.final.set_number("exposure", opt.exposure);
+  p.blur = build_user_program("blur", s.blur_vs ? &*s.blur_vs : nullptr, s.blur_fs, blur_host(l),
+                              names);
+  p.blur.set_sampler(l.blur_image, 0);
+  p.final = build_user_program("final", s.final_vs ? &*s.final_vs : nullptr, s.final_fs,
+                               final_host(opt), names);
+  p.final.set_sampler(l.final_scene, 0);
+  p.final.set_sampler(l.final_bloom, 1);
+  p.final.set_flag(l.bloom, opt.bloom);
+  p.final.set_number(l.exposure, opt.exposure);
   ctx.check("building the user's programs");
   return p;
 }
@@ -167,6 +221,18 @@ std::vector<ProgramInterface> interfaces(const Programs& p) {
 }
 
 void validate(const UserPipelineOptions& opt) {
+  const PresetLayout& l = opt.layout;
+  if (!l.direction.empty() &&
+      (l.direction_h.kind != LayoutValue::numbers || l.direction_v.kind != LayoutValue::numbers ||
+       l.direction_h.values.empty() || l.direction_h.values.size() > 4 ||
+       l.direction_h.values.size() != l.direction_v.values.size()))
+    throw ParamError("the blur direction '" + l.direction +
+                     "' needs the same count (1 to 4) of numbers for both axes");
+  for (const auto* set : {&l.bright_set, &l.blur_set, &l.final_set})
+    for (const auto& [name, v] : *set)
+      if (v.kind == LayoutValue::numbers && (v.values.empty() || v.values.size() > 4))
+        throw ParamError("uniform '" + name + "' is given " + std::to_string(v.values.size()) +
+                         " numbers: a float, vec2, vec3 or vec4 takes 1 to 4");
   if (opt.passes < 0 || opt.passes > 1000)
     throw ParamError("passes " + std::to_string(opt.passes) + " is not in [0, 1000]");
   if (!std::isfinite(opt.exposure)) throw ParamError("exposure must be finite");
@@ -293,6 +359,18 @@ ShaderSource load_shader(const std::string& path) {
   return {path, text.str()};
 }
 
+std::vector<float> LayoutValue::at(int w, int h) const {
+  switch (kind) {
+    case texel_size:
+      return {1.0f / static_cast<float>(w), 1.0f / static_cast<float>(h)};
+    case target_size:
+      return {static_cast<float>(w), static_cast<float>(h)};
+    case numbers:
+      break;
+  }
+  return values;
+}
+
 UserPipelineOptions options_for(const BloomParams& params) {
   if (params.method != Method::gaussian)
     throw ParamError(
@@ -328,6 +406,10 @@ class LearnOpenGLHost {
         format_(gl_format(opt.format)), prog_(build_programs(ctx, shaders, opt)) {
     run_.programs = interfaces(prog_);
     run_.bright_source = shaders.bright_fs ? shaders.bright_fs->path : "oracle";
+    const PresetLayout& l = opt.layout;
+    if (prog_.bright) set_values(*prog_.bright, l.bright_set, w_, h_);
+    set_values(prog_.blur, l.blur_set, w_, h_);
+    set_values(prog_.final, l.final_set, w_, h_);
   }
 
   UserPipelineRun run() {
@@ -419,7 +501,9 @@ class LearnOpenGLHost {
     bool horizontal = true;
     for (int k = 1; k <= opt_.passes; ++k) {
       const Texture& src = k == 1 ? bright_tex_ : ping_[horizontal ? 0 : 1];
-      prog_.blur.set_flag("horizontal", horizontal);
+      const PresetLayout& l = opt_.layout;
+      if (l.direction.empty()) prog_.blur.set_flag(l.horizontal, horizontal);
+      else prog_.blur.set_vector(l.direction, (horizontal ? l.direction_h : l.direction_v).values);
       const std::string name = "blur." + std::to_string(k);
       const double ms = quad_.draw(ctx_, prog_.blur, {&src}, ping_[horizontal ? 1 : 0], nullptr,
                                    opt_.clear_colour, ("the user's blur pass " + name).c_str());

@@ -129,16 +129,23 @@ bool initialised(GLuint prog, const std::string& name, GLenum type, int size) {
   return false;
 }
 
-const char* kind_name(HostUniform::Kind k) {
-  switch (k) {
+std::string kind_name(const HostUniform& h) {
+  switch (h.kind) {
     case HostUniform::sampler:
       return "sampler2D";
     case HostUniform::flag:
       return "bool";
     case HostUniform::number:
       return "float";
+    case HostUniform::vector:
+      return h.components == 1 ? "float" : "vec" + std::to_string(h.components);
   }
   return "?";
+}
+
+// The GL type a float vector of n components is declared as.
+GLenum vector_type(int n) {
+  return n == 2 ? GL_FLOAT_VEC2 : n == 3 ? GL_FLOAT_VEC3 : n == 4 ? GL_FLOAT_VEC4 : GL_FLOAT;
 }
 
 // The file to name for a uniform: the user's vertex shader when only it mentions the name.
@@ -178,12 +185,14 @@ void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostU
     if (it != host.end()) {
       const bool ok = size == 1 && (it->kind == HostUniform::sampler ? type == GL_SAMPLER_2D
                                     : it->kind == HostUniform::flag  ? is_flag_type(type)
-                                                                     : type == GL_FLOAT);
+                                    : it->kind == HostUniform::vector
+                                        ? type == vector_type(it->components)
+                                        : type == GL_FLOAT);
       if (!ok)
         throw UserShaderError(file, (is_sampler(type) ? "sampler '" : "uniform '") + name +
                                         "' is declared " + v.type +
                                         (size > 1 ? "[" + std::to_string(size) + "]" : "") +
-                                        "; the learnopengl preset sets a " + kind_name(it->kind) +
+                                        "; the learnopengl preset sets a " + kind_name(*it) +
                                         " (" + it->role + ")");
       v.role = "set by the host: " + it->role;
       seen.push_back(name);
@@ -194,7 +203,8 @@ void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostU
     } else if (!initialised(prog, name, type, size)) {
       throw UserShaderError(file, "uniform '" + name + "' (" + v.type +
                                       ") is not set by the learnopengl preset's host code and has "
-                                      "no non-zero initialiser, so it would be used at 0");
+                                      "no non-zero initialiser, so it would be used at 0 (a "
+                                      "--layout file's \"set\" gives it a value)");
     } else {
       v.role = "not set by the host: kept at its initialiser";
     }
@@ -204,14 +214,14 @@ void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostU
     if (!h.required || std::find(seen.begin(), seen.end(), h.name) != seen.end()) continue;
     throw UserShaderError(files.fs.path,
                           std::string(h.kind == HostUniform::sampler ? "sampler '" : "uniform '") +
-                              h.name + "' (" + kind_name(h.kind) + ", " + h.role +
+                              h.name + "' (" + kind_name(h) + ", " + h.role +
                               ") is missing: the preset requires it. A uniform the shader "
                               "declares but never reads is removed by the compiler and "
                               "counts as missing");
   }
 }
 
-void check_attributes(UserProgram& up, const std::string& file) {
+void check_attributes(UserProgram& up, const std::string& file, const VertexNames& names) {
   const GLuint prog = up.program.id;
   GLint count = 0;
   glGetProgramiv(prog, GL_ACTIVE_ATTRIBUTES, &count);
@@ -230,7 +240,8 @@ void check_attributes(UserProgram& up, const std::string& file) {
       throw UserShaderError(file, "attribute '" + name + "' (" + v.type + ", location " +
                                       std::to_string(loc) +
                                       ") is not one the learnopengl preset feeds: it feeds "
-                                      "location 0 aPos (vec3) and location 1 aTexCoords (vec2)");
+                                      "location 0 " + names.position + " (vec3) and location 1 " +
+                                      names.texcoords + " (vec2)");
     v.role = loc == 0 ? "fed by the host: the quad's corner (x, y, 0)"
                       : "fed by the host: the quad's texture coordinate (s, t)";
     up.interface.attributes.push_back(std::move(v));
@@ -283,15 +294,44 @@ void UserProgram::set_sampler(const std::string& uniform, int unit) const {
   if (loc >= 0) glProgramUniform1i(program.id, loc, unit);
 }
 
+void UserProgram::set_vector(const std::string& uniform, const std::vector<float>& v) const {
+  const GLint loc = location(uniform);
+  if (loc < 0) return;
+  switch (v.size()) {
+    case 1: glProgramUniform1fv(program.id, loc, 1, v.data()); break;
+    case 2: glProgramUniform2fv(program.id, loc, 1, v.data()); break;
+    case 3: glProgramUniform3fv(program.id, loc, 1, v.data()); break;
+    case 4: glProgramUniform4fv(program.id, loc, 1, v.data()); break;
+    default: break;
+  }
+}
+
 bool UserProgram::has_output(int loc) const {
   return std::find(output_locations.begin(), output_locations.end(), loc) != output_locations.end();
 }
 
+namespace {
+
+// bloomref's pass-through vertex shader, writing the texture coordinate as `varying`.
+ShaderSource pass_through(const std::string& varying) {
+  std::string text = shader_sources().at("user_quad.vert");
+  for (const std::string from : {"out vec2 TexCoords;", "  TexCoords = aTexCoords;"}) {
+    const std::size_t at = text.find(from);
+    if (at == std::string::npos) continue;
+    std::string to = from;
+    to.replace(to.find("TexCoords"), 9, varying);
+    text.replace(at, from.size(), to);
+  }
+  return {"bloomref's user_quad.vert", text};
+}
+
+}  // namespace
+
 UserProgram build_user_program(const std::string& name, const ShaderSource* vs,
-                               const ShaderSource& fs, const std::vector<HostUniform>& host) {
-  static const ShaderSource pass_through{"bloomref's user_quad.vert",
-                                         shader_sources().at("user_quad.vert")};
-  const ShaderSource& vertex = vs ? *vs : pass_through;
+                               const ShaderSource& fs, const std::vector<HostUniform>& host,
+                               const VertexNames& names) {
+  const ShaderSource own = pass_through(names.varying);
+  const ShaderSource& vertex = vs ? *vs : own;
   UserProgram up;
   up.interface.program = name;
   up.interface.vertex_file = vs ? vs->path : "";
@@ -308,8 +348,9 @@ UserProgram build_user_program(const std::string& name, const ShaderSource* vs,
   up.program.id = glCreateProgram();
   glAttachShader(up.program.id, v);
   glAttachShader(up.program.id, f);
-  glBindAttribLocation(up.program.id, 0, "aPos");
-  glBindAttribLocation(up.program.id, 1, "aTexCoords");
+  // bloomref's own vertex shader declares the tutorial's attributes at locations 0 and 1.
+  glBindAttribLocation(up.program.id, 0, vs ? names.position.c_str() : "aPos");
+  glBindAttribLocation(up.program.id, 1, vs ? names.texcoords.c_str() : "aTexCoords");
   glLinkProgram(up.program.id);
   glDeleteShader(v);
   glDeleteShader(f);
@@ -323,7 +364,8 @@ UserProgram build_user_program(const std::string& name, const ShaderSource* vs,
   if (!messages.empty()) log += name + " program: " + messages + "\n";
   up.interface.log = log;
   check_uniforms(up, Files{vs, fs}, host);
-  check_attributes(up, vs ? vs->path : fs.path);
+  check_attributes(up, vs ? vs->path : fs.path,
+                   vs ? names : VertexNames{"aPos", "aTexCoords", names.varying});
   read_outputs(up, fs.path);
   return up;
 }

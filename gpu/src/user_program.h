@@ -10,13 +10,22 @@
 
 namespace bloomref::gpu {
 
-/// A uniform the host sets. `flag`: bool (or int / uint) set to 0 or 1; `number`: float.
+/// A uniform the host sets. `flag`: bool (or int / uint) set to 0 or 1; `number`: float;
+/// `vector`: float, vec2, vec3 or vec4 by `components`.
 struct HostUniform {
-  enum Kind { sampler, flag, number };
+  enum Kind { sampler, flag, number, vector };
   std::string name;
   Kind kind = number;
   bool required = true;
   std::string role;  ///< how the host sets it, for the interface report
+  int components = 1;  ///< kind vector
+};
+
+/// The names a program's vertex stage uses: the attributes the host binds to locations 0 and 1
+/// (of the user's vertex shader), and the texture coordinate bloomref's pass-through vertex
+/// shader writes (when the user gives none).
+struct VertexNames {
+  std::string position = "aPos", texcoords = "aTexCoords", varying = "TexCoords";
 };
 
 struct UserProgram {
@@ -28,13 +37,16 @@ struct UserProgram {
   void set_flag(const std::string& uniform, bool v) const;
   void set_number(const std::string& uniform, float v) const;
   void set_sampler(const std::string& uniform, int unit) const;
+  void set_vector(const std::string& uniform, const std::vector<float>& v) const;
   bool has_output(int location) const;
 };
 
-/// Compiles `fs` (and `vs`, or bloomref's pass-through when null), binds aPos to attribute 0
-/// and aTexCoords to 1, links, and checks the program's active uniforms, attributes and outputs
-/// against `host`. Throws UserShaderError naming the file and the uniform, sampler or attribute.
+/// Compiles `fs` (and `vs`, or bloomref's pass-through when null), binds the position attribute
+/// to location 0 and the texture coordinate to 1, links, and checks the program's active
+/// uniforms, attributes and outputs against `host`. Throws UserShaderError naming the file and
+/// the uniform, sampler or attribute.
 UserProgram build_user_program(const std::string& name, const ShaderSource* vs,
-                               const ShaderSource& fs, const std::vector<HostUniform>& host);
+                               const ShaderSource& fs, const std::vector<HostUniform>& host,
+                               const VertexNames& names = {});
 
 }  // namespace bloomref::gpu

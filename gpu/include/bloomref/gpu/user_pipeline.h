@@ -16,6 +16,10 @@
 //    `exposure` (float); it draws into a target of the same format.
 // Host state is declared in UserPipelineOptions, never assumed: target format, filter, wrap,
 // clear colour (every target is cleared to it before its pass draws), passes, exposure, bloom.
+// Shaders that follow these passes under other names declare them in a PresetLayout: every name
+// above (attributes, samplers, uniforms, the pass-through's varying), a direction vector in place
+// of the `horizontal` flag, and further uniforms set to given values or to the targets' texel
+// size or size.
 //
 // Interface check (before any pass runs): each linked program's active uniforms and attributes
 // are read back (glGetProgramiv GL_ACTIVE_UNIFORMS / GL_ACTIVE_ATTRIBUTES) and compared with what
@@ -43,6 +47,7 @@
 #include <array>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bloomref/error.h"
@@ -105,6 +110,41 @@ struct LearnOpenGLShaders {
   std::optional<ShaderSource> bright_fs, bright_vs;
 };
 
+/// A value the host sets a uniform of the user's layout to: given numbers (a float, vec2, vec3 or
+/// vec4 by their count), or, computed from the render targets (all the scene's size), their
+/// texel size (1 / width, 1 / height) or their size in pixels (width, height).
+struct LayoutValue {
+  enum Kind { numbers, texel_size, target_size };
+  Kind kind = numbers;
+  std::vector<float> values;  ///< kind numbers: 1 to 4 of them
+  int components() const { return kind == numbers ? static_cast<int>(values.size()) : 2; }
+  /// The values to set on targets of w x h.
+  std::vector<float> at(int w, int h) const;
+};
+
+/// The user's names for what the preset's host code binds and sets, for shaders that follow the
+/// tutorial's passes under other names (a layout file, docs/check.md): each defaults to the
+/// tutorial's own name.
+struct PresetLayout {
+  std::string file;  ///< the layout file, named in messages ("" = the tutorial's names)
+  /// Attributes 0 and 1 of the user's vertex shaders.
+  std::string position = "aPos", texcoords = "aTexCoords";
+  /// The texture coordinate bloomref's pass-through vertex shader hands to a fragment shader
+  /// whose vertex shader is not given.
+  std::string varying = "TexCoords";
+  std::string bright_scene = "scene", threshold = "threshold";
+  std::string blur_image = "image", horizontal = "horizontal";
+  /// Instead of the `horizontal` flag (when not empty): a float vector uniform set to
+  /// `direction_h` on horizontal passes and `direction_v` on vertical ones (the same count of
+  /// numbers, 1 to 4), e.g. (1, 0) and (0, 1).
+  std::string direction;
+  LayoutValue direction_h, direction_v;
+  std::string final_scene = "scene", final_bloom = "bloomBlur", bloom = "bloom",
+              exposure = "exposure";
+  /// Further uniforms the host sets, per program, by the user's name (in that name's order).
+  std::vector<std::pair<std::string, LayoutValue>> bright_set, blur_set, final_set;
+};
+
 struct UserPipelineOptions {
   TargetFormat format = TargetFormat::rgba16f;  ///< the tutorial's GL_RGBA16F
   TextureFilter filter = TextureFilter::linear;
@@ -125,6 +165,7 @@ struct UserPipelineOptions {
   RowOrder rows = RowOrder::same;
   FinalTarget final_target = FinalTarget::same;
   int threads = 0;  ///< CPU threads for the oracle's input and bright stages
+  PresetLayout layout;  ///< the names the user's shaders use (default: the tutorial's)
 };
 
 /// The options a bloomref run with `params` declares: passes, exposure, threshold, non-finite
