@@ -213,6 +213,20 @@ TEST_CASE("check --shaders --layout runs shaders that use other names", "[check-
     CHECK(j["items"][0]["first_divergent_stage"] == "output");
     CHECK(j["items"][0]["first_divergent_cause"]["id"] == "gamma-missing");
   }
+  SECTION("a direction that holds the texel step (texel-x, texel-y), the texel size set to 1") {
+    std::string layout = engine_layout("\"texel-y\"");
+    for (const auto& [from, to] : {std::pair<std::string, std::string>{"[1, 0]", "\"texel-x\""},
+                                   {"\"texel-size\"", "[1, 1]"}}) {
+      const std::size_t at = layout.find(from);
+      REQUIRE(at != std::string::npos);
+      layout.replace(at, from.size(), to);
+    }
+    test::write_bytes(dir / "steps.json", layout);
+    const test::CliResult r = test::run_cli(
+        kArgs + shaders + "--layout steps.json --storage f32", "", dir.path());
+    INFO(layout << "\n" << r.out << r.err);
+    CHECK(r.code == 0);
+  }
   SECTION("without the layout the same shaders are refused, naming the file and the name") {
     const test::CliResult r = test::run_cli(kArgs + shaders, "", dir.path());
     CHECK(r.code == 2);

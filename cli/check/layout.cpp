@@ -57,7 +57,11 @@ gpu::LayoutValue value(const std::string& file, const std::string& field, const 
     const std::string s = v.get<std::string>();
     if (s == "texel-size") out.kind = gpu::LayoutValue::texel_size;
     else if (s == "target-size") out.kind = gpu::LayoutValue::target_size;
-    else bad(file, field, "'" + s + "' is not a value the host computes (texel-size, target-size)");
+    else if (s == "texel-x") out.kind = gpu::LayoutValue::texel_x;
+    else if (s == "texel-y") out.kind = gpu::LayoutValue::texel_y;
+    else
+      bad(file, field,
+          "'" + s + "' is not a value the host computes (texel-size, target-size, texel-x, texel-y)");
     return out;
   }
   if (v.is_number()) {
@@ -68,7 +72,9 @@ gpu::LayoutValue value(const std::string& file, const std::string& field, const 
       out.values.push_back(x.get<float>());
     }
   } else {
-    bad(file, field, "must be a number, 1 to 4 numbers, \"texel-size\" or \"target-size\"");
+    bad(file, field,
+        "must be a number, 1 to 4 numbers, or \"texel-size\", \"target-size\", \"texel-x\", "
+        "\"texel-y\"");
   }
   for (float x : out.values)
     if (!std::isfinite(x)) bad(file, field, "must be finite");
@@ -136,10 +142,8 @@ gpu::PresetLayout read_layout(const std::string& path) {
       name(path, d, "blur.direction", "uniform", l.direction);
       l.direction_h = value(path, "blur.direction.horizontal", d["horizontal"]);
       l.direction_v = value(path, "blur.direction.vertical", d["vertical"]);
-      if (l.direction_h.kind != gpu::LayoutValue::numbers ||
-          l.direction_v.kind != gpu::LayoutValue::numbers ||
-          l.direction_h.values.size() != l.direction_v.values.size())
-        bad(path, "blur.direction", "horizontal and vertical must be as many numbers each");
+      if (l.direction_h.components() != l.direction_v.components())
+        bad(path, "blur.direction", "horizontal and vertical must have as many components each");
     }
     set_of(path, b, "blur", l.blur_set);
   }

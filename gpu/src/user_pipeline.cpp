@@ -105,6 +105,10 @@ std::string describe(const LayoutValue& v) {
       return "the targets' texel size (1 / width, 1 / height)";
     case LayoutValue::target_size:
       return "the targets' size (width, height)";
+    case LayoutValue::texel_x:
+      return "one texel along x (1 / width, 0)";
+    case LayoutValue::texel_y:
+      return "one texel along y (0, 1 / height)";
     case LayoutValue::numbers:
       break;
   }
@@ -223,11 +227,10 @@ std::vector<ProgramInterface> interfaces(const Programs& p) {
 void validate(const UserPipelineOptions& opt) {
   const PresetLayout& l = opt.layout;
   if (!l.direction.empty() &&
-      (l.direction_h.kind != LayoutValue::numbers || l.direction_v.kind != LayoutValue::numbers ||
-       l.direction_h.values.empty() || l.direction_h.values.size() > 4 ||
-       l.direction_h.values.size() != l.direction_v.values.size()))
+      (l.direction_h.components() < 1 || l.direction_h.components() > 4 ||
+       l.direction_h.components() != l.direction_v.components()))
     throw ParamError("the blur direction '" + l.direction +
-                     "' needs the same count (1 to 4) of numbers for both axes");
+                     "' needs as many components (1 to 4) for both axes");
   for (const auto* set : {&l.bright_set, &l.blur_set, &l.final_set})
     for (const auto& [name, v] : *set)
       if (v.kind == LayoutValue::numbers && (v.values.empty() || v.values.size() > 4))
@@ -365,6 +368,10 @@ std::vector<float> LayoutValue::at(int w, int h) const {
       return {1.0f / static_cast<float>(w), 1.0f / static_cast<float>(h)};
     case target_size:
       return {static_cast<float>(w), static_cast<float>(h)};
+    case texel_x:
+      return {1.0f / static_cast<float>(w), 0.0f};
+    case texel_y:
+      return {0.0f, 1.0f / static_cast<float>(h)};
     case numbers:
       break;
   }
@@ -503,7 +510,7 @@ class LearnOpenGLHost {
       const Texture& src = k == 1 ? bright_tex_ : ping_[horizontal ? 0 : 1];
       const PresetLayout& l = opt_.layout;
       if (l.direction.empty()) prog_.blur.set_flag(l.horizontal, horizontal);
-      else prog_.blur.set_vector(l.direction, (horizontal ? l.direction_h : l.direction_v).values);
+      else prog_.blur.set_vector(l.direction, (horizontal ? l.direction_h : l.direction_v).at(w_, h_));
       const std::string name = "blur." + std::to_string(k);
       const double ms = quad_.draw(ctx_, prog_.blur, {&src}, ping_[horizontal ? 1 : 0], nullptr,
                                    opt_.clear_colour, ("the user's blur pass " + name).c_str());

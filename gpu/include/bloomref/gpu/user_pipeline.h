@@ -112,9 +112,10 @@ struct LearnOpenGLShaders {
 
 /// A value the host sets a uniform of the user's layout to: given numbers (a float, vec2, vec3 or
 /// vec4 by their count), or, computed from the render targets (all the scene's size), their
-/// texel size (1 / width, 1 / height) or their size in pixels (width, height).
+/// texel size (1 / width, 1 / height), their size in pixels (width, height), or one texel step
+/// along x (1 / width, 0) or y (0, 1 / height).
 struct LayoutValue {
-  enum Kind { numbers, texel_size, target_size };
+  enum Kind { numbers, texel_size, target_size, texel_x, texel_y };
   Kind kind = numbers;
   std::vector<float> values;  ///< kind numbers: 1 to 4 of them
   int components() const { return kind == numbers ? static_cast<int>(values.size()) : 2; }
@@ -135,8 +136,8 @@ struct PresetLayout {
   std::string bright_scene = "scene", threshold = "threshold";
   std::string blur_image = "image", horizontal = "horizontal";
   /// Instead of the `horizontal` flag (when not empty): a float vector uniform set to
-  /// `direction_h` on horizontal passes and `direction_v` on vertical ones (the same count of
-  /// numbers, 1 to 4), e.g. (1, 0) and (0, 1).
+  /// `direction_h` on horizontal passes and `direction_v` on vertical ones (as many components
+  /// each, 1 to 4), e.g. (1, 0) and (0, 1), or texel_x and texel_y.
   std::string direction;
   LayoutValue direction_h, direction_v;
   std::string final_scene = "scene", final_bloom = "bloomBlur", bloom = "bloom",
