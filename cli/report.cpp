@@ -329,7 +329,7 @@ void write_stage(std::ostringstream& html, const fs::path& root, const parity::S
 std::string cause_line(const parity::StageComparison& s) {
   if (s.causes.empty()) return s.verdict == parity::Verdict::pass ? "" : "no usual cause explains it";
   const parity::CauseFit& c = s.causes.front();
-  std::string line = (c.within >= 0.999 ? "likely cause: " : "best partial explanation: ") +
+  std::string line = (c.likely() ? "likely cause: " : "best partial explanation: ") +
                      c.description + " (brings " + percent(c.within) +
                      " of values within bound; as specified " + percent(c.oracle_within) + ")";
   if (!c.detail.empty()) line += "; " + c.detail;

@@ -266,6 +266,48 @@ TEST_CASE("GL_NEAREST under the linear5 kernel is named", "[check]") {
   CHECK(best_cause(stage(r, "blur.1")) == "nearest-filter");
 }
 
+TEST_CASE("a blur pass clamped to 1 is named and a change that explains nothing is not", "[check]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto cpu = trace_of(p, scene);
+  // The user's first pass clamps its sum to [0, 1] (clamp() in the shader, or an 8-bit target):
+  // written out here from the CPU's own pass. The lights make blur.1 exceed 1 near them.
+  std::map<std::string, Image> user{{"bright", cpu.at("bright")}, {"blur.1", cpu.at("blur.1")}};
+  int clamped = 0;
+  for (float& v : user["blur.1"].values())
+    if (v > 1.0f) {
+      v = 1.0f;
+      ++clamped;
+    }
+  REQUIRE(clamped > 0);
+  const auto r = check(p, scene, user);
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "blur.1");
+  const parity::StageComparison& b = stage(r, "blur.1");
+  CHECK(best_cause(b) == "blur-clamped");
+  CHECK(b.causes.front().within == 1.0);
+  CHECK(b.causes.front().likely());
+  // Every cause listed brings within bound at least a tenth of the values the oracle as
+  // specified leaves out (fractions of all values; the count the oracle misses is known here).
+  for (const parity::CauseFit& c : b.causes) {
+    INFO(c.id << " " << c.within << " " << c.oracle_within);
+    CHECK(c.within - c.oracle_within >= 0.1 * (1 - c.oracle_within));
+  }
+}
+
+TEST_CASE("a cause is likely only when it explains nearly all of a failure", "[check]") {
+  parity::CauseFit c{"x", "x", "", 1.0, 0.5};
+  CHECK(c.likely());
+  c.within = 0.9995;  // 0.05% left out, a thousandth of the oracle's 50%
+  CHECK(c.likely());
+  c.within = 0.998;  // 0.2% left out: more than 0.1% of all values
+  CHECK_FALSE(c.likely());
+  c = {"x", "x", "", 0.99995, 0.9997};  // 0.005% left out of the oracle's 0.03%: a sixth
+  CHECK_FALSE(c.likely());
+  c.within = 0.99999;  // 0.001% of 0.03%: a thirtieth
+  CHECK(c.likely());
+}
+
 TEST_CASE("bugs of the bright pass are named", "[check]") {
   const Image scene = test_scene();
   BloomParams p = test_params();

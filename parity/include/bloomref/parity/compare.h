@@ -53,6 +53,10 @@ struct CauseFit {
   /// hypothesis's own rounding: captured.cpp says how much).
   double within = 0;
   double oracle_within = 0;  ///< the same measure of the oracle as specified
+  /// Whether it explains the failure (a "likely cause"): at most 0.1% of all values left out of
+  /// bound, and at most a tenth of those the oracle as specified leaves out. Otherwise it is a
+  /// partial explanation (test_causes keeps none that brings in less than a tenth of them).
+  bool likely() const { return within >= 0.999 && 1 - within <= 0.1 * (1 - oracle_within); }
 };
 
 struct StageComparison {
