@@ -255,7 +255,14 @@ TEST_CASE("check --shaders --layout runs shaders that use other names", "[check-
     CHECK(r.code == 0);
   }
   SECTION("without the layout the same shaders are refused, naming the file and the name") {
-    const test::CliResult r = test::run_cli(kArgs + shaders, "", dir.path());
+    // First what the pass-through does not write (vUV), then, with only the varying declared,
+    // the sampler the preset does not bind.
+    test::CliResult r = test::run_cli(kArgs + shaders, "", dir.path());
+    CHECK(r.code == 2);
+    CHECK(r.err.find("blur.frag") != std::string::npos);
+    CHECK(r.err.find("input 'vUV'") != std::string::npos);
+    test::write_bytes(dir / "varying.json", "{\"version\": 1, \"varying\": \"vUV\"}");
+    r = test::run_cli(kArgs + shaders + "--layout varying.json", "", dir.path());
     CHECK(r.code == 2);
     CHECK(r.err.find("blur.frag") != std::string::npos);
     CHECK(r.err.find("uSource") != std::string::npos);

@@ -1,6 +1,7 @@
 // The learnopengl preset refuses what its host code cannot drive (gpu/user_pipeline.h): a
 // shader that does not compile or link, a sampler or uniform it requires that is missing or
-// mistyped, one it does not know; and it reports how it sets each uniform it accepts.
+// mistyped, one it does not know, a fragment input no vertex shader writes; and it reports how
+// it sets each uniform it accepts.
 #include <catch2/catch.hpp>
 
 #include "bloomref/gpu/user_pipeline.h"
@@ -40,6 +41,52 @@ TEST_CASE("shaders that do not fit the preset are refused, naming the file and t
     CHECK_THAT(m,
                Catch::Contains("test_blur9.fs | test_blur9.fs: fragment shader does not compile"));
     CHECK_THAT(m, Catch::Contains("textur"));  // the log names the culprit
+  }
+  SECTION("a fragment input no vertex shader writes: undefined in every pass") {
+    // bloomref's pass-through writes TexCoords; a fragment shader reading UV would read 0.
+    std::string uv = kBlur9;
+    for (std::size_t at = uv.find("TexCoords"); at != std::string::npos; at = uv.find("TexCoords"))
+      uv.replace(at, 9, "UV");
+    std::string m = refusal(own_shaders(uv), opt);
+    CHECK_THAT(m, Catch::StartsWith("test_blur9.fs | "));
+    CHECK_THAT(m, Catch::Contains("input 'UV'"));
+    CHECK_THAT(m, Catch::Contains("pass-through vertex shader, which writes 'TexCoords'"));
+    // The layout's varying makes the pass-through write UV, for every program: the final pass
+    // reading TexCoords is then the one refused, until it reads UV too.
+    UserPipelineOptions named = opt;
+    named.layout.varying = "UV";
+    CHECK_THAT(refusal(own_shaders(uv), named), Catch::StartsWith("test_final.fs | "));
+    std::string final_uv = kFinal;
+    for (std::size_t at = final_uv.find("TexCoords"); at != std::string::npos;
+         at = final_uv.find("TexCoords"))
+      final_uv.replace(at, 9, "UV");
+    CHECK(refusal(own_shaders(uv, final_uv), named) == "accepted");
+    // A vertex shader of the user's that writes another name (in a comment, TexCoords does not
+    // count).
+    LearnOpenGLShaders s = own_shaders();
+    s.blur_vs = ShaderSource{"own.vs",
+                             "#version 330 core\nlayout(location = 0) in vec3 aPos;\n"
+                             "layout(location = 1) in vec2 aTexCoords;\n"
+                             "out vec2 uv; // not: out vec2 TexCoords;\n"
+                             "void main() { uv = aTexCoords; gl_Position = vec4(aPos, 1.0); }\n"};
+    m = refusal(s, opt);
+    CHECK_THAT(m, Catch::Contains("input 'TexCoords' is not written by the vertex shader own.vs"));
+    // Written by the user's vertex shader (two declarators in one declaration): accepted.
+    s.blur_vs->text = replaced(s.blur_vs->text, "out vec2 uv;", "out vec2 uv, TexCoords;");
+    s.blur_vs->text = replaced(s.blur_vs->text, "uv = aTexCoords;", "uv = aTexCoords; TexCoords = uv;");
+    CHECK(refusal(s, opt) == "accepted");
+    // An input declared but never read is no error.
+    CHECK(refusal(own_shaders(replaced(kBlur9, "in vec2 TexCoords;", "in vec2 TexCoords;\nin vec3 unused;")),
+                  opt) == "accepted");
+    // Interface blocks are matched by GL itself, not compared here.
+    LearnOpenGLShaders b = own_shaders(
+        replaced(kBlur9, "in vec2 TexCoords;", "in Quad { vec2 st; } quad;\n#define TexCoords quad.st"));
+    b.blur_vs = ShaderSource{"block.vs",
+                             "#version 330 core\nlayout(location = 0) in vec3 aPos;\n"
+                             "layout(location = 1) in vec2 aTexCoords;\n"
+                             "out Quad { vec2 st; } quad;\n"
+                             "void main() { quad.st = aTexCoords; gl_Position = vec4(aPos, 1.0); }\n"};
+    CHECK(refusal(b, opt) == "accepted");
   }
   SECTION("a sampler the preset requires is missing") {
     const std::string m = refusal(

@@ -1,6 +1,7 @@
 #include "user_program.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -312,6 +313,128 @@ bool UserProgram::has_output(int loc) const {
 
 namespace {
 
+// GLSL text without its comments and preprocessor lines.
+std::string code_of(const std::string& text) {
+  std::string out;
+  for (std::size_t i = 0; i < text.size();) {
+    if (text.compare(i, 2, "//") == 0) {
+      i = text.find('\n', i);
+      if (i == std::string::npos) break;
+    } else if (text.compare(i, 2, "/*") == 0) {
+      const std::size_t end = text.find("*/", i + 2);
+      if (end == std::string::npos) break;
+      out += ' ';
+      i = end + 2;
+    } else if (text[i] == '#' && (out.empty() || out.back() == '\n')) {
+      i = text.find('\n', i);
+      if (i == std::string::npos) break;
+    } else {
+      out += text[i++];
+    }
+  }
+  return out;
+}
+
+bool ident_char(char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; }
+
+// The identifiers of a piece of text, in order.
+std::vector<std::string> identifiers(const std::string& s) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < s.size();) {
+    if (!ident_char(s[i])) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i;
+    while (j < s.size() && ident_char(s[j])) ++j;
+    out.push_back(s.substr(i, j - i));
+    i = j;
+  }
+  return out;
+}
+
+// The variables a shader declares at global scope with one of `qualifiers` (`in` and
+// `varying` for a fragment shader's inputs, `out` and `varying` for a vertex shader's outputs):
+// `[layout(...)] [interpolation] in TYPE NAME [, NAME ...];`. `blocks` is set when an interface
+// block carries one of them (then its members are not listed).
+std::vector<std::string> interface_names(const std::string& text,
+                                         const std::vector<std::string>& qualifiers, bool& blocks) {
+  const std::string code = code_of(text);
+  std::vector<std::string> names;
+  std::string statement;
+  int depth = 0;
+  auto qualified = [&](const std::vector<std::string>& ids) {
+    for (const std::string& q : qualifiers)
+      if (std::find(ids.begin(), ids.end(), q) != ids.end()) return true;
+    return false;
+  };
+  for (char c : code) {
+    if (c == '{') {
+      if (depth++ == 0 && qualified(identifiers(statement))) blocks = true;
+      continue;
+    }
+    if (c == '}') {
+      if (--depth == 0 && statement.find('(') != std::string::npos) statement.clear();  // a body
+      continue;
+    }
+    if (depth > 0) continue;
+    if (c != ';') {
+      statement += c;
+      continue;
+    }
+    // layout(...) is a qualifier; any other parenthesis makes it no plain declaration.
+    std::string plain = statement;
+    statement.clear();
+    for (std::size_t at = plain.find("layout"); at != std::string::npos; at = plain.find("layout")) {
+      const std::size_t close = plain.find(')', at);
+      if (close == std::string::npos) break;
+      plain.erase(at, close - at + 1);
+    }
+    if (plain.find('(') != std::string::npos || plain.find('{') != std::string::npos) continue;
+    std::vector<std::string> parts;
+    std::size_t from = 0;
+    for (std::size_t comma = plain.find(','); ; comma = plain.find(',', from)) {
+      parts.push_back(plain.substr(from, comma == std::string::npos ? std::string::npos : comma - from));
+      if (comma == std::string::npos) break;
+      from = comma + 1;
+    }
+    const std::vector<std::string> first = identifiers(parts[0].substr(0, parts[0].find('[')));
+    if (first.size() < 3 || !qualified(first)) continue;  // qualifier, type, name at least
+    names.push_back(first.back());
+    for (std::size_t k = 1; k < parts.size(); ++k) {
+      const std::vector<std::string> more = identifiers(parts[k].substr(0, parts[k].find('[')));
+      if (!more.empty()) names.push_back(more.front());
+    }
+  }
+  return names;
+}
+
+// Whether `name` appears in the code more than once (its declaration and a use).
+bool used(const std::string& text, const std::string& name) {
+  const std::vector<std::string> ids = identifiers(code_of(text));
+  return std::count(ids.begin(), ids.end(), name) > 1;
+}
+
+// Refuses a fragment shader input that the vertex shader does not write: GL leaves it undefined
+// (llvmpipe links such a program and reads 0), so every pass would be judged on garbage. Where
+// either side uses an interface block, the names are not compared.
+void check_varyings(const ShaderSource& vertex, bool own_vertex, const std::string& varying,
+                    const ShaderSource& fs) {
+  bool blocks = false;
+  const std::vector<std::string> outs = interface_names(vertex.text, {"out", "varying"}, blocks);
+  const std::vector<std::string> ins = interface_names(fs.text, {"in", "varying"}, blocks);
+  if (blocks) return;
+  for (const std::string& in : ins) {
+    if (std::find(outs.begin(), outs.end(), in) != outs.end() || !used(fs.text, in)) continue;
+    throw UserShaderError(
+        fs.path, "input '" + in + "' is not written by " +
+                     (own_vertex ? "bloomref's pass-through vertex shader, which writes '" +
+                                       varying + "' (a --layout file's \"varying\" names it)"
+                                 : "the vertex shader " + vertex.path) +
+                     ": it would be undefined in every pass");
+  }
+}
+
 // bloomref's pass-through vertex shader, writing the texture coordinate as `varying`.
 ShaderSource pass_through(const std::string& varying) {
   std::string text = shader_sources().at("user_quad.vert");
@@ -363,6 +486,7 @@ UserProgram build_user_program(const std::string& name, const ShaderSource* vs,
                               (messages.empty() ? "(the linker gave no log)" : messages));
   if (!messages.empty()) log += name + " program: " + messages + "\n";
   up.interface.log = log;
+  check_varyings(vertex, vs == nullptr, names.varying, fs);
   check_uniforms(up, Files{vs, fs}, host);
   check_attributes(up, vs ? vs->path : fs.path,
                    vs ? names : VertexNames{"aPos", "aTexCoords", names.varying});
