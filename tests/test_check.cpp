@@ -74,13 +74,16 @@ std::map<std::string, Image> trace_of(BloomParams p, const Image& scene) {
   return out;
 }
 
+// `interpolated_reads`: the captures may come from reads at interpolated coordinates
+// (CompareOptions; the default, as for any user's stages). The CPU traces here read exactly.
 parity::ParityResult check(const BloomParams& p, const Image& scene,
-                           const std::map<std::string, Image>& user) {
+                           const std::map<std::string, Image>& user, bool interpolated_reads = true) {
   const Plan plan = parity::plan_for_device(p, scene.cview(), kProfile);
   parity::CapturedStages captured;
   for (const auto& [name, img] : user) captured[name] = {img.cview()};
   parity::CompareOptions co;
   co.causes = true;
+  co.interpolated_reads = interpolated_reads;
   return parity::check_with_oracle(plan, scene.cview(), captured, kProfile, co);
 }
 
@@ -413,7 +416,10 @@ TEST_CASE("a pass too few or too many, a scaled bloom, f16 storage are named", "
     const auto bug = trace_of(c.bug, scene);
     std::map<std::string, Image> user;
     for (const auto& n : c.stages) user[n] = bug.at(n);
-    const auto r = check(p, scene, user);
+    // Declared as exact reads: a bright image read at interpolated coordinates may blend in
+    // 1/256 of a neighbour (this profile's 8-bit weights), more than f16's rounding next to a
+    // light.
+    const auto r = check(p, scene, user, c.cause != std::string("f16-storage"));
     INFO(c.cause);
     REQUIRE(r.first_divergent_stage);
     CHECK(*r.first_divergent_stage == c.first);

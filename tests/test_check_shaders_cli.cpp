@@ -139,6 +139,39 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
       CHECK(within - oracle >= 0.1 * (1 - oracle));
     }
   }
+  SECTION("the user's bright pass, reading the scene at interpolated coordinates, passes") {
+    // DESIGN.md stage 2 with texture() at TexCoords, as a user writes it: each read may blend
+    // in a sliver of its neighbours, and the bright bound allows that. Clamped, it fails there.
+    const std::string bright = R"glsl(#version 330 core
+in vec2 TexCoords;
+out vec4 colour;
+uniform sampler2D scene;
+uniform float threshold;
+void main() {
+  vec3 c = texture(scene, TexCoords).rgb;
+  float l = dot(c, vec3(0.2126, 0.7152, 0.0722));
+  colour = vec4(l > threshold ? c : vec3(0.0), 1.0);
+}
+)glsl";
+    test::write_bytes(dir / "bright.fs", bright);
+    test::write_bytes(dir / "bright_clamped.fs", replaced(bright, "? c :", "? min(c, vec3(1.0)) :"));
+    for (const char* storage : {"f16", "f32"}) {
+      const test::CliResult r = test::run_cli(
+          kArgs + "--bright-fs bright.fs --blur-fs blur.fs --final-fs final.fs --json r.json "
+                  "--storage " + storage, "", dir.path());
+      INFO(storage << "\n" << r.out << r.err);
+      CHECK(r.code == 0);
+      const json j = json::parse(test::read_bytes(dir / "r.json"));
+      CHECK(j["items"][0]["stages"][0]["stage"] == "bright");
+    }
+    const test::CliResult r = test::run_cli(
+        kArgs + "--bright-fs bright_clamped.fs --blur-fs blur.fs --final-fs final.fs --json r.json "
+                "--storage f32", "", dir.path());
+    CHECK(r.code == 1);
+    const json j = json::parse(test::read_bytes(dir / "r.json"));
+    CHECK(j["items"][0]["first_divergent_stage"] == "bright");
+    CHECK(j["items"][0]["stages"][0]["cause"]["id"] == "bright-clamped");
+  }
   SECTION("a shader that does not compile, or a missing file option, is exit 2") {
     test::CliResult r =
         test::run_cli(kArgs + "--blur-fs bad.fs --final-fs final.fs", "", dir.path());

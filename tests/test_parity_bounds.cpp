@@ -116,6 +116,30 @@ TEST_CASE("bright: a tie band only when the luminance is not computed `precise`"
   CHECK(total(far->terms(0, 0, 1)) == 0.0);
 }
 
+TEST_CASE("bright read at interpolated coordinates: a blend of the neighbours and a wider tie",
+          "[parity][bounds]") {
+  const DeviceProfile p = profile_llvmpipe();  // luminance `precise`: no rounding band
+  // Along x only (one row): a texel off its centre by d texels blends in d of a neighbour, so
+  // its value may move by d times the larger difference to one: here 4 - 0.
+  const Image img = row({0.0f, 4.0f, 0.5f});
+  const double d = tol::coordinate_error(3, p);
+  BoundContext reads{&p, Storage::f32, 1};
+  reads.interpolated_reads = true;
+  const auto b = tol::bright_bounds(img.cview(), 1.0f, reads);
+  CHECK(term(b->terms(1, 0, 0), "interpolated") == d * 4.0);
+  CHECK(term(b->terms(1, 0, 0), "threshold") == 0.0);
+  // Below the threshold and not within the reads' luminance of it: 0 either way.
+  CHECK(total(b->terms(2, 0, 0)) == 0.0);
+  // A threshold within the reads' luminance change (sum_i w_i d |step_i| = 3.5 d for the
+  // texel of 0.5) of the texel's luminance: either side is right.
+  const float l = luminance(0.5f, 0.5f, 0.5f);
+  const auto tie = tol::bright_bounds(img.cview(), static_cast<float>(l - d), reads);
+  CHECK(term(tie->terms(2, 0, 0), "threshold") == 0.5 + d * 3.5);
+  // Without interpolated reads (bloomref's own shaders), none of it.
+  const auto exact = tol::bright_bounds(img.cview(), 1.0f, BoundContext{&p, Storage::f32, 1});
+  CHECK(total(exact->terms(1, 0, 0)) == 0.0);
+}
+
 TEST_CASE("blur: coordinate term from the local range, rounding from the magnitude",
           "[parity][bounds]") {
   const DeviceProfile p = profile_llvmpipe();

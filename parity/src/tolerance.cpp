@@ -56,22 +56,53 @@ std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ct
       oracle.width, ctx.threads);
 }
 
+namespace {
+
+// Reads through texture() at interpolated coordinates (CompareOptions::interpolated_reads): a
+// coordinate off the texel's centre by d texels blends in d of the neighbour on that side
+// (LINEAR; clamp to edge: none beyond it), so d times the larger difference to a neighbour, per
+// axis. These are the larger differences of texel (x, y), channel c, along x and along y; d is
+// coordinate_error on each axis.
+std::pair<double, double> neighbour_steps(ConstImageView v, int x, int y, int c) {
+  const double m = v.pixel(x, y)[c];
+  const double l = v.pixel(std::max(x - 1, 0), y)[c], r = v.pixel(std::min(x + 1, v.width - 1), y)[c];
+  const double u = v.pixel(x, std::max(y - 1, 0))[c], d = v.pixel(x, std::min(y + 1, v.height - 1))[c];
+  return {std::max(std::fabs(l - m), std::fabs(r - m)), std::max(std::fabs(u - m), std::fabs(d - m))};
+}
+
+}  // namespace
+
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,
                                            BoundContext ctx) {
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
+  // A bright pass of the user's reads the scene with texture() at its interpolated texture
+  // coordinate: each value may be off by a blend of its neighbours, and its luminance with it.
+  const double dx = ctx.interpolated_reads ? coordinate_error(sanitized.width, *ctx.profile) : 0.0;
+  const double dy = ctx.interpolated_reads ? coordinate_error(sanitized.height, *ctx.profile) : 0.0;
   return make_bounds(
-      {"threshold within luminance rounding (either side is right)", "storage"},
+      {"threshold within luminance rounding (either side is right)", "storage",
+       "interpolated coordinates (x neighbour difference)"},
       [=](int x, int y, int c) {
         const float* s = sanitized.pixel(x, y);
         // luminance: 3 products and 2 sums, fused or not: |dL| <= 4u sum |w_i c_i|.
         const double mags = std::fabs(0.2126 * s[0]) + std::fabs(0.7152 * s[1]) +
                             std::fabs(0.0722 * s[2]);
         const double l = luminance(s[0], s[1], s[2]);
-        const bool tie = !ctx.profile->precise_luminance &&
-                         std::fabs(l - threshold) <= 4 * U * mags + denormal_floor(*ctx.profile);
+        double read[3] = {0, 0, 0};
+        if (dx > 0 || dy > 0)
+          for (int k = 0; k < 3; ++k) {
+            const auto [sx, sy] = neighbour_steps(sanitized, x, y, k);
+            read[k] = dx * sx + dy * sy;
+          }
+        const double read_l = 0.2126 * read[0] + 0.7152 * read[1] + 0.0722 * read[2];
+        const double band = (ctx.profile->precise_luminance ? 0.0 : 4 * U * mags) + read_l;
+        const bool tie = (band > 0 || !ctx.profile->precise_luminance) &&
+                         std::fabs(l - threshold) <= band + denormal_floor(*ctx.profile);
         const double v = s[c];
-        return Values{tie ? std::max({std::fabs(s[0]), std::fabs(s[1]), std::fabs(s[2])}) : 0.0,
-                      storage_term(v, ctx.storage, *ctx.profile)};
+        // Either side of the threshold is right in the band: the value's own read error is
+        // then within its magnitude, taken whole.
+        return Values{tie ? std::max({std::fabs(s[0]), std::fabs(s[1]), std::fabs(s[2])}) + read[c] : 0.0,
+                      storage_term(v, ctx.storage, *ctx.profile), tie || !(l > threshold) ? 0.0 : read[c]};
       },
       sanitized.width, ctx.threads);
 }
@@ -179,19 +210,11 @@ std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageVi
                                               ConstImageView oracle, float strength,
                                               BoundContext ctx) {
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
-  // Reads through texture() at interpolated coordinates (CompareOptions::interpolated_reads):
-  // a coordinate off the texel's centre by d texels blends in d of the neighbour on that side
-  // (LINEAR), so d times the larger difference to a neighbour, per axis (clamp to edge: none
-  // beyond it). d is coordinate_error, the rounding of s * n - 0.5 and the weight quantum.
+  // Reads through texture() at interpolated coordinates (neighbour_steps): d is
+  // coordinate_error, the rounding of s * n - 0.5 and the weight quantum.
   const double dx = ctx.interpolated_reads ? coordinate_error(scene.width, *ctx.profile) : 0.0;
   const double dy = ctx.interpolated_reads ? coordinate_error(scene.height, *ctx.profile) : 0.0;
-  auto steps = [](ConstImageView v, int x, int y, int c) {
-    const double m = v.pixel(x, y)[c];
-    const double l = v.pixel(std::max(x - 1, 0), y)[c], r = v.pixel(std::min(x + 1, v.width - 1), y)[c];
-    const double u = v.pixel(x, std::max(y - 1, 0))[c], d = v.pixel(x, std::min(y + 1, v.height - 1))[c];
-    return std::pair<double, double>(std::max(std::fabs(l - m), std::fabs(r - m)),
-                                     std::max(std::fabs(u - m), std::fabs(d - m)));
-  };
+  auto steps = neighbour_steps;
   return make_bounds(
       {"product and sum rounding", "storage", "denormal flush",
        "interpolated coordinates (x neighbour difference)"},
