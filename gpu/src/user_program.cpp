@@ -417,9 +417,12 @@ bool used(const std::string& text, const std::string& name) {
 
 // Refuses a fragment shader input that the vertex shader does not write: GL leaves it undefined
 // (llvmpipe links such a program and reads 0), so every pass would be judged on garbage. Where
-// either side uses an interface block, the names are not compared.
+// either side uses an interface block or a macro (which may hide a qualifier or a name), the
+// names are not compared.
 void check_varyings(const ShaderSource& vertex, bool own_vertex, const std::string& varying,
                     const ShaderSource& fs) {
+  for (const ShaderSource* s : {&vertex, &fs})
+    if (s->text.find("#define") != std::string::npos) return;
   bool blocks = false;
   const std::vector<std::string> outs = interface_names(vertex.text, {"out", "varying"}, blocks);
   const std::vector<std::string> ins = interface_names(fs.text, {"in", "varying"}, blocks);
