@@ -34,8 +34,8 @@
 //    there with glBindAttribLocation; a `layout(location = ...)` in the shader wins);
 //  * a program without a fragment output at location 0;
 //  * a fragment shader input that the vertex shader does not declare as an output (by name, in
-//    the shaders' text; interface blocks are left to the linker): GL leaves it undefined, and
-//    llvmpipe links the program and reads 0.
+//    the shaders' text; interface blocks and shaders with macros are left to the linker): GL
+//    leaves it undefined, and llvmpipe links the program and reads 0.
 // A shader that does not compile, or programs that do not link, are a UserShaderError naming
 // the file(s), with the compiler's log.
 //
