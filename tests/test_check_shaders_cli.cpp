@@ -247,6 +247,8 @@ TEST_CASE("check --shaders --layout runs shaders that use other names", "[check-
       INFO(storage << "\n" << r.out << r.err);
       CHECK(r.code == 0);
       const json j = json::parse(test::read_bytes(dir / "r.json"));
+      CHECK(j["items"][0]["stages_from"] ==
+            "the passes of blur.frag and final.frag (names: layout.json)");
       int blurs = 0;
       for (const json& st : j["items"][0]["stages"]) {
         blurs += st["stage"].get<std::string>().rfind("blur.", 0) == 0;

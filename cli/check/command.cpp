@@ -201,7 +201,8 @@ CheckItem shaders_item(CheckArgs& a, CheckRun& run, ScratchDir& scratch) {
   CheckItem item;
   item.scene = a.scene;
   item.stages_dir = scratch.path().string();
-  item.from = "the passes of " + a.shaders.blur_fs + " and " + a.shaders.final_fs;
+  item.from = "the passes of " + a.shaders.blur_fs + " and " + a.shaders.final_fs +
+              (a.shaders.layout.empty() ? "" : " (names: " + a.shaders.layout + ")");
   item.id = "learnopengl";
   item.scratch = true;
   return item;
