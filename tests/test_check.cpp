@@ -4,6 +4,7 @@
 // was injected in and is named as the cause.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <map>
 #include <string>
@@ -309,6 +310,34 @@ TEST_CASE("a cause is likely only when it explains nearly all of a failure", "[c
   CHECK_FALSE(c.likely());
   c.within = 0.99999;  // 0.001% of 0.03%: a thirtieth
   CHECK(c.likely());
+}
+
+TEST_CASE("a bright pass with another threshold is named with the thresholds that fit", "[check]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();  // threshold 1
+  // The user's bright pass keeps luminance > 2.5 (written out here): the lights of 3 and more.
+  const float used = 2.5f;
+  auto user = trace_of(p, scene);
+  Image& b = user["bright"];
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      const float* s = scene.pixel(x, y);
+      float* d = b.pixel(x, y);
+      const bool bright = luminance(s[0], s[1], s[2]) > used;
+      for (int c = 0; c < 3; ++c) d[c] = bright ? s[c] : 0.0f;
+    }
+  const auto r = check(p, scene, {{"bright", b}});
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "bright");
+  const parity::StageComparison& s = stage(r, "bright");
+  CHECK(best_cause(s) == "threshold-other");
+  CHECK(s.causes.front().within == 1.0);
+  // The range it reports holds the threshold used.
+  float lo = 0, hi = 0;
+  const std::string& detail = s.causes.front().detail;
+  REQUIRE(std::sscanf(detail.c_str(), "the bright mask fits a threshold from %f up to %f", &lo, &hi) == 2);
+  CHECK(lo <= used);
+  CHECK(used < hi);
 }
 
 TEST_CASE("bugs of the bright pass are named", "[check]") {

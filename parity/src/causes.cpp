@@ -37,6 +37,7 @@ struct Hypothesis {
   float strength_scale = 1.0f;     // the composite adds strength * scale * bloom
   bool ge = false, clamp_bright = false, f16 = false, no_exposure = false;
   bool clamp_blur = false;  // every blur pass's output clamped to [0, 1]
+  float threshold = NAN;    // another threshold for the bright pass (fitted); NaN: the plan's
   int gamma_times = 1;
   bool pow_negative = false;  // gamma as pow(x, 1 / gamma) without max(x, 0): NaN below 0
   float gamma = 0.0f;         // another gamma (fitted); 0: the plan's
@@ -48,7 +49,7 @@ struct NotApplicable {};
 bool changes(const Hypothesis& h, StageKind k, bool is_target) {
   switch (k) {
     case StageKind::input: return h.f16;
-    case StageKind::bright: return h.ge || h.clamp_bright || h.f16;
+    case StageKind::bright: return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold);
     case StageKind::blur:
       return h.sampled() || h.kernel || h.clamp_blur ||
              (is_target && (!h.weights.empty() || h.stale || h.along_x)) || h.f16;
@@ -181,11 +182,12 @@ class Evaluator {
         return copy(ctx_.sanitized);
       case StageKind::bright: {
         Image out(ctx_.sanitized.width, ctx_.sanitized.height);
+        const float threshold = std::isnan(h_.threshold) ? p_.threshold : h_.threshold;
         if (h_.ge || h_.clamp_bright)
-          extract_bright_variant(ctx_.sanitized, out.view(), p_.threshold, h_.ge, h_.clamp_bright,
+          extract_bright_variant(ctx_.sanitized, out.view(), threshold, h_.ge, h_.clamp_bright,
                                  threads);
         else
-          extract_bright(ctx_.sanitized, out.view(), p_.threshold, threads);
+          extract_bright(ctx_.sanitized, out.view(), threshold, threads);
         return out;
       }
       case StageKind::blur: {
@@ -430,6 +432,29 @@ std::optional<float> fit_gamma(const CauseContext& ctx, const StageSpec& target)
   return static_cast<float>(gamma);
 }
 
+// The thresholds a captured bright pass may have used: from the largest luminance among the
+// scene texels it left dark (then `l > t` gives its mask) up to the smallest among those it
+// kept; none when the mask fits no threshold or fits the plan's.
+std::optional<std::pair<float, float>> fit_threshold(const CauseContext& ctx, const StageSpec& target) {
+  if (target.kind != StageKind::bright) return std::nullopt;
+  const ConstImageView user = ctx.view(target.name), scene = ctx.sanitized;
+  if (!user.data || user.width != scene.width || user.height != scene.height) return std::nullopt;
+  float dark = -INFINITY, kept = INFINITY;
+  for (int y = 0; y < user.height; ++y)
+    for (int x = 0; x < user.width; ++x) {
+      const float* u = user.pixel(x, y);
+      const float* s = scene.pixel(x, y);
+      const float l = luminance(s[0], s[1], s[2]);
+      if (!std::isfinite(l)) continue;
+      if (u[0] == 0 && u[1] == 0 && u[2] == 0) dark = std::max(dark, l);
+      else kept = std::min(kept, l);
+    }
+  const float t = ctx.plan.params.threshold;
+  if (!(dark < kept) || !std::isfinite(dark) || !std::isfinite(kept)) return std::nullopt;
+  if (dark < t && t < kept) return std::nullopt;  // the plan's threshold fits: not this
+  return std::pair<float, float>(dark, kept);
+}
+
 std::string weights_text(const std::vector<float>& w) {
   std::string s = "{";
   double sum = 0;
@@ -527,6 +552,15 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       std::snprintf(b, sizeof b, "the bloom fits best scaled by %.6g", *k);
       h->detail = b;
     }
+  if (const auto t = fit_threshold(ctx, target)) {
+    Hypothesis* h = add("threshold-other", "another threshold");
+    h->threshold = t->first;
+    char b[160];
+    std::snprintf(b, sizeof b,
+                  "the bright mask fits a threshold from %.6g up to %.6g (specified %.6g)",
+                  double(t->first), double(t->second), double(p.threshold));
+    h->detail = b;
+  }
   if (const auto g = fit_gamma(ctx, target)) {
     Hypothesis* h = add("gamma-other", "another gamma");
     h->gamma = *g;
