@@ -56,10 +56,15 @@ TEST_CASE("a run's peak memory does not grow with its pass count", "[memory]") {
     return peak_rss_kb(dir, {"run", "--scene", "demo", "--size", "1024x64", "--threads", "2",
                              "--passes", passes, "--blur", blur, "-o", "out.exr"});
   };
+  // From 100 passes on, the bloom covers the whole image, so every working buffer is touched;
+  // at 10 the adaptive plan touches a part of them (approx, MALLOC_ARENA_MAX=1: 19 MB at 10
+  // passes, 31 MB at 100, 300 and 1000; with a malloc arena per thread, 32-38 MB at both 100 and
+  // 1000). So 1000 passes are compared with 100: a peak that grew with the passes would be
+  // about ten times as large.
   for (const std::string blur : {"fast", "approx"}) {
-    const long ten = run("10", blur), thousand = run("1000", blur);
-    INFO(blur << ": peak " << ten << " KiB for 10 passes, " << thousand << " KiB for 1000");
-    CHECK(thousand < 2 * ten);
+    const long hundred = run("100", blur), thousand = run("1000", blur);
+    INFO(blur << ": peak " << hundred << " KiB for 100 passes, " << thousand << " KiB for 1000");
+    CHECK(thousand < hundred + hundred / 2);
   }
 }
 
