@@ -140,21 +140,11 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
     }
   }
   SECTION("the user's bright pass, reading the scene at interpolated coordinates, passes") {
-    // DESIGN.md stage 2 with texture() at TexCoords, as a user writes it: each read may blend
-    // in a sliver of its neighbours, and the bright bound allows that. Clamped, it fails there.
-    const std::string bright = R"glsl(#version 330 core
-in vec2 TexCoords;
-out vec4 colour;
-uniform sampler2D scene;
-uniform float threshold;
-void main() {
-  vec3 c = texture(scene, TexCoords).rgb;
-  float l = dot(c, vec3(0.2126, 0.7152, 0.0722));
-  colour = vec4(l > threshold ? c : vec3(0.0), 1.0);
-}
-)glsl";
-    test::write_bytes(dir / "bright.fs", bright);
-    test::write_bytes(dir / "bright_clamped.fs", replaced(bright, "? c :", "? min(c, vec3(1.0)) :"));
+    // test::kBright reads with texture() at TexCoords: each read may blend in a sliver of its
+    // neighbours, and the bright bound allows that. Clamped, it fails there.
+    test::write_bytes(dir / "bright.fs", test::kBright);
+    test::write_bytes(dir / "bright_clamped.fs",
+                      replaced(test::kBright, "vec4(c, 1.0)", "vec4(min(c, vec3(1.0)), 1.0)"));
     for (const char* storage : {"f16", "f32"}) {
       const test::CliResult r = test::run_cli(
           kArgs + "--bright-fs bright.fs --blur-fs blur.fs --final-fs final.fs --json r.json "

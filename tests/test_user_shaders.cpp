@@ -19,6 +19,7 @@ using gpu::LearnOpenGLShaders;
 using gpu::ShaderSource;
 using gpu::UserPipelineOptions;
 using test::kBlur9;
+using test::kBright;
 using test::kFinal;
 using test::own_shaders;
 
@@ -326,22 +327,9 @@ void main() {
   }
 }
 
-// A bright pass written from DESIGN.md stage 2 (Rec. 709 luminance, strictly above the
-// threshold), in the two forms the preset accepts.
-const char* kBright = R"glsl(#version 330 core
-in vec2 TexCoords;
-out vec4 bright;
-uniform sampler2D scene;
-uniform float threshold;
-void main() {
-  vec3 c = texture(scene, TexCoords).rgb;
-  float l = dot(c, vec3(0.2126, 0.7152, 0.0722));
-  bright = l > threshold ? vec4(c, 1.0) : vec4(0.0, 0.0, 0.0, 1.0);
-}
-)glsl";
-
-// The MRT form (as the tutorial's 7.bloom.fs writes FragColor and BrightColor): location 0 is
-// the scene the final pass reads -- here twice the scene, so that the test can tell.
+// The MRT form of test::kBright (as the tutorial's 7.bloom.fs writes FragColor and
+// BrightColor): location 0 is the scene the final pass reads -- here twice the scene, so that
+// the test can tell.
 const char* kBrightMrt = R"glsl(#version 330 core
 in vec2 TexCoords;
 layout(location = 0) out vec4 colour;

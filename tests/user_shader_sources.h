@@ -45,6 +45,20 @@ void main() {
 }
 )glsl";
 
+// A bright pass written from DESIGN.md stage 2 (Rec. 709 luminance, strictly above the
+// threshold), reading the scene with texture() at TexCoords as a user writes it.
+inline const char* kBright = R"glsl(#version 330 core
+in vec2 TexCoords;
+out vec4 bright;
+uniform sampler2D scene;
+uniform float threshold;
+void main() {
+  vec3 c = texture(scene, TexCoords).rgb;
+  float l = dot(c, vec3(0.2126, 0.7152, 0.0722));
+  bright = l > threshold ? vec4(c, 1.0) : vec4(0.0, 0.0, 0.0, 1.0);
+}
+)glsl";
+
 /// The shaders above, or others in their place, named as files would be in errors.
 inline gpu::LearnOpenGLShaders own_shaders(const std::string& blur = kBlur9,
                                            const std::string& final_fs = kFinal) {
