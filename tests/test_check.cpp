@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <map>
 #include <string>
 
@@ -86,6 +87,20 @@ parity::ParityResult check(const BloomParams& p, const Image& scene,
   co.causes = true;
   co.interpolated_reads = interpolated_reads;
   return parity::check_with_oracle(plan, scene.cview(), captured, kProfile, co);
+}
+
+// A user's bright pass, written out here: the scene's RGB where `keep(luminance)`, clamped to 1
+// when `clamp`, else 0 (alpha 1).
+Image bright_written(const Image& scene, const std::function<bool(float)>& keep, bool clamp) {
+  Image b(kW, kH, 1.0f);
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      const float* s = scene.pixel(x, y);
+      float* d = b.pixel(x, y);
+      const bool bright = keep(luminance(s[0], s[1], s[2]));
+      for (int c = 0; c < 3; ++c) d[c] = bright ? (clamp ? std::min(s[c], 1.0f) : s[c]) : 0.0f;
+    }
+  return b;
 }
 
 const parity::StageComparison& stage(const parity::ParityResult& r, const std::string& name) {
@@ -317,15 +332,7 @@ TEST_CASE("a bright pass with another threshold is named with the thresholds tha
   const BloomParams p = test_params();  // threshold 1
   // The user's bright pass keeps luminance > 2.5 (written out here): the lights of 3 and more.
   const float used = 2.5f;
-  auto user = trace_of(p, scene);
-  Image& b = user["bright"];
-  for (int y = 0; y < kH; ++y)
-    for (int x = 0; x < kW; ++x) {
-      const float* s = scene.pixel(x, y);
-      float* d = b.pixel(x, y);
-      const bool bright = luminance(s[0], s[1], s[2]) > used;
-      for (int c = 0; c < 3; ++c) d[c] = bright ? s[c] : 0.0f;
-    }
+  const Image b = bright_written(scene, [&](float l) { return l > used; }, false);
   const auto r = check(p, scene, {{"bright", b}});
   REQUIRE(r.first_divergent_stage);
   CHECK(*r.first_divergent_stage == "bright");
@@ -346,16 +353,9 @@ TEST_CASE("bugs of the bright pass are named", "[check]") {
   p.threshold = tie_threshold();
   for (const char* bug : {"ge", "clamp"}) {
     auto user = trace_of(p, scene);
-    Image& b = user["bright"];
-    for (int y = 0; y < kH; ++y)
-      for (int x = 0; x < kW; ++x) {
-        const float* s = scene.pixel(x, y);
-        float* d = b.pixel(x, y);
-        const float l = luminance(s[0], s[1], s[2]);
-        const bool bright = std::string(bug) == "ge" ? l >= p.threshold : l > p.threshold;
-        for (int c = 0; c < 3; ++c)
-          d[c] = bright ? (std::string(bug) == "clamp" ? std::min(s[c], 1.0f) : s[c]) : 0.0f;
-      }
+    const bool ge = std::string(bug) == "ge";
+    user["bright"] = bright_written(
+        scene, [&](float l) { return ge ? l >= p.threshold : l > p.threshold; }, !ge);
     user.erase("input");
     const auto r = check(p, scene, user);
     INFO(bug);
