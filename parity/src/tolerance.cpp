@@ -214,7 +214,6 @@ std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageVi
   // coordinate_error, the rounding of s * n - 0.5 and the weight quantum.
   const double dx = ctx.interpolated_reads ? coordinate_error(scene.width, *ctx.profile) : 0.0;
   const double dy = ctx.interpolated_reads ? coordinate_error(scene.height, *ctx.profile) : 0.0;
-  auto steps = neighbour_steps;
   return make_bounds(
       {"product and sum rounding", "storage", "denormal flush",
        "interpolated coordinates (x neighbour difference)"},
@@ -222,8 +221,8 @@ std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageVi
         const double s = scene.pixel(x, y)[c], b = bloom.pixel(x, y)[c];
         double reads = 0.0;
         if (dx > 0 || dy > 0) {
-          const auto [sx, sy] = steps(scene, x, y, c);
-          const auto [bx, by] = steps(bloom, x, y, c);
+          const auto [sx, sy] = neighbour_steps(scene, x, y, c);
+          const auto [bx, by] = neighbour_steps(bloom, x, y, c);
           reads = dx * (sx + std::fabs(strength) * bx) + dy * (sy + std::fabs(strength) * by);
         }
         return Values{2 * U * (std::fabs(s) + std::fabs(strength * b)),
