@@ -251,7 +251,8 @@ ParityResult Comparison::run(double* oracle_ms) {
     TermInputs terms = inputs();
     // A bright image that is not captured is the specification's (check --shaders uploads the
     // oracle's): only a captured one was read from the scene at interpolated coordinates.
-    if (spec.kind == StageKind::bright && !streams_.captured(name_)) terms.ctx.interpolated_reads = false;
+    if (spec.kind == StageKind::bright && !streams_.captured(name_))
+      terms.ctx.interpolated_reads = false;
     StageTerms t = stage_terms(spec, in, terms);
     if (streams_.captured(name_)) judge_captured(index, t);
     else keep_uncaptured(index, t);
