@@ -209,7 +209,7 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
   std::atomic<int> next{0};
   std::atomic<bool> failed{!ok};
   const auto decode = [&] {
-    exr_decode_pipeline_t pipe = EXR_DECODE_PIPELINE_INITIALIZER;
+    exr_decode_pipeline_t pipe{};  // all zeros, as EXR_DECODE_PIPELINE_INITIALIZER ({0}) makes it
     bool started = false;
     for (int c; !failed && (c = next++) < chunks;) {
       exr_chunk_info_t ci{};
