@@ -182,8 +182,8 @@ void check_attribute_sizes(const std::string& path, unsigned long long file_byte
   }
 }
 
-/// The channels R, G, B and A of a single-part scanline file, each HALF or FLOAT and not
-/// subsampled, read through OpenEXRCore into `img` (the data window's size), chunks decoded on
+/// The channels R, G, B and A of a single-part scanline file, FLOAT and not subsampled (the
+/// other channels skipped), read through OpenEXRCore into `img` (the data window's size), chunks decoded on
 /// as many threads as exr_threads' pool has. OpenEXR 3.1's C++ reader copies each line into
 /// the frame buffer through a generic per-value loop; Core's unpackers do it in a fraction of
 /// the time (1920x1080 float, two threads: uncompressed ~15 against ~90 ms, ZIP ~106 against
@@ -259,8 +259,10 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
 }
 
 /// Whether read_core reads part `chosen` of `file` (of `file_bytes` bytes), and faster than
-/// the C++ reader: the only part, scanline, R, G and B present (A optional), HALF or FLOAT,
-/// none subsampled, compressed by a method measured faster through Core. Core 3.1's Huffman
+/// the C++ reader: the only part, scanline, R, G and B present (A optional), FLOAT, none
+/// subsampled, compressed by a method measured faster through Core. Not HALF: OpenEXRCore 3.1
+/// converts a file of exactly the four half channels A, B, G, R (RenderDoc's EXR saves) to
+/// float in reverse channel order (tests/test_io.cpp writes that file). Core 3.1's Huffman
 /// decoder is slower than the C++ one, so PIZ goes through Core only where the file is packed
 /// to under a third of its raw size: a 1920x1080 float file of 22.5 MB (68%) takes ~410 ms
 /// through Core against ~215 ms, one of 0.3 MB ~54 against ~115 ms, and GoldenGate.exr's
@@ -279,8 +281,7 @@ bool core_reads(const Imf::MultiPartInputFile& file, int chosen, unsigned long l
            (unsigned long long)(dw.max.y - dw.min.y + 1) / (unsigned long long)(c.xSampling * c.ySampling);
     const std::string n = it.name();
     if (n != "R" && n != "G" && n != "B" && n != "A") continue;
-    if (c.xSampling != 1 || c.ySampling != 1 || (c.type != Imf::HALF && c.type != Imf::FLOAT))
-      return false;
+    if (c.xSampling != 1 || c.ySampling != 1 || c.type != Imf::FLOAT) return false;
     colour += n != "A";
   }
   if (colour != 3) return false;
