@@ -261,8 +261,8 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
 /// Whether read_core reads part `chosen` of `file` (of `file_bytes` bytes), and faster than
 /// the C++ reader: the only part, scanline, R, G and B present (A optional), FLOAT, none
 /// subsampled, compressed by a method measured faster through Core. Not HALF: OpenEXRCore 3.1
-/// converts a file of exactly the four half channels A, B, G, R (RenderDoc's EXR saves) to
-/// float in reverse channel order (tests/test_io.cpp writes that file). Core 3.1's Huffman
+/// converts a file of exactly the four half channels A, B, G, R (RenderDoc's EXR save of a
+/// 16-bit float target) to float in reverse channel order (tests/test_io.cpp writes that file). Core 3.1's Huffman
 /// decoder is slower than the C++ one, so PIZ goes through Core only where the file is packed
 /// to under a third of its raw size: a 1920x1080 float file of 22.5 MB (68%) takes ~410 ms
 /// through Core against ~215 ms, one of 0.3 MB ~54 against ~115 ms, and GoldenGate.exr's
