@@ -183,13 +183,12 @@ void check_attribute_sizes(const std::string& path, unsigned long long file_byte
 }
 
 /// The channels R, G, B and A of a single-part scanline file, FLOAT and not subsampled (the
-/// other channels skipped), read through OpenEXRCore into `img` (the data window's size), chunks decoded on
-/// as many threads as exr_threads' pool has. OpenEXR 3.1's C++ reader copies each line into
-/// the frame buffer through a generic per-value loop; Core's unpackers do it in a fraction of
-/// the time (1920x1080 float, two threads: uncompressed ~15 against ~90 ms, ZIP ~106 against
-/// ~166 ms).
-/// False, with `img` in any state, when Core cannot decode the file: the C++ reader then reads
-/// it and reports the problem in its words.
+/// other channels skipped), read through OpenEXRCore into `img` (the data window's size), the
+/// chunks decoded on as many threads as exr_threads' pool has. OpenEXR 3.1's C++ reader copies
+/// each line into the frame buffer through a generic per-value loop; Core's unpackers do it in
+/// a fraction of the time (1920x1080 float, two threads: uncompressed ~15 against ~90 ms, ZIP
+/// ~106 against ~166 ms). False, with `img` in any state, when Core cannot decode the file: the
+/// C++ reader then reads it and reports the problem in its words.
 bool read_core(const std::string& path, bool alpha, Image& img) {
   exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
   init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};
@@ -224,8 +223,10 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
                                     static_cast<std::size_t>(img.width()) * kChannels;
       for (int k = 0; k < pipe.channel_count; ++k) {
         exr_coding_channel_info_t& ch = pipe.channels[k];
-        const std::string name = ch.channel_name;
-        const int at = name == "R" ? 0 : name == "G" ? 1 : name == "B" ? 2 : name == "A" ? 3 : -1;
+        static const char* const kNames[kChannels] = {"R", "G", "B", "A"};
+        int at = -1;
+        for (int i = 0; i < kChannels && at < 0; ++i)
+          if (std::strcmp(ch.channel_name, kNames[i]) == 0) at = i;
         ch.decode_to_ptr = at < 0 ? nullptr : reinterpret_cast<uint8_t*>(row + at);
         ch.user_pixel_stride = sizeof(float) * kChannels;
         ch.user_line_stride = ch.user_pixel_stride * img.width();
@@ -262,11 +263,12 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
 /// the C++ reader: the only part, scanline, R, G and B present (A optional), FLOAT, none
 /// subsampled, compressed by a method measured faster through Core. Not HALF: OpenEXRCore 3.1
 /// converts a file of exactly the four half channels A, B, G, R (RenderDoc's EXR save of a
-/// 16-bit float target) to float in reverse channel order (tests/test_io.cpp writes that file). Core 3.1's Huffman
-/// decoder is slower than the C++ one, so PIZ goes through Core only where the file is packed
-/// to under a third of its raw size: a 1920x1080 float file of 22.5 MB (68%) takes ~410 ms
-/// through Core against ~215 ms, one of 0.3 MB ~54 against ~115 ms, and GoldenGate.exr's
-/// stages cross over at 33-38% (two threads; measured with both readers on the same files).
+/// 16-bit float target) to float in reverse channel order (tests/test_io.cpp writes that
+/// file). Core 3.1's Huffman decoder is slower than the C++ one, so PIZ goes through Core only
+/// where the file is packed to under a third of its raw size: a 1920x1080 float file of
+/// 22.5 MB (68%) takes ~410 ms through Core against ~215 ms, one of 0.3 MB ~54 against
+/// ~115 ms, and GoldenGate.exr's stages cross over at 33-38% (two threads; measured with both
+/// readers on the same files).
 /// PXR24, B44 and DWA are left to the C++ reader.
 bool core_reads(const Imf::MultiPartInputFile& file, int chosen, unsigned long long file_bytes) {
   if (file.parts() != 1 || chosen != 0) return false;
@@ -277,8 +279,10 @@ bool core_reads(const Imf::MultiPartInputFile& file, int chosen, unsigned long l
   int colour = 0;
   for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
     const Imf::Channel& c = it.channel();
-    raw += (c.type == Imf::HALF ? 2ull : 4ull) * (unsigned long long)(dw.max.x - dw.min.x + 1) *
-           (unsigned long long)(dw.max.y - dw.min.y + 1) / (unsigned long long)(c.xSampling * c.ySampling);
+    const unsigned long long values = (unsigned long long)(dw.max.x - dw.min.x + 1) *
+                                      (unsigned long long)(dw.max.y - dw.min.y + 1);
+    raw += (c.type == Imf::HALF ? 2ull : 4ull) * values /
+           (unsigned long long)(c.xSampling * c.ySampling);
     const std::string n = it.name();
     if (n != "R" && n != "G" && n != "B" && n != "A") continue;
     if (c.xSampling != 1 || c.ySampling != 1 || c.type != Imf::FLOAT) return false;
