@@ -90,6 +90,18 @@ PartChannels classify(const Imf::Header& h) {
 
 bool usable(const PartChannels& pc) { return pc.rgb || pc.luma; }
 
+// An OpenEXRCore read context of `path` that reports nothing (the C++ reader reports a file
+// Core cannot read), or null when Core cannot open it.
+exr_context_t open_silently(const std::string& path) {
+  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+  init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};
+  init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
+  exr_context_t ctxt = nullptr;
+  if (exr_start_read(&ctxt, path.c_str(), &init) == EXR_ERR_SUCCESS) return ctxt;
+  exr_finish(&ctxt);
+  return nullptr;
+}
+
 // Checks every part's data window against the limits before the C++ API opens the file: its
 // constructors read each part's chunk offset table, whose length follows the data window, so a
 // forged header (100000x100000) makes them read or allocate far past the file. OpenEXRCore
@@ -98,14 +110,8 @@ bool usable(const PartChannels& pc) { return pc.rgb || pc.luma; }
 // is refused here too, before a header within the limits gets its pixels allocated.
 void check_part_sizes(const std::string& path, const SizeLimits& limits,
                       unsigned long long file_bytes) {
-  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-  init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};
-  init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
-  exr_context_t ctxt = nullptr;
-  if (exr_start_read(&ctxt, path.c_str(), &init) != EXR_ERR_SUCCESS) {
-    exr_finish(&ctxt);
-    return;
-  }
+  exr_context_t ctxt = open_silently(path);
+  if (!ctxt) return;
   int parts = 0;
   exr_get_count(ctxt, &parts);
   unsigned long long chunks = 0;
@@ -190,14 +196,8 @@ void check_attribute_sizes(const std::string& path, unsigned long long file_byte
 /// ~106 against ~166 ms). False, with `img` in any state, when Core cannot decode the file: the
 /// C++ reader then reads it and reports the problem in its words.
 bool read_core(const std::string& path, bool alpha, Image& img) {
-  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-  init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};
-  init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
-  exr_context_t ctxt = nullptr;
-  if (exr_start_read(&ctxt, path.c_str(), &init) != EXR_ERR_SUCCESS) {
-    exr_finish(&ctxt);
-    return false;
-  }
+  exr_context_t ctxt = open_silently(path);
+  if (!ctxt) return false;
   exr_attr_box2i_t dw{};
   int32_t lines = 0, chunks = 0;
   bool ok = exr_get_data_window(ctxt, 0, &dw) == EXR_ERR_SUCCESS &&
