@@ -3,6 +3,7 @@
 #include "tolerance.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -70,6 +71,36 @@ std::pair<double, double> neighbour_steps(ConstImageView v, int x, int y, int c)
   return {std::max(std::fabs(l - m), std::fabs(r - m)), std::max(std::fabs(u - m), std::fabs(d - m))};
 }
 
+// The reads' error of a texel's three channels (d times its neighbour steps per axis), kept for
+// the texel last asked on this thread: the bounds ask for its channels one after another, and
+// each needs all three (the luminance's change). `owner` names the bounds that made them: a
+// number never given twice, so a texel of another image at the same place is made again.
+struct TexelReads {
+  std::uint64_t owner = 0;
+  int x = -1, y = -1;
+  double read[3] = {0, 0, 0};
+};
+
+const double* texel_reads(std::uint64_t owner, ConstImageView v, int x, int y, double dx,
+                          double dy) {
+  thread_local TexelReads t;
+  if (t.owner != owner || t.x != x || t.y != y) {
+    for (int k = 0; k < 3; ++k) {
+      const auto [sx, sy] = neighbour_steps(v, x, y, k);
+      t.read[k] = dx * sx + dy * sy;
+    }
+    t.owner = owner;
+    t.x = x;
+    t.y = y;
+  }
+  return t.read;
+}
+
+std::uint64_t new_owner() {
+  static std::atomic<std::uint64_t> next{1};
+  return next++;
+}
+
 }  // namespace
 
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,
@@ -79,6 +110,7 @@ std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float thres
   // coordinate: each value may be off by a blend of its neighbours, and its luminance with it.
   const double dx = ctx.interpolated_reads ? coordinate_error(sanitized.width, *ctx.profile) : 0.0;
   const double dy = ctx.interpolated_reads ? coordinate_error(sanitized.height, *ctx.profile) : 0.0;
+  const std::uint64_t owner = new_owner();
   return make_bounds(
       {"threshold within luminance rounding (either side is right)", "storage",
        "interpolated coordinates (x neighbour difference)"},
@@ -88,12 +120,9 @@ std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float thres
         const double mags = std::fabs(0.2126 * s[0]) + std::fabs(0.7152 * s[1]) +
                             std::fabs(0.0722 * s[2]);
         const double l = luminance(s[0], s[1], s[2]);
-        double read[3] = {0, 0, 0};
-        if (dx > 0 || dy > 0)
-          for (int k = 0; k < 3; ++k) {
-            const auto [sx, sy] = neighbour_steps(sanitized, x, y, k);
-            read[k] = dx * sx + dy * sy;
-          }
+        static constexpr double none[3] = {0, 0, 0};
+        const double* read =
+            dx > 0 || dy > 0 ? texel_reads(owner, sanitized, x, y, dx, dy) : none;
         const double read_l = 0.2126 * read[0] + 0.7152 * read[1] + 0.0722 * read[2];
         const double band = (ctx.profile->precise_luminance ? 0.0 : 4 * U * mags) + read_l;
         const bool tie = (band > 0 || !ctx.profile->precise_luminance) &&
