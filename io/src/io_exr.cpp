@@ -5,6 +5,7 @@
 #include <ImfCompression.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
+#include <ImfHuf.h>
 #include <ImfInputPart.h>
 #include <ImfMultiPartInputFile.h>
 #include <ImfIO.h>
@@ -13,9 +14,12 @@
 #include <ImfRgbaFile.h>
 #include <ImfThreading.h>
 #include <ImfVersion.h>
+#include <ImfWav.h>
+#include <half.h>
 #include <openexr.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
@@ -188,6 +192,54 @@ void check_attribute_sizes(const std::string& path, unsigned long long file_byte
   }
 }
 
+/// Runs decode(state, chunk) for chunks [0, chunks) on as many threads as exr_threads' pool has
+/// (each chunk once), this one among them, each thread with its own state from make_state();
+/// stops handing out chunks once one returns false. False when any did.
+template <class MakeState, class Decode>
+bool on_io_threads(int chunks, const MakeState& make_state, const Decode& decode) {
+  std::atomic<int> next{0};
+  std::atomic<bool> failed{false};
+  const auto work = [&] {
+    auto state = make_state();
+    for (int c; !failed && (c = next++) < chunks;)
+      if (!decode(state, c)) failed = true;
+  };
+  const int extra = std::min(exr_threads(), chunks) - 1;
+  std::vector<std::thread> workers;
+  try {
+    for (int t = 0; t < extra; ++t) workers.emplace_back(work);
+  } catch (const std::system_error&) {
+    // fewer threads: the ones started and this one share the chunks
+  }
+  work();
+  for (auto& w : workers) w.join();
+  return !failed;
+}
+
+/// The data window of part 0 of `ctxt`, its lines per chunk and chunk count, when they agree
+/// with `img`.
+bool chunk_layout(exr_const_context_t ctxt, const Image& img, exr_attr_box2i_t& dw,
+                  int32_t& lines, int32_t& chunks) {
+  return exr_get_data_window(ctxt, 0, &dw) == EXR_ERR_SUCCESS &&
+         exr_get_scanlines_per_chunk(ctxt, 0, &lines) == EXR_ERR_SUCCESS &&
+         exr_get_chunk_count(ctxt, 0, &chunks) == EXR_ERR_SUCCESS && lines > 0 &&
+         (long long)dw.max.x - dw.min.x + 1 == img.width() &&
+         (long long)dw.max.y - dw.min.y + 1 == img.height();
+}
+
+/// Where R, G, B and A go in a pixel (-1: a channel read past).
+int rgba_index(const char* name) {
+  static const char* const kNames[kChannels] = {"R", "G", "B", "A"};
+  for (int i = 0; i < kChannels; ++i)
+    if (std::strcmp(name, kNames[i]) == 0) return i;
+  return -1;
+}
+
+void fill_alpha(Image& img) {
+  float* p = img.data();
+  for (std::size_t i = 0, n = img.pixel_count(); i < n; ++i) p[i * kChannels + 3] = 1.0f;
+}
+
 /// The channels R, G, B and A of a single-part scanline file, FLOAT and not subsampled (the
 /// other channels skipped), read through OpenEXRCore into `img` (the data window's size), the
 /// chunks decoded on as many threads as exr_threads' pool has. OpenEXR 3.1's C++ reader copies
@@ -200,93 +252,219 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
   if (!ctxt) return false;
   exr_attr_box2i_t dw{};
   int32_t lines = 0, chunks = 0;
-  bool ok = exr_get_data_window(ctxt, 0, &dw) == EXR_ERR_SUCCESS &&
-            exr_get_scanlines_per_chunk(ctxt, 0, &lines) == EXR_ERR_SUCCESS &&
-            exr_get_chunk_count(ctxt, 0, &chunks) == EXR_ERR_SUCCESS && lines > 0 &&
-            (long long)dw.max.x - dw.min.x + 1 == img.width() &&
-            (long long)dw.max.y - dw.min.y + 1 == img.height();
-  std::atomic<int> next{0};
-  std::atomic<bool> failed{!ok};
-  const auto decode = [&] {
+  bool ok = chunk_layout(ctxt, img, dw, lines, chunks);
+  // One decoding pipeline per thread, kept from chunk to chunk.
+  struct Pipe {
+    exr_const_context_t ctxt;
     exr_decode_pipeline_t pipe{};  // all zeros, as EXR_DECODE_PIPELINE_INITIALIZER ({0}) makes it
     bool started = false;
-    for (int c; !failed && (c = next++) < chunks;) {
-      exr_chunk_info_t ci{};
-      if (exr_read_scanline_chunk_info(ctxt, 0, dw.min.y + c * lines, &ci) != EXR_ERR_SUCCESS ||
-          (started ? exr_decoding_update(ctxt, 0, &ci, &pipe)
-                   : exr_decoding_initialize(ctxt, 0, &ci, &pipe)) != EXR_ERR_SUCCESS) {
-        failed = true;
-        break;
-      }
-      started = true;
-      float* row = img.data() + static_cast<std::size_t>(ci.start_y - dw.min.y) *
-                                    static_cast<std::size_t>(img.width()) * kChannels;
-      for (int k = 0; k < pipe.channel_count; ++k) {
-        exr_coding_channel_info_t& ch = pipe.channels[k];
-        static const char* const kNames[kChannels] = {"R", "G", "B", "A"};
-        int at = -1;
-        for (int i = 0; i < kChannels && at < 0; ++i)
-          if (std::strcmp(ch.channel_name, kNames[i]) == 0) at = i;
-        ch.decode_to_ptr = at < 0 ? nullptr : reinterpret_cast<uint8_t*>(row + at);
-        ch.user_pixel_stride = sizeof(float) * kChannels;
-        ch.user_line_stride = ch.user_pixel_stride * img.width();
-        ch.user_bytes_per_element = sizeof(float);
-        ch.user_data_type = EXR_PIXEL_FLOAT;
-      }
-      if (exr_decoding_choose_default_routines(ctxt, 0, &pipe) != EXR_ERR_SUCCESS ||
-          exr_decoding_run(ctxt, 0, &pipe) != EXR_ERR_SUCCESS)
-        failed = true;
+    ~Pipe() {
+      if (started) exr_decoding_destroy(ctxt, &pipe);
     }
-    if (started) exr_decoding_destroy(ctxt, &pipe);
   };
-  {
-    const int extra = std::min(exr_threads(), chunks) - 1;
-    std::vector<std::thread> workers;
-    try {
-      for (int t = 0; t < extra; ++t) workers.emplace_back(decode);
-    } catch (const std::system_error&) {
-      // fewer threads: the ones started and this one share the chunks
+  const auto decode = [&](Pipe& p, int c) {
+    exr_chunk_info_t ci{};
+    if (exr_read_scanline_chunk_info(ctxt, 0, dw.min.y + c * lines, &ci) != EXR_ERR_SUCCESS ||
+        (p.started ? exr_decoding_update(ctxt, 0, &ci, &p.pipe)
+                   : exr_decoding_initialize(ctxt, 0, &ci, &p.pipe)) != EXR_ERR_SUCCESS)
+      return false;
+    p.started = true;
+    float* row = img.data() + static_cast<std::size_t>(ci.start_y - dw.min.y) *
+                                  static_cast<std::size_t>(img.width()) * kChannels;
+    for (int k = 0; k < p.pipe.channel_count; ++k) {
+      exr_coding_channel_info_t& ch = p.pipe.channels[k];
+      const int at = rgba_index(ch.channel_name);
+      ch.decode_to_ptr = at < 0 ? nullptr : reinterpret_cast<uint8_t*>(row + at);
+      ch.user_pixel_stride = sizeof(float) * kChannels;
+      ch.user_line_stride = ch.user_pixel_stride * img.width();
+      ch.user_bytes_per_element = sizeof(float);
+      ch.user_data_type = EXR_PIXEL_FLOAT;
     }
-    decode();
-    for (auto& w : workers) w.join();
-  }
+    return exr_decoding_choose_default_routines(ctxt, 0, &p.pipe) == EXR_ERR_SUCCESS &&
+           exr_decoding_run(ctxt, 0, &p.pipe) == EXR_ERR_SUCCESS;
+  };
+  ok = ok && on_io_threads(chunks, [&] { return Pipe{ctxt}; }, decode);
   exr_finish(&ctxt);
-  if (failed) return false;
-  if (!alpha) {
-    float* p = img.data();
-    for (std::size_t i = 0, n = img.pixel_count(); i < n; ++i) p[i * kChannels + 3] = 1.0f;
-  }
+  if (!ok) return false;
+  if (!alpha) fill_alpha(img);
   return true;
 }
 
-/// Whether read_core reads part `chosen` of `file` (of `file_bytes` bytes), and faster than
-/// the C++ reader: the only part, scanline, R, G and B present (A optional), FLOAT, none
-/// subsampled, compressed by a method measured faster through Core. Not HALF: OpenEXRCore 3.1
-/// converts a file of exactly the four half channels A, B, G, R (RenderDoc's EXR save of a
-/// 16-bit float target) to float in reverse channel order (tests/test_io.cpp writes that
-/// file). Core 3.1's Huffman decoder is slower than the C++ one, so PIZ goes through Core only
-/// where the file is packed to under a third of its raw size: a 1920x1080 float file of
-/// 22.5 MB (68%) takes ~410 ms through Core against ~215 ms, one of 0.3 MB ~54 against
-/// ~115 ms, and GoldenGate.exr's stages cross over at 33-38% (two threads; measured with both
-/// readers on the same files).
-/// PXR24, B44 and DWA are left to the C++ reader.
-bool core_reads(const Imf::MultiPartInputFile& file, int chosen, unsigned long long file_bytes) {
+// PIZ, read through OpenEXR's own Huffman and wavelet decoders (ImfHuf.h, ImfWav.h), the same
+// ones its C++ reader runs, with each decoded chunk put into the image directly: the C++ reader
+// would copy it value by value through its generic loop, and Core 3.1's Huffman decoder is
+// slower. A PIZ chunk (OpenEXR's PizCompressor; "OpenEXR File Layout", PIZ) holds the byte
+// range [lo, hi] of a 65536-bit bitmap of the 16-bit words that occur, that range, the length
+// of the Huffman-coded data and the data. Decoded, it is the channels one after another (in the
+// file's order), each a block of its rows with every value's 16-bit words side by side (one for
+// HALF, two for FLOAT and UINT, the low word first), each word position wavelet-coded on its
+// own, every word an index into the words the bitmap holds. A chunk no smaller than its raw
+// size is stored raw: line after line, each the channels' values in turn, little-endian.
+
+/// A channel of a PIZ file: 16-bit words per value, where it goes in a pixel (-1: skipped).
+struct WordChannel {
+  int words = 2;
+  int at = -1;
+  bool half = false;
+};
+
+struct PizScratch {
+  std::vector<std::uint8_t> packed;
+  std::vector<std::uint16_t> words, lut;
+};
+
+/// Decodes the PIZ chunk in[0, n) of `lines` rows of `width` into s.words (channel blocks, as
+/// above). False where the chunk is inconsistent; OpenEXR's decoders throw on corrupt data.
+bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChannel>& channels,
+               int width, int lines, std::size_t total, PizScratch& s) {
+  constexpr std::size_t kBitmapBytes = 65536 / 8;
+  const auto u16 = [in](std::size_t at) { return unsigned(in[at]) | unsigned(in[at + 1]) << 8; };
+  if (n < 4) return false;
+  const unsigned lo = u16(0), hi = u16(2);
+  std::size_t at = 4;
+  std::array<std::uint8_t, kBitmapBytes> bitmap{};
+  if (lo <= hi) {
+    if (hi >= kBitmapBytes || n - at < hi - lo + 1) return false;
+    std::memcpy(bitmap.data() + lo, in + at, hi - lo + 1);
+    at += hi - lo + 1;
+  }
+  // Index k of the decoded words stands for the k-th word the bitmap holds (0 always).
+  s.lut.assign(65536, 0);
+  unsigned k = 0;
+  for (unsigned v = 0; v < 65536; ++v)
+    if (v == 0 || (bitmap[v >> 3] & (1u << (v & 7)))) s.lut[k++] = static_cast<std::uint16_t>(v);
+  const auto max_index = static_cast<std::uint16_t>(k - 1);
+  if (n - at < 4) return false;
+  const std::uint32_t length = u16(at) | std::uint32_t(u16(at + 2)) << 16;
+  at += 4;
+  if (length > n - at || total > std::size_t(INT32_MAX)) return false;
+  s.words.resize(total);
+  Imf::hufUncompress(reinterpret_cast<const char*>(in + at), static_cast<int>(length),
+                     s.words.data(), static_cast<int>(total));
+  std::size_t start = 0;
+  for (const WordChannel& c : channels) {
+    for (int j = 0; j < c.words; ++j)
+      Imf::wav2Decode(s.words.data() + start + j, width, c.words, lines, width * c.words, max_index);
+    start += std::size_t(c.words) * width * lines;
+  }
+  for (std::uint16_t& w : s.words) w = s.lut[w];
+  return true;
+}
+
+/// Whether read_piz reads part `chosen` of `file`: the only part, scanline, PIZ, R, G and B
+/// present (A optional) in HALF or FLOAT, no channel subsampled.
+bool piz_reads(const Imf::MultiPartInputFile& file, int chosen) {
   if (file.parts() != 1 || chosen != 0) return false;
   const Imf::Header& h = file.header(0);
-  if (h.hasTileDescription() || (h.hasType() && h.type() != Imf::SCANLINEIMAGE)) return false;
-  const Imath::Box2i dw = h.dataWindow();
-  unsigned long long raw = 0;
+  if (h.hasTileDescription() || (h.hasType() && h.type() != Imf::SCANLINEIMAGE) ||
+      h.compression() != Imf::PIZ_COMPRESSION)
+    return false;
   int colour = 0;
   for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
     const Imf::Channel& c = it.channel();
-    const unsigned long long values = (unsigned long long)(dw.max.x - dw.min.x + 1) *
-                                      (unsigned long long)(dw.max.y - dw.min.y + 1);
-    raw += (c.type == Imf::HALF ? 2ull : 4ull) * values /
-           (unsigned long long)(c.xSampling * c.ySampling);
-    const std::string n = it.name();
-    if (n != "R" && n != "G" && n != "B" && n != "A") continue;
+    if (c.xSampling != 1 || c.ySampling != 1) return false;
+    const int at = rgba_index(it.name());
+    if (at >= 0 && c.type == Imf::UINT) return false;
+    colour += at >= 0 && at < 3;
+  }
+  return colour == 3;
+}
+
+/// The channels R, G, B and A of a file piz_reads accepts, into `img` (the data window's
+/// size), the chunks decoded on as many threads as exr_threads' pool has. False, with `img` in
+/// any state, when a chunk cannot be decoded: the C++ reader then reads the file and reports
+/// the problem in its words.
+bool read_piz(const std::string& path, bool alpha, Image& img) {
+  exr_context_t ctxt = open_silently(path);
+  if (!ctxt) return false;
+  exr_attr_box2i_t dw{};
+  int32_t lines = 0, chunks = 0;
+  const exr_attr_chlist_t* list = nullptr;
+  bool ok = chunk_layout(ctxt, img, dw, lines, chunks) &&
+            exr_get_channels(ctxt, 0, &list) == EXR_ERR_SUCCESS && list;
+  std::vector<WordChannel> channels;
+  int words = 0;  // per pixel, every channel
+  for (int i = 0; ok && i < list->num_channels; ++i) {
+    const exr_attr_chlist_entry_t& e = list->entries[i];
+    const bool half = e.pixel_type == EXR_PIXEL_HALF;
+    channels.push_back({half ? 1 : 2, rgba_index(e.name.str), half});
+    words += channels.back().words;
+    ok = e.x_sampling == 1 && e.y_sampling == 1;
+  }
+  const int width = img.width();
+  const auto decode = [&](PizScratch& s, int c) {
+    exr_chunk_info_t ci{};
+    if (exr_read_scanline_chunk_info(ctxt, 0, dw.min.y + c * lines, &ci) != EXR_ERR_SUCCESS)
+      return false;
+    const int rows = ci.height;
+    const std::size_t total = std::size_t(words) * width * std::size_t(rows);
+    if (rows <= 0 || ci.start_y < dw.min.y || (long long)ci.start_y + rows - 1 > dw.max.y ||
+        ci.unpacked_size != 2 * total || ci.packed_size > ci.unpacked_size)
+      return false;
+    s.packed.resize(ci.packed_size);
+    if (exr_read_chunk(ctxt, 0, &ci, s.packed.data()) != EXR_ERR_SUCCESS) return false;
+    const bool raw = ci.packed_size == ci.unpacked_size;
+    try {
+      if (raw) {
+        s.words.resize(total);
+        for (std::size_t i = 0; i < total; ++i)
+          s.words[i] = static_cast<std::uint16_t>(s.packed[2 * i] | s.packed[2 * i + 1] << 8);
+      } else if (!piz_words(s.packed.data(), s.packed.size(), channels, width, rows, total, s)) {
+        return false;
+      }
+    } catch (const std::exception&) {
+      return false;
+    }
+    // Channel block by block (PIZ) or line by line (raw): where row y of each channel starts.
+    std::size_t start = 0;
+    for (const WordChannel& ch : channels) {
+      const std::size_t row_words = std::size_t(ch.words) * width;
+      const std::size_t step = raw ? std::size_t(words) * width : row_words;
+      if (ch.at >= 0)
+        for (int y = 0; y < rows; ++y) {
+          const std::uint16_t* w = s.words.data() + start + y * step;
+          float* out = img.data() + (std::size_t(ci.start_y - dw.min.y + y) * width) * kChannels + ch.at;
+          if (ch.half) {
+            for (int x = 0; x < width; ++x) {
+              half h;
+              h.setBits(w[x]);
+              out[std::size_t(x) * kChannels] = h;
+            }
+          } else {
+            for (int x = 0; x < width; ++x) {
+              const std::uint32_t bits = std::uint32_t(w[2 * x]) | std::uint32_t(w[2 * x + 1]) << 16;
+              std::memcpy(out + std::size_t(x) * kChannels, &bits, sizeof bits);
+            }
+          }
+        }
+      start += raw ? row_words : row_words * rows;
+    }
+    return true;
+  };
+  ok = ok && on_io_threads(chunks, [] { return PizScratch{}; }, decode);
+  exr_finish(&ctxt);
+  if (!ok) return false;
+  if (!alpha) fill_alpha(img);
+  return true;
+}
+
+/// Whether read_core reads part `chosen` of `file`, faster than the C++ reader: the only part,
+/// scanline, R, G and B present (A optional), FLOAT, none subsampled, uncompressed or
+/// compressed by RLE, ZIPS or ZIP. Not HALF: OpenEXRCore 3.1 converts a file of exactly the
+/// four half channels A, B, G, R (RenderDoc's EXR save of a 16-bit float target) to float in
+/// reverse channel order (tests/test_io.cpp writes that file). PIZ goes to read_piz (Core
+/// 3.1's Huffman decoder is the slower one); PXR24, B44 and DWA to the C++ reader.
+bool core_reads(const Imf::MultiPartInputFile& file, int chosen) {
+  if (file.parts() != 1 || chosen != 0) return false;
+  const Imf::Header& h = file.header(0);
+  if (h.hasTileDescription() || (h.hasType() && h.type() != Imf::SCANLINEIMAGE)) return false;
+  int colour = 0;
+  for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
+    const Imf::Channel& c = it.channel();
+    const int at = rgba_index(it.name());
+    if (at < 0) continue;
     if (c.xSampling != 1 || c.ySampling != 1 || c.type != Imf::FLOAT) return false;
-    colour += n != "A";
+    colour += at < 3;
   }
   if (colour != 3) return false;
   switch (h.compression()) {
@@ -295,8 +473,6 @@ bool core_reads(const Imf::MultiPartInputFile& file, int chosen, unsigned long l
     case Imf::ZIPS_COMPRESSION:
     case Imf::ZIP_COMPRESSION:
       return true;
-    case Imf::PIZ_COMPRESSION:
-      return file_bytes < raw / 3;
     default:
       return false;
   }
@@ -355,9 +531,10 @@ LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
                                                                      : ", tiled multi-level (level 0)")
                        : ", scanline");
 
-    if (core_reads(file, chosen, bytes)) {
+    const bool piz = piz_reads(file, chosen);
+    if (piz || core_reads(file, chosen)) {
       Image fast = Image::uninitialised(static_cast<int>(w), static_cast<int>(ht));
-      if (read_core(path, pc.alpha, fast)) {
+      if (piz ? read_piz(path, pc.alpha, fast) : read_core(path, pc.alpha, fast)) {
         out.image = std::move(fast);
         return out;
       }
