@@ -314,7 +314,8 @@ struct PizScratch {
 };
 
 /// Decodes the PIZ chunk in[0, n) of `lines` rows of `width` into s.words (channel blocks, as
-/// above). False where the chunk is inconsistent; OpenEXR's decoders throw on corrupt data.
+/// above), each word still its index into s.lut. False where the chunk is inconsistent;
+/// OpenEXR's decoders throw on corrupt data.
 bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChannel>& channels,
                int width, int lines, std::size_t total, PizScratch& s) {
   constexpr std::size_t kBitmapBytes = 65536 / 8;
@@ -328,11 +329,13 @@ bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChan
     std::memcpy(bitmap.data() + lo, in + at, hi - lo + 1);
     at += hi - lo + 1;
   }
-  // Index k of the decoded words stands for the k-th word the bitmap holds (0 always).
+  // Index k of the decoded words stands for the k-th word the bitmap holds (0 always); indices
+  // past the last (corrupt data) for 0.
   s.lut.assign(65536, 0);
-  unsigned k = 0;
-  for (unsigned v = 0; v < 65536; ++v)
-    if (v == 0 || (bitmap[v >> 3] & (1u << (v & 7)))) s.lut[k++] = static_cast<std::uint16_t>(v);
+  unsigned k = 1;
+  for (unsigned byte = lo; byte <= hi && byte < kBitmapBytes; ++byte)
+    for (unsigned bit = 0, b = bitmap[byte]; b; ++bit, b >>= 1)
+      if ((b & 1) && (byte != 0 || bit != 0)) s.lut[k++] = static_cast<std::uint16_t>(byte * 8 + bit);
   const auto max_index = static_cast<std::uint16_t>(k - 1);
   if (n - at < 4) return false;
   const std::uint32_t length = u16(at) | std::uint32_t(u16(at + 2)) << 16;
@@ -347,7 +350,6 @@ bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChan
       Imf::wav2Decode(s.words.data() + start + j, width, c.words, lines, width * c.words, max_index);
     start += std::size_t(c.words) * width * lines;
   }
-  for (std::uint16_t& w : s.words) w = s.lut[w];
   return true;
 }
 
@@ -415,29 +417,44 @@ bool read_piz(const std::string& path, bool alpha, Image& img) {
     } catch (const std::exception&) {
       return false;
     }
-    // Channel block by block (PIZ) or line by line (raw): where row y of each channel starts.
+    // Channel block by block (PIZ) or line by line (raw): where row 0 of each channel starts,
+    // and the step from row to row.
+    static const std::vector<std::uint16_t> identity = [] {
+      std::vector<std::uint16_t> v(65536);
+      for (unsigned i = 0; i < 65536; ++i) v[i] = static_cast<std::uint16_t>(i);
+      return v;
+    }();
+    const std::uint16_t* lut = raw ? identity.data() : s.lut.data();
+    const std::uint16_t* first[kChannels] = {};
+    std::size_t step[kChannels] = {};
+    bool half_at[kChannels] = {};
     std::size_t start = 0;
     for (const WordChannel& ch : channels) {
       const std::size_t row_words = std::size_t(ch.words) * width;
-      const std::size_t step = raw ? std::size_t(words) * width : row_words;
-      if (ch.at >= 0)
-        for (int y = 0; y < rows; ++y) {
-          const std::uint16_t* w = s.words.data() + start + y * step;
-          float* out = img.data() + (std::size_t(ci.start_y - dw.min.y + y) * width) * kChannels + ch.at;
-          if (ch.half) {
-            for (int x = 0; x < width; ++x) {
-              half h;
-              h.setBits(w[x]);
-              out[std::size_t(x) * kChannels] = h;
-            }
+      if (ch.at >= 0) {
+        first[ch.at] = s.words.data() + start;
+        step[ch.at] = raw ? std::size_t(words) * width : row_words;
+        half_at[ch.at] = ch.half;
+      }
+      start += raw ? row_words : row_words * rows;
+    }
+    for (int y = 0; y < rows; ++y) {
+      const std::uint16_t* w[kChannels];
+      for (int i = 0; i < kChannels; ++i) w[i] = first[i] ? first[i] + y * step[i] : nullptr;
+      float* out = img.data() + std::size_t(ci.start_y - dw.min.y + y) * width * kChannels;
+      for (int x = 0; x < width; ++x, out += kChannels)
+        for (int i = 0; i < kChannels; ++i) {
+          if (!w[i]) continue;
+          if (half_at[i]) {
+            half h;
+            h.setBits(lut[w[i][x]]);
+            out[i] = h;
           } else {
-            for (int x = 0; x < width; ++x) {
-              const std::uint32_t bits = std::uint32_t(w[2 * x]) | std::uint32_t(w[2 * x + 1]) << 16;
-              std::memcpy(out + std::size_t(x) * kChannels, &bits, sizeof bits);
-            }
+            const std::uint32_t bits =
+                std::uint32_t(lut[w[i][2 * x]]) | std::uint32_t(lut[w[i][2 * x + 1]]) << 16;
+            std::memcpy(out + i, &bits, sizeof bits);
           }
         }
-      start += raw ? row_words : row_words * rows;
     }
     return true;
   };
