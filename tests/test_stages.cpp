@@ -615,6 +615,39 @@ TEST_CASE("prefault makes pages resident and leaves every value as it was", "[st
   ::munmap(m, npages * pg);
 }
 
+TEST_CASE("a freed large image buffer serves the next image of its size, with that image's values",
+          "[stages]") {
+  // A 2048x1024 RGBA float image (32 MiB) written whole, then freed: the next image of that size
+  // gets the same memory, still resident (mincore: a buffer handed back to the kernel and mapped
+  // afresh would have no page resident before it is written); freed again, it serves
+  // Image::zeroed, which reads all zero over that dirty memory.
+  const int w = 2048, h = 1024;
+  const std::size_t bytes = std::size_t(w) * h * bloomref::kChannels * sizeof(float);
+  const std::size_t pg = std::size_t(::sysconf(_SC_PAGESIZE));
+  const void* first = nullptr;
+  {
+    Image a = Image::uninitialised(w, h);
+    std::fill(a.data(), a.data() + a.pixel_count() * bloomref::kChannels, -3.25f);
+    first = a.data();
+  }
+  Image b = Image::uninitialised(w, h);
+  CHECK(static_cast<const void*>(b.data()) == first);
+  {
+    const auto begin = (reinterpret_cast<std::uintptr_t>(b.data()) + pg - 1) / pg * pg;
+    const std::size_t n = (reinterpret_cast<std::uintptr_t>(b.data()) + bytes - begin) / pg;
+    std::vector<unsigned char> in_core(n);
+    REQUIRE(::mincore(reinterpret_cast<void*>(begin), n * pg, in_core.data()) == 0);
+    std::size_t resident = 0;
+    for (unsigned char v : in_core) resident += v & 1;
+    CHECK(resident == n);
+  }
+  b = Image();
+  const Image z = Image::zeroed(w, h);
+  CHECK(static_cast<const void*>(z.data()) == first);
+  CHECK(std::count(z.data(), z.data() + z.pixel_count() * bloomref::kChannels, 0.0f) ==
+        std::ptrdiff_t(z.pixel_count() * bloomref::kChannels));
+}
+
 TEST_CASE("zero_lazily and Image::zeroed give zero bytes over dirty memory, any alignment",
           "[stages]") {
   // Dirty heap memory (written with a pattern) at offsets that are not page-aligned, sizes below,

@@ -7,10 +7,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <cstring>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <utility>
 
@@ -21,9 +23,47 @@ namespace bloomref::detail {
 // (3840x2160, the fast exact blur).
 constexpr std::align_val_t kAlign{64};
 
-void* allocate_pixels(std::size_t bytes) { return ::operator new(bytes, kAlign); }
+// Freed buffers of at least 16 MiB, up to 96 MiB in all, are kept for the next buffer of the
+// same size. Blocks that large are mapped afresh by malloc and handed back to the kernel when
+// freed, so every new image of a size seen before faulted its pages in again: `check` of a
+// 1920x1080 frame with 15 stages spent 0.62-0.71 s of system time, 0.38-0.46 s with freed
+// images kept (a 1920x1080 RGBA float image is 31.6 MiB: three are kept; one of 3840x2160,
+// 127 MiB, never is, so peak memory at that size is unchanged).
+namespace {
+constexpr std::size_t kMinKept = std::size_t(16) << 20, kKeptBytes = std::size_t(96) << 20;
+struct Kept {
+  void* p = nullptr;
+  std::size_t bytes = 0;
+};
+std::mutex kept_mutex;
+std::array<Kept, 6> kept;  // kKeptBytes / kMinKept
+}  // namespace
 
-void free_pixels(void* p, std::size_t) noexcept { ::operator delete(p, kAlign); }
+void* allocate_pixels(std::size_t bytes) {
+  if (bytes >= kMinKept) {
+    const std::lock_guard<std::mutex> lock(kept_mutex);
+    for (Kept& k : kept)
+      if (k.p && k.bytes == bytes) return std::exchange(k.p, nullptr);
+  }
+  return ::operator new(bytes, kAlign);
+}
+
+void free_pixels(void* p, std::size_t bytes) noexcept {
+  if (p && bytes >= kMinKept && bytes <= kKeptBytes) {
+    const std::lock_guard<std::mutex> lock(kept_mutex);
+    std::size_t held = 0;
+    Kept* slot = nullptr;
+    for (Kept& k : kept) {
+      if (k.p) held += k.bytes;
+      else if (!slot) slot = &k;
+    }
+    if (slot && held + bytes <= kKeptBytes) {
+      *slot = {p, bytes};
+      return;
+    }
+  }
+  ::operator delete(p, kAlign);
+}
 
 // Writing a fresh 133 MB mapping (a 3840x2160 RGBA float image): 169-207 ms faulting 4 KiB pages
 // on first touch, 100-152 ms after this call (the 2-core AMD EPYC virtual machine, Linux 6.18).
