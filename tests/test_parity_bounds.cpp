@@ -178,6 +178,25 @@ TEST_CASE("blur: coordinate term from the local range, rounding from the magnitu
   CHECK(close(bound.pixel(0, 0)[0], (81 + 21) * u * 781 / 4070 + 0x1p-120));
 }
 
+// An image of one value `background` but in short spans of some rows (at either edge too, and
+// a NaN in one), and, when `odd_row`, one row of another value: the bounds take the windows
+// that reach no span as one (window_sums.cpp), which must be what each of them is.
+void sparse_image(Image& img, float background, bool odd_row) {
+  const int w = img.width(), h = img.height();
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 4; ++c) img.pixel(x, y)[c] = background;
+  for (int y = 0; y < h; y += 3) {
+    const int x0 = y == 0 ? 0 : y == 3 ? w - 2 : (y * 7) % w;
+    for (int x = x0; x < std::min(w, x0 + 3); ++x)
+      for (int c = 0; c < 3; ++c) img.pixel(x, y)[c] = static_cast<float>((x * 5 + y * 3 + c) % 7) + 0.5f;
+  }
+  if (h > 6) img.pixel(std::min(w - 1, 4), 6)[2] = NAN;
+  if (odd_row)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) img.pixel(x, h / 2 + 1)[c] = 2.0f;
+}
+
 TEST_CASE("blur bounds at every texel of small images: the windows written out plainly",
           "[parity][bounds]") {
   // The model (tolerance.cpp): a tap based at texel b = clamp(floor(pos +- o_i)) touches
@@ -186,20 +205,28 @@ TEST_CASE("blur bounds at every texel of small images: the windows written out p
   // coordinate term is delta x sum_i w_i range_i, the filter term (3 + 2T) u x sum_i w_i
   // magnitude_i (each sum in double, rounded to float). Computed here texel by texel, on every
   // size from 1 to 6 along both axes (edges everywhere), both kernels, with one NaN texel and
-  // one row of one value (whose windows the bounds take as one).
+  // one row of one value (whose windows the bounds take as one), and on sparse images.
   const DeviceProfile p = profile_llvmpipe();
   const BoundContext ctx{&p, Storage::f32, 3};
   for (const Kernel* k : {&kernel_discrete9(), &kernel_linear5()})
     for (Axis axis : {Axis::horizontal, Axis::vertical})
-      for (int w = 1; w <= 6; ++w)
-        for (int h = 1; h <= 6; ++h) {
+      for (int shape = 0; shape < 36 + 6; ++shape) {
+          // Every size to 6 x 6, then sparse images (sparse_image).
+          const bool sparse = shape >= 36;
+          const int sizes[6][2] = {{40, 9}, {9, 40}, {37, 23}, {23, 37}, {64, 64}, {64, 64}};
+          const int w = sparse ? sizes[shape - 36][0] : 1 + shape % 6;
+          const int h = sparse ? sizes[shape - 36][1] : 1 + shape / 6;
           Image img(w, h);
-          for (int y = 0; y < h; ++y)
-            for (int x = 0; x < w; ++x)
-              for (int c = 0; c < 3; ++c)
-                img.pixel(x, y)[c] =
-                    static_cast<float>(((y == 1 ? c : x * 7 + y * 13 + c * 5) % 11) - 3) / 4;
-          if (w * h > 4) img.pixel(w / 2, h / 2)[1] = NAN;
+          if (sparse) {
+            sparse_image(img, shape == 41 ? 0.0f : 0.25f, shape != 40);
+          } else {
+            for (int y = 0; y < h; ++y)
+              for (int x = 0; x < w; ++x)
+                for (int c = 0; c < 3; ++c)
+                  img.pixel(x, y)[c] =
+                      static_cast<float>(((y == 1 ? c : x * 7 + y * 13 + c * 5) % 11) - 3) / 4;
+            if (w * h > 4) img.pixel(w / 2, h / 2)[1] = NAN;
+          }
           const bool hz = axis == Axis::horizontal;
           const int n = hz ? w : h;
           const double delta = tol::coordinate_error(w, p) + tol::coordinate_error(h, p);

@@ -89,6 +89,7 @@ struct WindowScratch {
   std::vector<float> lo, hi, mag;       // pass 1, RGBA rows
   std::vector<float> range, magnitude;  // the window statistics, RGBA rows
   std::vector<std::uint8_t> src_const, p1_const, p1_filled, w_const, w_filled;
+  std::vector<int> src_a, src_b;        // a source row's span (row_span)
   std::vector<std::array<float, 4>> src_c, p1_lo, p1_hi, p1_ma, w_range, w_mag;
 };
 
@@ -103,55 +104,73 @@ T* sized(std::vector<T>& v, std::size_t n) {
   return v.data();
 }
 
-// Whether every texel of a row of w has the first texel's bits (then `c` is that texel): rows of
-// one value (dark and empty regions, their bounds) have one window statistic and one sum,
-// computed once.
-bool constant_row(const float* row, int w, std::array<float, 4>& c) {
-  std::uint32_t first[4], diff = 0;
+// The span [a, b) of a row of w outside which every texel has the first texel's bits (`c`):
+// a = b = 0, and true, when the whole row has them. Rows of one value (dark and empty regions,
+// their bounds) have one window statistic and one sum, computed once; a row that differs only
+// in a span (a sparse bright pass) has those everywhere else.
+bool row_span(const float* row, int w, std::array<float, 4>& c, int& a, int& b) {
+  std::uint32_t first[4];
   std::memcpy(first, row, sizeof first);
   std::memcpy(c.data(), row, sizeof first);
-  for (int x = 1; x < w; ++x) {
+  const auto differs = [&](int x) {
     std::uint32_t t[4];
     std::memcpy(t, row + std::size_t(x) * kChannels, sizeof t);
-    diff |= (t[0] ^ first[0]) | (t[1] ^ first[1]) | (t[2] ^ first[2]) | (t[3] ^ first[3]);
+    return ((t[0] ^ first[0]) | (t[1] ^ first[1]) | (t[2] ^ first[2]) | (t[3] ^ first[3])) != 0;
+  };
+  a = 1;
+  while (a < w && !differs(a)) ++a;
+  if (a == w) {
+    a = b = 0;
+    return true;
   }
-  return diff == 0;
+  b = w;
+  while (!differs(b - 1)) --b;
+  return false;
 }
 
-void fill_row(float* row, int w, const std::array<float, 4>& c) {
-  for (int x = 0; x < w; ++x) std::memcpy(row + std::size_t(x) * kChannels, c.data(), sizeof c);
+void fill_row(float* row, int x0, int x1, const std::array<float, 4>& c) {
+  for (int x = x0; x < x1; ++x) std::memcpy(row + std::size_t(x) * kChannels, c.data(), sizeof c);
 }
 
 // The texels of a row of w whose four (pass 1: x-1..x+2) or three (pass 2: x-1..x+1) neighbours
 // along x are all inside: [1, w - reach), the others clamp.
 inline bool inside(int x, int w, int reach) { return x >= 1 && x + reach < w; }
 
-// Pass 1 along x of one row (its texels x-1..x+2, clamped at the edges).
+// Pass 1 along x of texels [x0, x1) of one row (each from its texels x-1..x+2, clamped at the
+// edges).
 template <bool Range>
-void pass1_along_x(const float* in, int w, float* lo, float* hi, float* ma) {
+void pass1_along_x(const float* in, int w, int x0, int x1, float* lo, float* hi, float* ma) {
   constexpr int C = kChannels;
-  if (w > 3) pass1<Range>(in, in + C, in + 2 * C, in + 3 * C, std::size_t(w - 3) * C, lo + C, hi + C, ma + C);
-  for (int x = 0; x < w; ++x) {
+  const int i0 = std::max(x0, 1), i1 = std::min(x1, w - 2);  // inside
+  if (i1 > i0) {
+    const std::size_t o = std::size_t(i0) * C;
+    const float* t = in + o - C;
+    pass1<Range>(t, t + C, t + 2 * C, t + 3 * C, std::size_t(i1 - i0) * C, lo + o, hi + o, ma + o);
+  }
+  for (int x = x0; x < x1; ++x) {
     if (inside(x, w, 2)) continue;
     const float* t[4];
     for (int d = 0; d < 4; ++d) t[d] = in + std::size_t(std::clamp(x + d - 1, 0, w - 1)) * C;
     const std::size_t o = std::size_t(x) * C;
-    pass1<Range>(t[0], t[1], t[2], t[3], C, lo + o, hi + o, ma + o);
+    pass1<Range>(t[0], t[1], t[2], t[3], C, Range ? lo + o : nullptr, Range ? hi + o : nullptr,
+                 ma + o);
   }
 }
 
-// Pass 2 across x of one row (x-1..x+1, clamped at the edges).
+// Pass 2 across x of texels [x0, x1) of one row (each from x-1..x+1, clamped at the edges).
 template <bool Range>
-void pass2_across_x(const float* lo, const float* hi, const float* ma, int w, float* range,
-                    float* magnitude) {
+void pass2_across_x(const float* lo, const float* hi, const float* ma, int w, int x0, int x1,
+                    float* range, float* magnitude) {
   constexpr int C = kChannels;
-  if (w > 2) {
-    const float* l[3] = {lo, lo + C, lo + 2 * C};
-    const float* g[3] = {hi, hi + C, hi + 2 * C};
-    const float* m[3] = {ma, ma + C, ma + 2 * C};
-    pass2<Range>(l, g, m, std::size_t(w - 2) * C, range + C, magnitude + C);
+  const int i0 = std::max(x0, 1), i1 = std::min(x1, w - 1);  // inside
+  if (i1 > i0) {
+    const std::size_t o = std::size_t(i0) * C;
+    const float* l[3] = {lo + o - C, lo + o, lo + o + C};
+    const float* g[3] = {hi + o - C, hi + o, hi + o + C};
+    const float* m[3] = {ma + o - C, ma + o, ma + o + C};
+    pass2<Range>(l, g, m, std::size_t(i1 - i0) * C, range ? range + o : nullptr, magnitude + o);
   }
-  for (int x = 0; x < w; ++x) {
+  for (int x = x0; x < x1; ++x) {
     if (inside(x, w, 1)) continue;
     const float *l[3], *g[3], *m[3];
     for (int d = 0; d < 3; ++d) {
@@ -165,14 +184,15 @@ void pass2_across_x(const float* lo, const float* hi, const float* ma, int w, fl
   }
 }
 
-// The horizontal pass's windows (window_rows): pass 1 along x on the source rows [q0, q1), a
-// constant row's from its one texel (made whole only when a window row that is not constant
-// reads it); pass 2 across the rows y-1..y+1.
+// The horizontal pass's windows (window_rows) at columns [x0, x1): pass 1 along x on the source
+// rows [q0, q1), a constant row's from its one texel (made whole only when a window row that is
+// not constant reads it); pass 2 across the rows y-1..y+1.
 template <bool Range>
-void windows_h(ConstImageView src, int r0, int r1, int q0, int q1, float* range, float* magnitude,
-               WindowScratch& s) {
+void windows_h(ConstImageView src, int r0, int r1, int q0, int q1, int x0, int x1, float* range,
+               float* magnitude, WindowScratch& s) {
   const int w = src.width, h = src.height;
   const std::size_t row = std::size_t(w) * kChannels, n = std::size_t(q1 - q0) * row;
+  const std::size_t first = std::size_t(x0) * kChannels, count = std::size_t(x1 - x0) * kChannels;
   auto at = [&](std::vector<float>& v, int i) {
     return v.empty() ? nullptr : v.data() + std::size_t(i) * row;
   };
@@ -189,7 +209,7 @@ void windows_h(ConstImageView src, int r0, int r1, int q0, int q1, float* range,
     if (s.src_const[i])
       pass1<Range>(c, c, c, c, kChannels, s.p1_lo[i].data(), s.p1_hi[i].data(), s.p1_ma[i].data());
     else
-      pass1_along_x<Range>(src.row(y), w, at(s.lo, i), at(s.hi, i), at(s.mag, i));
+      pass1_along_x<Range>(src.row(y), w, x0, x1, at(s.lo, i), at(s.hi, i), at(s.mag, i));
   }
   for (int r = r0; r < r1; ++r) {
     int rows[3];
@@ -202,30 +222,35 @@ void windows_h(ConstImageView src, int r0, int r1, int q0, int q1, float* range,
     for (int d = 0; d < 3; ++d) {
       const int i = rows[d];
       if (!all_const && !s.p1_filled[i]) {
-        if (Range) fill_row(at(s.lo, i), w, s.p1_lo[i]);
-        if (Range) fill_row(at(s.hi, i), w, s.p1_hi[i]);
-        fill_row(at(s.mag, i), w, s.p1_ma[i]);
+        if (Range) fill_row(at(s.lo, i), x0, x1, s.p1_lo[i]);
+        if (Range) fill_row(at(s.hi, i), x0, x1, s.p1_hi[i]);
+        fill_row(at(s.mag, i), x0, x1, s.p1_ma[i]);
         s.p1_filled[i] = 1;
       }
-      l[d] = all_const ? s.p1_lo[i].data() : at(s.lo, i);
-      g[d] = all_const ? s.p1_hi[i].data() : at(s.hi, i);
-      m[d] = all_const ? s.p1_ma[i].data() : at(s.mag, i);
+      l[d] = all_const ? s.p1_lo[i].data() : Range ? at(s.lo, i) + first : nullptr;
+      g[d] = all_const ? s.p1_hi[i].data() : Range ? at(s.hi, i) + first : nullptr;
+      m[d] = all_const ? s.p1_ma[i].data() : at(s.mag, i) + first;
     }
     s.w_const[r - r0] = all_const;
+    const std::size_t o = std::size_t(r - r0) * row + first;
     if (all_const) pass2<Range>(l, g, m, kChannels, s.w_range[r - r0].data(), s.w_mag[r - r0].data());
-    else pass2<Range>(l, g, m, row, Range ? range + (r - r0) * row : nullptr, magnitude + (r - r0) * row);
+    else pass2<Range>(l, g, m, count, Range ? range + o : nullptr, magnitude + o);
   }
 }
 
-// The vertical pass's windows (window_rows): per row, pass 1 along y over the source rows
-// y-1..y+2, pass 2 across x; from one texel where the four source rows are constant.
+// The vertical pass's windows (window_rows) at columns [x0, x1): per row, pass 1 along y over
+// the source rows y-1..y+2, pass 2 across x; from one texel where the four source rows are
+// constant.
 template <bool Range>
-void windows_v(ConstImageView src, int r0, int r1, int q0, float* range, float* magnitude,
-               WindowScratch& s) {
+void windows_v(ConstImageView src, int r0, int r1, int q0, int x0, int x1, float* range,
+               float* magnitude, WindowScratch& s) {
   const int w = src.width, h = src.height;
   const std::size_t row = std::size_t(w) * kChannels;
   float *lo = sized(s.lo, Range ? row : 0), *hi = sized(s.hi, Range ? row : 0);
   float* ma = sized(s.mag, row);
+  // Pass 2 at [x0, x1) reads pass 1 at [x0 - 1, x1 + 1), clamped.
+  const int p0 = std::max(x0 - 1, 0), p1 = std::min(x1 + 1, w);
+  const std::size_t first = std::size_t(p0) * kChannels, count = std::size_t(p1 - p0) * kChannels;
   for (int r = r0; r < r1; ++r) {
     const float* t[4];
     bool all_const = true;
@@ -242,42 +267,67 @@ void windows_v(ConstImageView src, int r0, int r1, int q0, float* range, float* 
       pass2<Range>(ls, gs, ms, kChannels, s.w_range[r - r0].data(), s.w_mag[r - r0].data());
       continue;
     }
-    for (int d = 0; d < 4; ++d) t[d] = src.row(std::clamp(r + d - 1, 0, h - 1));
-    pass1<Range>(t[0], t[1], t[2], t[3], row, lo, hi, ma);
+    for (int d = 0; d < 4; ++d) t[d] = src.row(std::clamp(r + d - 1, 0, h - 1)) + first;
+    pass1<Range>(t[0], t[1], t[2], t[3], count, Range ? lo + first : nullptr,
+                 Range ? hi + first : nullptr, ma + first);
     const std::size_t o = std::size_t(r - r0) * row;
-    pass2_across_x<Range>(lo, hi, ma, w, Range ? range + o : nullptr, magnitude + o);
+    pass2_across_x<Range>(lo, hi, ma, w, x0, x1, Range ? range + o : nullptr, magnitude + o);
   }
 }
 
-// Window statistics of rows [r0, r1) of src into range / magnitude (RGBA rows; without Range
-// only the magnitude), edges clamped. A window row all of whose source rows are constant is
-// constant: it is flagged in s.w_const with its values in s.w_range / s.w_mag, and its rows are
-// left unwritten (window_filled writes them).
-template <bool Range>
-void window_rows(ConstImageView src, Axis axis, int r0, int r1, float* range, float* magnitude,
-                 WindowScratch& s) {
+// Each source row's span (row_span) for the window rows [r0, r1), into s; returns the columns
+// [x0, x1) whose windows may differ from one another: where every source row has the same
+// value outside its span, the windows that reach no span (the horizontal pass's window at x
+// covers x-1..x+2, the vertical one's x-1..x+1) all have that value's statistics. Otherwise
+// every column.
+std::pair<int, int> source_spans(ConstImageView src, Axis axis, int r0, int r1, WindowScratch& s) {
   const int w = src.width, h = src.height;
+  const bool hz = axis == Axis::horizontal;
+  const int q0 = std::max(r0 - 1, 0), q1 = std::min(r1 + (hz ? 1 : 2), h);
+  const std::size_t n = std::size_t(q1 - q0);
+  sized(s.src_const, n);
+  sized(s.src_c, n);
+  sized(s.src_a, n);
+  sized(s.src_b, n);
+  bool same = true;
+  int a = w, b = 0;
+  for (int y = q0; y < q1; ++y) {
+    const int i = y - q0;
+    s.src_const[i] = row_span(src.row(y), w, s.src_c[i], s.src_a[i], s.src_b[i]);
+    same = same && std::memcmp(s.src_c[i].data(), s.src_c[0].data(), sizeof(float) * kChannels) == 0;
+    if (!s.src_const[i]) {
+      a = std::min(a, s.src_a[i]);
+      b = std::max(b, s.src_b[i]);
+    }
+  }
+  if (!same || a >= b) return {0, w};
+  return {std::max(a - (hz ? 2 : 1), 0), std::min(b + 1, w)};
+}
+
+// Window statistics of rows [r0, r1) of src at columns [x0, x1) into range / magnitude (RGBA
+// rows; without Range only the magnitude), edges clamped; source_spans has run. A window row
+// all of whose source rows are constant is constant: it is flagged in s.w_const with its values
+// in s.w_range / s.w_mag, and its rows are left unwritten (window_filled writes them).
+template <bool Range>
+void window_rows(ConstImageView src, Axis axis, int r0, int r1, int x0, int x1, float* range,
+                 float* magnitude, WindowScratch& s) {
+  const int h = src.height;
   const std::size_t rows = std::size_t(r1 - r0);
   const bool hz = axis == Axis::horizontal;
-  // The source rows read: [q0, q1), each tested for one value.
   const int q0 = std::max(r0 - 1, 0), q1 = std::min(r1 + (hz ? 1 : 2), h);
-  sized(s.src_const, std::size_t(q1 - q0));
-  sized(s.src_c, std::size_t(q1 - q0));
-  for (int y = q0; y < q1; ++y)
-    s.src_const[y - q0] = constant_row(src.row(y), w, s.src_c[y - q0]);
   for (auto* v : {&s.w_const, &s.w_filled}) std::fill(sized(*v, rows), sized(*v, rows) + rows, 0);
   sized(s.w_range, rows);
   sized(s.w_mag, rows);
-  if (hz) windows_h<Range>(src, r0, r1, q0, q1, range, magnitude, s);
-  else windows_v<Range>(src, r0, r1, q0, range, magnitude, s);
+  if (hz) windows_h<Range>(src, r0, r1, q0, q1, x0, x1, range, magnitude, s);
+  else windows_v<Range>(src, r0, r1, q0, x0, x1, range, magnitude, s);
 }
 
-// Writes window row i whole if it was left constant (window_rows).
-void window_filled(WindowScratch& s, int i, int w, float* range, float* magnitude) {
+// Writes columns [x0, x1) of window row i if it was left constant (window_rows).
+void window_filled(WindowScratch& s, int i, int w, int x0, int x1, float* range, float* magnitude) {
   if (!s.w_const[i] || s.w_filled[i]) return;
   const std::size_t o = std::size_t(i) * w * kChannels;
-  if (range) fill_row(range + o, w, s.w_range[i]);
-  fill_row(magnitude + o, w, s.w_mag[i]);
+  if (range) fill_row(range + o, x0, x1, s.w_range[i]);
+  fill_row(magnitude + o, x0, x1, s.w_mag[i]);
   s.w_filled[i] = 1;
 }
 
@@ -302,12 +352,15 @@ BlurTaps::BlurTaps(Axis a, int n, const Kernel& k) : axis(a), taps(k.taps()) {
   inner0 = inner1 = mid;
   while (inner0 > 0 && fixed(inner0 - 1)) --inner0;
   while (inner1 < n && fixed(inner1)) ++inner1;
+  reach0 = *std::min_element(offset.begin(), offset.end());
+  reach1 = *std::max_element(offset.begin(), offset.end());
 }
 
 // sum over taps of weight * statistic(tap base), per channel, for rows [y0, y1) of src's
 // window statistics (range_sum may be null: magnitude only). RGBA rows. In double, tap by tap
 // in the kernel's order, rounded to float once. Every tap of a position has the same weights,
-// so where every tap reads constant window rows the row's sums are one texel's.
+// so where every tap reads constant window statistics (a constant row, or the columns outside
+// the band's spans) the sum is one texel's.
 void BlurTaps::sums(ConstImageView src, int y0, int y1, float* range_sum,
                     float* magnitude_sum) const {
   const bool hz = axis == Axis::horizontal;
@@ -319,16 +372,44 @@ void BlurTaps::sums(ConstImageView src, int y0, int y1, float* range_sum,
     r1 = 1 + *std::max_element(base.begin() + std::ptrdiff_t(y1 - 1) * taps, base.begin() + std::ptrdiff_t(y1) * taps);
   }
   WindowScratch& s = window_scratch();
+  // The columns whose windows may differ, [wx0, wx1); the sums that read them, [ox0, ox1) (a
+  // horizontal tap based at x + offset, clamped); the windows those read, [sx0, sx1).
+  const auto [wx0, wx1] = source_spans(src, axis, r0, r1, s);
+  int ox0 = wx0, ox1 = wx1, sx0 = wx0, sx1 = wx1;
+  if (hz && (wx0 > 0 || wx1 < w)) {
+    ox0 = std::clamp(wx0 - reach1, 0, w);
+    ox1 = std::clamp(wx1 - reach0, 0, w);
+    sx0 = std::clamp(ox0 + reach0, 0, w);
+    sx1 = std::clamp(ox1 + reach1, 0, w);
+  }
   const std::size_t row = std::size_t(w) * kChannels, n = std::size_t(r1 - r0) * row;
   float* range = range_sum ? sized(s.range, n) : nullptr;
   float* magnitude = sized(s.magnitude, n);
-  if (range) window_rows<true>(src, axis, r0, r1, range, magnitude, s);
-  else window_rows<false>(src, axis, r0, r1, nullptr, magnitude, s);
+  if (range) window_rows<true>(src, axis, r0, r1, sx0, sx1, range, magnitude, s);
+  else window_rows<false>(src, axis, r0, r1, sx0, sx1, nullptr, magnitude, s);
+  // The statistics of a window of the value outside the spans, and their sum over the taps.
+  std::array<float, 4> outside_range{}, outside_magnitude{};
+  if (ox0 > 0 || ox1 < w) {
+    const float* c = s.src_c[0].data();
+    float l[4], g[4], m[4], range_c[4], magnitude_c[4];
+    pass1<true>(c, c, c, c, kChannels, l, g, m);
+    const float *ls[3] = {l, l, l}, *gs[3] = {g, g, g}, *ms[3] = {m, m, m};
+    pass2<true>(ls, gs, ms, kChannels, range_c, magnitude_c);
+    const float* rc[kMaxTaps];
+    const float* mc[kMaxTaps];
+    for (int t = 0; t < taps; ++t) {
+      rc[t] = range_c;
+      mc[t] = magnitude_c;
+    }
+    weighted_sums(rc, &weight[0], kChannels, outside_range.data());
+    weighted_sums(mc, &weight[0], kChannels, outside_magnitude.data());
+  }
   for (int which = 0; which < 2; ++which) {
     const float* stat = which == 0 ? range : magnitude;
     float* out = which == 0 ? range_sum : magnitude_sum;
     if (!out) continue;
     const auto& consts = which == 0 ? s.w_range : s.w_mag;
+    const std::array<float, 4>& outside = which == 0 ? outside_range : outside_magnitude;
     for (int y = y0; y < y1; ++y) {
       float* o = out + std::size_t(y - y0) * row;
       const int* b = hz ? nullptr : &base[std::size_t(y) * taps];
@@ -339,20 +420,23 @@ void BlurTaps::sums(ConstImageView src, int y0, int y1, float* range_sum,
         for (int t = 0; t < taps; ++t) src_c[t] = consts[(hz ? y : b[t]) - r0].data();
         std::array<float, 4> v;
         weighted_sums(src_c, &weight[0], kChannels, v.data());
-        fill_row(o, w, v);
+        fill_row(o, 0, w, v);
         continue;
       }
+      fill_row(o, 0, ox0, outside);
+      fill_row(o, ox1, w, outside);
       if (hz) {
-        window_filled(s, y - r0, w, range, magnitude);
-        along_row(stat + std::size_t(y - r0) * row, w, o);
+        window_filled(s, y - r0, w, sx0, sx1, range, magnitude);
+        along_row(stat + std::size_t(y - r0) * row, ox0, ox1, o);
         continue;
       }
       const float* rows[kMaxTaps];
       for (int t = 0; t < taps; ++t) {
-        window_filled(s, b[t] - r0, w, range, magnitude);
-        rows[t] = stat + std::size_t(b[t] - r0) * row;
+        window_filled(s, b[t] - r0, w, sx0, sx1, range, magnitude);
+        rows[t] = stat + std::size_t(b[t] - r0) * row + std::size_t(ox0) * kChannels;
       }
-      weighted_sums(rows, &weight[std::size_t(y) * taps], row, o);
+      weighted_sums(rows, &weight[std::size_t(y) * taps], std::size_t(ox1 - ox0) * kChannels,
+                    o + std::size_t(ox0) * kChannels);
     }
   }
 }
@@ -382,16 +466,17 @@ void BlurTaps::weighted_sums(const float* const* src, const double* w, std::size
   }
 }
 
-// A horizontal pass's sums over one row of statistics: the inner texels by fixed offsets, the
-// edges by their clamped bases.
-void BlurTaps::along_row(const float* stat, int w, float* out) const {
+// A horizontal pass's sums over columns [x0, x1) of one row of statistics: the inner texels by
+// fixed offsets, the edges by their clamped bases.
+void BlurTaps::along_row(const float* stat, int x0, int x1, float* out) const {
   constexpr int C = kChannels;
   const float* src[kMaxTaps];
-  if (inner1 > inner0) {
-    for (int t = 0; t < taps; ++t) src[t] = stat + std::ptrdiff_t(inner0 + offset[t]) * C;
-    weighted_sums(src, weight.data(), std::size_t(inner1 - inner0) * C, out + std::size_t(inner0) * C);
+  const int i0 = std::max(x0, inner0), i1 = std::min(x1, inner1);
+  if (i1 > i0) {
+    for (int t = 0; t < taps; ++t) src[t] = stat + std::ptrdiff_t(i0 + offset[t]) * C;
+    weighted_sums(src, weight.data(), std::size_t(i1 - i0) * C, out + std::size_t(i0) * C);
   }
-  for (int x = 0; x < w; ++x) {
+  for (int x = x0; x < x1; ++x) {
     if (x >= inner0 && x < inner1) continue;
     for (int t = 0; t < taps; ++t) src[t] = stat + std::size_t(base[std::size_t(x) * taps + t]) * C;
     weighted_sums(src, &weight[std::size_t(x) * taps], C, out + std::size_t(x) * C);

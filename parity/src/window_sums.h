@@ -27,7 +27,7 @@ class BlurTaps {
 
  private:
   void weighted_sums(const float* const* src, const double* w, std::size_t n, float* out) const;
-  void along_row(const float* stat, int w, float* out) const;
+  void along_row(const float* stat, int x0, int x1, float* out) const;
 
   Axis axis = Axis::horizontal;
   int taps = 0;
@@ -37,6 +37,7 @@ class BlurTaps {
   // clamped at an edge).
   int inner0 = 0, inner1 = 0;
   std::vector<int> offset;
+  int reach0 = 0, reach1 = 0;  // the least and the greatest offset
 };
 
 }  // namespace bloomref::parity::detail
