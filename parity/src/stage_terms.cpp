@@ -47,14 +47,22 @@ float through_tonemap(double h, double e, double exposure) {
              : INFINITY;
 }
 
-// Gamma's slope is unbounded near black: bound by the interval's image instead.
+}  // namespace
+
+// Gamma's slope is unbounded near black: there, bound by the interval's image. Where e is at
+// most 2^-10 of m, by the mean value theorem instead, with one pow for two: the width of the
+// image of [m - e, m + e] under x^g is 2e g xi^(g-1) for some xi inside, and the slope is
+// largest at the low end for g < 1 (the high end for g > 1). That is at most
+// ((m + e) / (m - e))^|g - 1| - 1, about 0.1%, more than the width itself.
 float through_output(double m, double e, double gamma) {
   const double g = 1.0 / gamma;
-  return std::isfinite(m) && std::isfinite(e)
-             ? static_cast<float>(std::pow(std::max(m + e, 0.0), g) -
-                                  std::pow(std::max(m - e, 0.0), g))
-             : INFINITY;
+  if (!std::isfinite(m) || !std::isfinite(e)) return INFINITY;
+  if (e >= 0 && e <= std::ldexp(m, -10))
+    return static_cast<float>(2 * e * g * std::pow(g < 1 ? m - e : m + e, g - 1));
+  return static_cast<float>(std::pow(std::max(m + e, 0.0), g) - std::pow(std::max(m - e, 0.0), g));
 }
+
+namespace {
 
 double srgb_decode(double v) {
   return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);

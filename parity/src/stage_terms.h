@@ -65,6 +65,10 @@ void override_rows(const StageOverride* over, float* b, std::size_t n);
 // always had).
 void put_rows(Image& img, int y0, const float* rows, std::size_t n);
 
+/// A bound on how far x^(1/gamma) moves over [m - e, m + e] (the end-to-end bound carried
+/// through the output stage's gamma).
+float through_output(double m, double e, double gamma);
+
 // An 8-bit capture: the oracle value clamped to [0, 1] (what the capture could hold), in
 // place, and half a code of the capture's encoding at that value.
 float capture_code(const CapturedStage& cap, float& o);
