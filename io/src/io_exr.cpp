@@ -340,7 +340,8 @@ bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChan
   if (n - at < 4) return false;
   const std::uint32_t length = u16(at) | std::uint32_t(u16(at + 2)) << 16;
   at += 4;
-  if (length > n - at || total > std::size_t(INT32_MAX)) return false;
+  if (length > n - at || length > std::uint32_t(INT32_MAX) || total > std::size_t(INT32_MAX))
+    return false;
   s.words.resize(total);
   Imf::hufUncompress(reinterpret_cast<const char*>(in + at), static_cast<int>(length),
                      s.words.data(), static_cast<int>(total));
