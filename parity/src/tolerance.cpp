@@ -154,19 +154,43 @@ class BlurBounds : public StageBounds {
   }
 
   void rows(int y0, int y1, float* bound, float* rounding) const override {
-    const std::size_t row = std::size_t(src_.width) * kChannels;
+    const int w = src_.width;
+    const std::size_t row = std::size_t(w) * kChannels;
     Sums& s = scratch();
     float* range = sized(s.range, std::size_t(y1 - y0) * row);
     float* magnitude = sized(s.magnitude, std::size_t(y1 - y0) * row);
-    bases_->sums(src_, y0, y1, range, magnitude);
+    if (s.shapes.size() < std::size_t(y1 - y0)) s.shapes.resize(std::size_t(y1 - y0));
+    bases_->sums(src_, y0, y1, range, magnitude, s.shapes.data());
     for (int y = y0; y < y1; ++y) {
       const std::size_t at = std::size_t(y - y0) * row;
-      if (ctx_.storage == Storage::f32)
-        terms_row<true>(range + at, magnitude + at, oracle_.row(y), row, bound ? bound + at : nullptr,
-                        rounding ? rounding + at : nullptr);
-      else
-        terms_row<false>(range + at, magnitude + at, oracle_.row(y), row, bound ? bound + at : nullptr,
-                         rounding ? rounding + at : nullptr);
+      const BlurTaps::RowShape& sh = s.shapes[std::size_t(y - y0)];
+      float* b = bound ? bound + at : nullptr;
+      float* r = rounding ? rounding + at : nullptr;
+      if (ctx_.storage == Storage::f32) {
+        // The terms of f32 storage are those of the sums alone: outside the row's shape, one
+        // texel's, copied.
+        const std::size_t x0 = std::size_t(sh.x0) * kChannels, x1 = std::size_t(sh.x1) * kChannels;
+        terms_row<true>(range + at + x0, magnitude + at + x0, oracle_.row(y) + x0, x1 - x0,
+                        b ? b + x0 : nullptr, r ? r + x0 : nullptr);
+        if (sh.x0 > 0 || sh.x1 < w) {
+          float cb[kChannels], cr[kChannels];
+          terms_row<true>(sh.range.data(), sh.magnitude.data(), oracle_.row(y), kChannels,
+                          b ? cb : nullptr, r ? cr : nullptr);
+          const auto fill = [&](float* out, const float* c, int from, int to) {
+            for (int x = from; x < to; ++x) std::memcpy(out + std::size_t(x) * kChannels, c, sizeof cb);
+          };
+          if (b) fill(b, cb, 0, sh.x0), fill(b, cb, sh.x1, w);
+          if (r) fill(r, cr, 0, sh.x0), fill(r, cr, sh.x1, w);
+        }
+      } else {
+        for (int x = 0; x < w; ++x)
+          if (x < sh.x0 || x >= sh.x1) {
+            std::memcpy(range + at + std::size_t(x) * kChannels, sh.range.data(), sizeof sh.range);
+            std::memcpy(magnitude + at + std::size_t(x) * kChannels, sh.magnitude.data(),
+                        sizeof sh.magnitude);
+          }
+        terms_row<false>(range + at, magnitude + at, oracle_.row(y), row, b, r);
+      }
     }
   }
 
@@ -185,6 +209,7 @@ class BlurBounds : public StageBounds {
  private:
   struct Sums {
     std::vector<float> range, magnitude;
+    std::vector<BlurTaps::RowShape> shapes;
   };
   static Sums& scratch() {
     thread_local Sums s;

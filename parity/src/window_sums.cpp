@@ -371,6 +371,11 @@ BlurTaps::BlurTaps(Axis a, int n, const Kernel& k) : axis(a), taps(k.taps()) {
 // the band's spans) the sum is one texel's.
 void BlurTaps::sums(ConstImageView src, int y0, int y1, float* range_sum,
                     float* magnitude_sum) const {
+  sums(src, y0, y1, range_sum, magnitude_sum, nullptr);
+}
+
+void BlurTaps::sums(ConstImageView src, int y0, int y1, float* range_sum, float* magnitude_sum,
+                    RowShape* shapes) const {
   const bool hz = axis == Axis::horizontal;
   const int w = src.width;
   // The window rows the band's taps read: its own (horizontal), or every tap's base row.
@@ -428,11 +433,24 @@ void BlurTaps::sums(ConstImageView src, int y0, int y1, float* range_sum,
         for (int t = 0; t < taps; ++t) src_c[t] = consts[(hz ? y : b[t]) - r0].data();
         std::array<float, 4> v;
         weighted_sums(src_c, &weight[0], kChannels, v.data());
-        fill_row(o, 0, w, v);
+        if (shapes) {
+          RowShape& sh = shapes[y - y0];
+          sh.x0 = sh.x1 = 0;
+          (which == 0 ? sh.range : sh.magnitude) = v;
+        } else {
+          fill_row(o, 0, w, v);
+        }
         continue;
       }
-      fill_row(o, 0, ox0, outside);
-      fill_row(o, ox1, w, outside);
+      if (shapes) {
+        RowShape& sh = shapes[y - y0];
+        sh.x0 = ox0;
+        sh.x1 = ox1;
+        (which == 0 ? sh.range : sh.magnitude) = outside;
+      } else {
+        fill_row(o, 0, ox0, outside);
+        fill_row(o, ox1, w, outside);
+      }
       if (hz) {
         window_filled(s, y - r0, w, sx0, sx1, range, magnitude);
         along_row(stat + std::size_t(y - r0) * row, ox0, ox1, o);

@@ -3,6 +3,7 @@
 // are made of (tolerance.cpp), for bands of rows.
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "bloomref/image.h"
@@ -24,6 +25,17 @@ class BlurTaps {
   /// NaN or Inf among them). Each sum in double, tap by tap in the kernel's order, rounded to
   /// float once.
   void sums(ConstImageView src, int y0, int y1, float* range_sum, float* magnitude_sum) const;
+
+  /// Where a row of sums differs from texel to texel: columns [x0, x1); every other texel has
+  /// `range` and `magnitude` (RGBA).
+  struct RowShape {
+    int x0 = 0, x1 = 0;
+    std::array<float, 4> range{}, magnitude{};
+  };
+  /// As above, but writes each row only over its shape's columns and describes the rest in
+  /// shapes[y - y0].
+  void sums(ConstImageView src, int y0, int y1, float* range_sum, float* magnitude_sum,
+            RowShape* shapes) const;
 
  private:
   void weighted_sums(const float* const* src, const double* w, std::size_t n, float* out) const;
