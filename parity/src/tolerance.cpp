@@ -176,19 +176,13 @@ class BlurBounds : public StageBounds {
           float cb[kChannels], cr[kChannels];
           terms_row<true>(sh.range.data(), sh.magnitude.data(), oracle_.row(y), kChannels,
                           b ? cb : nullptr, r ? cr : nullptr);
-          const auto fill = [&](float* out, const float* c, int from, int to) {
-            for (int x = from; x < to; ++x) std::memcpy(out + std::size_t(x) * kChannels, c, sizeof cb);
-          };
-          if (b) fill(b, cb, 0, sh.x0), fill(b, cb, sh.x1, w);
-          if (r) fill(r, cr, 0, sh.x0), fill(r, cr, sh.x1, w);
+          if (b) sh.fill_outside(b, w, cb);
+          if (r) sh.fill_outside(r, w, cr);
         }
       } else {
-        for (int x = 0; x < w; ++x)
-          if (x < sh.x0 || x >= sh.x1) {
-            std::memcpy(range + at + std::size_t(x) * kChannels, sh.range.data(), sizeof sh.range);
-            std::memcpy(magnitude + at + std::size_t(x) * kChannels, sh.magnitude.data(),
-                        sizeof sh.magnitude);
-          }
+        // The storage term needs every texel's oracle value: the sums are made whole first.
+        sh.fill_outside(range + at, w, sh.range.data());
+        sh.fill_outside(magnitude + at, w, sh.magnitude.data());
         terms_row<false>(range + at, magnitude + at, oracle_.row(y), row, b, r);
       }
     }

@@ -442,15 +442,12 @@ void BlurTaps::sums(ConstImageView src, int y0, int y1, float* range_sum, float*
         }
         continue;
       }
-      if (shapes) {
-        RowShape& sh = shapes[y - y0];
-        sh.x0 = ox0;
-        sh.x1 = ox1;
-        (which == 0 ? sh.range : sh.magnitude) = outside;
-      } else {
-        fill_row(o, 0, ox0, outside);
-        fill_row(o, ox1, w, outside);
-      }
+      RowShape local;
+      RowShape& sh = shapes ? shapes[y - y0] : local;
+      sh.x0 = ox0;
+      sh.x1 = ox1;
+      (which == 0 ? sh.range : sh.magnitude) = outside;
+      if (!shapes) sh.fill_outside(o, w, outside.data());
       if (hz) {
         window_filled(s, y - r0, w, sx0, sx1, range, magnitude);
         along_row(stat + std::size_t(y - r0) * row, ox0, ox1, o);
@@ -465,6 +462,15 @@ void BlurTaps::sums(ConstImageView src, int y0, int y1, float* range_sum, float*
                     o + std::size_t(ox0) * kChannels);
     }
   }
+}
+
+void BlurTaps::RowShape::fill_outside(float* row, int w, const float* c) const {
+  const auto put = [&](int from, int to) {
+    for (int x = from; x < to; ++x)
+      std::memcpy(row + std::size_t(x) * kChannels, c, sizeof(float) * kChannels);
+  };
+  put(0, x0);
+  put(x1, w);
 }
 
 // out[i] = sum over taps t of w[t] * src[t][i], in double from 0, tap by tap in order, rounded

@@ -31,6 +31,8 @@ class BlurTaps {
   struct RowShape {
     int x0 = 0, x1 = 0;
     std::array<float, 4> range{}, magnitude{};
+    /// Writes the RGBA texel c over the columns of a row of w outside [x0, x1).
+    void fill_outside(float* row, int w, const float* c) const;
   };
   /// As above, but writes each row only over its shape's columns and describes the rest in
   /// shapes[y - y0].
