@@ -335,7 +335,8 @@ bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChan
   unsigned k = 1;
   for (unsigned byte = lo; byte <= hi && byte < kBitmapBytes; ++byte)
     for (unsigned bit = 0, b = bitmap[byte]; b; ++bit, b >>= 1)
-      if ((b & 1) && (byte != 0 || bit != 0)) s.lut[k++] = static_cast<std::uint16_t>(byte * 8 + bit);
+      if ((b & 1) && (byte != 0 || bit != 0))
+        s.lut[k++] = static_cast<std::uint16_t>(byte * 8 + bit);
   const auto max_index = static_cast<std::uint16_t>(k - 1);
   if (n - at < 4) return false;
   const std::uint32_t length = u16(at) | std::uint32_t(u16(at + 2)) << 16;
@@ -348,35 +349,17 @@ bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChan
   std::size_t start = 0;
   for (const WordChannel& c : channels) {
     for (int j = 0; j < c.words; ++j)
-      Imf::wav2Decode(s.words.data() + start + j, width, c.words, lines, width * c.words, max_index);
+      Imf::wav2Decode(s.words.data() + start + j, width, c.words, lines, width * c.words,
+                      max_index);
     start += std::size_t(c.words) * width * lines;
   }
   return true;
 }
 
-/// Whether read_piz reads part `chosen` of `file`: the only part, scanline, PIZ, R, G and B
-/// present (A optional) in HALF or FLOAT, no channel subsampled.
-bool piz_reads(const Imf::MultiPartInputFile& file, int chosen) {
-  if (file.parts() != 1 || chosen != 0) return false;
-  const Imf::Header& h = file.header(0);
-  if (h.hasTileDescription() || (h.hasType() && h.type() != Imf::SCANLINEIMAGE) ||
-      h.compression() != Imf::PIZ_COMPRESSION)
-    return false;
-  int colour = 0;
-  for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
-    const Imf::Channel& c = it.channel();
-    if (c.xSampling != 1 || c.ySampling != 1) return false;
-    const int at = rgba_index(it.name());
-    if (at >= 0 && c.type == Imf::UINT) return false;
-    colour += at >= 0 && at < 3;
-  }
-  return colour == 3;
-}
-
-/// The channels R, G, B and A of a file piz_reads accepts, into `img` (the data window's
-/// size), the chunks decoded on as many threads as exr_threads' pool has. False, with `img` in
-/// any state, when a chunk cannot be decoded: the C++ reader then reads the file and reports
-/// the problem in its words.
+/// The channels R, G, B and A of a file fast_reader gives to read_piz, into `img` (the data
+/// window's size), the chunks decoded on as many threads as exr_threads' pool has. False, with
+/// `img` in any state, when a chunk cannot be decoded: the C++ reader then reads the file and
+/// reports the problem in its words.
 bool read_piz(const std::string& path, bool alpha, Image& img) {
   exr_context_t ctxt = open_silently(path);
   if (!ctxt) return false;
@@ -466,33 +449,44 @@ bool read_piz(const std::string& path, bool alpha, Image& img) {
   return true;
 }
 
-/// Whether read_core reads part `chosen` of `file`, faster than the C++ reader: the only part,
-/// scanline, R, G and B present (A optional), FLOAT, none subsampled, uncompressed or
-/// compressed by RLE, ZIPS or ZIP. Not HALF: OpenEXRCore 3.1 converts a file of exactly the
-/// four half channels A, B, G, R (RenderDoc's EXR save of a 16-bit float target) to float in
-/// reverse channel order (tests/test_io.cpp writes that file). PIZ goes to read_piz (Core
-/// 3.1's Huffman decoder is the slower one); PXR24, B44 and DWA to the C++ reader.
-bool core_reads(const Imf::MultiPartInputFile& file, int chosen) {
-  if (file.parts() != 1 || chosen != 0) return false;
+/// The faster reader of part `chosen` of `file`, where there is one. Both take the only part,
+/// scanline, with R, G and B (A optional), none subsampled:
+/// - read_piz PIZ files in HALF or FLOAT, every channel unsubsampled (its chunk layout);
+/// - read_core FLOAT files uncompressed or compressed by RLE, ZIPS or ZIP. Not HALF:
+///   OpenEXRCore 3.1 converts a file of exactly the four half channels A, B, G, R (RenderDoc's
+///   EXR save of a 16-bit float target) to float in reverse channel order (tests/test_io.cpp
+///   writes that file). Core 3.1's Huffman decoder is the slower one, hence read_piz.
+/// PXR24, B44 and DWA are left to the C++ reader.
+enum class FastReader { none, core, piz };
+FastReader fast_reader(const Imf::MultiPartInputFile& file, int chosen) {
+  if (file.parts() != 1 || chosen != 0) return FastReader::none;
   const Imf::Header& h = file.header(0);
-  if (h.hasTileDescription() || (h.hasType() && h.type() != Imf::SCANLINEIMAGE)) return false;
+  if (h.hasTileDescription() || (h.hasType() && h.type() != Imf::SCANLINEIMAGE))
+    return FastReader::none;
+  const bool piz = h.compression() == Imf::PIZ_COMPRESSION;
   int colour = 0;
   for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
     const Imf::Channel& c = it.channel();
+    const bool sampled = c.xSampling == 1 && c.ySampling == 1;
     const int at = rgba_index(it.name());
-    if (at < 0) continue;
-    if (c.xSampling != 1 || c.ySampling != 1 || c.type != Imf::FLOAT) return false;
+    if (at < 0) {
+      if (piz && !sampled) return FastReader::none;
+      continue;
+    }
+    if (!sampled || c.type == Imf::UINT || (!piz && c.type != Imf::FLOAT)) return FastReader::none;
     colour += at < 3;
   }
-  if (colour != 3) return false;
+  if (colour != 3) return FastReader::none;
   switch (h.compression()) {
+    case Imf::PIZ_COMPRESSION:
+      return FastReader::piz;
     case Imf::NO_COMPRESSION:
     case Imf::RLE_COMPRESSION:
     case Imf::ZIPS_COMPRESSION:
     case Imf::ZIP_COMPRESSION:
-      return true;
+      return FastReader::core;
     default:
-      return false;
+      return FastReader::none;
   }
 }
 
@@ -549,10 +543,10 @@ LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
                                                                      : ", tiled multi-level (level 0)")
                        : ", scanline");
 
-    const bool piz = piz_reads(file, chosen);
-    if (piz || core_reads(file, chosen)) {
+    if (const FastReader reader = fast_reader(file, chosen); reader != FastReader::none) {
       Image fast = Image::uninitialised(static_cast<int>(w), static_cast<int>(ht));
-      if (piz ? read_piz(path, pc.alpha, fast) : read_core(path, pc.alpha, fast)) {
+      if (reader == FastReader::piz ? read_piz(path, pc.alpha, fast)
+                                    : read_core(path, pc.alpha, fast)) {
         out.image = std::move(fast);
         return out;
       }

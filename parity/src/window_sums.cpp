@@ -302,7 +302,8 @@ std::pair<int, int> source_spans(ConstImageView src, Axis axis, int r0, int r1, 
   for (int y = q0; y < q1; ++y) {
     const int i = y - q0;
     s.src_const[i] = row_span(src.row(y), w, s.src_c[i], s.src_a[i], s.src_b[i]);
-    same = same && std::memcmp(s.src_c[i].data(), s.src_c[0].data(), sizeof(float) * kChannels) == 0;
+    same = same &&
+           std::memcmp(s.src_c[i].data(), s.src_c[0].data(), sizeof(float) * kChannels) == 0;
     if (!s.src_const[i]) {
       a = std::min(a, s.src_a[i]);
       b = std::max(b, s.src_b[i]);
