@@ -1,24 +1,29 @@
-"""bloomref.run from Python against the command's own in-process time, in one process.
+"""bloomref.run from Python against the command's own in-process time.
 
 For each built-in scene at --size (default 3840x2160: `demo`, sparse, the adaptive plan's case;
 `constant`, every pixel bright), rounds alternate between
-  * the command in this process, `run SCENE.exr --repeat N+1` (bloomref.run_command_line): its
-    JSON's per-run totals of the N warm runs (the first of each call is left out), and
-  * N+1 calls of bloomref.run(array) on the loaded scene, each timed around the call (parsing
-    the options, the run reading the array in place, wrapping the output as an array), the first
-    left out as the command's is: each side's timed runs follow one run of its own, not the
-    other side's;
+  * the command as its own process, `bloomref run SCENE.exr --repeat N+1` (--cli, default the
+    build's next to the module, else the one on PATH): its JSON's per-run totals of the N warm
+    runs (the first of each call is left out), and
+  * N+1 calls of bloomref.run(array) on the loaded scene, in this process, each timed around the
+    call (parsing the options, the run reading the array in place, wrapping the output as an
+    array), the first left out as the command's is: each side's timed runs follow one run of
+    its own, not the other side's;
 the medians of both, their ratio and the median of the rounds' own ratios (each round's two
 sides ran under the same load) are printed and written to --out/python_vs_cli.json. Every timed
-Python output must have the bits of the command's output file (exit 1 otherwise).
+Python output must have the bits of the command's output file (exit 1 otherwise). The command
+runs as its own process, not through bloomref.run_command_line, because the module changes how
+this process allocates large buffers (huge pages, reference/src/image.cpp).
 
   PYTHONPATH=build/python python3 benchmarks/python_vs_cli.py [--size WxH] [--rounds R]
-      [--repeat N] [--out DIR]
+      [--repeat N] [--cli PATH] [--out DIR]
 """
 import argparse
 import json
 import os
 import pathlib
+import shutil
+import subprocess
 import statistics
 import sys
 import tempfile
@@ -29,10 +34,18 @@ import numpy as np
 import bloomref
 
 
+CLI = None  # the command's path (main)
+
+
 def command(*args):
-    rc = bloomref.run_command_line([str(a) for a in args])
-    if rc != 0:
-        sys.exit(f"bloomref {' '.join(map(str, args))}: exit {rc}")
+    r = subprocess.run([CLI] + [str(a) for a in args], stdout=subprocess.DEVNULL)
+    if r.returncode != 0:
+        sys.exit(f"bloomref {' '.join(map(str, args))}: exit {r.returncode}")
+
+
+def default_cli():
+    built = pathlib.Path(bloomref.__file__).resolve().parent.parent / "cli" / "bloomref"
+    return str(built) if built.is_file() else shutil.which("bloomref")
 
 
 def bench_scene(name, size, rounds, repeat, work):
@@ -70,8 +83,13 @@ def main():
     ap.add_argument("--scenes", default="demo,constant")
     ap.add_argument("--rounds", type=int, default=12)
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--cli", default=None, help="the bloomref command to time against")
     ap.add_argument("--out", default=None, help="folder for python_vs_cli.json")
     a = ap.parse_args()
+    global CLI
+    CLI = a.cli or default_cli()
+    if not CLI:
+        sys.exit("no bloomref command: give --cli PATH")
     results = []
     with tempfile.TemporaryDirectory(prefix="bloomref-pybench-") as tmp:
         for name in a.scenes.split(","):
@@ -81,7 +99,7 @@ def main():
                   f"(min {r['cli_min_ms']:.1f}), bloomref.run median {r['python_median_ms']:.1f} "
                   f"ms (min {r['python_min_ms']:.1f}), ratio {r['ratio']:.3f}, per round "
                   f"{r['paired_ratio_median']:.3f} ({len(r['python_ms'])} runs each, same bits)")
-    doc = {"threads": os.cpu_count(), "loadavg": os.getloadavg(), "results": results}
+    doc = {"threads": os.cpu_count(), "loadavg": os.getloadavg(), "cli": CLI, "results": results}
     if a.out:
         pathlib.Path(a.out).mkdir(parents=True, exist_ok=True)
         (pathlib.Path(a.out) / "python_vs_cli.json").write_text(json.dumps(doc, indent=2) + "\n")

@@ -1,4 +1,5 @@
 """bloomref.run: values computed here by hand, the CLI's output bits, arrays in and out, errors."""
+import os
 import threading
 
 import numpy as np
@@ -119,6 +120,34 @@ def test_released_outputs_are_written_again():
     c = bloomref.run(scene)
     for out in (b, c):
         assert np.array_equal(bits(out), bits(first))
+
+
+def huge_advised(begin, end):
+    """Whether every mapping of this process overlapping [begin, end) is advised for huge pages
+    ("hg" in its VmFlags, /proc/self/smaps: the kernel's record); False where none overlaps."""
+    flags, overlaps = [], False
+    with open("/proc/self/smaps") as f:
+        for line in f:
+            if line.startswith("VmFlags:"):
+                if overlaps:
+                    flags.append("hg" in line.split()[1:])
+            elif "-" in line.split()[0]:
+                lo, hi = (int(x, 16) for x in line.split()[0].split("-"))
+                overlaps = lo < end and begin < hi
+    return bool(flags) and all(flags)
+
+
+@pytest.mark.skipif(not os.path.exists("/sys/kernel/mm/transparent_hugepage"),
+                    reason="no transparent huge pages in this kernel")
+def test_large_outputs_are_advised_for_huge_pages_as_numpy_arrays_are():
+    # An 8 MiB output: its whole 2 MiB pages advised for huge pages, as numpy advises its own
+    # arrays of 4 MiB or more (the threshold itself: tests/test_stages.cpp).
+    huge = 2 << 20
+    out = bloomref.run(hdr_scene(512, 1024))
+    start = out.ctypes.data
+    first, last = -(-start // huge) * huge, (start + out.nbytes) // huge * huge
+    assert last > first
+    assert huge_advised(first, last)
 
 
 def test_the_gil_is_released_while_it_runs():

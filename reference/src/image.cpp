@@ -18,10 +18,24 @@
 
 namespace bloomref::detail {
 
-// Tried and not kept: 2 MiB alignment with madvise(MADV_HUGEPAGE) for large buffers. Passes after
+// Not the default: 2 MiB alignment with madvise(MADV_HUGEPAGE) for large buffers. Passes after
 // the first ran 10% faster, but faulting the huge pages in made the first blur pass ~3x slower
-// (3840x2160, the fast exact blur).
+// (3840x2160, the fast exact blur), and a command runs one image. A process that keeps its
+// buffers and runs again opts in (advise_huge_pages): the Python module, whose bloomref.run on a
+// loaded 3840x2160 scene then took 0.98-1.03x of the command's in-process time in alternated
+// runs, 1.05-1.08x without (benchmarks/python_vs_cli.py).
 constexpr std::align_val_t kAlign{64};
+std::atomic<bool> huge_pages{false};
+constexpr std::size_t kMinHugeAdvised = std::size_t(4) << 20;  // numpy's threshold
+
+// The 2 MiB pages wholly inside [p, p + bytes), advised for transparent huge pages.
+void advise_huge(void* p, std::size_t bytes) noexcept {
+  constexpr std::uintptr_t huge = std::uintptr_t(2) << 20;
+  const auto begin = reinterpret_cast<std::uintptr_t>(p);
+  const std::uintptr_t first = (begin + huge - 1) / huge * huge;
+  const std::uintptr_t last = (begin + bytes) / huge * huge;
+  if (first < last) ::madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+}
 
 // Freed buffers of at least 16 MiB, up to 96 MiB in all, are kept for the next buffer of the
 // same size. Blocks that large are mapped afresh by malloc and handed back to the kernel when
@@ -45,8 +59,12 @@ void* allocate_pixels(std::size_t bytes) {
     for (Kept& k : kept)
       if (k.p && k.bytes == bytes) return std::exchange(k.p, nullptr);
   }
-  return ::operator new(bytes, kAlign);
+  void* p = ::operator new(bytes, kAlign);
+  if (bytes >= kMinHugeAdvised && huge_pages.load(std::memory_order_relaxed)) advise_huge(p, bytes);
+  return p;
 }
+
+void advise_huge_pages(bool on) noexcept { huge_pages.store(on, std::memory_order_relaxed); }
 
 void free_pixels(void* p, std::size_t bytes) noexcept {
   if (p && bytes >= kMinKept && bytes <= kKeptBytes) {
