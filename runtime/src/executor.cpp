@@ -836,6 +836,11 @@ StageTrace with_scan(const Plan& plan, StageTrace trace) {
 
 void release_scratch_images() { scratch_pool().clear(); }
 
+bool output_in_given_buffer(const BloomParams& params, const ExecuteOptions& opt) {
+  return params.precision == Precision::f32 && params.method == Method::gaussian &&
+         !opt.keep_all;
+}
+
 const StageResult* StageTrace::find(const std::string& name) const {
   for (const StageResult& s : stages)
     if (s.name == name) return &s;

@@ -59,6 +59,13 @@ StageTrace execute(const Plan& plan, Image&& scene, const ExecuteOptions& opt = 
 StageTrace execute(const Plan& plan, ConstImageView scene, Image&& output,
                    const ExecuteOptions& opt = {});
 
+/// Whether the second and third overloads leave the output in the buffer they were handed (the
+/// scene's; the output's when it has the scene's size) rather than in a new one: in f32 under
+/// the gaussian method, where every stage after the input writes that buffer in place, when no
+/// intermediate is kept (tested for every plan, blur and storage). The Python module hands an
+/// array's own buffer to the executor (`out=`) only then.
+bool output_in_given_buffer(const BloomParams& params, const ExecuteOptions& opt);
+
 /// The adaptive plan keeps the two zeroed scratch images of its last sparse runs (at most two,
 /// each the size of the scene) so that the next run of that size does not zero or fault in a
 /// whole image again; this frees them.
