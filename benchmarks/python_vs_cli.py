@@ -8,9 +8,13 @@ For each built-in scene at --size (default 3840x2160: `demo`, sparse, the adapti
   * N+1 calls of bloomref.run(array) on the loaded scene, in this process, each timed around the
     call (parsing the options, the run reading the array in place, wrapping the output as an
     array), the first left out as the command's is: each side's timed runs follow one run of
-    its own, not the other side's;
-the medians of both, their ratio and the median of the rounds' own ratios (each round's two
-sides ran under the same load) are printed and written to --out/python_vs_cli.json. Every timed
+    its own, not the other side's, and
+  * N+1 calls of bloomref.run(a, out=a), in place as the command runs, on an array the module
+    made (bloomref.load), the scene copied into it before each call outside the timer, as the
+    command copies its input before each of its runs;
+the medians of each, their ratios to the command's and the medians of the rounds' own ratios
+(each round's sides ran under the same load) are printed and written to
+--out/python_vs_cli.json. Every timed
 Python output must have the bits of the command's output file (exit 1 otherwise). The command
 runs as its own process, not through bloomref.run_command_line, because the module changes how
 this process allocates large buffers (huge pages, reference/src/image.cpp).
@@ -54,7 +58,8 @@ def bench_scene(name, size, rounds, repeat, work):
     command("run", scene, "-o", work / f"{name}.out.exr", "-q")
     expected = bloomref.load(work / f"{name}.out.exr").view(np.uint32)
     image = bloomref.load(scene)
-    cli_ms, py_ms, paired = [], [], []
+    work_array = bloomref.load(scene)  # the in-place runs' array, its buffer the module's
+    cli_ms, py_ms, paired, inplace_ms, inplace_paired = [], [], [], [], []
     bloomref.run(image)  # warm-up, outside the figures
     for _ in range(rounds):
         command("run", scene, "--repeat", repeat + 1, "--json", work / "t.json", "-q")
@@ -66,15 +71,29 @@ def bench_scene(name, size, rounds, repeat, work):
             py.append((time.perf_counter() - t0) * 1e3)
             if not np.array_equal(out.view(np.uint32), expected):
                 sys.exit(f"{name}: bloomref.run gave other bits than the command's output")
-        py = py[1:]
+        ip = []
+        for _ in range(repeat + 1):
+            np.copyto(work_array, image)
+            t0 = time.perf_counter()
+            res = bloomref.run(work_array, out=work_array)  # `out` keeps the last output alive,
+            ip.append((time.perf_counter() - t0) * 1e3)   # as the plain runs' loop leaves it
+            if res is not work_array or not np.array_equal(res.view(np.uint32), expected):
+                sys.exit(f"{name}: bloomref.run(a, out=a) gave other bits than the command's")
+        py, ip = py[1:], ip[1:]
         cli_ms += cli
         py_ms += py
+        inplace_ms += ip
         paired.append(statistics.median(py) / statistics.median(cli))
-    cli, py = statistics.median(cli_ms), statistics.median(py_ms)
+        inplace_paired.append(statistics.median(ip) / statistics.median(cli))
+    cli, py, ip = (statistics.median(v) for v in (cli_ms, py_ms, inplace_ms))
     return {"scene": name, "size": size, "cli_in_process_ms": cli_ms, "python_ms": py_ms,
+            "python_in_place_ms": inplace_ms,
             "cli_median_ms": cli, "python_median_ms": py, "ratio": py / cli,
+            "python_in_place_median_ms": ip, "in_place_ratio": ip / cli,
             "cli_min_ms": min(cli_ms), "python_min_ms": min(py_ms),
-            "paired_ratio_median": statistics.median(paired), "same_bits": True}
+            "paired_ratio_median": statistics.median(paired),
+            "in_place_paired_ratio_median": statistics.median(inplace_paired),
+            "same_bits": True}
 
 
 def main():
@@ -98,7 +117,10 @@ def main():
             print(f"{name} {a.size}: command in-process median {r['cli_median_ms']:.1f} ms "
                   f"(min {r['cli_min_ms']:.1f}), bloomref.run median {r['python_median_ms']:.1f} "
                   f"ms (min {r['python_min_ms']:.1f}), ratio {r['ratio']:.3f}, per round "
-                  f"{r['paired_ratio_median']:.3f} ({len(r['python_ms'])} runs each, same bits)")
+                  f"{r['paired_ratio_median']:.3f}; in place (out=) median "
+                  f"{r['python_in_place_median_ms']:.1f} ms, ratio {r['in_place_ratio']:.3f}, per "
+                  f"round {r['in_place_paired_ratio_median']:.3f} ({len(r['python_ms'])} runs "
+                  "each, same bits)")
     doc = {"threads": os.cpu_count(), "loadavg": os.getloadavg(), "cli": CLI, "results": results}
     if a.out:
         pathlib.Path(a.out).mkdir(parents=True, exist_ok=True)

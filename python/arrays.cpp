@@ -87,6 +87,35 @@ SceneArray scene_array(const py::handle& obj, const std::string& what) {
   return s;
 }
 
+// The name of to_array's capsules, by which out_array knows an array whose buffer is an Image.
+constexpr const char* kImageCapsule = "bloomref.image";
+
+OutArray out_array(const py::handle& obj, int width, int height, const std::string& what) {
+  if (!py::isinstance<py::array>(obj))
+    throw py::value_error(what + ": expected a numpy array, got " +
+                          std::string(py::str(py::type::of(obj).attr("__name__"))));
+  OutArray o;
+  o.array = py::reinterpret_borrow<py::array>(obj);
+  const py::array& a = o.array;
+  const std::string wanted = "(" + std::to_string(height) + ", " + std::to_string(width) + ", 4)";
+  if (a.ndim() != 3 || a.shape(0) != height || a.shape(1) != width || a.shape(2) != kChannels)
+    throw py::value_error(what + ": shape " + shape_text(a) + " is not the output's, " + wanted);
+  if (!a.dtype().is(py::dtype::of<float>()))
+    throw py::value_error(what + ": dtype " + std::string(py::str(a.dtype())) +
+                          " is not float32");
+  if (!(a.flags() & py::array::c_style))
+    throw py::value_error(what + ": not C-contiguous (the output is written whole, row by row)");
+  if (!a.writeable()) throw py::value_error(what + ": read-only");
+  o.data = static_cast<float*>(o.array.mutable_data());
+  const py::object base = a.base();
+  if (base && PyCapsule_IsValid(base.ptr(), kImageCapsule)) {
+    auto* img = static_cast<Image*>(PyCapsule_GetPointer(base.ptr(), kImageCapsule));
+    if (img && img->data() == o.data && img->width() == width && img->height() == height)
+      o.image = img;
+  }
+  return o;
+}
+
 py::array to_array(Image&& image) {
   auto* owner = new Image(std::move(image));
   py::capsule release(owner, [](void* p) {
@@ -99,6 +128,7 @@ py::array to_array(Image&& image) {
     }
     delete img;
   });
+  if (PyCapsule_SetName(release.ptr(), kImageCapsule) != 0) throw py::error_already_set();
   const py::ssize_t w = owner->width(), h = owner->height();
   constexpr py::ssize_t f = sizeof(float);
   return py::array_t<float>({h, w, py::ssize_t(kChannels)}, {w * kChannels * f, kChannels * f, f},

@@ -30,6 +30,16 @@ SceneArray scene_array(const pybind11::handle& obj, const std::string& what);
 /// the array, its buffer is kept for kept_buffer (one buffer at most: the last released).
 pybind11::array to_array(Image&& image);
 
+/// The array `out=` names, checked (ValueError naming `what`): a writeable float32 array of
+/// height x width x 4 in C order. `image` is the bloomref image whose buffer it is (an array
+/// to_array made, whole), or null: such a buffer can be handed to the executor and taken back.
+struct OutArray {
+  pybind11::array array;
+  Image* image = nullptr;
+  float* data = nullptr;
+};
+OutArray out_array(const pybind11::handle& obj, int width, int height, const std::string& what);
+
 /// The kept buffer of the last array Python released, when it is `width` x `height` (else an
 /// empty image), for the executor to write its output into (executor.h): a loop of runs at one
 /// size then writes into pages already mapped, where a new 3840x2160 buffer costs about 170 ms

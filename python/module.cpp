@@ -17,7 +17,7 @@ namespace py = pybind11;
 
 namespace {
 
-constexpr const char* kRunDoc = R"(run(image=None, *, keep_stages=False, **options)
+constexpr const char* kRunDoc = R"(run(image=None, *, keep_stages=False, out=None, **options)
 
 Applies bloom as `bloomref run` does, with the same bits.
 
@@ -26,14 +26,18 @@ image: a numpy array of H x W x 4 (RGBA) or H x W x 3 (RGB, alpha 1) floats, lin
     or a crop of one) is read in place, any other is converted first. Or an image path (EXR,
     .hdr, PNG, TIFF...), or None for the built-in scene (options scene, size).
 keep_stages: return every stage instead of the output.
+out: an array to write the output into (float32, H x W x 4, C order, writeable), returned.
+    `out=image` runs in place, overwriting the scene as the command does with the image it
+    loads: the fastest form for an array this module returned (bloomref.load, an earlier
+    output), whose buffer the run then uses directly; any other array receives a copy.
 options: `bloomref run`'s options, named as its long options with underscores: method,
     threshold, exposure, gamma, passes, kernel, strength, storage, precision, nonfinite,
     subtexel_bits, threads, plan, blur, levels, karis, composite, scene, size, backend,
     gl_shaders. Their defaults and checks are the command's (bloomref run --help).
 
-Returns the output, a float32 H x W x 4 array (display-referred: after tone map and gamma), or
-with keep_stages a dict from stage name (input, bright, blur.1 ... output) to its array, in
-pipeline order. The arrays own their buffers (no copy). The computation runs without the GIL.
+Returns the output, a float32 H x W x 4 array (display-referred: after tone map and gamma; out
+when given), or with keep_stages a dict from stage name (input, bright, blur.1 ... output) to
+its array, in pipeline order. The arrays own their buffers (no copy). The computation runs without the GIL.
 Raises ValueError for a bad image or option (the reason in the message).)";
 
 constexpr const char* kCheckDoc = R"(check(scene=None, stages=None, **options)
@@ -98,7 +102,7 @@ PYBIND11_MODULE(bloomref, m) {
     }
   });
   m.def("run", &bloomref::python::run, kRunDoc, py::arg("image") = py::none(), py::kw_only(),
-        py::arg("keep_stages") = false);
+        py::arg("keep_stages") = false, py::arg("out") = py::none());
   m.def("check", &bloomref::python::check, kCheckDoc, py::arg("scene") = py::none(),
         py::arg("stages") = py::none());
   m.def("load", &bloomref::python::load, kLoadDoc, py::arg("path"));

@@ -4,6 +4,11 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
+#include <cstdint>
+#include <stdexcept>
+#include <utility>
+
 #include "arrays.h"
 #include "bloomref/error.h"
 #include "bloomref/executor.h"
@@ -71,26 +76,86 @@ StageTrace execute_on(const RunOptions& o, const Plan& plan, ConstImageView scen
   return execute(plan, scene, kept_buffer(scene.width, scene.height), eo);
 }
 
+// Whether [a, a + an) and [b, b + bn) share a byte.
+bool overlap(const float* a, std::size_t an, const float* b, std::size_t bn) {
+  const auto x = reinterpret_cast<std::uintptr_t>(a), y = reinterpret_cast<std::uintptr_t>(b);
+  return x < y + bn * sizeof(float) && y < x + an * sizeof(float);
+}
+
 }  // namespace
 
-py::object run(const py::object& image, bool keep_stages, const py::kwargs& kwargs) {
+py::object run(const py::object& image, bool keep_stages, const py::object& out,
+               const py::kwargs& kwargs) {
   const RunOptions o = parse_run_options(kwargs);
+  if (!out.is_none() && keep_stages)
+    throw py::value_error("bloomref.run: out and keep_stages do not go together (out receives "
+                          "the output only)");
   SceneArray scene;
   LoadedImage loaded;  // a file or a built-in scene, handed over to the executor
   std::string source = "array";
   const std::string path = path_string(image);
   const bool from_array = !image.is_none() && path.empty();
-  if (from_array) scene = scene_array(image, "bloomref.run: image");
+  if (from_array) {
+    scene = scene_array(image, "bloomref.run: image");
+  } else {
+    py::gil_scoped_release unlocked;
+    loaded = o.pipeline.load_input(path, source);
+  }
+  const ConstImageView view = from_array ? scene.view : loaded.image.cview();
+  OutArray target;
+  if (!out.is_none()) target = out_array(out, view.width, view.height, "bloomref.run: out");
+  const std::size_t values = std::size_t(view.width) * view.height * kChannels;
+
+  // out= an array whose buffer is a bloomref image (one this module returned): the buffer is
+  // handed to the executor, which leaves the output in it (output_in_given_buffer), and taken
+  // back, with the GIL, even on an exception (the executor gives it back then). In place when
+  // it is the scene's own buffer, as the command runs on the image it loaded; a scene that
+  // shares some other part of it is read first, and the output copied in.
+  ExecuteOptions eo;
+  eo.keep_all = keep_stages;
+  Image handed;
+  bool in_place = false;
+  if (target.image && o.backend == "cpu" && output_in_given_buffer(o.pipeline.params, eo)) {
+    const std::size_t scene_values = std::size_t(view.stride) * (view.height - 1) * kChannels +
+                                     std::size_t(view.width) * kChannels;
+    in_place = view.data == target.data && view.stride == view.width;
+    if (in_place || !overlap(view.data, scene_values, target.data, values))
+      handed = std::exchange(*target.image, Image());
+  }
+  struct GiveBack {  // the handed buffer back into its array's image, after the GIL is taken
+    Image* to;
+    Image* from;
+    ~GiveBack() {
+      if (to && from->data() && to->empty()) *to = std::move(*from);
+    }
+  };
+  const bool handing = !handed.empty();
   StageTrace trace;
+  GiveBack give_back{target.image, &handed};
   {
     py::gil_scoped_release unlocked;
-    if (!from_array) loaded = o.pipeline.load_input(path, source);
-    const ConstImageView view = from_array ? scene.view : loaded.image.cview();
     const Plan plan = make_plan(o.pipeline.params, view, source);
-    Image* owned = !from_array ? &loaded.image : scene.copied ? &scene.copy : nullptr;
-    trace = execute_on(o, plan, view, owned, keep_stages);
+    if (handed.empty()) {
+      Image* owned = !from_array ? &loaded.image : scene.copied ? &scene.copy : nullptr;
+      trace = execute_on(o, plan, view, owned, keep_stages);
+    } else if (in_place) {
+      trace = execute(plan, std::move(handed), eo);
+    } else {
+      trace = execute(plan, view, std::move(handed), eo);
+    }
   }
-  if (!keep_stages) return to_array(std::move(trace.stages.back().image));
+  Image& result = trace.stages.back().image;
+  if (handing) {
+    if (result.data() != target.data)  // output_in_given_buffer promised otherwise
+      throw std::logic_error("bloomref.run: the output left the buffer of out");
+    handed = std::move(result);  // given back to the array by give_back
+    return out;
+  }
+  if (target.data) {
+    std::copy(result.data(), result.data() + values, target.data);
+    return out;
+  }
+  if (!keep_stages) return to_array(std::move(result));
   py::dict stages;
   for (StageResult& s : trace.stages) stages[py::str(s.name)] = to_array(std::move(s.image));
   return std::move(stages);

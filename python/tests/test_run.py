@@ -1,5 +1,7 @@
 """bloomref.run: values computed here by hand, the CLI's output bits, arrays in and out, errors."""
 import os
+import subprocess
+import sys
 import threading
 
 import numpy as np
@@ -120,6 +122,116 @@ def test_released_outputs_are_written_again():
     c = bloomref.run(scene)
     for out in (b, c):
         assert np.array_equal(bits(out), bits(first))
+
+
+@pytest.mark.parametrize("options", [{}, {"plan": "full"}, {"method": "mip"},
+                                     {"precision": "f64"}, {"storage": "f16"}])
+def test_out_receives_the_output_apart_and_in_place(options):
+    # The bits of a run without out=, for every kind of out: a numpy array, an array the module
+    # made (its buffer kept: the same address), the scene's own array (in place), numpy's or
+    # the module's. The function returns out itself.
+    scene = hdr_scene(48, 80)
+    before = scene.copy()
+    expected = bits(bloomref.run(scene, **options))
+    mine = bloomref.run(hdr_scene(48, 80, seed=3))  # a buffer of the module's
+    numpy_out = np.empty((48, 80, 4), np.float32)
+    for out in (numpy_out, mine):
+        address = out.ctypes.data
+        assert bloomref.run(scene, out=out, **options) is out
+        assert out.ctypes.data == address
+        assert np.array_equal(bits(out), expected)
+        assert np.array_equal(bits(scene), bits(before))  # the scene is read, not written
+    for work in (scene.copy(), bloomref.run(scene)):
+        np.copyto(work, scene)
+        address = work.ctypes.data
+        assert bloomref.run(work, out=work, **options) is work
+        assert work.ctypes.data == address
+        assert np.array_equal(bits(work), expected)
+
+
+def test_out_runs_again_after_a_module_array_went_in_place():
+    # An array of the module's whose buffer was handed over and taken back serves as out and as
+    # an input again, and its release still keeps the buffer (test_released_outputs...).
+    scene = hdr_scene(40, 64)
+    expected = bits(bloomref.run(scene))
+    work = bloomref.run(scene)
+    for _ in range(3):
+        np.copyto(work, scene)
+        bloomref.run(work, out=work)
+        assert np.array_equal(bits(work), expected)
+    assert np.array_equal(bits(bloomref.run(scene, out=work)), expected)
+    del work
+    assert np.array_equal(bits(bloomref.run(scene)), expected)
+
+
+@pytest.mark.parametrize("out, options, message", [
+    (np.zeros((8, 8, 4), np.float32), {}, "shape (8, 8, 4) is not the output's, (16, 24, 4)"),
+    (np.zeros((16, 24, 4), np.float64), {}, "dtype float64 is not float32"),
+    (np.zeros((16, 24, 3), np.float32), {}, "shape (16, 24, 3)"),
+    (np.zeros((16, 24, 4), np.float32, order="F"), {}, "not C-contiguous"),
+    ([[0.0]], {}, "expected a numpy array, got list"),
+    (np.zeros((16, 24, 4), np.float32), {"keep_stages": True}, "out and keep_stages"),
+])
+def test_bad_out_raises_value_error(out, options, message):
+    with pytest.raises(ValueError) as e:
+        bloomref.run(hdr_scene(16, 24), out=out, **options)
+    assert message in str(e.value)
+
+
+def test_read_only_out_raises_value_error():
+    out = np.zeros((16, 24, 4), np.float32)
+    out.setflags(write=False)
+    with pytest.raises(ValueError, match="read-only"):
+        bloomref.run(hdr_scene(16, 24), out=out)
+
+
+FAILING_RUNS = """
+import resource, sys
+import numpy as np
+import bloomref
+scene = np.full((1000, 1000, 4), 4.0, np.float32)  # bright everywhere: every buffer needed
+out = bloomref.run(scene, plan="full", threads=1)  # 15.3 MiB of the module's (none kept)
+expected = out.copy()
+soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+failed = 0
+for margin_mib in range(0, 80, 2):
+    np.copyto(out, scene)
+    size = int(next(l for l in open("/proc/self/status") if l.startswith("VmSize")).split()[1])
+    resource.setrlimit(resource.RLIMIT_AS, (size * 1024 + (margin_mib << 20), hard))
+    ran = False
+    try:
+        bloomref.run(out, out=out, plan="full", threads=1)
+        ran = True
+    except (MemoryError, RuntimeError):
+        failed += 1
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+    out[:] = 1.0  # the buffer is still the array's: written and read whole
+    assert float(out.sum()) == out.size
+    if ran and failed:  # past the limits that fail
+        break
+np.copyto(out, scene)
+bloomref.run(out, out=out, plan="full", threads=1)
+assert np.array_equal(out, expected)
+print("failed runs:", failed)
+"""
+
+
+def test_a_run_that_fails_in_place_leaves_out_usable(tmp_path):
+    # Runs in place on an array of the module's under an address-space limit raised step by
+    # step, so that some fail (out of memory) after the executor took the buffer: the array
+    # keeps it (the executor gives it back), so writing and reading it all does not crash the
+    # process, and a run without the limit gives the output's bits. (Without the give-back
+    # the process dies reading the array.)
+    script = tmp_path / "failing_runs.py"
+    script.write_text(FAILING_RUNS)
+    # Blocks of 1 MiB or more mapped and unmapped on their own (glibc's mallopt tunable), so
+    # that a buffer freed under the array would no longer be mapped.
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                       env=dict(os.environ, MALLOC_MMAP_THRESHOLD_="1048576"))
+    assert r.returncode == 0, r.stderr[-2000:]
+    failed = int(r.stdout.split("failed runs:")[1])
+    assert failed > 0  # the limit did make runs fail
 
 
 def huge_advised(begin, end):

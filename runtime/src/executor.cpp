@@ -273,9 +273,27 @@ class Executor {
         threads_(plan.params.threads),
         support_(scene_in.width, scene_in.height, 0.5),
         down_(plan.levels.size() + 1),
-        up_(plan.levels.size() + 1) {}
+        up_(plan.levels.size() + 1),
+        handed_(owned ? owned->data() : output ? output->data() : nullptr) {}
 
+  // On an exception the buffer the caller handed over goes back to it (its values unspecified):
+  // a caller whose array still points at that buffer (the Python module's `out=`) keeps it.
   StageTrace run() {
+    try {
+      return run_stages();
+    } catch (...) {
+      if constexpr (kF32) {
+        Image* from = owned_ ? owned_ : output_;
+        if (from && handed_ && scene_.data() == handed_) *from = std::move(scene_);
+      }
+      throw;
+    }
+  }
+
+ private:
+  StageTrace run_stages() {
+    // Room for with_scan's timing of the plan: no allocation after the output is handed over.
+    trace_.timings.reserve(plan_.stages.size() + 4);
     ledgers_.reserve(2);  // the bright image and the first blur target
     make_bright_image();
     for (const StageSpec& stage : plan_.stages) {
@@ -313,7 +331,6 @@ class Executor {
     return std::move(trace_);
   }
 
- private:
   static constexpr bool kF32 = std::is_same_v<T, float>;
 
   void record(const std::string& name, const BasicImage<T>& img, double ms, bool skipped) {
@@ -822,6 +839,7 @@ class Executor {
   BasicImage<T> mip_bloom_, mapped_;
   std::vector<std::uint8_t> mip_src_mask_, mip_also_mask_, mip_active_;
   bool mip_up_dense_ = false;
+  const float* const handed_;  // the buffer the caller handed over (owned_ or output_), or null
 };
 
 // The plan's scan of the scene is part of the run it was made for: its first timing, "plan", and
