@@ -164,6 +164,20 @@ def test_out_runs_again_after_a_module_array_went_in_place():
     assert np.array_equal(bits(bloomref.run(scene)), expected)
 
 
+def test_out_with_the_gl_backend_receives_the_gl_output():
+    # The GL backend's output, copied into out (numpy's or the module's): its bits.
+    scene = hdr_scene(40, 64)
+    try:
+        expected = bits(bloomref.run(scene, backend="gl"))
+    except bloomref.GlUnavailable:
+        if os.environ.get("BLOOMREF_REQUIRE_GL") == "1":
+            raise
+        pytest.skip("no GL device")
+    for out in (np.empty((40, 64, 4), np.float32), bloomref.run(scene)):
+        assert bloomref.run(scene, backend="gl", out=out) is out
+        assert np.array_equal(bits(out), expected)
+
+
 @pytest.mark.parametrize("out, options, message", [
     (np.zeros((8, 8, 4), np.float32), {}, "shape (8, 8, 4) is not the output's, (16, 24, 4)"),
     (np.zeros((16, 24, 4), np.float64), {}, "dtype float64 is not float32"),
