@@ -14,10 +14,10 @@ For each built-in scene at --size (default 3840x2160: `demo`, sparse, the adapti
     command copies its input before each of its runs;
 the medians of each, their ratios to the command's and the medians of the rounds' own ratios
 (each round's sides ran under the same load) are printed and written to
---out/python_vs_cli.json. Every timed
-Python output must have the bits of the command's output file (exit 1 otherwise). The command
-runs as its own process, not through bloomref.run_command_line, because the module changes how
-this process allocates large buffers (huge pages, reference/src/image.cpp).
+--out/python_vs_cli.json. Every timed Python output must have the bits of the command's output
+file (exit 1 otherwise). The command runs as its own process, not through
+bloomref.run_command_line, because the module changes how this process allocates large buffers
+(huge pages, reference/src/image.cpp).
 
   PYTHONPATH=build/python python3 benchmarks/python_vs_cli.py [--size WxH] [--rounds R]
       [--repeat N] [--cli PATH] [--out DIR]
@@ -38,11 +38,8 @@ import numpy as np
 import bloomref
 
 
-CLI = None  # the command's path (main)
-
-
-def command(*args):
-    r = subprocess.run([CLI] + [str(a) for a in args], stdout=subprocess.DEVNULL)
+def command(cli, *args):
+    r = subprocess.run([cli] + [str(a) for a in args], stdout=subprocess.DEVNULL)
     if r.returncode != 0:
         sys.exit(f"bloomref {' '.join(map(str, args))}: exit {r.returncode}")
 
@@ -52,44 +49,54 @@ def default_cli():
     return str(built) if built.is_file() else shutil.which("bloomref")
 
 
-def bench_scene(name, size, rounds, repeat, work):
+def timed_runs(n, call, expected, what, before=lambda: None):
+    """n calls of call() (before() first, outside the timer), each output checked against
+    `expected`'s bits; the times of all but the first, and the last output (kept alive by the
+    caller until its next round, as a user's loop keeps it)."""
+    ms = []
+    for _ in range(n):
+        before()
+        t0 = time.perf_counter()
+        out = call()
+        ms.append((time.perf_counter() - t0) * 1e3)
+        if not np.array_equal(out.view(np.uint32), expected):
+            sys.exit(f"{what} gave other bits than the command's output")
+    return ms[1:], out
+
+
+def bench_scene(cli, name, size, rounds, repeat, work):
     scene = work / f"{name}.exr"
-    command("scenes", name, "--size", size, "-o", scene)
-    command("run", scene, "-o", work / f"{name}.out.exr", "-q")
+    command(cli, "scenes", name, "--size", size, "-o", scene)
+    command(cli, "run", scene, "-o", work / f"{name}.out.exr", "-q")
     expected = bloomref.load(work / f"{name}.out.exr").view(np.uint32)
     image = bloomref.load(scene)
     work_array = bloomref.load(scene)  # the in-place runs' array, its buffer the module's
     cli_ms, py_ms, paired, inplace_ms, inplace_paired = [], [], [], [], []
-    bloomref.run(image)  # warm-up, outside the figures
+    last = bloomref.run(image)  # warm-up, outside the figures
+
+    def in_place():
+        out = bloomref.run(work_array, out=work_array)
+        if out is not work_array:
+            sys.exit(f"{name}: bloomref.run(a, out=a) did not return a")
+        return out
+
     for _ in range(rounds):
-        command("run", scene, "--repeat", repeat + 1, "--json", work / "t.json", "-q")
-        cli = json.loads((work / "t.json").read_text())["repeat"]["total_ms"][1:]
-        py = []
-        for _ in range(repeat + 1):
-            t0 = time.perf_counter()
-            out = bloomref.run(image)
-            py.append((time.perf_counter() - t0) * 1e3)
-            if not np.array_equal(out.view(np.uint32), expected):
-                sys.exit(f"{name}: bloomref.run gave other bits than the command's output")
-        ip = []
-        for _ in range(repeat + 1):
-            np.copyto(work_array, image)
-            t0 = time.perf_counter()
-            res = bloomref.run(work_array, out=work_array)  # `out` keeps the last output alive,
-            ip.append((time.perf_counter() - t0) * 1e3)   # as the plain runs' loop leaves it
-            if res is not work_array or not np.array_equal(res.view(np.uint32), expected):
-                sys.exit(f"{name}: bloomref.run(a, out=a) gave other bits than the command's")
-        py, ip = py[1:], ip[1:]
-        cli_ms += cli
+        command(cli, "run", scene, "--repeat", repeat + 1, "--json", work / "t.json", "-q")
+        cmd = json.loads((work / "t.json").read_text())["repeat"]["total_ms"][1:]
+        py, last = timed_runs(repeat + 1, lambda: bloomref.run(image), expected,
+                              f"{name}: bloomref.run")
+        ip, _ = timed_runs(repeat + 1, in_place, expected, f"{name}: bloomref.run(a, out=a)",
+                           before=lambda: np.copyto(work_array, image))
+        cli_ms += cmd
         py_ms += py
         inplace_ms += ip
-        paired.append(statistics.median(py) / statistics.median(cli))
-        inplace_paired.append(statistics.median(ip) / statistics.median(cli))
-    cli, py, ip = (statistics.median(v) for v in (cli_ms, py_ms, inplace_ms))
+        paired.append(statistics.median(py) / statistics.median(cmd))
+        inplace_paired.append(statistics.median(ip) / statistics.median(cmd))
+    cmd, py, ip = (statistics.median(v) for v in (cli_ms, py_ms, inplace_ms))
     return {"scene": name, "size": size, "cli_in_process_ms": cli_ms, "python_ms": py_ms,
             "python_in_place_ms": inplace_ms,
-            "cli_median_ms": cli, "python_median_ms": py, "ratio": py / cli,
-            "python_in_place_median_ms": ip, "in_place_ratio": ip / cli,
+            "cli_median_ms": cmd, "python_median_ms": py, "ratio": py / cmd,
+            "python_in_place_median_ms": ip, "in_place_ratio": ip / cmd,
             "cli_min_ms": min(cli_ms), "python_min_ms": min(py_ms),
             "paired_ratio_median": statistics.median(paired),
             "in_place_paired_ratio_median": statistics.median(inplace_paired),
@@ -105,14 +112,13 @@ def main():
     ap.add_argument("--cli", default=None, help="the bloomref command to time against")
     ap.add_argument("--out", default=None, help="folder for python_vs_cli.json")
     a = ap.parse_args()
-    global CLI
-    CLI = a.cli or default_cli()
-    if not CLI:
+    cli = a.cli or default_cli()
+    if not cli:
         sys.exit("no bloomref command: give --cli PATH")
     results = []
     with tempfile.TemporaryDirectory(prefix="bloomref-pybench-") as tmp:
         for name in a.scenes.split(","):
-            r = bench_scene(name, a.size, a.rounds, a.repeat, pathlib.Path(tmp))
+            r = bench_scene(cli, name, a.size, a.rounds, a.repeat, pathlib.Path(tmp))
             results.append(r)
             print(f"{name} {a.size}: command in-process median {r['cli_median_ms']:.1f} ms "
                   f"(min {r['cli_min_ms']:.1f}), bloomref.run median {r['python_median_ms']:.1f} "
@@ -121,7 +127,7 @@ def main():
                   f"{r['python_in_place_median_ms']:.1f} ms, ratio {r['in_place_ratio']:.3f}, per "
                   f"round {r['in_place_paired_ratio_median']:.3f} ({len(r['python_ms'])} runs "
                   "each, same bits)")
-    doc = {"threads": os.cpu_count(), "loadavg": os.getloadavg(), "cli": CLI, "results": results}
+    doc = {"threads": os.cpu_count(), "loadavg": os.getloadavg(), "cli": cli, "results": results}
     if a.out:
         pathlib.Path(a.out).mkdir(parents=True, exist_ok=True)
         (pathlib.Path(a.out) / "python_vs_cli.json").write_text(json.dumps(doc, indent=2) + "\n")

@@ -37,7 +37,8 @@ options: `bloomref run`'s options, named as its long options with underscores: m
 
 Returns the output, a float32 H x W x 4 array (display-referred: after tone map and gamma; out
 when given), or with keep_stages a dict from stage name (input, bright, blur.1 ... output) to
-its array, in pipeline order. The arrays own their buffers (no copy). The computation runs without the GIL.
+its array, in pipeline order. The arrays own their buffers (no copy). The computation runs
+without the GIL.
 Raises ValueError for a bad image or option (the reason in the message).)";
 
 constexpr const char* kCheckDoc = R"(check(scene=None, stages=None, **options)

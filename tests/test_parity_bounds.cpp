@@ -190,7 +190,8 @@ void sparse_image(Image& img, float background, bool odd_row) {
   for (int y = 0; y < h; y += 3) {
     const int x0 = y == 0 ? 0 : y == 3 ? w - 2 : (y * 7) % w;
     for (int x = x0; x < std::min(w, x0 + 3); ++x)
-      for (int c = 0; c < 3; ++c) img.pixel(x, y)[c] = static_cast<float>((x * 5 + y * 3 + c) % 7) + 0.5f;
+      for (int c = 0; c < 3; ++c)
+        img.pixel(x, y)[c] = static_cast<float>((x * 5 + y * 3 + c) % 7) + 0.5f;
   }
   if (h > 6) img.pixel(std::min(w - 1, 4), 6)[2] = NAN;
   if (odd_row)

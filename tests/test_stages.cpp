@@ -322,16 +322,17 @@ TEST_CASE("output_in_given_buffer: the output is in the buffer handed over, wher
   // where it is false (mip, f64, kept stages) the run still gives those bits.
   Image nan_scene = make_scene("demo", 96, 64);
   nan_scene.data()[4 * (10 * 96 + 7)] = std::numeric_limits<float>::quiet_NaN();
+  const std::vector<std::pair<const char*, Image>> scenes = {
+      {"demo", make_scene("demo", 96, 64)}, {"constant", make_scene("constant", 96, 64)},
+      {"nan", nan_scene}};
   int handed = 0;
-  for (const char* name : {"demo", "constant", "nan"})
+  for (const auto& [name, scene] : scenes)
     for (Method method : {Method::gaussian, Method::mip})
       for (Precision precision : {Precision::f32, Precision::f64})
         for (PlanMode mode : {PlanMode::full, PlanMode::adaptive})
           for (BlurImpl blur : {BlurImpl::fast, BlurImpl::reference, BlurImpl::approx})
             for (Storage storage : {Storage::f32, Storage::f16})
               for (bool keep : {false, true}) {
-                const Image scene =
-                    std::string(name) == "nan" ? nan_scene : make_scene(name, 96, 64);
                 BloomParams p;
                 p.method = method;
                 p.precision = precision;

@@ -21,9 +21,8 @@ namespace bloomref::detail {
 // Not the default: 2 MiB alignment with madvise(MADV_HUGEPAGE) for large buffers. Passes after
 // the first ran 10% faster, but faulting the huge pages in made the first blur pass ~3x slower
 // (3840x2160, the fast exact blur), and a command runs one image. A process that keeps its
-// buffers and runs again opts in (advise_huge_pages): the Python module, whose bloomref.run on a
-// loaded 3840x2160 scene then took 0.98-1.03x of the command's in-process time in alternated
-// runs, 1.05-1.08x without (benchmarks/python_vs_cli.py).
+// buffers and runs again opts in (advise_huge_pages): the Python module (docs/design.md, "Large
+// buffers advised for huge pages in the Python process", has the figures).
 constexpr std::align_val_t kAlign{64};
 std::atomic<bool> huge_pages{false};
 constexpr std::size_t kMinHugeAdvised = std::size_t(4) << 20;  // numpy's threshold
