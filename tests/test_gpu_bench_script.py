@@ -113,6 +113,33 @@ def test_markdown_tables_escape_pipes_and_list_failures():
     assert "### 64x64 f32: per stage" not in brief
 
 
+def test_markdown_checks_show_expectations_and_check_against_run():
+    res = synthetic_result()
+    stages = [{"stage": "input", "max_error_over_bound": "inf"},
+              {"stage": "blur.1", "max_error_over_bound": 2.5}]
+    res["steps"] += [
+        {"name": "c1", "kind": "check", "status": "ok", "rc": 1, "image": "a.exr",
+         "storage": "f32", "source": "own GL stages read bottom-up", "expect": "FAIL",
+         "expect_stage": "input", "as_expected": True, "verdict": "FAIL",
+         "first_divergent_stage": "input", "cause": "images flipped vertically",
+         "cause_within": 1.0, "stages": stages},
+        {"name": "c2", "kind": "check", "status": "failed", "rc": 0, "image": "a.exr",
+         "storage": "f16", "source": "LearnOpenGL, gamma 2.0", "expect": "FAIL",
+         "expect_stage": "output", "as_expected": False, "verdict": "PASS", "stages": stages[1:]}]
+    res["check_vs_run"] = [{"size": "64x32", "runs": 3, "run_ms": 10.0, "check_ms": 25.0,
+                            "ratio": 2.5, "check_peak_rss_bytes": 50e6, "verdict": "PASS"}]
+    md = gb.markdown(res)
+    assert ("| a.exr | f32 | own GL stages read bottom-up | FAIL | FAIL at input | input | "
+            "images flipped vertically (1 within) | input inf | 1 |") in md
+    assert ("| a.exr | f16 | LearnOpenGL, gamma 2.0 | PASS | **FAIL at output: no** |  |  | "
+            "blur.1 2.5 | 0 |") in md
+    assert "25.0 ms against run --plan full 10.0 ms = **2.50x**" in md
+    assert "peak RSS 50 MB" in md
+    brief = gb.markdown(res, brief=True)
+    assert "1 of 2 checks as expected; the others:" in brief
+    assert "own GL stages read bottom-up" not in brief and "gamma 2.0" in brief
+
+
 needs_exe = pytest.mark.skipif(not os.path.isfile(EXE), reason=f"{EXE} not built")
 
 
@@ -123,18 +150,23 @@ def run_script(args, env=None, timeout=300):
 
 @needs_exe
 def test_pack_then_run_from_a_copy(tmp_path):
-    scene = tmp_path / "impulse.exr"
-    subprocess.run([EXE, "scenes", "impulse", "-o", str(scene)], check=True)
+    # The demo scene: not the same flipped, nor with R and B swapped.
+    scene = tmp_path / "demo.exr"
+    subprocess.run([EXE, "scenes", "demo", "--size", "64x48", "-o", str(scene)], check=True)
     build = tmp_path / "build" / "cli"
     build.mkdir(parents=True)
     os.symlink(os.path.abspath(EXE), build / "bloomref")
     packed = tmp_path / "packed"
+    lo = os.environ.get("BLOOMREF_LEARNOPENGL_DIR")
+    lo = lo if lo and all(os.path.isfile(os.path.join(lo, f)) for f in gb.LO_FILES) else None
     r = run_script(["pack", str(packed), "--build", str(tmp_path / "build"), "--images",
-                    str(scene), "--no-debs"])
+                    str(scene), "--no-debs"] + (["--learnopengl", lo] if lo else []))
     assert r.returncode == 0, r.stderr
+    assert sorted(os.listdir(packed / "learnopengl")) == sorted(gb.LO_FILES) if lo else \
+        not (packed / "learnopengl").exists()
     assert '"carry": [' in r.stdout
     manifest = json.loads((packed / "manifest.json").read_text())
-    assert [i["name"] for i in manifest["images"]] == ["impulse.exr"]
+    assert [i["name"] for i in manifest["images"]] == ["demo.exr"]
     assert manifest["images"][0]["sha256"] == hashlib.sha256(scene.read_bytes()).hexdigest()
     for f in os.listdir(packed / "lib"):
         if f != "fallback":
@@ -147,7 +179,7 @@ def test_pack_then_run_from_a_copy(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "LD_LIBRARY_PATH"}
     out = tmp_path / "out"
     r = run_script(["run", str(copy), "--out", str(out), "--sizes", "32x32", "--repeat", "1",
-                    "--budget", "240"], env=env)
+                    "--check-size", "48x32", "--budget", "240"], env=env)
     assert set(os.listdir(out)) == OUTPUTS
     res = json.loads((out / "gpu-bench.json").read_text())
     assert res["environment"]["LD_LIBRARY_PATH"].split(":")[0] == str(copy / "lib")
@@ -165,6 +197,20 @@ def test_pack_then_run_from_a_copy(tmp_path):
     others = sum(1 for s in compares if s["profile_asked"] == "auto" and s["shaders"] ==
                  "fragment" and s["method"] == "gaussian" and s["profile_used"] != "nvidia")
     assert len(compares) == 10 + others
+    # check: the own GL stages pass in f32 and f16; read bottom-up or as BGRA they fail at
+    # input, and the cause is named; the tutorial's broken copies fail at their stage.
+    checks = {s["source"] + " " + s["storage"]: s for s in res["steps"] if s["kind"] == "check"}
+    for storage in ("f32", "f16"):
+        assert checks[f"own GL stages {storage}"]["verdict"] == "PASS"
+    assert checks["own GL stages read bottom-up f32"]["cause_id"] == "flipped-vertically"
+    assert checks["own GL stages read as BGRA f32"]["cause_id"] == "rb-swapped"
+    for what, (_, _, _, stage) in gb.LO_BROKEN.items() if lo else ():
+        c = checks[f"LearnOpenGL, {what} f32"]
+        assert (c["verdict"], c["first_divergent_stage"], c["status"]) == ("FAIL", stage, "ok")
+    assert len(checks) == 4 + (2 + len(gb.LO_BROKEN) if lo else 0)
+    cvr = res["check_vs_run"][0]
+    assert (cvr["size"], cvr["verdict"], cvr["runs"]) == ("48x32", "PASS", 1)
+    assert cvr["ratio"] == pytest.approx(cvr["check_ms"] / cvr["run_ms"], rel=0.01)
     assert r.returncode == (0 if all(s["status"] == "ok" for s in res["steps"]) else 1)
     if "llvmpipe" in res["gl"]["renderer"]:
         assert res["gl"]["note"] == "renderer is llvmpipe: not a GPU"
@@ -185,11 +231,14 @@ def test_run_without_egl_records_it_and_still_benches_the_cpu(tmp_path):
     env.pop("LD_LIBRARY_PATH", None)
     out = tmp_path / "out"
     r = run_script(["run", str(packed), "--out", str(out), "--sizes", "32x32", "--repeat", "1",
-                    "--expect-gpu"], env=env)
+                    "--check-size", "48x32", "--expect-gpu"], env=env)
     assert r.returncode == 3
     res = json.loads((out / "gpu-bench.json").read_text())
     assert res["steps"][0]["name"] == "gl-info" and res["steps"][0]["rc"] == 3
     assert res["gl"]["note"].startswith("GL unavailable (gl-info exit 3)")
-    assert [s["kind"] for s in res["steps"]] == ["gl-info", "bench", "bench"]
+    # check against run needs no GL: the CPU's run and check of one frame, timed.
+    assert [s["kind"] for s in res["steps"]] == ["gl-info", "bench", "prep", "timed", "timed",
+                                                 "bench"]
+    assert res["check_vs_run"][0]["verdict"] == "PASS"
     assert all(s["rc"] == 0 for s in res["steps"][1:])
     assert "GL unavailable (gl-info exit 3)" in (out / "gpu-bench.md").read_text()
