@@ -242,3 +242,35 @@ def test_run_without_egl_records_it_and_still_benches_the_cpu(tmp_path):
     assert res["check_vs_run"][0]["verdict"] == "PASS"
     assert all(s["rc"] == 0 for s in res["steps"][1:])
     assert "GL unavailable (gl-info exit 3)" in (out / "gpu-bench.md").read_text()
+
+
+def test_perf_report_summarises_a_gpu_bench_report(tmp_path):
+    """scripts/perf-report's "On a GPU" section reads the report gpu-bench writes."""
+    loader = importlib.machinery.SourceFileLoader(
+        "perf_report", os.path.join(HERE, "..", "scripts", "perf-report"))
+    spec = importlib.util.spec_from_loader("perf_report", loader)
+    pr = importlib.util.module_from_spec(spec)
+    loader.exec_module(pr)
+    res = synthetic_result()
+    check = {"kind": "check", "rc": 0, "image": "a.exr", "storage": "f32", "stages": [],
+             "first_divergent_stage": None}
+    res["steps"] += [
+        dict(check, name="c1", status="ok", source="own GL stages", expect="PASS",
+             as_expected=True, verdict="PASS"),
+        dict(check, name="c2", status="failed", source="LearnOpenGL, gamma 2.0", expect="FAIL",
+             expect_stage="output", as_expected=False, verdict="PASS"),
+        dict(check, name="c3", status="failed", rc=1, source="LearnOpenGL shaders",
+             verdict="FAIL", first_divergent_stage="output")]
+    res["check_vs_run"] = [{"size": "64x32", "runs": 3, "run_ms": 10.0, "check_ms": 25.0,
+                            "ratio": 2.5, "check_peak_rss_bytes": 50e6, "verdict": "PASS"}]
+    (tmp_path / "docs" / "gpu").mkdir(parents=True)
+    (tmp_path / "docs" / "gpu" / "x.md").write_text(gb.markdown(res))
+    pr.ROOT = str(tmp_path)
+    text = "\n".join(pr.gpu_section())
+    assert "- machine: TestOS, TestCPU, 4 CPUs, 8 GiB" in text
+    assert "- GL: llvmpipe (LLVM 15) 4.5" in text
+    assert ("- checks with an expected verdict: 1 of 2 as expected; not: a.exr f32 "
+            "LearnOpenGL, gamma 2.0 (PASS, first divergent )") in text
+    assert "values): 1 FAIL\n" in text
+    assert "- compares: 1 FAIL\n" in text
+    assert "= **2.50x**" in text
