@@ -5,7 +5,6 @@
 #include <ImfCompression.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
-#include <ImfHuf.h>
 #include <ImfInputPart.h>
 #include <ImfMultiPartInputFile.h>
 #include <ImfIO.h>
@@ -32,6 +31,7 @@
 #include <vector>
 
 #include "bloomref/error.h"
+#include "huffman.h"
 #include "io_internal.h"
 
 namespace bloomref {
@@ -290,10 +290,10 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
   return true;
 }
 
-// PIZ, read through OpenEXR's own Huffman and wavelet decoders (ImfHuf.h, ImfWav.h), the same
-// ones its C++ reader runs, with each decoded chunk put into the image directly: the C++ reader
-// would copy it value by value through its generic loop, and Core 3.1's Huffman decoder is
-// slower. A PIZ chunk (OpenEXR's PizCompressor; "OpenEXR File Layout", PIZ) holds the byte
+// PIZ, read through OpenEXR's own wavelet decoder (ImfWav.h) and a Huffman decoder of bloomref's
+// (huffman.h: OpenEXR's looks codes of more than 12 bits up length by length, and those are
+// most of a FLOAT stage's), with each decoded chunk put into the image directly: the C++ reader
+// would copy it value by value through its generic loop. A PIZ chunk (OpenEXR's PizCompressor; "OpenEXR File Layout", PIZ) holds the byte
 // range [lo, hi] of a 65536-bit bitmap of the 16-bit words that occur, that range, the length
 // of the Huffman-coded data and the data. Decoded, it is the channels one after another (in the
 // file's order), each a block of its rows with every value's 16-bit words side by side (one for
@@ -311,6 +311,7 @@ struct WordChannel {
 struct PizScratch {
   std::vector<std::uint8_t> packed;
   std::vector<std::uint16_t> words, lut;
+  HufScratch huf;
 };
 
 /// Decodes the PIZ chunk in[0, n) of `lines` rows of `width` into s.words (channel blocks, as
@@ -344,8 +345,7 @@ bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChan
   if (length > n - at || length > std::uint32_t(INT32_MAX) || total > std::size_t(INT32_MAX))
     return false;
   s.words.resize(total);
-  Imf::hufUncompress(reinterpret_cast<const char*>(in + at), static_cast<int>(length),
-                     s.words.data(), static_cast<int>(total));
+  if (!huf_decode(in + at, length, s.words.data(), total, s.huf)) return false;
   std::size_t start = 0;
   for (const WordChannel& c : channels) {
     for (int j = 0; j < c.words; ++j)
