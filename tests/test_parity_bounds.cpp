@@ -5,7 +5,9 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -413,9 +415,26 @@ TEST_CASE("an end-to-end bound carried through gamma covers the image of its int
         if (r > 0 && r <= 0x1p-10) {
           ++mean_value;
           CHECK(got <= static_cast<double>(want) * 1.0011 + 0x1p-150);
+        } else if (r > 0x1p-10) {
+          // The ends through powf, moved outward by 2^-18 each: within 1% of the width.
+          CHECK(got <= static_cast<double>(want) * 1.01 + 0x1p-150);
         }
       }
   CHECK(mean_value > 20);
+  // Beyond the mean value bound, at random: never below the width, within 1% above it.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int below = 0, loose = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const double gamma = std::array<double, 4>{2.2, 2.4, 1.8, 1.0}[i % 4];
+    const double m = std::pow(10.0, -35 + 65 * u(rng)), r = std::pow(2.0, -10 + 14 * u(rng));
+    const long double want = width(m, m * r, gamma);
+    const double got = tol::through_output(m, m * r, gamma);
+    below += got < static_cast<double>(want) * (1 - 0x1p-24);
+    loose += got > static_cast<double>(want) * 1.01;
+  }
+  CHECK(below == 0);
+  CHECK(loose == 0);
   CHECK(std::isinf(tol::through_output(NAN, 1.0, 2.2)));
   CHECK(std::isinf(tol::through_output(1.0, INFINITY, 2.2)));
 }
