@@ -1,7 +1,8 @@
-// io/src/huffman.h: bloomref's decoder of OpenEXR's Huffman blocks, against OpenEXR's own
-// encoder and decoder (ImfHuf.h) on data of every shape a PIZ chunk gives them, and on blocks
-// broken on purpose.
+// io/src/huffman.h and wavelet.h: bloomref's decoders of PIZ's Huffman blocks and wavelet,
+// against OpenEXR's own (ImfHuf.h, ImfWav.h) on data of every shape a PIZ chunk gives them,
+// and on Huffman blocks broken on purpose.
 #include <ImfHuf.h>
+#include <ImfWav.h>
 
 #include <catch2/catch.hpp>
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "huffman.h"
+#include "wavelet.h"
 
 namespace {
 
@@ -150,4 +152,26 @@ TEST_CASE("huf_decode: tables that are no code, and a run with nothing before it
   Words three(4, 9);
   CHECK_FALSE(bloomref::detail::huf_decode(r.data(), r.size(), three.data(), 3, s));
   CHECK(three[3] == 9);
+}
+
+TEST_CASE("wavelet_decode_block gives OpenEXR's wav2Decode values, word for word",
+          "[io][huffman]") {
+  std::mt19937 rng(5);
+  int cases = 0;
+  for (const int words : {1, 2})
+    for (const int nx : {1, 2, 3, 4, 5, 7, 8, 9, 16, 33, 100, 1920})
+      for (const int ny : {1, 2, 3, 5, 8, 24, 32})
+        for (const std::uint16_t max : {std::uint16_t(200), std::uint16_t(16383),
+                                        std::uint16_t(16384), std::uint16_t(65535)}) {
+          INFO(words << " words, " << nx << "x" << ny << ", max " << max);
+          Words block(std::size_t(words) * nx * ny);
+          for (auto& v : block) v = static_cast<std::uint16_t>(rng() % (std::uint32_t(max) + 1));
+          Words want = block;
+          for (int j = 0; j < words; ++j)
+            Imf::wav2Decode(want.data() + j, nx, words, ny, nx * words, max);
+          bloomref::detail::wavelet_decode_block(block.data(), nx, words, ny, max);
+          CHECK(block == want);
+          ++cases;
+        }
+  CHECK(cases == 2 * 12 * 7 * 4);
 }

@@ -13,7 +13,6 @@
 #include <ImfRgbaFile.h>
 #include <ImfThreading.h>
 #include <ImfVersion.h>
-#include <ImfWav.h>
 #include <half.h>
 #include <openexr.h>
 
@@ -32,6 +31,7 @@
 
 #include "bloomref/error.h"
 #include "huffman.h"
+#include "wavelet.h"
 #include "io_internal.h"
 
 namespace bloomref {
@@ -290,10 +290,10 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
   return true;
 }
 
-// PIZ, read through OpenEXR's own wavelet decoder (ImfWav.h) and a Huffman decoder of bloomref's
-// (huffman.h: OpenEXR's looks codes of more than 12 bits up length by length, and those are
-// most of a FLOAT stage's), with each decoded chunk put into the image directly: the C++ reader
-// would copy it value by value through its generic loop. A PIZ chunk (OpenEXR's PizCompressor; "OpenEXR File Layout", PIZ) holds the byte
+// PIZ, read through bloomref's own Huffman and wavelet decoders (huffman.h: OpenEXR's looks
+// codes of more than 12 bits up length by length, and those are most of a FLOAT stage's;
+// wavelet.h: its finest level 8 words at a time), with each decoded chunk put into the image
+// directly: OpenEXR's C++ reader would copy it value by value through its generic loop. A PIZ chunk (OpenEXR's PizCompressor; "OpenEXR File Layout", PIZ) holds the byte
 // range [lo, hi] of a 65536-bit bitmap of the 16-bit words that occur, that range, the length
 // of the Huffman-coded data and the data. Decoded, it is the channels one after another (in the
 // file's order), each a block of its rows with every value's 16-bit words side by side (one for
@@ -348,9 +348,7 @@ bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChan
   if (!huf_decode(in + at, length, s.words.data(), total, s.huf)) return false;
   std::size_t start = 0;
   for (const WordChannel& c : channels) {
-    for (int j = 0; j < c.words; ++j)
-      Imf::wav2Decode(s.words.data() + start + j, width, c.words, lines, width * c.words,
-                      max_index);
+    wavelet_decode_block(s.words.data() + start, width, c.words, lines, max_index);
     start += std::size_t(c.words) * width * lines;
   }
   return true;
