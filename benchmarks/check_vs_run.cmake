@@ -6,12 +6,17 @@
 # images), their ratios, the ratio without the stage images' decoding, and check's peak
 # memory; warns where the targets are not met (check within 3x of run at 1920x1080;
 # check's peak under 1.5 GB at 3840x2160). Run by ctest (label benchmark):
-#   cmake -DBLOOMREF=... -DOUT=... -DSIZE=1920x1080 [-DREPEAT=3] -P this
+#   cmake -DBLOOMREF=... -DOUT=... -DSIZE=1920x1080 [-DREPEAT=7] -P this
 if(NOT SIZE)
   set(SIZE 1920x1080)
 endif()
 if(NOT REPEAT)
-  set(REPEAT 3)
+  # 7 where the time goal is (a noisy machine varies +-10-15% from run to run), 3 elsewhere.
+  if(SIZE STREQUAL "1920x1080")
+    set(REPEAT 7)
+  else()
+    set(REPEAT 3)
+  endif()
 endif()
 set(dir ${OUT}/check-vs-run-${SIZE})
 file(REMOVE_RECURSE ${dir})
