@@ -26,7 +26,10 @@ std::function<int()> add_gl_info(CLI::App& app) {
         {"f32_denormals_kept", f.f32_denormals_kept},
         {"shader_denormals_kept", f.shader_denormals_kept},
         {"bilinear_distinct_of_1024", f.bilinear_distinct}, {"subtexel_bits", f.subtexel_bits},
-        {"fma_contracted", f.fma_contracted}};
+        {"fma_contracted", f.fma_contracted},
+        {"half_denormal_texels", f.half_denormal_texels},
+        {"half_filter_denormals", f.half_filter_denormals},
+        {"half_filter_normals", f.half_filter_normals}};
     std::cout << j.dump(2) << "\n";
     if (!json_path->empty()) save_text(*json_path, j.dump(2) + "\n");
     return 0;

@@ -3,6 +3,7 @@
 #include <Imath/half.h>
 
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <cstdio>
 #include <algorithm>
 #include <cstdlib>
@@ -140,6 +141,21 @@ TEST_CASE("the measured llvmpipe facts are the llvmpipe profile's", "[gl][facts]
   CHECK(f.half_rounding == (p.half_nearest_even ? "nearest-even" : "toward-zero"));
   CHECK((f.half_of_65520 == 65504.0f) == p.half_overflow_saturate);
   CHECK(f.shader_denormals_kept == !p.flush_denormals);
+  // llvmpipe filters in float (its bilinear weights are floats): half denormals are read as
+  // they are, and results between two halves stay between them.
+  CHECK(f.half_denormal_texels == "kept");
+  CHECK(f.half_filter_denormals == "float");
+  CHECK(f.half_filter_normals == "float");
+}
+
+TEST_CASE("device facts: a sweep's samples classified", "[gl][facts]") {
+  const float d = std::ldexp(1.0f, -24);
+  CHECK(gpu::classify_equal({0x1p-20f, 0x1p-20f}, 0x1p-20f) == "kept");
+  CHECK(gpu::classify_equal({0.0f, 0.0f}, 0x1p-20f) == "flushed");
+  CHECK(gpu::classify_equal({0x1p-20f, 0.0f}, 0x1p-20f) == "other");
+  CHECK(gpu::classify_between({0.0f, d / 2, d}, 0.0f, d) == "float");
+  CHECK(gpu::classify_between({0.0f, 0.0f, d, d}, 0.0f, d) == "half");
+  CHECK(gpu::classify_between({0.0f, 2 * d}, 0.0f, d) == "other");
 }
 
 TEST_CASE("bloomref compare exit codes: 0 pass, 1 fail, 2 bad usage, 3 no GL", "[gl][cli]") {

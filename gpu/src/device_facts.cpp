@@ -1,7 +1,10 @@
 #include "bloomref/gpu/device_facts.h"
 
 #include <cmath>
+#include <cstdint>
 #include <set>
+#include <string>
+#include <vector>
 
 #include "bloomref/half.h"
 #include "gl_objects.h"
@@ -91,8 +94,52 @@ DeviceFacts measure_device_facts(GlContext& ctx) {
   const std::vector<float> arith = run_probe(prog, src, 2, 1, GL_RGBA32F);
   f.fma_contracted = arith[0] != 0.0f;
   f.shader_denormals_kept = arith[1] == std::ldexp(1.0f, -127);
+  // 4. GL_LINEAR reads of half textures (the mip chain's tent and downsample read its f16
+  //    levels so), the same 1024-sample sweep over 2-texel rows uploaded as half bits: halves
+  //    0x0010 and 0x0010 (2^-20, denormal) read 2^-20 at every weight unless denormal texels
+  //    are flushed; 0 and 0x0001 (2^-24, the least denormal), and 1 and 1 + 2^-10 (one ULP
+  //    apart), read values between the two where the filter keeps float precision, only the
+  //    two where it rounds its result to halves.
+  const auto sweep_half = [&](std::uint16_t left, std::uint16_t right) {
+    const std::uint16_t bits[8] = {left, left, left, left, right, right, right, right};
+    Texture t(2, 1, GL_RGBA16F);
+    glBindTexture(GL_TEXTURE_2D, t.id);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 2);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, 2, 1, GL_RGBA, GL_HALF_FLOAT, bits);
+    t.set_sampling(GL_LINEAR, GL_CLAMP_TO_EDGE);
+    const std::vector<float> r = run_probe(prog, t, 1, 1024, GL_RGBA32F);
+    std::vector<float> out(1024);
+    for (int i = 0; i < 1024; ++i) out[i] = r[std::size_t(i) * 4];
+    return out;
+  };
+  const std::vector<float> same = sweep_half(0x0010, 0x0010);
+  f.half_denormal_texels = classify_equal(same, std::ldexp(1.0f, -20));
+  f.half_filter_denormals = classify_between(sweep_half(0x0000, 0x0001), 0.0f,
+                                             std::ldexp(1.0f, -24));
+  f.half_filter_normals = classify_between(sweep_half(0x3c00, 0x3c01), 1.0f,
+                                           1.0f + std::ldexp(1.0f, -10));
   ctx.check("measuring device facts");
   return f;
+}
+
+std::string classify_equal(const std::vector<float>& samples, float value) {
+  bool all_value = true, all_zero = true;
+  for (float v : samples) {
+    all_value = all_value && v == value;
+    all_zero = all_zero && v == 0.0f;
+  }
+  return all_value ? "kept" : all_zero ? "flushed" : "other";
+}
+
+std::string classify_between(const std::vector<float>& samples, float lo, float hi) {
+  bool between = false, ends = true;
+  for (float v : samples) {
+    between = between || (v > lo && v < hi);
+    ends = ends && (v == lo || v == hi);
+  }
+  if (between) return "float";
+  if (ends) return "half";
+  return "other";
 }
 
 }  // namespace bloomref::gpu

@@ -24,9 +24,23 @@ struct DeviceFacts {
   int bilinear_distinct = 0;
   int subtexel_bits = 0;       ///< 0 = float weights, else the b above
   bool fma_contracted = false;  ///< a * b + c in a shader was fused
+  /// GL_LINEAR reads of an RGBA16F texture: texels holding the half denormal 2^-20 read as it
+  /// at every weight ("kept"), as 0 ("flushed"), or otherwise ("other").
+  std::string half_denormal_texels;
+  /// Between texels 0 and 2^-24 (denormals), and between 1 and 1 + 2^-10 (normals): values in
+  /// between ("float": the filter's result is not rounded to halves), only the two ("half"),
+  /// or others ("other").
+  std::string half_filter_denormals, half_filter_normals;
   std::vector<std::string> notes;
 };
 
 DeviceFacts measure_device_facts(GlContext& ctx);
+
+/// The facts above from a sweep's samples: "kept" when every sample is `value`, "flushed" when
+/// every one is 0, else "other".
+std::string classify_equal(const std::vector<float>& samples, float value);
+/// "float" when a sample lies strictly between lo and hi, "half" when every one is lo or hi,
+/// else "other".
+std::string classify_between(const std::vector<float>& samples, float lo, float hi);
 
 }  // namespace bloomref::gpu
