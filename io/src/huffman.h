@@ -1,5 +1,5 @@
 // OpenEXR's Huffman-coded blocks (the entropy stage of PIZ), decoded with one table lookup for
-// every code of up to kHufTableBits bits (internal to io).
+// every code of up to 12 bits (internal to io).
 #pragma once
 
 #include <cstddef>
