@@ -793,6 +793,16 @@ TEST_CASE("EXR files of every lossless compression, half or float, read the valu
               wrong += li.image.pixel(x, y)[c] != want;
             }
         CHECK(wrong == 0);
+        // load_image_rgb (check's stage images): the same R, G and B, alpha 1 whatever the
+        // file holds (PIZ's and the core's alpha not decoded, Z read past).
+        const LoadedImage rgb = load_image_rgb(path);
+        CHECK(rgb.info.has_alpha == alpha);
+        int wrong_rgb = 0;
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x)
+            for (int c = 0; c < 4; ++c)
+              wrong_rgb += rgb.image.pixel(x, y)[c] != (c == 3 ? 1.0f : value(x, y, c));
+        CHECK(wrong_rgb == 0);
       }
   CHECK(piz_packed);
   CHECK(piz_raw);

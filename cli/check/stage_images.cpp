@@ -129,7 +129,9 @@ LoadedStage load_stage(const StageFile& f, int width, int height) {
   } else {
     std::error_code ec;
     if (!fs::exists(f.path, ec)) throw InputError(f.path, "no such file");
-    out.image = load_image(f.path).image;  // InputError naming the file when corrupt
+    // R, G and B are judged: alpha is 1 (a PIZ file's is not decoded). InputError naming the
+    // file when it is corrupt.
+    out.image = load_image_rgb(f.path).image;
     if (enc == Encoding::png_linear || enc == Encoding::png_srgb) out.code_bits = 8;
     if (enc == Encoding::png_srgb) {
       out.srgb = true;

@@ -75,17 +75,34 @@ Window make_window(const std::string& path, const std::string& which, long long 
   return {int(x), int(y), int(x1), int(y1)};
 }
 
-LoadedImage load_image(const std::string& path, const SizeLimits& limits) {
+namespace {
+
+LoadedImage load(const std::string& path, const SizeLimits& limits, bool rgb_only) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw InputError(path, "no such file");
   if (fs::is_directory(path, ec)) throw InputError(path, "is a folder, not an image file");
   const auto bytes = fs::file_size(path, ec);
   if (ec) throw InputError(path, "cannot read: " + ec.message());
   if (bytes == 0) throw InputError(path, "the file is empty (0 bytes)");
-  if (detail::has_exr_magic(path)) return detail::load_exr(path, limits);
+  if (detail::has_exr_magic(path)) return detail::load_exr(path, limits, rgb_only);
   if (lower_extension(path) == ".exr")
     throw InputError(path, "not an OpenEXR file: it does not start with the OpenEXR magic number");
-  return detail::load_oiio(path, limits);
+  LoadedImage out = detail::load_oiio(path, limits);
+  if (rgb_only) {
+    float* p = out.image.data();
+    for (std::size_t i = 0, n = out.image.pixel_count(); i < n; ++i) p[i * kChannels + 3] = 1.0f;
+  }
+  return out;
+}
+
+}  // namespace
+
+LoadedImage load_image(const std::string& path, const SizeLimits& limits) {
+  return load(path, limits, false);
+}
+
+LoadedImage load_image_rgb(const std::string& path, const SizeLimits& limits) {
+  return load(path, limits, true);
 }
 
 void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows) {

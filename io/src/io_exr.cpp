@@ -274,7 +274,8 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
     for (int k = 0; k < p.pipe.channel_count; ++k) {
       exr_coding_channel_info_t& ch = p.pipe.channels[k];
       const int at = rgba_index(ch.channel_name);
-      ch.decode_to_ptr = at < 0 ? nullptr : reinterpret_cast<uint8_t*>(row + at);
+      const bool placed = at >= 0 && (at != 3 || alpha);
+      ch.decode_to_ptr = placed ? reinterpret_cast<uint8_t*>(row + at) : nullptr;
       ch.user_pixel_stride = sizeof(float) * kChannels;
       ch.user_line_stride = ch.user_pixel_stride * img.width();
       ch.user_bytes_per_element = sizeof(float);
@@ -347,17 +348,18 @@ bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChan
   s.words.resize(total);
   if (!huf_decode(in + at, length, s.words.data(), total, s.huf)) return false;
   std::size_t start = 0;
-  for (const WordChannel& c : channels) {
-    wavelet_decode_block(s.words.data() + start, width, c.words, lines, max_index);
+  for (const WordChannel& c : channels) {  // a channel read past needs no wavelet
+    if (c.at >= 0) wavelet_decode_block(s.words.data() + start, width, c.words, lines, max_index);
     start += std::size_t(c.words) * width * lines;
   }
   return true;
 }
 
 /// The channels R, G, B and A of a file fast_reader gives to read_piz, into `img` (the data
-/// window's size), the chunks decoded on as many threads as exr_threads' pool has. False, with
-/// `img` in any state, when a chunk cannot be decoded: the C++ reader then reads the file and
-/// reports the problem in its words.
+/// window's size), the chunks decoded on as many threads as exr_threads' pool has; without
+/// `alpha`, A is read past (not decoded) and alpha is 1. False, with `img` in any state, when a
+/// chunk cannot be decoded: the C++ reader then reads the file and reports the problem in its
+/// words.
 bool read_piz(const std::string& path, bool alpha, Image& img) {
   exr_context_t ctxt = open_silently(path);
   if (!ctxt) return false;
@@ -371,7 +373,8 @@ bool read_piz(const std::string& path, bool alpha, Image& img) {
   for (int i = 0; ok && i < list->num_channels; ++i) {
     const exr_attr_chlist_entry_t& e = list->entries[i];
     const bool half = e.pixel_type == EXR_PIXEL_HALF;
-    channels.push_back({half ? 1 : 2, rgba_index(e.name.str), half});
+    const int at = rgba_index(e.name.str);
+    channels.push_back({half ? 1 : 2, at == 3 && !alpha ? -1 : at, half});
     words += channels.back().words;
     ok = e.x_sampling == 1 && e.y_sampling == 1;
   }
@@ -426,7 +429,10 @@ bool read_piz(const std::string& path, bool alpha, Image& img) {
       float* out = img.data() + std::size_t(ci.start_y - dw.min.y + y) * width * kChannels;
       for (int x = 0; x < width; ++x, out += kChannels)
         for (int i = 0; i < kChannels; ++i) {
-          if (!w[i]) continue;
+          if (!w[i]) {
+            if (i == 3) out[3] = 1.0f;  // no alpha read: 1, in the same pass
+            continue;
+          }
           if (half_at[i]) {
             half h;
             h.setBits(lut[w[i][x]]);
@@ -442,9 +448,7 @@ bool read_piz(const std::string& path, bool alpha, Image& img) {
   };
   ok = ok && on_io_threads(chunks, [] { return PizScratch{}; }, decode);
   exr_finish(&ctxt);
-  if (!ok) return false;
-  if (!alpha) fill_alpha(img);
-  return true;
+  return ok;
 }
 
 /// The faster reader of part `chosen` of `file`, where there is one. Both take the only part,
@@ -497,7 +501,7 @@ bool has_exr_magic(const std::string& path) {
   return Imf::isImfMagic(magic);
 }
 
-LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
+LoadedImage load_exr(const std::string& path, const SizeLimits& limits, bool rgb_only) {
   LoadedImage out;
   ImageInfo& info = out.info;
   info.path = path;
@@ -541,10 +545,12 @@ LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
                                                                      : ", tiled multi-level (level 0)")
                        : ", scanline");
 
+    // The file's alpha, unless the caller reads R, G and B alone: then alpha is 1.
+    const bool alpha = pc.alpha && !rgb_only;
     if (const FastReader reader = fast_reader(file, chosen); reader != FastReader::none) {
       Image fast = Image::uninitialised(static_cast<int>(w), static_cast<int>(ht));
-      if (reader == FastReader::piz ? read_piz(path, pc.alpha, fast)
-                                    : read_core(path, pc.alpha, fast)) {
+      if (reader == FastReader::piz ? read_piz(path, alpha, fast)
+                                    : read_core(path, alpha, fast)) {
         out.image = std::move(fast);
         return out;
       }
@@ -566,7 +572,7 @@ LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
         for (long long x = 0; x < w; ++x) {
           float* d = base + (y * w + x) * kChannels;
           const Imf::Rgba& s = px[y][x];
-          d[0] = s.r; d[1] = s.g; d[2] = s.b; d[3] = pc.alpha ? float(s.a) : 1.0f;
+          d[0] = s.r; d[1] = s.g; d[2] = s.b; d[3] = alpha ? float(s.a) : 1.0f;
         }
       return out;
     }
@@ -591,6 +597,7 @@ LoadedImage load_exr(const std::string& path, const SizeLimits& limits) {
     Imf::InputPart part(file, chosen);
     part.setFrameBuffer(fb);
     part.readPixels(dw.min.y, dw.max.y);
+    if (pc.alpha && !alpha) fill_alpha(out.image);
     if (!pc.single.empty()) {
       info.layout += ", one channel (" + pc.single + ") read as grey";
       for (std::size_t i = 0; i < out.image.pixel_count(); ++i)

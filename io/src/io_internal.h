@@ -11,7 +11,9 @@
 namespace bloomref::detail {
 
 bool has_exr_magic(const std::string& path);
-LoadedImage load_exr(const std::string& path, const SizeLimits& limits);
+/// `rgb_only`: the caller reads R, G and B alone, so a PIZ file's alpha is not decoded (alpha
+/// is then 1 in the image).
+LoadedImage load_exr(const std::string& path, const SizeLimits& limits, bool rgb_only = false);
 LoadedImage load_oiio(const std::string& path, const SizeLimits& limits);
 
 /// The writers, into an open stream (`name` for OpenEXR's messages).

@@ -70,6 +70,11 @@ struct LoadedImage {
 
 LoadedImage load_image(const std::string& path, const SizeLimits& limits = {});
 
+/// load_image for a caller that reads R, G and B alone (check's stage images): alpha is 1 in
+/// the image, and a PIZ file's alpha channel is not decoded (its wavelet and its copy are a
+/// quarter of a FLOAT RGBA file's). info.has_alpha still says whether the file has one.
+LoadedImage load_image_rgb(const std::string& path, const SizeLimits& limits = {});
+
 /// Throws InputError naming `path` if width x height breaks a limit (says which).
 void check_size(const std::string& path, long long width, long long height,
                 const SizeLimits& limits);
