@@ -60,12 +60,13 @@ float through_output(double m, double e, double gamma) {
   if (e >= 0 && e <= std::ldexp(m, -10))
     return static_cast<float>(2 * e * g * std::pow(g < 1 ? m - e : m + e, g - 1));
   const double hi = std::max(m + e, 0.0), lo = std::max(m - e, 0.0);
-  if (g > 0 && g <= 1 && hi >= 0x1p-100 && hi <= 0x1p100 && (lo == 0 || lo >= 0x1p-100)) {
+  if (g > 0 && g <= 1 && hi >= 0x1p-60 && hi <= 0x1p60 && (lo == 0 || lo >= 0x1p-60)) {
     // One value per texel (most of an image is dark, beyond the mean value bound): powf, about
     // 3x faster than pow, with each end moved outward by 2^-18 of itself. That covers powf's
-    // error (under 1 ULP), the ends' rounding to float (g 2^-24) and g's (|ln x| g 2^-25, under
-    // 2^-19.7 for x >= 2^-100): the results are normal floats. The width grows by at most
-    // 2^-17 m^g over 2 g e m^(g-1): under 1% where e is 2^-10 of m, less beyond.
+    // error (under 1 ULP, 2^-23), the ends' rounding to float (g 2^-24) and g's (|ln x| g 2^-24,
+    // under 2^-18.6 for x within 2^-60 and 2^60): 2^-18.5 at most, and the results are normal
+    // floats. The width grows by at most 2^-17 m^g over 2 g e m^(g-1): under 1% where e is
+    // 2^-10 of m, less beyond.
     const float gf = static_cast<float>(g);
     const double top = std::pow(static_cast<float>(hi), gf) * (1 + 0x1p-18);
     const double bottom = lo == 0 ? 0.0 : std::pow(static_cast<float>(lo), gf) * (1 - 0x1p-18);
