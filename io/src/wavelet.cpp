@@ -41,13 +41,14 @@ inline void block(std::uint16_t* p00, std::uint16_t* p01, std::uint16_t* p10, st
   step<W14>(i10, i11, *p10, *p11);
 }
 
-// One level (p: the block's spacing, p2 = 2p) of one word position, x step ox, y step oy.
+// One level (p: the block's spacing, p2 = 2p) of one word position, x step ox, y step oy; the
+// blocks of whole row pairs from x_from on (those before it done already).
 template <bool W14>
-void level(std::uint16_t* in, int nx, int ox, int ny, int oy, int p, int p2) {
+void level(std::uint16_t* in, int nx, int ox, int ny, int oy, int p, int p2, int x_from = 0) {
   int y = 0;
   for (; y <= ny - p2; y += p2) {
     std::uint16_t* row = in + std::size_t(y) * oy;
-    int x = 0;
+    int x = x_from;
     for (; x <= nx - p2; x += p2) {
       std::uint16_t* px = row + std::size_t(x) * ox;
       block<W14>(px, px + std::size_t(p) * ox, px + std::size_t(p) * oy,
@@ -105,38 +106,20 @@ int finest_pairs_float(std::uint16_t* r0, std::uint16_t* r1, int nx) {
 }
 #endif
 
-// The finest level (p = 1) of every word position of a block.
+// The finest level (p = 1) of every word position of a block: a FLOAT block's row pairs 4
+// values at a time where SSE2 is, the rest (and the odd column and row) as every level.
 template <bool W14>
 void finest(std::uint16_t* in, int nx, int words, int ny) {
   const int oy = nx * words;
-  int y = 0;
-  for (; y <= ny - 2; y += 2) {
-    std::uint16_t *r0 = in + std::size_t(y) * oy, *r1 = r0 + oy;
-    int x = 0;
+  int done = 0;
 #if defined(__SSE2__)
-    if (words == 2) x = finest_pairs_float<W14>(r0, r1, nx & ~1);
+  if (words == 2)
+    for (int y = 0; y <= ny - 2; y += 2) {
+      std::uint16_t* r0 = in + std::size_t(y) * oy;
+      done = finest_pairs_float<W14>(r0, r0 + oy, nx & ~1);
+    }
 #endif
-    for (; x <= nx - 2; x += 2)
-      for (int j = 0; j < words; ++j) {
-        std::uint16_t* px = r0 + std::size_t(x) * words + j;
-        block<W14>(px, px + words, px + oy, px + oy + words);
-      }
-    if (nx & 1)
-      for (int j = 0; j < words; ++j) {
-        std::uint16_t *px = r0 + std::size_t(x) * words + j, *p10 = px + oy, i00;
-        step<W14>(*px, *p10, i00, *p10);
-        *px = i00;
-      }
-  }
-  if (ny & 1) {
-    std::uint16_t* row = in + std::size_t(y) * oy;
-    for (int x = 0; x <= nx - 2; x += 2)
-      for (int j = 0; j < words; ++j) {
-        std::uint16_t *px = row + std::size_t(x) * words + j, *p01 = px + words, i00;
-        step<W14>(*px, *p01, i00, *p01);
-        *px = i00;
-      }
-  }
+  for (int j = 0; j < words; ++j) level<W14>(in + j, nx, words, ny, oy, 1, 2, done);
 }
 
 template <bool W14>
