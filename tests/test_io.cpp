@@ -697,6 +697,12 @@ TEST_CASE("OIIO formats: channels are taken by name, as for EXR", "[io]") {
     CHECK(p[2] == Approx(c.b));
     CHECK(p[3] == Approx(c.a));
     CHECK(li.info.has_alpha == (c.a != 1.0f));
+    // load_image_rgb: the same colour, alpha 1.
+    const LoadedImage rgb = load_image_rgb(path);
+    const float* q = rgb.image.pixel(1, 1);
+    CHECK((q[0] == p[0] && q[1] == p[1] && q[2] == p[2]));
+    CHECK(q[3] == 1.0f);
+    CHECK(rgb.info.has_alpha == li.info.has_alpha);
   }
 }
 

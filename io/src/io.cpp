@@ -88,10 +88,7 @@ LoadedImage load(const std::string& path, const SizeLimits& limits, bool rgb_onl
   if (lower_extension(path) == ".exr")
     throw InputError(path, "not an OpenEXR file: it does not start with the OpenEXR magic number");
   LoadedImage out = detail::load_oiio(path, limits);
-  if (rgb_only) {
-    float* p = out.image.data();
-    for (std::size_t i = 0, n = out.image.pixel_count(); i < n; ++i) p[i * kChannels + 3] = 1.0f;
-  }
+  if (rgb_only) detail::fill_alpha(out.image);
   return out;
 }
 

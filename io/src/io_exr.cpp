@@ -235,9 +235,10 @@ int rgba_index(const char* name) {
   return -1;
 }
 
-void fill_alpha(Image& img) {
-  float* p = img.data();
-  for (std::size_t i = 0, n = img.pixel_count(); i < n; ++i) p[i * kChannels + 3] = 1.0f;
+/// Where a channel goes in a pixel when alpha is read only `alpha` (-1: read past).
+int placed_index(const char* name, bool alpha) {
+  const int at = rgba_index(name);
+  return at == 3 && !alpha ? -1 : at;
 }
 
 /// The channels R, G, B and A of a single-part scanline file, FLOAT and not subsampled (the
@@ -273,9 +274,8 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
                                   static_cast<std::size_t>(img.width()) * kChannels;
     for (int k = 0; k < p.pipe.channel_count; ++k) {
       exr_coding_channel_info_t& ch = p.pipe.channels[k];
-      const int at = rgba_index(ch.channel_name);
-      const bool placed = at >= 0 && (at != 3 || alpha);
-      ch.decode_to_ptr = placed ? reinterpret_cast<uint8_t*>(row + at) : nullptr;
+      const int at = placed_index(ch.channel_name, alpha);
+      ch.decode_to_ptr = at < 0 ? nullptr : reinterpret_cast<uint8_t*>(row + at);
       ch.user_pixel_stride = sizeof(float) * kChannels;
       ch.user_line_stride = ch.user_pixel_stride * img.width();
       ch.user_bytes_per_element = sizeof(float);
@@ -294,8 +294,8 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
 // PIZ, read through bloomref's own Huffman and wavelet decoders (huffman.h: OpenEXR's looks
 // codes of more than 12 bits up length by length, and those are most of a FLOAT stage's;
 // wavelet.h: its finest level 8 words at a time), with each decoded chunk put into the image
-// directly: OpenEXR's C++ reader would copy it value by value through its generic loop. A PIZ chunk (OpenEXR's PizCompressor; "OpenEXR File Layout", PIZ) holds the byte
-// range [lo, hi] of a 65536-bit bitmap of the 16-bit words that occur, that range, the length
+// directly: OpenEXR's C++ reader would copy it value by value through its generic loop. A PIZ
+// chunk (OpenEXR's PizCompressor; "OpenEXR File Layout", PIZ) holds the byte range [lo, hi] of a 65536-bit bitmap of the 16-bit words that occur, that range, the length
 // of the Huffman-coded data and the data. Decoded, it is the channels one after another (in the
 // file's order), each a block of its rows with every value's 16-bit words side by side (one for
 // HALF, two for FLOAT and UINT, the low word first), each word position wavelet-coded on its
@@ -373,8 +373,7 @@ bool read_piz(const std::string& path, bool alpha, Image& img) {
   for (int i = 0; ok && i < list->num_channels; ++i) {
     const exr_attr_chlist_entry_t& e = list->entries[i];
     const bool half = e.pixel_type == EXR_PIXEL_HALF;
-    const int at = rgba_index(e.name.str);
-    channels.push_back({half ? 1 : 2, at == 3 && !alpha ? -1 : at, half});
+    channels.push_back({half ? 1 : 2, placed_index(e.name.str, alpha), half});
     words += channels.back().words;
     ok = e.x_sampling == 1 && e.y_sampling == 1;
   }
@@ -499,6 +498,11 @@ bool has_exr_magic(const std::string& path) {
   char magic[4] = {};
   if (!f.read(magic, 4)) return false;
   return Imf::isImfMagic(magic);
+}
+
+void fill_alpha(Image& img) {
+  float* p = img.data();
+  for (std::size_t i = 0, n = img.pixel_count(); i < n; ++i) p[i * kChannels + 3] = 1.0f;
 }
 
 LoadedImage load_exr(const std::string& path, const SizeLimits& limits, bool rgb_only) {

@@ -15,6 +15,8 @@ bool has_exr_magic(const std::string& path);
 /// is then 1 in the image).
 LoadedImage load_exr(const std::string& path, const SizeLimits& limits, bool rgb_only = false);
 LoadedImage load_oiio(const std::string& path, const SizeLimits& limits);
+/// Alpha 1 throughout (a file without alpha, or a caller that reads R, G and B alone).
+void fill_alpha(Image& img);
 
 /// The writers, into an open stream (`name` for OpenEXR's messages).
 void write_exr_stream(std::FILE* f, const std::string& name, ConstImageView img,
