@@ -39,6 +39,8 @@ struct CheckArgs {
   std::string artifacts = "fail";
   DeviceKeys device;
   bool warn_as_error = false, quiet = false, no_causes = false;
+  double require_sensitivity = 1.05;  ///< the bloom gain a verdict must see (0: not measured)
+  std::string sensitivity = "gain";   ///< what is measured: gain, full (and shift, spread), none
   PipelineOptions pipeline;
   ShaderArgs shaders;
   SequenceOptions sequence;  ///< --frames, --shard (batch/sequence.h)
@@ -51,6 +53,31 @@ bool is_profile_file(const CheckArgs& a) {
 
 double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The captures that would let a weak verdict see more: the bloom's stages before the last one
+// captured that are not captured (each is then judged from the one before it, where a
+// device's legitimate freedom is smallest), or, with no bloom stage captured, the last one.
+std::string strengthening_captures(const Plan& plan, const std::vector<std::string>& names) {
+  auto captured = [&names](const std::string& n) {
+    return std::find(names.begin(), names.end(), n) != names.end();
+  };
+  std::vector<std::string> bloom, missing;
+  for (const StageSpec& s : plan.stages)
+    if (s.kind == StageKind::blur || s.kind == StageKind::down || s.kind == StageKind::up ||
+        s.kind == StageKind::bloom)
+      bloom.push_back(s.name);
+  std::size_t last = 0;
+  for (std::size_t i = 0; i < bloom.size(); ++i)
+    if (captured(bloom[i])) last = i + 1;
+  if (last == 0) return bloom.empty() ? "" : "the bloom stages (" + bloom.front() + " ... " + bloom.back() + ")";
+  for (std::size_t i = 0; i < last; ++i)
+    if (!captured(bloom[i])) missing.push_back(bloom[i]);
+  if (missing.empty()) return "";
+  std::string out = missing.front();
+  if (missing.size() > 2) out += " ... " + missing.back();
+  else if (missing.size() == 2) out += ", " + missing.back();
+  return out;
 }
 
 ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::DeviceProfile& profile,
@@ -90,6 +117,7 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
     return load_stage(*by_stage.at(stage), w, h);
   };
   std::map<std::string, std::future<LoadedStage>> ahead;
+  std::map<std::string, int> codes;  // each capture's 8-bit codes (-8: sRGB), for sensitivity
   double load_ms = 0;
   auto loader = [&](const std::string& stage) {
     const auto t = std::chrono::steady_clock::now();
@@ -100,6 +128,7 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
     if (next != names.end() && !ahead.count(*next))
       ahead[*next] = std::async(std::launch::async, read, *next);
     load_ms += ms_since(t);
+    codes[stage] = l.srgb ? -l.code_bits : l.code_bits;
     return parity::OwnedCapture{std::move(l.image), l.code_bits, l.srgb};
   };
   parity::CompareOptions co;
@@ -111,6 +140,17 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
                                       &r.oracle_ms);
   r.load_ms += load_ms;
   r.judge_ms = ms_since(t1) - r.oracle_ms - load_ms;
+  // What this verdict could have seen: only asked of one that does not fail (a failure's
+  // evidence is the stage that failed).
+  if (a.sensitivity != "none" && a.require_sensitivity > 0 &&
+      r.parity.verdict != parity::Verdict::fail) {
+    const auto t2 = std::chrono::steady_clock::now();
+    r.sensitivity = parity::sensitivity(plan, scene.image.cview(), names, codes, profile, co,
+                                        a.require_sensitivity, a.sensitivity == "full");
+    r.required_gain = a.require_sensitivity;
+    r.strengthen = strengthening_captures(plan, names);
+    r.sensitivity_ms = ms_since(t2);
+  }
   const std::string report_dir = a.report_dir + (item.id.empty() ? "" : "/" + item.id);
   if (!a.report_dir.empty()) {
     // The report shows the captures of the stages it holds images of: read again.
@@ -167,7 +207,9 @@ void print_item(const ItemResult& r, const parity::DeviceProfile& profile) {
       if (!cause.empty()) std::printf("             %s\n", cause.c_str());
     }
   }
-  std::printf("  verdict %s; first divergent stage: %s\n", r.verdict.c_str(),
+  if (r.sensitivity) std::printf("  could see: %s\n", sensitivity_line(r).c_str());
+  std::printf("  verdict %s%s; first divergent stage: %s\n", r.verdict.c_str(),
+              r.weak() ? (": weak verdict: " + weak_line(r)).c_str() : "",
               r.parity.first_divergent_stage ? r.parity.first_divergent_stage->c_str() : "none");
 }
 
@@ -475,6 +517,14 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
   sub->add_option("--device-driver", args->device.driver, "recorded: e.g. 550.54");
   sub->add_flag("--warn-as-error", args->warn_as_error, "a WARN stage fails the check (exit 1)");
   sub->add_flag("--no-causes", args->no_causes, "do not test the usual causes of a failure");
+  sub->add_option("--require-sensitivity", args->require_sensitivity,
+                  "the bloom gain a verdict must be able to see; one that cannot is WARN: weak "
+                  "verdict (default 1.05; 0: do not measure what the verdict could see)")
+      ->check(CLI::Range(0.0, 4.0));
+  sub->add_option("--sensitivity", args->sensitivity,
+                  "what a verdict that does not fail measures it could have seen: gain (the "
+                  "default), full (also a shift and a wider spread), none")
+      ->check(CLI::IsMember({"gain", "full", "none"}));
   sub->add_flag("-q,--quiet", args->quiet, "print nothing");
   args->pipeline.add_to(*sub);
   args->sequence.add_to(*sub, false);

@@ -403,6 +403,8 @@ void apply_expectations(ItemResult& r, std::vector<Expectation>& expectations,
     }
     r.outcomes.push_back(o);
   }
+  // A verdict that could not see the gain it had to: not a PASS.
+  warn |= r.weak();
   r.verdict = r.parity.isolated.empty() ? "NOTHING" : fail ? "FAIL" : warn ? "WARN" : "PASS";
 }
 

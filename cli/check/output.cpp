@@ -15,6 +15,33 @@ using nlohmann::ordered_json;
 namespace bloomref::cli {
 namespace {
 
+// A number, or "infinite" / "nan" where JSON has none.
+ordered_json finite_or_string(double v) {
+  if (std::isfinite(v)) return v;
+  return std::isnan(v) ? ordered_json("nan") : ordered_json("infinite");
+}
+ordered_json finite_or_string(const std::array<double, 3>& v) {
+  return {finite_or_string(v[0]), finite_or_string(v[1]), finite_or_string(v[2])};
+}
+
+ordered_json sensitivity_json(const ItemResult& r) {
+  if (!r.sensitivity) return nullptr;
+  const parity::Sensitivity& s = *r.sensitivity;
+  auto seen = [](double v, const std::string& stage) {
+    return v > 0 ? ordered_json{{"smallest_failed", v}, {"first_failing_stage", stage}}
+                 : ordered_json{{"smallest_failed", nullptr}, {"first_failing_stage", nullptr}};
+  };
+  return {{"gain", seen(s.gain, s.gain_stage)},
+          {"shift_texels", s.shape ? seen(s.shift, s.shift_stage) : ordered_json(nullptr)},
+          {"spread", s.shape ? seen(s.spread, s.spread_stage) : ordered_json(nullptr)},
+          {"ladders", {{"gain", parity::Sensitivity::gain_ladder()},
+                       {"shift_texels", parity::Sensitivity::shift_ladder()},
+                       {"spread", parity::Sensitivity::spread_ladder()}}},
+          {"required_gain", r.required_gain},
+          {"weak", r.weak()},
+          {"strengthen_with", r.strengthen.empty() ? ordered_json(nullptr) : ordered_json(r.strengthen)}};
+}
+
 ordered_json stage_json(const parity::StageComparison& s) {
   ordered_json worst = ordered_json::array();
   for (const parity::WorstValue& w : s.worst) {
@@ -33,6 +60,11 @@ ordered_json stage_json(const parity::StageComparison& s) {
                                                               : ordered_json("infinite")},
           {"mean_excess", s.mean_excess}, {"worst_window", s.worst_window},
           {"worst_window_at", {s.worst_window_x, s.worst_window_y}}, {"gate", s.gate},
+          {"gate_id", s.gate_id}, {"gain", finite_or_string(s.gain)},
+          {"gain_allowed", finite_or_string(s.gain_allowed)},
+          {"gain_gate", finite_or_string(s.gain_ratio)},
+          {"tile_gain_gate", finite_or_string(s.tile_gain_ratio)},
+          {"tile_gain_at", {s.tile_x, s.tile_y}},
           {"ulp_histogram_minus8_to_plus8", s.ulp_histogram}, {"worst", worst}};
 }
 
@@ -135,7 +167,9 @@ ordered_json check_json(const CheckRun& run) {
                                        : ordered_json(nullptr)},
          {"ignored_files", r.ignored},
          {"error", r.error.empty() ? ordered_json(nullptr) : ordered_json(r.error)},
-         {"timings_ms", {{"load", r.load_ms}, {"oracle", r.oracle_ms}, {"judge", r.judge_ms}}},
+         {"sensitivity", sensitivity_json(r)},
+         {"timings_ms", {{"load", r.load_ms}, {"oracle", r.oracle_ms}, {"judge", r.judge_ms},
+                         {"sensitivity", r.sensitivity_ms}}},
          {"stages", stages}});
   }
   const parity::DeviceProfile& p = run.profile;
@@ -199,6 +233,11 @@ std::string junit_xml(const CheckRun& run) {
         {"device.renderer", run.device.renderer}, {"device.driver", run.device.driver}};
     for (const auto& [k, v] : props)
       out += "      <property name=\"" + std::string(k) + "\" value=\"" + xml(v) + "\"/>\n";
+    if (r.sensitivity) {
+      out += "      <property name=\"sensitivity\" value=\"" + xml(sensitivity_line(r)) + "\"/>\n";
+      if (r.weak())
+        out += "      <property name=\"weak-verdict\" value=\"" + xml(weak_line(r)) + "\"/>\n";
+    }
     out += "    </properties>\n";
     if (r.outcomes.empty()) {
       out += "    <testcase classname=\"bloomref.check." + xml(r.id) +
@@ -240,6 +279,31 @@ std::string junit_xml(const CheckRun& run) {
   return out + "</testsuites>\n";
 }
 
+std::string sensitivity_line(const ItemResult& r) {
+  if (!r.sensitivity) return "not measured";
+  const parity::Sensitivity& s = *r.sensitivity;
+  char buf[160];
+  auto part = [&buf](double v, const char* fmt, const char* none, const std::string& stage) {
+    if (v <= 0) return std::string(none);
+    std::snprintf(buf, sizeof buf, fmt, v);
+    return std::string(buf) + " (at " + stage + ")";
+  };
+  std::string out = part(s.gain, "a bloom gain of %.3gx", "no bloom gain up to 4x", s.gain_stage);
+  if (!s.shape) return out;
+  out += ", " + part(s.shift, "a shift of %g texel(s)", "no shift up to 8 texels", s.shift_stage);
+  out += ", " + part(100 * (s.spread - 1), "a spread %.3g%% wider", "no wider spread up to 50%",
+                     s.spread_stage);
+  return out;
+}
+
+std::string weak_line(const ItemResult& r) {
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "a bloom %.3gx too strong would not have failed", r.required_gain);
+  std::string out = buf;
+  if (!r.strengthen.empty()) out += "; capture " + r.strengthen + " to see more";
+  return out;
+}
+
 std::string markdown_summary(const CheckRun& run) {
   const Counts n = count(run);
   const char* icon = run.verdict == "PASS" ? ":white_check_mark:" : run.verdict == "WARN" ? ":warning:" : ":x:";
@@ -260,7 +324,7 @@ std::string markdown_summary(const CheckRun& run) {
   out += ".\n\n| item | verdict | first divergent stage | likely cause |\n|---|---|---|---|\n";
   for (const ItemResult& r : run.items) {
     const parity::StageComparison* first = first_divergent(r);
-    out += "| " + md(r.id) + " | " + r.verdict + " | " +
+    out += "| " + md(r.id) + " | " + r.verdict + (r.weak() ? " (weak verdict: " + md(weak_line(r)) + ")" : "") + " | " +
            (r.parity.first_divergent_stage ? "`" + *r.parity.first_divergent_stage + "`" : "-") +
            " | " + (first ? md(cause_line(*first)) : !r.error.empty() ? md(r.error) : "-") + " |\n";
   }

@@ -14,4 +14,9 @@ nlohmann::ordered_json check_json(const CheckRun& run);
 std::string junit_xml(const CheckRun& run);
 std::string markdown_summary(const CheckRun& run);
 
+/// What an item's verdict could see, in words ("a bloom gain of 1.05x (at blur.10), a shift of
+/// 1 texel (at blur.10), a spread 5% wider (at blur.10)"), and why a weak one is weak.
+std::string sensitivity_line(const ItemResult& r);
+std::string weak_line(const ItemResult& r);
+
 }  // namespace bloomref::cli

@@ -56,7 +56,15 @@ struct ItemResult {
   std::string verdict;                         ///< PASS, WARN, FAIL (after expectations), NOTHING,
                                                ///< or ERROR: the item could not be judged
   std::string error;                           ///< why (ERROR: a missing scene or folder)
-  double load_ms = 0, oracle_ms = 0, judge_ms = 0;
+  double load_ms = 0, oracle_ms = 0, judge_ms = 0, sensitivity_ms = 0;
+  /// What the verdict could have seen (a verdict that does not fail), the bloom gain it had to
+  /// see, and the captures that would strengthen it; weak(): it could not see that gain.
+  std::optional<parity::Sensitivity> sensitivity;
+  double required_gain = 0;
+  std::string strengthen;
+  bool weak() const {
+    return sensitivity && (sensitivity->gain == 0 || sensitivity->gain > required_gain * (1 + 1e-9));
+  }
 };
 
 struct CheckRun {

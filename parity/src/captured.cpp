@@ -20,11 +20,15 @@
 #include <cstring>
 #include <map>
 #include <memory>
+#include <tuple>
+#include <cstdio>
+#include <cstdlib>
 
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
 #include "causes.h"
 #include "chain.h"
+#include "energy.h"
 #include "holding.h"
 #include "judge.h"
 #include "stage_terms.h"
@@ -61,6 +65,40 @@ struct Kept {
   Image *e2e = nullptr, *bound = nullptr, *inherited = nullptr;
 };
 
+// What a band adds up for the gain gates (energy.h), per channel: finite values only (NaN/Inf
+// where the other side has none fails by itself). `tile_*` per 32-column tile of the band.
+constexpr int kTile = 32;
+struct EnergySums {
+  using Sum = std::array<double, 3>;
+  Sum err{}, err_e2e{}, oracle{}, full{}, l1{}, l1_e2e{}, l1_own{}, up{}, down{}, most{}, rounding{};
+  double tile_ratio = 0;
+  int tile_x = -1, tile_y = -1;
+  void merge(const EnergySums& b) {
+    for (int c = 0; c < 3; ++c) {
+      err[c] += b.err[c], err_e2e[c] += b.err_e2e[c], oracle[c] += b.oracle[c];
+      full[c] += b.full[c], l1[c] += b.l1[c], l1_e2e[c] += b.l1_e2e[c], l1_own[c] += b.l1_own[c];
+      up[c] += b.up[c], down[c] += b.down[c], most[c] += b.most[c], rounding[c] += b.rounding[c];
+    }
+    if (b.tile_ratio > tile_ratio) tile_ratio = b.tile_ratio, tile_x = b.tile_x, tile_y = b.tile_y;
+  }
+};
+
+// A total error against its budgets: the ratio, over the sign's budget.
+double budget_ratio(double err, double up, double down) {
+  const double b = err > 0 ? up : down;
+  if (err == 0) return 0;
+  if (!(b >= 0) || !std::isfinite(b)) return 0;  // no budget can be derived (NaN/Inf around)
+  return b > 0 ? std::fabs(err) / b : INFINITY;
+}
+
+// The error and budgets of one stage, for the stages after it: what its value may be off by
+// in total, against the isolated oracle (`chain`: zero for a capture) and the full run (`e2e`),
+// and a bound on the total variation of its isolated error (`tv`).
+struct Energy {
+  SignedBudget chain, e2e;
+  std::array<double, 3> tv{};
+};
+
 class Comparison {
  public:
   Comparison(const Plan& plan, ConstImageView scene, const std::vector<std::string>& names,
@@ -84,7 +122,16 @@ class Comparison {
   void oracle_full(const StageSpec& spec, const std::vector<std::string>& in);
   TermInputs inputs();
   void judge_captured(std::size_t index, StageTerms& t);
-  void band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept, bool judge);
+  void band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept, bool judge,
+                     EnergySums& es, int band);
+  void energy_band(int y0, int y1, const float* gl, const float* oracle, const float* full,
+                   const float* bound, const float* own, const float* rounding,
+                   const float* inherited, const float* e, EnergySums& es, int band) const;
+  std::pair<SignedBudget, SignedBudget> signed_budgets(const std::vector<std::string>& in,
+                                                       const EnergySums& es, double storage,
+                                                       std::array<double, 3>* tv) const;
+  void gain_gates(StageComparison& iso, StageComparison& e2e, const EnergySums& es,
+                  const std::vector<std::string>& in);
   ExtraTerms iso_terms(const StageTerms& t, const CapturedStage& cap, const Image& inherited) const;
   ExtraTerms::Value codes_of(const CapturedStage& cap, ConstImageView oracle) const;
   Image final_bound(const StageTerms& t);
@@ -146,6 +193,9 @@ class Comparison {
   std::map<std::string, Image> carried_;   // and the error each carries
   std::map<std::string, Image> full_;      // the oracle's full run (when no trace is given)
   std::map<std::string, Image> e2e_;       // end-to-end bound of each stage, on the full run
+  std::map<std::string, Energy> energy_;   // each stage's, for the stages that read it
+  std::unique_ptr<BlurDeviation> deviation_;  // of the blur pass being judged (when usable)
+  int stage_width_ = 0;                    // its width
   const StageSpec* spec_ = nullptr;        // the stage being judged
   std::string name_;
   JudgeRules iso_rules_, e2e_rules_;       // how its values are judged
@@ -261,12 +311,17 @@ ParityResult Comparison::run(double* oracle_ms) {
     if (spec.kind == StageKind::bright && !streams_.captured(name_))
       terms.ctx.interpolated_reads = false;
     StageTerms t = stage_terms(spec, in, terms);
-    if (streams_.captured(name_)) judge_captured(index, t);
+    const bool judged = streams_.captured(name_);
+    if (judged) judge_captured(index, t);
     else keep_uncaptured(index, t);
     pool_.give(t.oracle);
     auto recycle = [this](auto& img) { pool_.give(img); };
     streams_.release_chain(static_cast<int>(index), recycle, captures_, computed_);
     streams_.release_read(static_cast<int>(index), recycle, full_, e2e_, carried_);
+    if (judged && opt_.stop_at_first_fail &&
+        (result_.isolated.back().verdict == Verdict::fail ||
+         result_.end_to_end.back().verdict == Verdict::fail))
+      break;
   }
   if (oracle_ms) *oracle_ms = oracle_time_;
   return finish();
@@ -275,7 +330,7 @@ ParityResult Comparison::run(double* oracle_ms) {
 // One band of a captured stage: its bounds made, then both comparisons (none when `judge` is
 // false: a capture of another size).
 void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept,
-                               bool judge) {
+                               bool judge, EnergySums& es, int band) {
   const CapturedStage cap = capture(name_);
   const StageOverride* over = stage_override(profile_, name_);
   const std::size_t n = std::size_t(y1 - y0) * t.oracle.width(), values = n * kChannels;
@@ -320,6 +375,7 @@ void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally&
     for (std::size_t i = 0; i < values; ++i) rounding[i] = static_cast<float>(rounding[i] * over->scale);
   if (codes) add_rows(rounding, q, n);
   const float* slack = p_.storage == Storage::f16 ? inherited : nullptr;
+  energy_band(y0, y1, cap.image.row(y0), oracle, full, bound, nullptr, rounding, inherited, e, es, band);
   const std::size_t row = std::size_t(t.oracle.width()) * kChannels;
   for (int y = y0; y < y1; ++y) {
     const std::size_t at = std::size_t(y - y0) * row;
@@ -363,8 +419,16 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   pool_.clear();
   const int rows = judge_band(iso_rules_.window);
   std::vector<Tally> iso((h + rows - 1) / rows), e2e(iso.size());
+  deviation_.reset();
+  stage_width_ = w;
+  if (spec_->kind == StageKind::blur && !codes && fits) {
+    deviation_ = std::make_unique<BlurDeviation>(V(stage_inputs(plan_, *spec_)[0]), spec_->axis,
+                                                 kernel_, profile_);
+    if (!deviation_->usable()) deviation_.reset();
+  }
+  std::vector<EnergySums> energy(iso.size());
   over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
-    band_captured(y0, y1, t, iso[b], e2e[b], kept, fits);
+    band_captured(y0, y1, t, iso[b], e2e[b], kept, fits, energy[b], b);
   });
   if (kept.e2e) e2e_[name_] = std::move(e_kept);
   if (!fits) {
@@ -378,7 +442,12 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   StageComparison s = conclude(name_, std::move(iso_total), iso_rules_, iso_terms(t, cap, inherited_kept),
                                &gates, uniform);
   const ExtraTerms e2e_terms(*t.bound, {{"8-bit capture: half a code", codes_of(cap, C(name_))}});
-  result_.end_to_end.push_back(conclude(name_, std::move(e2e_total), e2e_rules_, e2e_terms, nullptr, false));
+  StageComparison s_e2e = conclude(name_, std::move(e2e_total), e2e_rules_, e2e_terms, nullptr, false);
+  EnergySums es;
+  for (const EnergySums& b : energy) es.merge(b);
+  gain_gates(s, s_e2e, es, stage_inputs(plan_, *spec_));
+  deviation_.reset();
+  result_.end_to_end.push_back(std::move(s_e2e));
   const bool keep = opt_.keep_images && !(opt_.keep_failing_only && s.verdict == Verdict::pass);
   if ((opt_.causes && s.verdict != Verdict::pass) || keep) {
     Image bound = bound_kept.empty() ? final_bound(t) : std::move(bound_kept);
@@ -472,15 +541,27 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
   Image e_kept = read_later && !e2e_made_again(name_) ? pool_.take(w, h) : Image();
   Image carried = read_later ? pool_.take(w, h) : Image();
   pool_.clear();
-  over_bands(h, judge_band(0), threads_, [&](int y0, int y1, int) {
+  deviation_.reset();
+  stage_width_ = w;
+  if (spec_->kind == StageKind::blur && read_later) {
+    deviation_ = std::make_unique<BlurDeviation>(V(stage_inputs(plan_, *spec_)[0]), spec_->axis,
+                                                 kernel_, profile_);
+    if (!deviation_->usable()) deviation_.reset();
+  }
+  const int rows = judge_band(0);
+  std::vector<EnergySums> energy(std::size_t((h + rows - 1) / rows));
+  std::vector<double> storage(energy.size(), 0.0);
+  over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
     const std::size_t n = std::size_t(y1 - y0) * w, values = n * kChannels;
     BandScratch& s = band_scratch();
     float* bound = BandScratch::rows(s.bound, values);
+    float* rounding = BandScratch::rows(s.rounding, values);
     float* e = BandScratch::rows(s.e2e, values);
-    t.bound->rows(y0, y1, bound, nullptr);
+    t.bound->rows(y0, y1, bound, rounding);
     t.end_to_end(y0, y1, bound, e);
+    float* inherited = nullptr;
     if (t.inherited) {
-      float* inherited = BandScratch::rows(s.inherited, values);
+      inherited = BandScratch::rows(s.inherited, values);
       t.inherited(y0, y1, bound, inherited);
       add_rows(bound, inherited, n);
     }
@@ -488,13 +569,245 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
     float* o = t.oracle.pixel(0, y0);
     std::copy(o, o + values, unrounded);
     store(ImageView{w, y1 - y0, w, o}, p_.storage, rounding_, 1);
-    for (std::size_t i = 0; i < values; ++i) bound[i] += std::fabs(o[i] - unrounded[i]);
+    double st = 0;
+    for (std::size_t i = 0; i < values; ++i) {
+      const float r = std::fabs(o[i] - unrounded[i]);
+      bound[i] += r;
+      if (i % kChannels != 3) st += r;
+    }
+    storage[std::size_t(b)] = st;
+    if (read_later) energy_band(y0, y1, nullptr, nullptr, nullptr, bound, nullptr, rounding, inherited, e,
+                                energy[std::size_t(b)], b);
     if (!e_kept.empty()) put_rows(e_kept, y0, e, n);
     if (read_later) put_rows(carried, y0, bound, n);
   });
+  if (read_later) {
+    EnergySums es;
+    double st = 0;
+    for (std::size_t b = 0; b < energy.size(); ++b) es.merge(energy[b]), st += storage[b];
+    Energy& en = energy_[name_];
+    en.tv = {std::nan(""), 0, 0};
+    std::tie(en.chain, en.e2e) = signed_budgets(stage_inputs(plan_, *spec_), es, st, &en.tv);
+    for (int c = 0; c < 3; ++c) {
+      en.chain.up[c] = std::min(en.chain.up[c], es.l1[c]);
+      en.chain.down[c] = std::min(en.chain.down[c], es.l1[c]);
+      en.e2e.up[c] = std::min(en.e2e.up[c], es.l1_e2e[c]);
+      en.e2e.down[c] = std::min(en.e2e.down[c], es.l1_e2e[c]);
+    }
+    if (std::isnan(en.tv[0])) en.tv = {4 * es.l1[0], 4 * es.l1[1], 4 * es.l1[2]};
+  }
+  deviation_.reset();
   computed_[name_] = std::move(t.oracle);
   if (!e_kept.empty()) e2e_[name_] = std::move(e_kept);
   if (read_later) carried_[name_] = std::move(carried);
+}
+
+// A band's sums for the gain gates (EnergySums). `gl` (null for a stage without capture: only
+// its budgets are summed) is the capture's row y0, rows `stride` apart as the view holds them.
+void Comparison::energy_band(int y0, int y1, const float* gl, const float* oracle,
+                             const float* full, const float* bound, const float*,
+                             const float* rounding, const float* inherited, const float* e,
+                             EnergySums& es, int band) const {
+  const int width = stage_width_;
+  const std::size_t row = std::size_t(width) * kChannels, values = std::size_t(y1 - y0) * row;
+  BandScratch& s = band_scratch();
+  float *up = nullptr, *down = nullptr;
+  if (deviation_) {
+    up = BandScratch::rows(s.judged, 2 * values);
+    down = up + values;
+    deviation_->rows(y0, y1, up, down);
+  }
+  const int tiles = (width + kTile - 1) / kTile;
+  std::vector<double> terr(gl ? std::size_t(tiles) * 3 : 0), tl1(terr.size()), tup(terr.size()),
+      tdn(terr.size());
+  const ConstImageView cap = gl ? capture(name_).image : ConstImageView{};
+  for (int y = y0; y < y1; ++y) {
+    const std::size_t at0 = std::size_t(y - y0) * row;
+    const float* g = gl ? cap.row(y) : nullptr;
+    for (int x = 0; x < width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t at = at0 + std::size_t(x) * kChannels + c;
+        const std::size_t ti = std::size_t(x / kTile) * 3 + c;
+        es.l1_e2e[c] += e[at];
+        es.rounding[c] += rounding[at];
+        if (up) es.up[c] += up[at], es.down[c] += down[at], es.most[c] += std::max(up[at], down[at]);
+        es.l1_own[c] += bound[at] - (inherited ? inherited[at] : 0.0f);
+        if (!g) {
+          es.l1[c] += bound[at];
+          continue;
+        }
+        const double gv = g[std::size_t(x) * kChannels + c], ov = oracle[at], fv = full[at];
+        if (judged_as_number(ov, gv, p_.storage, profile_, bound[at])) {
+          es.err[c] += gv - ov;
+          es.oracle[c] += ov;
+          es.l1[c] += bound[at];
+          terr[ti] += gv - ov;
+          tl1[ti] += bound[at];
+          const double local = rounding[at] + (inherited ? inherited[at] : 0.0f);
+          tup[ti] += (up ? up[at] : INFINITY) + local;
+          tdn[ti] += (down ? down[at] : INFINITY) + local;
+        }
+        if (judged_as_number(fv, gv, p_.storage, profile_, e[at])) {
+          es.err_e2e[c] += gv - fv;
+          es.full[c] += fv;
+        }
+      }
+  }
+  for (int tx = 0; tx < tiles && gl; ++tx)
+    for (int c = 0; c < 3; ++c) {
+      const std::size_t ti = std::size_t(tx) * 3 + c;
+      const double r = budget_ratio(terr[ti], std::min(tl1[ti], tup[ti]), std::min(tl1[ti], tdn[ti]));
+      if (r > es.tile_ratio) es.tile_ratio = r, es.tile_x = tx * kTile, es.tile_y = y0;
+    }
+  (void)band;
+}
+
+// The signed budgets of the stage being judged (its total error against the isolated oracle,
+// and against the full run), from its band sums, its storage rounding (a stage without capture:
+// the oracle's value as stored), and what its inputs carry. Only a blur pass and the composite
+// have budgets tighter than the sum of their per-value bounds; `tv` receives a bound on the
+// total variation of the isolated error (for the stages that read it).
+std::pair<SignedBudget, SignedBudget> Comparison::signed_budgets(
+    const std::vector<std::string>& in, const EnergySums& es, double storage,
+    std::array<double, 3>* tv) const {
+  SignedBudget iso, e2e;
+  const bool captured = streams_.captured(name_);
+  std::array<double, 3> t{};
+  const double per_channel_storage = storage / 3;
+  if (spec_->kind == StageKind::blur && deviation_) {
+    const std::string& i = in[0];
+    for (int c = 0; c < 3; ++c) {
+      iso.up[c] = es.up[c] + es.rounding[c] + per_channel_storage;
+      iso.down[c] = es.down[c] + es.rounding[c] + per_channel_storage;
+      // The error a pass creates is at most max(up, down) at each value; its total variation
+      // at most 4 times its sum (each value is in two differences along each axis).
+      t[c] = 4 * (es.most[c] + es.rounding[c] + per_channel_storage);
+    }
+    e2e = iso;
+    e2e.add_both(es.rounding);  // the full run's own storage rounding
+    const auto ei = energy_.find(i);
+    if (ei == energy_.end()) return {SignedBudget::infinite(), SignedBudget::infinite()};
+    const bool hz = spec_->axis == Axis::horizontal;
+    const std::vector<double> excess =
+        edge_weight_excess(hz ? V(i).width : V(i).height, kernel_);
+    if (!streams_.captured(i)) {
+      // The device's lookups of the error carried in: its sum moves by at most the shifts
+      // times the error's variation (a shift moves weight to a neighbour), and by the weight
+      // clamp-to-edge gives texels near the edges.
+      const double k = deviation_->shift_sum() * (1 + deviation_->shift_sum());
+      std::array<double, 3> second{};
+      for (int c = 0; c < 3; ++c) second[c] = k * ei->second.tv[c];
+      iso.add(ei->second.chain);
+      iso.add_both(second);
+      iso.add_both(edge_leak(E(i)->cview(), spec_->axis, excess));
+      e2e.add_both(second);
+      for (int c = 0; c < 3; ++c) t[c] += ei->second.tv[c] + 4 * second[c];
+    }
+    e2e.add(ei->second.e2e);
+    const BoundRows r = e2e_rows(i);
+    if (!r.image) return {iso, SignedBudget::infinite()};
+    e2e.add_both(edge_leak(r.image->cview(), spec_->axis, excess));
+  } else if (spec_->kind == StageKind::composite) {
+    // hdr = scene + strength * bloom: the inputs' totals pass through, scaled.
+    std::array<double, 3> own{};
+    for (int c = 0; c < 3; ++c) own[c] = es.l1_own[c] + per_channel_storage;
+    iso.add_both(own);
+    e2e.add_both(own);
+    e2e.add_both(es.rounding);
+    for (std::size_t j = 0; j < in.size(); ++j) {
+      const auto ej = energy_.find(in[j]);
+      if (ej == energy_.end()) return {SignedBudget::infinite(), SignedBudget::infinite()};
+      const double scale = j == 1 ? std::fabs(p_.strength) : 1.0;
+      if (!streams_.captured(in[j])) {
+        iso.add(ej->second.chain, scale);
+        if (opt_.interpolated_reads) {
+          // Reads at interpolated coordinates: a shift of at most the coordinate error.
+          const ConstImageView v = V(in[j]);
+          const AxisShift sx = lookup_shift(v.width, profile_, 0.0), sy = lookup_shift(v.height, profile_, 0.0);
+          const double k = sx.minus + sx.plus + sy.minus + sy.plus;
+          std::array<double, 3> second{};
+          for (int c = 0; c < 3; ++c) second[c] = k * scale * ej->second.tv[c];
+          iso.add_both(second);
+          e2e.add_both(second);
+        }
+        for (int c = 0; c < 3; ++c) t[c] += scale * ej->second.tv[c];
+      }
+      e2e.add(ej->second.e2e, scale);
+    }
+    for (int c = 0; c < 3; ++c) t[c] += 4 * (own[c] + es.rounding[c]);
+  } else {
+    return {SignedBudget::infinite(), SignedBudget::infinite()};
+  }
+  (void)captured;
+  if (std::getenv("BLOOMREF_DEBUG_ENERGY"))
+    std::fprintf(stderr, "%s: U %.4g D %.4g R %.4g st %.4g l1 %.4g | iso up %.4g down %.4g e2e up %.4g | tv %.4g\n",
+                 name_.c_str(), es.up[1], es.down[1], es.rounding[1], storage / 3, es.l1[1], iso.up[1],
+                 iso.down[1], e2e.up[1], t[1]);
+  if (tv) *tv = t;
+  return {iso, e2e};
+}
+
+// The gain gates of a captured stage: its total error per channel against the smaller of two
+// budgets, each a bound on it: the sum of the per-value bounds as judged, and the signed budget
+// (signed_budgets); over the whole image and (isolated) each tile.
+void Comparison::gain_gates(StageComparison& iso, StageComparison& e2e, const EnergySums& es,
+                            const std::vector<std::string>& in) {
+  auto [signed_iso, signed_e2e] = signed_budgets(in, es, 0.0, nullptr);
+  Energy& mine = energy_[name_];
+  mine.chain = SignedBudget{};
+  mine.tv = {};
+  for (int c = 0; c < 3; ++c) {
+    mine.e2e.up[c] = std::min(es.l1_e2e[c], signed_e2e.up[c]);
+    mine.e2e.down[c] = std::min(es.l1_e2e[c], signed_e2e.down[c]);
+  }
+  auto apply = [&](StageComparison& s, const EnergySums::Sum& err, const EnergySums::Sum& total,
+                   const EnergySums::Sum& l1, const SignedBudget& sb, bool tiles) {
+    for (int c = 0; c < 3; ++c) {
+      const double up = std::min(l1[c], sb.up[c]), down = std::min(l1[c], sb.down[c]);
+      const double r = budget_ratio(err[c], up, down);
+      s.gain[c] = total[c] != 0 ? (total[c] + err[c]) / total[c] : 1.0;
+      s.gain_allowed[c] = total[c] != 0 ? std::min(up, down) / std::fabs(total[c]) : INFINITY;
+      s.gain_ratio = std::max(s.gain_ratio, r);
+    }
+    if (tiles) {
+      s.tile_gain_ratio = es.tile_ratio;
+      s.tile_x = es.tile_x;
+      s.tile_y = es.tile_y;
+    }
+    const bool whole = s.gain_ratio > 1, tile = s.tile_gain_ratio > 1;
+    if (!whole && !tile) return;
+    static const char* names[3] = {"R", "G", "B"};
+    std::string what;
+    if (whole) {
+      int c = 0;
+      for (int k = 1; k < 3; ++k)
+        if (budget_ratio(err[k], std::min(l1[k], sb.up[k]), std::min(l1[k], sb.down[k])) >
+            budget_ratio(err[c], std::min(l1[c], sb.up[c]), std::min(l1[c], sb.down[c])))
+          c = k;
+      char buf[200];
+      std::snprintf(buf, sizeof buf,
+                    "the total of %s is %.4gx the oracle's; the profile allows %.3g%% either way "
+                    "(gain gate: %.3gx its budget)",
+                    names[c], s.gain[c], 100 * s.gain_allowed[c], s.gain_ratio);
+      what = buf;
+    } else {
+      char buf[200];
+      std::snprintf(buf, sizeof buf,
+                    "the total error of the %dx%d tile at (%d, %d) is %.3gx its budget (tile gain gate)",
+                    kTile, judge_band(iso_rules_.window), s.tile_x, s.tile_y, s.tile_gain_ratio);
+      what = buf;
+    }
+    if (s.gate.empty()) {
+      s.gate_id = whole ? "gain" : "tile-gain";
+      s.gate = what;
+    }
+    if (s.nonfinite_mismatch == 0 && s.beyond_tier == 0) {
+      s.verdict = Verdict::fail;
+      s.reason = "image gate: " + s.gate;
+    }
+  };
+  apply(iso, es.err, es.oracle, es.l1, signed_iso, true);
+  apply(e2e, es.err_e2e, es.full, es.l1_e2e, signed_e2e, false);
 }
 
 ParityResult Comparison::finish() {

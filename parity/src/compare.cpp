@@ -70,6 +70,14 @@ int special_case(double o, double g, Storage storage, const DeviceProfile& p, do
   return -1;
 }
 
+}  // namespace
+
+bool judged_as_number(double o, double g, Storage storage, const DeviceProfile& p, double bound) {
+  return bound < INFINITY && special_case(o, g, storage, p, bound) == -1;
+}
+
+namespace {
+
 // The key the worst values are ordered by: error / bound.
 double worst_key(const WorstValue& w) { return w.error / std::max(w.bound, 1e-300); }
 
@@ -140,15 +148,15 @@ void apply_gates(StageComparison& s, const Tally& t, const ImageGates& gates, in
   }
   const double over = s.values ? double(s.over_bound) / double(s.values) : 0.0;
   if (gates.mean > 0 && s.mean_excess > gates.mean)
-    s.gate = "the mean error is " + fixed3(s.mean_excess) + " of the bound beyond rounding (gate " +
+    s.gate_id = "mean", s.gate = "the mean error is " + fixed3(s.mean_excess) + " of the bound beyond rounding (gate " +
              fixed3(gates.mean) + ")";
   else if (gates.window > 0 && s.worst_window > gates.window)
-    s.gate = "the " + std::to_string(gates.window_size) + "x" + std::to_string(gates.window_size) +
+    s.gate_id = "window", s.gate = "the " + std::to_string(gates.window_size) + "x" + std::to_string(gates.window_size) +
              " window at (" + std::to_string(s.worst_window_x) + ", " +
              std::to_string(s.worst_window_y) + ") has a mean error of " + fixed3(s.worst_window) +
              " of its bound beyond rounding (gate " + fixed3(gates.window) + ")";
   else if (gates.over_fraction > 0 && over > gates.over_fraction)
-    s.gate = fixed3(100 * over) + "% of the values exceed their bound (gate " +
+    s.gate_id = "over-fraction", s.gate = fixed3(100 * over) + "% of the values exceed their bound (gate " +
              fixed3(100 * gates.over_fraction) + "%)";
 }
 

@@ -55,6 +55,10 @@ void judge_row(const JudgeRules& rules, int y, const float* gl, const float* ora
 StageComparison conclude(const std::string& stage, Tally total, const JudgeRules& rules,
                          const StageBounds& terms, const ImageGates* gates, bool uniform);
 
+/// Whether judge_row compares this value's error with its bound (`bound` finite, neither side
+/// NaN/Inf, no f16 overflow): the values the gain gates add up.
+bool judged_as_number(double o, double g, Storage storage, const DeviceProfile& p, double bound);
+
 /// A stage whose capture is not the oracle's size: FAIL, nothing compared.
 StageComparison size_fault(const std::string& stage, ConstImageView gl, ConstImageView oracle);
 

@@ -16,6 +16,7 @@
 // mean excess error, the worst window's, or the fraction of values over bound.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -79,6 +80,16 @@ struct StageComparison {
   double mean_excess = 0, worst_window = 0;
   int worst_window_x = 0, worst_window_y = 0;
   std::string gate;
+  std::string gate_id;  ///< the gate that failed: "mean", "window", "over-fraction", "gain", "tile-gain"
+  /// The gain gates (docs/check.md, "Gain gates"), per channel R, G, B: the stage's total over
+  /// the oracle's (`gain`) and the most the profile lets that total differ from the oracle's, as
+  /// a fraction of it (`gain_allowed`: the smaller of the two signs' budgets); `gain_ratio` is
+  /// the largest total error over its budget across the channels, `tile_gain_ratio` the same
+  /// over every tile of 32 columns by a band of rows (isolated comparisons), at (tile_x, tile_y).
+  /// Above 1 fails.
+  std::array<double, 3> gain{1, 1, 1}, gain_allowed{0, 0, 0};
+  double gain_ratio = 0, tile_gain_ratio = 0;
+  int tile_x = -1, tile_y = -1;
   Image oracle, bound;                   ///< isolated comparisons, with CompareOptions::keep_images
   /// Fraction of the values within their bound (1 for PASS).
   double within() const {
@@ -116,6 +127,9 @@ struct CompareOptions {
   /// shaders) turns both off; captures and user shaders keep them on.
   bool direct_exp_tonemap = true;
   bool interpolated_reads = true;
+  /// Stop after the first stage that fails (isolated or end to end): what a question "does
+  /// this fail?" needs (sensitivity).
+  bool stop_at_first_fail = false;
 };
 
 /// A stage image from outside the CPU oracle: a GL readback, or a user's file.
@@ -157,6 +171,39 @@ ParityResult compare_streamed(const Plan& plan, ConstImageView scene,
                               const std::vector<std::string>& captured, const CaptureLoader& load,
                               const DeviceProfile& profile, const CompareOptions& opt = {},
                               double* oracle_ms = nullptr);
+
+/// A wrong bloom, planted in the oracle's run at its first stage (blur.1, or down.1): every
+/// value times `amount` (gain), moved `amount` texels to the right (shift), or, for the
+/// gaussian method, every pass blurred with a 9-tap Gaussian `amount` times as wide as the
+/// kernel's (spread). The stages after it carry it as a real bloom's bug would.
+struct PlantedChange {
+  enum Kind { gain, shift, spread } kind = gain;
+  double amount = 1;
+};
+
+/// What a check could have seen (sensitivity): for each kind of PlantedChange, the smallest
+/// amount of its ladder whose planted run the same captures, profile and scene fail, and the
+/// first stage that fails it (0 and "": none of the ladder; spread 0 for the mip method, which
+/// has no blur to widen).
+struct Sensitivity {
+  double gain = 0, shift = 0, spread = 0;
+  bool shape = false;  ///< shift and spread measured
+  std::string gain_stage, shift_stage, spread_stage;
+  static const std::vector<double>& gain_ladder();    ///< 1.01 ... 4
+  static const std::vector<double>& shift_ladder();   ///< 1, 2, 4, 8 texels
+  static const std::vector<double>& spread_ladder();  ///< 1.02 ... 1.5
+};
+
+/// Plants changes of the ladders in the oracle's run of `plan` and judges its images of the
+/// `captured` stages (in plan order) as compare_streamed judges captures, stopping at the
+/// first failing stage: the gain ladder from `required_gain` (the weak-verdict question) on,
+/// and with `shape`, the shift and spread ladders too. `codes`: per stage, the capture's
+/// 8-bit codes (8: linear, -8: sRGB; absent or 0: float), which the planted image is rounded
+/// to. Each planted run costs up to one comparison.
+Sensitivity sensitivity(const Plan& plan, ConstImageView scene,
+                        const std::vector<std::string>& captured,
+                        const std::map<std::string, int>& codes, const DeviceProfile& profile,
+                        const CompareOptions& opt, double required_gain, bool shape);
 
 /// The oracle's f16 rounding for a device: the mode it measured (toward zero where it allows
 /// it, else nearest-even, saturating where it saturates).
