@@ -273,7 +273,7 @@ namespace {
 
 parity::ImageGates read_gates(const std::string& file, const std::string& field, const json& g,
                               parity::ImageGates out) {
-  if (!g.is_object()) bad(file, field, "must be an object {mean, window, window_size, over_fraction}");
+  if (!g.is_object()) bad(file, field, "must be an object {mean, window, window_size, over_fraction, gain}");
   for (const auto& [k, v] : g.items()) {
     if (!v.is_number() || v.get<double>() < 0) bad(file, field + "." + k, "must be a number >= 0");
     if (k == "mean") out.mean = v;
@@ -282,7 +282,8 @@ parity::ImageGates read_gates(const std::string& file, const std::string& field,
       if (!v.is_number_integer() || v.get<int>() < 1) bad(file, field + "." + k, "must be an integer >= 1");
       out.window_size = v;
     } else if (k == "over_fraction") out.over_fraction = v;
-    else bad(file, field + "." + k, "unknown gate (mean, window, window_size, over_fraction)");
+    else if (k == "gain") out.gain = v;
+    else bad(file, field + "." + k, "unknown gate (mean, window, window_size, over_fraction, gain)");
   }
   return out;
 }

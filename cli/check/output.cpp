@@ -33,7 +33,7 @@ ordered_json sensitivity_json(const ItemResult& r) {
   };
   return {{"gain", seen(s.gain, s.gain_stage)},
           {"shift_texels", s.shape ? seen(s.shift, s.shift_stage) : ordered_json(nullptr)},
-          {"spread", s.shape ? seen(s.spread, s.spread_stage) : ordered_json(nullptr)},
+          {"spread", s.spread_measured ? seen(s.spread, s.spread_stage) : ordered_json(nullptr)},
           {"ladders", {{"gain", parity::Sensitivity::gain_ladder()},
                        {"shift_texels", parity::Sensitivity::shift_ladder()},
                        {"spread", parity::Sensitivity::spread_ladder()}}},
@@ -291,8 +291,9 @@ std::string sensitivity_line(const ItemResult& r) {
   std::string out = part(s.gain, "a bloom gain of %.3gx", "no bloom gain up to 4x", s.gain_stage);
   if (!s.shape) return out;
   out += ", " + part(s.shift, "a shift of %g texel(s)", "no shift up to 8 texels", s.shift_stage);
-  out += ", " + part(100 * (s.spread - 1), "a spread %.3g%% wider", "no wider spread up to 50%",
-                     s.spread_stage);
+  if (s.spread_measured)
+    out += ", " + part(100 * (s.spread - 1), "a spread %.3g%% wider", "no wider spread up to 50%",
+                       s.spread_stage);
   return out;
 }
 

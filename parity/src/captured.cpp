@@ -21,8 +21,8 @@
 #include <map>
 #include <memory>
 #include <tuple>
+#include <cfloat>
 #include <cstdio>
-#include <cstdlib>
 
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
@@ -123,10 +123,10 @@ class Comparison {
   TermInputs inputs();
   void judge_captured(std::size_t index, StageTerms& t);
   void band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept, bool judge,
-                     EnergySums& es, int band);
+                     EnergySums& es);
   void energy_band(int y0, int y1, const float* gl, const float* oracle, const float* full,
-                   const float* bound, const float* own, const float* rounding,
-                   const float* inherited, const float* e, EnergySums& es, int band) const;
+                   const float* bound, const float* rounding, const float* inherited,
+                   const float* e, EnergySums& es) const;
   std::pair<SignedBudget, SignedBudget> signed_budgets(const std::vector<std::string>& in,
                                                        const EnergySums& es, double storage,
                                                        std::array<double, 3>* tv) const;
@@ -330,7 +330,7 @@ ParityResult Comparison::run(double* oracle_ms) {
 // One band of a captured stage: its bounds made, then both comparisons (none when `judge` is
 // false: a capture of another size).
 void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept,
-                               bool judge, EnergySums& es, int band) {
+                               bool judge, EnergySums& es) {
   const CapturedStage cap = capture(name_);
   const StageOverride* over = stage_override(profile_, name_);
   const std::size_t n = std::size_t(y1 - y0) * t.oracle.width(), values = n * kChannels;
@@ -375,7 +375,7 @@ void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally&
     for (std::size_t i = 0; i < values; ++i) rounding[i] = static_cast<float>(rounding[i] * over->scale);
   if (codes) add_rows(rounding, q, n);
   const float* slack = p_.storage == Storage::f16 ? inherited : nullptr;
-  energy_band(y0, y1, cap.image.row(y0), oracle, full, bound, nullptr, rounding, inherited, e, es, band);
+  energy_band(y0, y1, cap.image.row(y0), oracle, full, bound, rounding, inherited, e, es);
   const std::size_t row = std::size_t(t.oracle.width()) * kChannels;
   for (int y = y0; y < y1; ++y) {
     const std::size_t at = std::size_t(y - y0) * row;
@@ -428,7 +428,7 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   }
   std::vector<EnergySums> energy(iso.size());
   over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
-    band_captured(y0, y1, t, iso[b], e2e[b], kept, fits, energy[b], b);
+    band_captured(y0, y1, t, iso[b], e2e[b], kept, fits, energy[b]);
   });
   if (kept.e2e) e2e_[name_] = std::move(e_kept);
   if (!fits) {
@@ -576,8 +576,8 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
       if (i % kChannels != 3) st += r;
     }
     storage[std::size_t(b)] = st;
-    if (read_later) energy_band(y0, y1, nullptr, nullptr, nullptr, bound, nullptr, rounding, inherited, e,
-                                energy[std::size_t(b)], b);
+    if (read_later)
+      energy_band(y0, y1, nullptr, nullptr, nullptr, bound, rounding, inherited, e, energy[std::size_t(b)]);
     if (!e_kept.empty()) put_rows(e_kept, y0, e, n);
     if (read_later) put_rows(carried, y0, bound, n);
   });
@@ -605,9 +605,8 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
 // A band's sums for the gain gates (EnergySums). `gl` (null for a stage without capture: only
 // its budgets are summed) is the capture's row y0, rows `stride` apart as the view holds them.
 void Comparison::energy_band(int y0, int y1, const float* gl, const float* oracle,
-                             const float* full, const float* bound, const float*,
-                             const float* rounding, const float* inherited, const float* e,
-                             EnergySums& es, int band) const {
+                             const float* full, const float* bound, const float* rounding,
+                             const float* inherited, const float* e, EnergySums& es) const {
   const int width = stage_width_;
   const std::size_t row = std::size_t(width) * kChannels, values = std::size_t(y1 - y0) * row;
   BandScratch& s = band_scratch();
@@ -618,48 +617,65 @@ void Comparison::energy_band(int y0, int y1, const float* gl, const float* oracl
     deviation_->rows(y0, y1, up, down);
   }
   const int tiles = (width + kTile - 1) / kTile;
-  std::vector<double> terr(gl ? std::size_t(tiles) * 3 : 0), tl1(terr.size()), tup(terr.size()),
-      tdn(terr.size());
   const ConstImageView cap = gl ? capture(name_).image : ConstImageView{};
+  const double limit = p_.storage == Storage::f16 ? 65504.0 : FLT_MAX;
+  using Sum = EnergySums::Sum;
+  Sum se{}, sr{}, su{}, sd{}, sm{}, so{}, sb{}, err{}, orc{}, l1{}, err2{}, full2{};
+  // Per tile of the band: its total error, the sum of its bounds, its signed budgets.
+  const std::size_t n_tiles = static_cast<std::size_t>(tiles);
+  std::vector<Sum> te(n_tiles), tb(n_tiles), tu(n_tiles), td(n_tiles);
   for (int y = y0; y < y1; ++y) {
     const std::size_t at0 = std::size_t(y - y0) * row;
-    const float* g = gl ? cap.row(y) : nullptr;
-    for (int x = 0; x < width; ++x)
+    // What every value adds, judged or not.
+    for (int x = 0; x < width; ++x) {
+      const std::size_t i = at0 + std::size_t(x) * kChannels;
       for (int c = 0; c < 3; ++c) {
-        const std::size_t at = at0 + std::size_t(x) * kChannels + c;
-        const std::size_t ti = std::size_t(x / kTile) * 3 + c;
-        es.l1_e2e[c] += e[at];
-        es.rounding[c] += rounding[at];
-        if (up) es.up[c] += up[at], es.down[c] += down[at], es.most[c] += std::max(up[at], down[at]);
-        es.l1_own[c] += bound[at] - (inherited ? inherited[at] : 0.0f);
-        if (!g) {
-          es.l1[c] += bound[at];
-          continue;
+        se[c] += e[i + c];
+        sr[c] += rounding[i + c];
+        so[c] += bound[i + c] - (inherited ? inherited[i + c] : 0.0f);
+        sb[c] += bound[i + c];
+      }
+      if (up)
+        for (int c = 0; c < 3; ++c)
+          su[c] += up[i + c], sd[c] += down[i + c], sm[c] += std::max(up[i + c], down[i + c]);
+    }
+    if (!gl) continue;
+    const float* g = cap.row(y);
+    for (int x = 0; x < width; ++x) {
+      const std::size_t i = at0 + std::size_t(x) * kChannels, t = std::size_t(x / kTile);
+      for (int c = 0; c < 3; ++c) {
+        const double gv = g[std::size_t(x) * kChannels + c], ov = oracle[i + c], fv = full[i + c];
+        const bool plain = std::fabs(gv) <= limit && std::fabs(ov) <= limit;
+        if (plain ? bound[i + c] < INFINITY
+                  : judged_as_number(ov, gv, p_.storage, profile_, bound[i + c])) {
+          err[c] += gv - ov;
+          orc[c] += ov;
+          l1[c] += bound[i + c];
+          te[t][c] += gv - ov;
+          tb[t][c] += bound[i + c];
+          const double local = rounding[i + c] + (inherited ? inherited[i + c] : 0.0f);
+          tu[t][c] += (up ? up[i + c] : INFINITY) + local;
+          td[t][c] += (down ? down[i + c] : INFINITY) + local;
         }
-        const double gv = g[std::size_t(x) * kChannels + c], ov = oracle[at], fv = full[at];
-        if (judged_as_number(ov, gv, p_.storage, profile_, bound[at])) {
-          es.err[c] += gv - ov;
-          es.oracle[c] += ov;
-          es.l1[c] += bound[at];
-          terr[ti] += gv - ov;
-          tl1[ti] += bound[at];
-          const double local = rounding[at] + (inherited ? inherited[at] : 0.0f);
-          tup[ti] += (up ? up[at] : INFINITY) + local;
-          tdn[ti] += (down ? down[at] : INFINITY) + local;
-        }
-        if (judged_as_number(fv, gv, p_.storage, profile_, e[at])) {
-          es.err_e2e[c] += gv - fv;
-          es.full[c] += fv;
+        if (plain && std::fabs(fv) <= limit ? e[i + c] < INFINITY
+                                            : judged_as_number(fv, gv, p_.storage, profile_, e[i + c])) {
+          err2[c] += gv - fv;
+          full2[c] += fv;
         }
       }
-  }
-  for (int tx = 0; tx < tiles && gl; ++tx)
-    for (int c = 0; c < 3; ++c) {
-      const std::size_t ti = std::size_t(tx) * 3 + c;
-      const double r = budget_ratio(terr[ti], std::min(tl1[ti], tup[ti]), std::min(tl1[ti], tdn[ti]));
-      if (r > es.tile_ratio) es.tile_ratio = r, es.tile_x = tx * kTile, es.tile_y = y0;
     }
-  (void)band;
+  }
+  for (std::size_t tx = 0; gl && tx < te.size(); ++tx)
+    for (int c = 0; c < 3; ++c) {
+      const double r = budget_ratio(te[tx][c], std::min(tb[tx][c], tu[tx][c]), std::min(tb[tx][c], td[tx][c]));
+      if (r > es.tile_ratio) es.tile_ratio = r, es.tile_x = static_cast<int>(tx) * kTile, es.tile_y = y0;
+    }
+  for (int c = 0; c < 3; ++c) {
+    es.l1_e2e[c] += se[c], es.rounding[c] += sr[c], es.l1_own[c] += so[c];
+    es.up[c] += su[c], es.down[c] += sd[c], es.most[c] += sm[c];
+    es.l1[c] += gl ? l1[c] : sb[c];
+    es.err[c] += err[c], es.oracle[c] += orc[c], es.err_e2e[c] += err2[c], es.full[c] += full2[c];
+  }
 }
 
 // The signed budgets of the stage being judged (its total error against the isolated oracle,
@@ -671,7 +687,6 @@ std::pair<SignedBudget, SignedBudget> Comparison::signed_budgets(
     const std::vector<std::string>& in, const EnergySums& es, double storage,
     std::array<double, 3>* tv) const {
   SignedBudget iso, e2e;
-  const bool captured = streams_.captured(name_);
   std::array<double, 3> t{};
   const double per_channel_storage = storage / 3;
   if (spec_->kind == StageKind::blur && deviation_) {
@@ -738,11 +753,6 @@ std::pair<SignedBudget, SignedBudget> Comparison::signed_budgets(
   } else {
     return {SignedBudget::infinite(), SignedBudget::infinite()};
   }
-  (void)captured;
-  if (std::getenv("BLOOMREF_DEBUG_ENERGY"))
-    std::fprintf(stderr, "%s: U %.4g D %.4g R %.4g st %.4g l1 %.4g | iso up %.4g down %.4g e2e up %.4g | tv %.4g\n",
-                 name_.c_str(), es.up[1], es.down[1], es.rounding[1], storage / 3, es.l1[1], iso.up[1],
-                 iso.down[1], e2e.up[1], t[1]);
   if (tv) *tv = t;
   return {iso, e2e};
 }
@@ -753,6 +763,12 @@ std::pair<SignedBudget, SignedBudget> Comparison::signed_budgets(
 void Comparison::gain_gates(StageComparison& iso, StageComparison& e2e, const EnergySums& es,
                             const std::vector<std::string>& in) {
   auto [signed_iso, signed_e2e] = signed_budgets(in, es, 0.0, nullptr);
+  // A profile's override widens the stage's per-value bounds (and so their sum) by a factor and
+  // a constant the signed budget knows nothing of: the sum alone then.
+  const StageOverride* over = stage_override(profile_, name_);
+  if (over && (over->scale != 1.0 || over->absolute != 0.0)) signed_iso = SignedBudget::infinite();
+  const ImageGates& gates = over && over->has_gates ? over->gates : profile_.gates;
+  const double limit = gates.gain;
   Energy& mine = energy_[name_];
   mine.chain = SignedBudget{};
   mine.tv = {};
@@ -774,7 +790,7 @@ void Comparison::gain_gates(StageComparison& iso, StageComparison& e2e, const En
       s.tile_x = es.tile_x;
       s.tile_y = es.tile_y;
     }
-    const bool whole = s.gain_ratio > 1, tile = s.tile_gain_ratio > 1;
+    const bool whole = limit > 0 && s.gain_ratio > limit, tile = limit > 0 && s.tile_gain_ratio > limit;
     if (!whole && !tile) return;
     static const char* names[3] = {"R", "G", "B"};
     std::string what;

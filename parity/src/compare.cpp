@@ -72,7 +72,7 @@ int special_case(double o, double g, Storage storage, const DeviceProfile& p, do
 
 }  // namespace
 
-bool judged_as_number(double o, double g, Storage storage, const DeviceProfile& p, double bound) {
+bool judged_as_number_slow(double o, double g, Storage storage, const DeviceProfile& p, double bound) {
   return bound < INFINITY && special_case(o, g, storage, p, bound) == -1;
 }
 

@@ -1,8 +1,11 @@
 // The gain gates' budgets (energy.h).
 #include "energy.h"
 
+#include "bloomref/engine/fast_stages.h"
+
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace bloomref::parity::detail {
 
@@ -91,7 +94,7 @@ inline void lookup(ConstImageView img, double x, double y, double out[3]) {
 
 BlurDeviation::BlurDeviation(ConstImageView src, Axis axis, const Kernel& k,
                              const DeviceProfile& p)
-    : src_(src), axis_(axis) {
+    : src_(src), axis_(axis), kernel_(&k) {
   kernel_taps(k, offsets_, weights_);
   const bool hz = axis == Axis::horizontal;
   const int n_along = hz ? src.width : src.height;
@@ -139,6 +142,64 @@ void BlurDeviation::deviation(int x, int y, double u, const AxisShift& along, fl
   }
 }
 
+// deviation() for every texel centre of row y at once: the lookup's change when it moves by
+// (dx, dy) within the shifts (at most one texel: one neighbour per axis, on the side of the
+// move) is dx (Tx - T) + dy (Ty - T) + dx dy (Txy - Tx - Ty + T), written out for the eight
+// corners and edge midpoints of the rectangle.
+std::pair<int, int> BlurDeviation::centred_row(int y, float* up, float* down) const {
+  const bool hz = axis_ == Axis::horizontal;
+  const AxisShift& sx = hz ? along_ : across_;
+  const AxisShift& sy = hz ? across_ : along_;
+  const int w = src_.width, h = src_.height;
+  const double dxs[3] = {-sx.minus, 0.0, sx.plus}, dys[3] = {-sy.minus, 0.0, sy.plus};
+  const float* rows[3] = {src_.row(std::max(y - 1, 0)), src_.row(y), src_.row(std::min(y + 1, h - 1))};
+  // A texel whose 3x3 neighbourhood holds its own value throughout has no deviation: runs of
+  // them (the dark ground of a bloom) are filled with 0 without the corners' arithmetic.
+  auto same3 = [&rows](int x) {
+    const float* c = rows[1] + std::size_t(x) * kChannels;
+    for (int r = 0; r < 3; ++r)
+      if (std::memcmp(rows[r] + std::size_t(x) * kChannels, c, 3 * sizeof(float)) != 0) return false;
+    return true;
+  };
+  int lo = w, hi = 0;
+  for (int x = 0; x < w; ++x) {
+    const std::size_t base = std::size_t(x) * kChannels;
+    if (x > 0 && x + 1 < w && same3(x - 1) && same3(x) && same3(x + 1) &&
+        std::memcmp(rows[1] + base - kChannels, rows[1] + base, 3 * sizeof(float)) == 0 &&
+        std::memcmp(rows[1] + base + kChannels, rows[1] + base, 3 * sizeof(float)) == 0 &&
+        std::isfinite(rows[1][base]) && std::isfinite(rows[1][base + 1]) &&
+        std::isfinite(rows[1][base + 2])) {
+      for (int c = 0; c < 3; ++c) up[base + c] = down[base + c] = 0.0f;
+      continue;
+    }
+    lo = std::min(lo, x);
+    hi = x + 1;
+    const int xs[3] = {std::max(x - 1, 0), x, std::min(x + 1, w - 1)};
+    for (int c = 0; c < 3; ++c) {
+      const double t = rows[1][std::size_t(x) * kChannels + c];
+      double rise = 0, fall = 0;
+      bool nan = std::isnan(t);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+          if (i == 1 && j == 1) continue;
+          const double a = std::fabs(dxs[i]), b = std::fabs(dys[j]);
+          const int nx = xs[i == 1 ? 1 : i], ny = j == 1 ? 1 : j;
+          const double tx = rows[1][std::size_t(nx) * kChannels + c];
+          const double ty = rows[ny][std::size_t(x) * kChannels + c];
+          const double txy = rows[ny][std::size_t(nx) * kChannels + c];
+          const double d = a * (tx - t) + b * (ty - t) + a * b * (txy - tx - ty + t);
+          nan = nan || std::isnan(d);
+          rise = std::max(rise, d);
+          fall = std::min(fall, d);
+        }
+      const std::size_t at = std::size_t(x) * kChannels + c;
+      up[at] = nan ? NAN : static_cast<float>(rise);
+      down[at] = nan ? NAN : static_cast<float>(-fall);
+    }
+  }
+  return {lo, hi};
+}
+
 void BlurDeviation::rows(int y0, int y1, float* up, float* down) const {
   const bool hz = axis_ == Axis::horizontal;
   const int w = src_.width, h = src_.height;
@@ -151,31 +212,41 @@ void BlurDeviation::rows(int y0, int y1, float* up, float* down) const {
     centred = centred && o == std::floor(o);
     reach = std::max(reach, static_cast<int>(std::ceil(std::fabs(o))));
   }
-  // Accumulate in double: the weighted sums of positive terms, rounded up at the end.
   const std::size_t row = std::size_t(w) * kChannels;
-  std::vector<double> acc_up(std::size_t(y1 - y0) * row, 0.0), acc_dn(acc_up.size(), 0.0);
   if (centred) {
     const int r0 = hz ? y0 : std::max(0, y0 - reach), r1 = hz ? y1 : std::min(h, y1 + reach);
     std::vector<float> gu(std::size_t(r1 - r0) * row), gd(gu.size());
+    // Per row of deviations, the columns [lo, hi) outside which it is 0 (lo == hi: all 0).
+    std::vector<std::pair<int, int>> span(std::size_t(r1 - r0));
     for (int y = r0; y < r1; ++y)
-      for (int x = 0; x < w; ++x) {
-        const std::size_t at = std::size_t(y - r0) * row + std::size_t(x) * kChannels;
-        deviation(x, y, hz ? x : y, along_, &gu[at], &gd[at]);
-      }
-    for (int y = y0; y < y1; ++y)
-      for (int x = 0; x < w; ++x) {
-        const std::size_t out = std::size_t(y - y0) * row + std::size_t(x) * kChannels;
-        for (std::size_t k = 0; k < offsets_.size(); ++k) {
-          const int a = clampi((hz ? x : y) + static_cast<int>(offsets_[k]), n_along);
-          const int tx = hz ? a : x, ty = hz ? y : a;
-          const std::size_t at = std::size_t(ty - r0) * row + std::size_t(tx) * kChannels;
-          for (int c = 0; c < 3; ++c) {
-            acc_up[out + c] += weights_[k] * gu[at + c];
-            acc_dn[out + c] += weights_[k] * gd[at + c];
-          }
-        }
-      }
-  } else {
+      span[std::size_t(y - r0)] =
+          centred_row(y, &gu[std::size_t(y - r0) * row], &gd[std::size_t(y - r0) * row]);
+    // The taps' weighted sums are the pass's own blur of the deviations (taps on texel
+    // centres, clamp-to-edge: the fast engine's, with fractions rounded to 8 bits, so exactly
+    // on the centres). Its float sums of non-negative terms are within 2^-18 of the exact
+    // ones: rounded up by that below. NaN and Inf pass through.
+    if (std::all_of(span.begin(), span.end(), [](const std::pair<int, int>& p) { return p.first >= p.second; })) {
+      std::fill(up, up + std::size_t(y1 - y0) * row, 0.0f);
+      std::fill(down, down + std::size_t(y1 - y0) * row, 0.0f);
+      return;
+    }
+    std::vector<float> bu(gu.size()), bd(gu.size());
+    const int n = r1 - r0;
+    const ConstImageView su{w, n, w, gu.data()}, sd{w, n, w, gd.data()};
+    const Kernel* k = kernel_;
+    blur_pass_fast(su, ImageView{w, n, w, bu.data()}, {axis_, k, 8}, 1);
+    blur_pass_fast(sd, ImageView{w, n, w, bd.data()}, {axis_, k, 8}, 1);
+    const std::size_t from = std::size_t(y0 - r0) * row, count = std::size_t(y1 - y0) * row;
+    for (std::size_t i = 0; i < count; ++i) {
+      up[i] = static_cast<float>(bu[from + i] * (1 + 0x1p-18));
+      down[i] = static_cast<float>(bd[from + i] * (1 + 0x1p-18));
+    }
+    return;
+  }
+  // Elsewhere each tap's deviation is its own, accumulated in double (sums of non-negative
+  // terms), rounded up at the end.
+  std::vector<double> acc_up(std::size_t(y1 - y0) * row, 0.0), acc_dn(acc_up.size(), 0.0);
+  {
     for (int y = y0; y < y1; ++y)
       for (int x = 0; x < w; ++x) {
         const std::size_t out = std::size_t(y - y0) * row + std::size_t(x) * kChannels;

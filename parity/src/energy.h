@@ -12,6 +12,7 @@
 
 #include <array>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "bloomref/image.h"
@@ -58,8 +59,10 @@ class BlurDeviation {
  private:
   void deviation(int x, int y, double u_along, const AxisShift& along, float* up,
                  float* down) const;
+  std::pair<int, int> centred_row(int y, float* up, float* down) const;
   ConstImageView src_;
   Axis axis_;
+  const Kernel* kernel_;
   std::vector<double> offsets_, weights_;  // every tap, its exact offset and weight
   std::vector<AxisShift> tap_shift_;       // along the axis, per tap (its fraction's)
   AxisShift along_, across_;               // on a texel centre

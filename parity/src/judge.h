@@ -10,6 +10,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -57,7 +58,13 @@ StageComparison conclude(const std::string& stage, Tally total, const JudgeRules
 
 /// Whether judge_row compares this value's error with its bound (`bound` finite, neither side
 /// NaN/Inf, no f16 overflow): the values the gain gates add up.
-bool judged_as_number(double o, double g, Storage storage, const DeviceProfile& p, double bound);
+bool judged_as_number_slow(double o, double g, Storage storage, const DeviceProfile& p, double bound);
+inline bool judged_as_number(double o, double g, Storage storage, const DeviceProfile& p,
+                             double bound) {
+  const double limit = storage == Storage::f16 ? 65504.0 : 3.4028234663852886e38;
+  if (std::fabs(o) <= limit && std::fabs(g) <= limit) return bound < INFINITY;  // the usual case
+  return judged_as_number_slow(o, g, storage, p, bound);
+}
 
 /// A stage whose capture is not the oracle's size: FAIL, nothing compared.
 StageComparison size_fault(const std::string& stage, ConstImageView gl, ConstImageView oracle);

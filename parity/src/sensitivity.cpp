@@ -216,9 +216,11 @@ Sensitivity sensitivity(const Plan& plan, ConstImageView scene,
   s.gain = smallest_failing(gains, start, PlantedChange::gain, fails, s.gain_stage);
   if (!shape) return s;
   s.shift = smallest_failing(Sensitivity::shift_ladder(), 0, PlantedChange::shift, fails, s.shift_stage);
-  if (plan.params.method == Method::gaussian)
+  if (plan.params.method == Method::gaussian) {
     s.spread = smallest_failing(Sensitivity::spread_ladder(), 2, PlantedChange::spread, fails,
                                 s.spread_stage);
+    s.spread_measured = true;
+  }
   s.shape = true;
   return s;
 }

@@ -187,7 +187,8 @@ struct PlantedChange {
 /// has no blur to widen).
 struct Sensitivity {
   double gain = 0, shift = 0, spread = 0;
-  bool shape = false;  ///< shift and spread measured
+  bool shape = false;   ///< shift measured (and spread, for the gaussian method)
+  bool spread_measured = false;
   std::string gain_stage, shift_stage, spread_stage;
   static const std::vector<double>& gain_ladder();    ///< 1.01 ... 4
   static const std::vector<double>& shift_ladder();   ///< 1, 2, 4, 8 texels

@@ -26,6 +26,10 @@ struct ImageGates {
   double window = 0.5;         ///< the same over each window_size x window_size block
   int window_size = 8;
   double over_fraction = 0.01; ///< fraction of values over their bound (each within the WARN tier)
+  /// The gain gates (compare.h, StageComparison::gain_ratio): a stage fails when a total error
+  /// exceeds this many times its derived budget. 1: the budget itself; more gives a device room
+  /// its profile does not describe.
+  double gain = 1.0;
 };
 
 /// A per-stage change of the tolerance: stages matching `pattern` (a shell pattern: "blur.*")
