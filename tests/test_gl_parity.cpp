@@ -2,6 +2,7 @@
 // scene and every corpus image, both kernels, both storages, fragment and compute shaders, must
 // PASS at every stage, isolated and end to end.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -41,7 +42,7 @@ void check_matrix_entry(gpu::ShaderKind shaders, Storage storage, KernelName ker
     go.keep_all = true;
     const StageTrace gl = gpu::execute_gl(*ctx, plan, image.cview(), go);
     const parity::ParityResult r = parity::compare_with_oracle(plan, image.cview(), gl, profile);
-    double worst_iso = 0, worst_e2e = 0;
+    double worst_iso = 0, worst_e2e = 0, worst_gain = 0;
     std::string worst_stage;
     for (std::size_t i = 0; i < r.isolated.size(); ++i) {
       const auto& s = r.isolated[i];
@@ -56,12 +57,14 @@ void check_matrix_entry(gpu::ShaderKind shaders, Storage storage, KernelName ker
         worst_stage = s.stage;
       }
       worst_e2e = std::max(worst_e2e, e.max_ratio);
+      worst_gain = std::max({worst_gain, s.gain_ratio, s.tile_gain_ratio, e.gain_ratio});
     }
     CHECK(!r.first_divergent_stage);
-    std::printf("%-22s %-8s %-3s %-9s largest error/bound: isolated %.3f (%s), end-to-end %.3f\n",
+    std::printf("%-22s %-8s %-3s %-9s largest error/bound: isolated %.3f (%s), end-to-end %.3f; "
+                "largest gain gate %.3g\n",
                 name.c_str(), gpu::to_string(shaders).c_str(), to_string(storage).c_str(),
                 method == Method::mip ? (karis ? "mip+karis" : "mip") : to_string(kernel).c_str(),
-                worst_iso, worst_stage.c_str(), worst_e2e);
+                worst_iso, worst_stage.c_str(), worst_e2e, worst_gain);
   }
 }
 

@@ -74,9 +74,9 @@ std::string strengthening_captures(const Plan& plan, const std::vector<std::stri
   for (std::size_t i = 0; i < last; ++i)
     if (!captured(bloom[i])) missing.push_back(bloom[i]);
   if (missing.empty()) return "";
-  std::string out = missing.front();
-  if (missing.size() > 2) out += " ... " + missing.back();
-  else if (missing.size() == 2) out += ", " + missing.back();
+  if (missing.size() > 6) return missing.front() + " ... " + missing.back();
+  std::string out;
+  for (const std::string& m : missing) out += (out.empty() ? "" : ", ") + m;
   return out;
 }
 
@@ -149,6 +149,10 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
                                         a.require_sensitivity, a.sensitivity == "full");
     r.required_gain = a.require_sensitivity;
     r.strengthen = strengthening_captures(plan, names);
+    if (!r.strengthen.empty()) r.strengthen = "capture " + r.strengthen;
+    else if (profile.subtexel_bits_min > 0 && profile.subtexel_bits_min < profile.subtexel_bits)
+      r.strengthen = "declare the device's sub-texel bits (a profile file's subtexel_bits_min; the "
+                     "profile allows " + std::to_string(profile.subtexel_bits_min) + ")";
     r.sensitivity_ms = ms_since(t2);
   }
   const std::string report_dir = a.report_dir + (item.id.empty() ? "" : "/" + item.id);

@@ -301,7 +301,7 @@ std::string weak_line(const ItemResult& r) {
   char buf[200];
   std::snprintf(buf, sizeof buf, "a bloom %.3gx too strong would not have failed", r.required_gain);
   std::string out = buf;
-  if (!r.strengthen.empty()) out += "; capture " + r.strengthen + " to see more";
+  if (!r.strengthen.empty()) out += "; " + r.strengthen + " to see more";
   return out;
 }
 

@@ -58,7 +58,8 @@ struct ItemResult {
   std::string error;                           ///< why (ERROR: a missing scene or folder)
   double load_ms = 0, oracle_ms = 0, judge_ms = 0, sensitivity_ms = 0;
   /// What the verdict could have seen (a verdict that does not fail), the bloom gain it had to
-  /// see, and the captures that would strengthen it; weak(): it could not see that gain.
+  /// see, and what would strengthen it (more captures, or the device's sub-texel bits
+  /// declared); weak(): it could not see that gain.
   std::optional<parity::Sensitivity> sensitivity;
   double required_gain = 0;
   std::string strengthen;
