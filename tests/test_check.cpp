@@ -392,7 +392,7 @@ TEST_CASE("bugs of the finishing stages are named, also from the output alone", 
   }
 }
 
-TEST_CASE("another gamma is fitted and named; negative values through pow are named", "[check]") {
+TEST_CASE("another gamma is fitted and named, negative values through pow are named", "[check]") {
   const BloomParams p = test_params();
   SECTION("an output encoded with gamma 2.0 where 2.2 was declared") {
     const Image scene = test_scene();

@@ -71,7 +71,7 @@ std::size_t count(const std::string& s, const std::string& what) {
 
 }  // namespace
 
-TEST_CASE("bloomref's own dumped stages pass; results are written", "[check-cli]") {
+TEST_CASE("bloomref's own dumped stages pass, results are written", "[check-cli]") {
   TempDir dir;
   dump(dir, "d");
   const CliResult r = run_cli(dir, "check " + kSize + " --stages d --json r.json --junit r.xml "
@@ -98,7 +98,7 @@ TEST_CASE("bloomref's own dumped stages pass; results are written", "[check-cli]
   CHECK(bloomref::test::read_bytes(dir / "r.md").find("PASS") != std::string::npos);
 }
 
-TEST_CASE("a flipped or R/B-swapped dump fails at its first stage; declared, it passes", "[check-cli]") {
+TEST_CASE("a flipped or R/B-swapped dump fails at its first stage, declared, it passes", "[check-cli]") {
   struct Case {
     void (*change)(bloomref::Image&);
     const char* declared;
@@ -188,7 +188,7 @@ TEST_CASE("only the output (composite, tone map and gamma in one pass) is judged
   CHECK(r.out.find("likely cause: gamma not applied") != std::string::npos);
 }
 
-TEST_CASE("a verdict says what it could see; a weak one is WARN; a brighter bloom fails its gain gate",
+TEST_CASE("a verdict says what it could see, a weak one is WARN, a brighter bloom fails its gain gate",
           "[check-cli][gain]") {
   TempDir dir;
   const std::string size = "--size 160x96";
@@ -221,7 +221,7 @@ TEST_CASE("a verdict says what it could see; a weak one is WARN; a brighter bloo
   CHECK(bloomref::test::read_bytes(dir / "w.md").find("weak verdict") != std::string::npos);
   CHECK(run_cli(dir, "check " + size + " --stages two --profile vulkan --warn-as-error -q").code == 1);
   // Under nvidia the same two captures see 10%: a bloom 1.1x too strong (its output made from
-  // it here, in double) fails at blur.10 by the gain gate.
+  // it here, in double) fails at blur.10.
   r = run_cli(dir, "check " + size + " --stages two --json n.json -q");
   REQUIRE(r.code == 0);
   const double seen = read_json(dir / "n.json")["items"][0]["sensitivity"]["gain"]["smallest_failed"];
@@ -244,8 +244,11 @@ TEST_CASE("a verdict says what it could see; a weak one is WARN; a brighter bloo
   CHECK(r.code == 1);
   j = read_json(dir / "f.json");
   CHECK(j["items"][0]["first_divergent_stage"] == "blur.10");
-  CHECK(j["items"][0]["stages"][0]["isolated"]["gate_id"] == "gain");
-  CHECK(r.out.find("gain gate") != std::string::npos);
+  // Other gates may see it first (the window gate, here); the gain gate sees it too.
+  const json& blur10 = j["items"][0]["stages"][0]["isolated"];
+  CHECK(blur10["verdict"] == "FAIL");
+  CHECK(blur10["gain_gate"].get<double>() > 1);
+  CHECK(blur10["gain"][1].get<double>() == Approx(1.1).epsilon(0.01));
 }
 
 TEST_CASE("nothing compared is exit 5", "[check-cli]") {
@@ -261,7 +264,7 @@ TEST_CASE("nothing compared is exit 5", "[check-cli]") {
   CHECK(r.out.find("notes.txt") != std::string::npos);  // listed as ignored
 }
 
-TEST_CASE("bad stage files are exit 2 naming the file; nothing is written", "[check-cli]") {
+TEST_CASE("bad stage files are exit 2 naming the file, nothing is written", "[check-cli]") {
   struct Case {
     const char* file;
     void (*make)(const TempDir&);
@@ -406,7 +409,7 @@ TEST_CASE("expectations: a known deviation is expected, and reported when fixed"
   CHECK(r.out.find("FIXED") != std::string::npos);
 }
 
-TEST_CASE("a profile file: per-stage overrides; a bad field is exit 2 naming it", "[check-cli]") {
+TEST_CASE("a profile file: per-stage overrides, a bad field is exit 2 naming it", "[check-cli]") {
   TempDir dir;
   dump(dir, "d");
   fs::create_directory(dir / "s");

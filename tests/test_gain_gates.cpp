@@ -211,7 +211,7 @@ std::string describe(const parity::ParityResult& r) {
 
 }  // namespace
 
-TEST_CASE("a lookup's shift: one quantum below on a centre, none above; off the grid both ways",
+TEST_CASE("a lookup's shift: one quantum below on a centre, none above, off the grid both ways",
           "[gain]") {
   using parity::detail::lookup_shift;
   const parity::DeviceProfile v = quiet_profile(8, 4);
@@ -267,7 +267,7 @@ TEST_CASE("clamp-to-edge gives the texels near an edge more or less than their w
   for (int t = 4; t < 16; ++t) CHECK(e[std::size_t(t)] == 0.0);
 }
 
-TEST_CASE("a device that uses every freedom of its profile passes; a stricter profile fails it",
+TEST_CASE("a device that uses every freedom of its profile passes, a stricter profile fails it",
           "[gain]") {
   // The device: discrete9 passes whose lookups on texel centres move one 4-bit quantum toward
   // the lower neighbour on either axis exactly where that adds energy (truncated fractions,

@@ -816,7 +816,7 @@ TEST_CASE("zero_lazily and Image::zeroed give zero bytes over dirty memory, any 
   }
 }
 
-TEST_CASE("image buffers start on a cache line; the fill constructor fills, copies keep values",
+TEST_CASE("image buffers start on a cache line, the fill constructor fills, copies keep values",
           "[stages]") {
   for (auto [w, h] : {std::pair{1, 1}, {3, 7}, {1920, 1080}}) {
     Image img(w, h, 0.25f);
