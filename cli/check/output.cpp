@@ -31,7 +31,9 @@ ordered_json sensitivity_json(const ItemResult& r) {
     return v > 0 ? ordered_json{{"smallest_failed", v}, {"first_failing_stage", stage}}
                  : ordered_json{{"smallest_failed", nullptr}, {"first_failing_stage", nullptr}};
   };
-  return {{"gain", seen(s.gain, s.gain_stage)},
+  ordered_json gain = seen(s.gain, s.gain_stage);
+  gain["at_most"] = s.gain_at_most;
+  return {{"gain", gain},
           {"shift_texels", s.shape ? seen(s.shift, s.shift_stage) : ordered_json(nullptr)},
           {"spread", s.spread_measured ? seen(s.spread, s.spread_stage) : ordered_json(nullptr)},
           {"ladders", {{"gain", parity::Sensitivity::gain_ladder()},
@@ -288,7 +290,8 @@ std::string sensitivity_line(const ItemResult& r) {
     std::snprintf(buf, sizeof buf, fmt, v);
     return std::string(buf) + " (at " + stage + ")";
   };
-  std::string out = part(s.gain, "a bloom gain of %.3gx", "no bloom gain up to 4x", s.gain_stage);
+  std::string out = part(s.gain, s.gain_at_most ? "a bloom gain of %.3gx or less" : "a bloom gain of %.3gx",
+                         "no bloom gain up to 4x", s.gain_stage);
   if (!s.shape) return out;
   out += ", " + part(s.shift, "a shift of %g texel(s)", "no shift up to 8 texels", s.shift_stage);
   if (s.spread_measured)

@@ -618,60 +618,91 @@ void Comparison::energy_band(int y0, int y1, const float* gl, const float* oracl
   }
   const int tiles = (width + kTile - 1) / kTile;
   const ConstImageView cap = gl ? capture(name_).image : ConstImageView{};
-  const double limit = p_.storage == Storage::f16 ? 65504.0 : FLT_MAX;
-  using Sum = EnergySums::Sum;
-  Sum se{}, sr{}, su{}, sd{}, sm{}, so{}, sb{}, err{}, orc{}, l1{}, err2{}, full2{};
+  const float limit = p_.storage == Storage::f16 ? 65504.0f : FLT_MAX;
+  // Sums in lanes R, G, B, A (A dropped at the end), texel by texel: loops that vectorise.
+  using Lanes = std::array<double, 4>;
+  auto add = [](Lanes& a, const float* v, std::size_t n) {
+    for (std::size_t i = 0; i < n; i += kChannels)
+      for (std::size_t c = 0; c < 4; ++c) a[c] += v[i + c];
+  };
+  auto add_diff = [](Lanes& a, const float* v, const float* w, std::size_t n) {
+    for (std::size_t i = 0; i < n; i += kChannels)
+      for (std::size_t c = 0; c < 4; ++c) a[c] += double(v[i + c]) - double(w[i + c]);
+  };
+  auto add_max = [](Lanes& a, const float* v, const float* w, std::size_t n) {
+    for (std::size_t i = 0; i < n; i += kChannels)
+      for (std::size_t c = 0; c < 4; ++c) a[c] += std::max(v[i + c], w[i + c]);
+  };
+  Lanes se{}, sr{}, su{}, sd{}, sm{}, sb{}, si{}, err{}, orc{}, l1{}, err2{}, full2{};
   // Per tile of the band: its total error, the sum of its bounds, its signed budgets.
   const std::size_t n_tiles = static_cast<std::size_t>(tiles);
-  std::vector<Sum> te(n_tiles), tb(n_tiles), tu(n_tiles), td(n_tiles);
+  thread_local std::vector<Lanes> te, tb, tl, tu, td;
+  for (std::vector<Lanes>* v : {&te, &tb, &tl, &tu, &td}) v->assign(n_tiles, Lanes{});
   for (int y = y0; y < y1; ++y) {
     const std::size_t at0 = std::size_t(y - y0) * row;
     // What every value adds, judged or not.
-    for (int x = 0; x < width; ++x) {
-      const std::size_t i = at0 + std::size_t(x) * kChannels;
-      for (int c = 0; c < 3; ++c) {
-        se[c] += e[i + c];
-        sr[c] += rounding[i + c];
-        so[c] += bound[i + c] - (inherited ? inherited[i + c] : 0.0f);
-        sb[c] += bound[i + c];
-      }
-      if (up)
-        for (int c = 0; c < 3; ++c)
-          su[c] += up[i + c], sd[c] += down[i + c], sm[c] += std::max(up[i + c], down[i + c]);
+    add(se, e + at0, row);
+    add(sr, rounding + at0, row);
+    add(sb, bound + at0, row);
+    if (inherited) add(si, inherited + at0, row);
+    if (up) {
+      add(su, up + at0, row);
+      add(sd, down + at0, row);
+      add_max(sm, up + at0, down + at0, row);
     }
     if (!gl) continue;
     const float* g = cap.row(y);
-    for (int x = 0; x < width; ++x) {
-      const std::size_t i = at0 + std::size_t(x) * kChannels, t = std::size_t(x / kTile);
-      for (int c = 0; c < 3; ++c) {
-        const double gv = g[std::size_t(x) * kChannels + c], ov = oracle[i + c], fv = full[i + c];
-        const bool plain = std::fabs(gv) <= limit && std::fabs(ov) <= limit;
-        if (plain ? bound[i + c] < INFINITY
-                  : judged_as_number(ov, gv, p_.storage, profile_, bound[i + c])) {
-          err[c] += gv - ov;
-          orc[c] += ov;
-          l1[c] += bound[i + c];
-          te[t][c] += gv - ov;
-          tb[t][c] += bound[i + c];
-          const double local = rounding[i + c] + (inherited ? inherited[i + c] : 0.0f);
-          tu[t][c] += (up ? up[i + c] : INFINITY) + local;
-          td[t][c] += (down ? down[i + c] : INFINITY) + local;
+    for (std::size_t t = 0; t < n_tiles; ++t) {
+      const std::size_t x0 = t * kTile, x1 = std::min<std::size_t>(width, x0 + kTile);
+      const std::size_t i0 = at0 + x0 * kChannels, n = (x1 - x0) * kChannels;
+      const float *gv = g + x0 * kChannels, *ov = oracle + i0, *fv = full + i0, *bv = bound + i0,
+                  *ev = e + i0;
+      // A run whose values are all finite, within range, with finite bounds (the usual case)
+      // is judged whole; otherwise value by value, as judge_row judges them.
+      bool plain = true;
+      for (std::size_t i = 0; i < n; i += kChannels)
+        for (std::size_t c = 0; c < 3; ++c)
+          plain &= std::fabs(gv[i + c]) <= limit && std::fabs(ov[i + c]) <= limit &&
+                   std::fabs(fv[i + c]) <= limit && bv[i + c] <= FLT_MAX && ev[i + c] <= FLT_MAX;
+      // The tile's budgets take every value (a larger budget is still a bound).
+      add(tl[t], rounding + i0, n);
+      if (inherited) add(tl[t], inherited + i0, n);
+      if (up) add(tu[t], up + i0, n), add(td[t], down + i0, n);
+      if (plain) {
+        add_diff(err, gv, ov, n);
+        add(orc, ov, n);
+        add(l1, bv, n);
+        add_diff(err2, gv, fv, n);
+        add(full2, fv, n);
+        add_diff(te[t], gv, ov, n);
+        add(tb[t], bv, n);
+        continue;
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::size_t c = i & 3;
+        if (c == 3) continue;
+        if (judged_as_number(ov[i], gv[i], p_.storage, profile_, bv[i])) {
+          err[c] += double(gv[i]) - ov[i];
+          orc[c] += ov[i];
+          l1[c] += bv[i];
+          te[t][c] += double(gv[i]) - ov[i];
+          tb[t][c] += bv[i];
         }
-        if (plain && std::fabs(fv) <= limit ? e[i + c] < INFINITY
-                                            : judged_as_number(fv, gv, p_.storage, profile_, e[i + c])) {
-          err2[c] += gv - fv;
-          full2[c] += fv;
+        if (judged_as_number(fv[i], gv[i], p_.storage, profile_, ev[i])) {
+          err2[c] += double(gv[i]) - fv[i];
+          full2[c] += fv[i];
         }
       }
     }
   }
-  for (std::size_t tx = 0; gl && tx < te.size(); ++tx)
+  for (std::size_t t = 0; gl && t < n_tiles; ++t)
     for (int c = 0; c < 3; ++c) {
-      const double r = budget_ratio(te[tx][c], std::min(tb[tx][c], tu[tx][c]), std::min(tb[tx][c], td[tx][c]));
-      if (r > es.tile_ratio) es.tile_ratio = r, es.tile_x = static_cast<int>(tx) * kTile, es.tile_y = y0;
+      const double b_up = up ? tu[t][c] + tl[t][c] : INFINITY, b_down = up ? td[t][c] + tl[t][c] : INFINITY;
+      const double r = budget_ratio(te[t][c], std::min(tb[t][c], b_up), std::min(tb[t][c], b_down));
+      if (r > es.tile_ratio) es.tile_ratio = r, es.tile_x = static_cast<int>(t) * kTile, es.tile_y = y0;
     }
   for (int c = 0; c < 3; ++c) {
-    es.l1_e2e[c] += se[c], es.rounding[c] += sr[c], es.l1_own[c] += so[c];
+    es.l1_e2e[c] += se[c], es.rounding[c] += sr[c], es.l1_own[c] += sb[c] - si[c];
     es.up[c] += su[c], es.down[c] += sd[c], es.most[c] += sm[c];
     es.l1[c] += gl ? l1[c] : sb[c];
     es.err[c] += err[c], es.oracle[c] += orc[c], es.err_e2e[c] += err2[c], es.full[c] += full2[c];

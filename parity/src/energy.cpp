@@ -203,7 +203,6 @@ std::pair<int, int> BlurDeviation::centred_row(int y, float* up, float* down) co
 void BlurDeviation::rows(int y0, int y1, float* up, float* down) const {
   const bool hz = axis_ == Axis::horizontal;
   const int w = src_.width, h = src_.height;
-  const int n_along = hz ? w : h;
   // Taps on texel centres (every tap of discrete9) share one deviation per texel: made once
   // for the texels the band's taps reach, then summed with the taps' weights.
   int reach = 0;
@@ -215,7 +214,12 @@ void BlurDeviation::rows(int y0, int y1, float* up, float* down) const {
   const std::size_t row = std::size_t(w) * kChannels;
   if (centred) {
     const int r0 = hz ? y0 : std::max(0, y0 - reach), r1 = hz ? y1 : std::min(h, y1 + reach);
-    std::vector<float> gu(std::size_t(r1 - r0) * row), gd(gu.size());
+    // Scratch reused band after band on each thread (a band's rows are a few MB: fresh
+    // allocations would be fresh pages every time).
+    thread_local std::vector<float> gu, gd, bu, bd;
+    const std::size_t band = std::size_t(r1 - r0) * row;
+    for (std::vector<float>* v : {&gu, &gd, &bu, &bd})
+      if (v->size() < band) v->resize(band);
     // Per row of deviations, the columns [lo, hi) outside which it is 0 (lo == hi: all 0).
     std::vector<std::pair<int, int>> span(std::size_t(r1 - r0));
     for (int y = r0; y < r1; ++y)
@@ -230,7 +234,6 @@ void BlurDeviation::rows(int y0, int y1, float* up, float* down) const {
       std::fill(down, down + std::size_t(y1 - y0) * row, 0.0f);
       return;
     }
-    std::vector<float> bu(gu.size()), bd(gu.size());
     const int n = r1 - r0;
     const ConstImageView su{w, n, w, gu.data()}, sd{w, n, w, gd.data()};
     const Kernel* k = kernel_;

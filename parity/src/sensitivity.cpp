@@ -181,8 +181,8 @@ bool planted_fails(const Plan& plan, ConstImageView scene, const std::vector<std
 // on its side. 0 when none does.
 double smallest_failing(const std::vector<double>& ladder, std::size_t start, PlantedChange::Kind kind,
                         const std::function<bool(const PlantedChange&, std::string&)>& fails,
-                        std::string& stage) {
-  std::size_t lo = 0, hi = ladder.size();  // fails at hi (ladder.size(): not known to)
+                        std::string& stage, bool below = true) {
+  std::size_t lo = below ? 0 : std::min(start, ladder.size() - 1), hi = ladder.size();  // fails at hi (ladder.size(): not known to)
   std::string at;
   std::size_t mid = std::min(start, ladder.size() - 1);
   while (lo < hi) {
@@ -213,7 +213,9 @@ Sensitivity sensitivity(const Plan& plan, ConstImageView scene,
   const std::vector<double>& gains = Sensitivity::gain_ladder();
   const std::size_t start = static_cast<std::size_t>(
       std::lower_bound(gains.begin(), gains.end(), required_gain * (1 - 1e-9)) - gains.begin());
-  s.gain = smallest_failing(gains, start, PlantedChange::gain, fails, s.gain_stage);
+  // Without `shape`, a gain the floor already fails is stated as "at most" the floor: one run.
+  s.gain = smallest_failing(gains, start, PlantedChange::gain, fails, s.gain_stage, shape);
+  s.gain_at_most = !shape && s.gain > 0 && start > 0 && s.gain == gains[std::min(start, gains.size() - 1)];
   if (!shape) return s;
   s.shift = smallest_failing(Sensitivity::shift_ladder(), 0, PlantedChange::shift, fails, s.shift_stage);
   if (plan.params.method == Method::gaussian) {

@@ -187,6 +187,7 @@ struct PlantedChange {
 /// has no blur to widen).
 struct Sensitivity {
   double gain = 0, shift = 0, spread = 0;
+  bool gain_at_most = false;  ///< the gain is the floor asked for, smaller ones not tried
   bool shape = false;   ///< shift measured (and spread, for the gaussian method)
   bool spread_measured = false;
   std::string gain_stage, shift_stage, spread_stage;
@@ -197,8 +198,9 @@ struct Sensitivity {
 
 /// Plants changes of the ladders in the oracle's run of `plan` and judges its images of the
 /// `captured` stages (in plan order) as compare_streamed judges captures, stopping at the
-/// first failing stage: the gain ladder from `required_gain` (the weak-verdict question) on,
-/// and with `shape`, the shift and spread ladders too. `codes`: per stage, the capture's
+/// first failing stage: the gain ladder from `required_gain` (the weak-verdict question) up
+/// (without `shape`, a failure there ends it: gain_at_most), and with `shape`, the gains below
+/// it and the shift and spread ladders too. `codes`: per stage, the capture's
 /// 8-bit codes (8: linear, -8: sRGB; absent or 0: float), which the planted image is rounded
 /// to. Each planted run costs up to one comparison.
 Sensitivity sensitivity(const Plan& plan, ConstImageView scene,
