@@ -83,9 +83,12 @@ struct EnergySums {
   }
 };
 
-// A total error against its budgets: the ratio, over the sign's budget.
+// A total error against its budgets: the ratio, over the sign's budget. A stage whose every
+// value errs by exactly its bound, one way (f16 rounding toward zero on a constant image), has
+// a total error equal to the sum of its bounds: the budget is widened by far more than the
+// double sums' rounding (n 2^-53 of it) so that such a stage sits at 1, not above.
 double budget_ratio(double err, double up, double down) {
-  const double b = err > 0 ? up : down;
+  const double b = (err > 0 ? up : down) * (1 + 1e-6);
   if (err == 0) return 0;
   if (!(b >= 0) || !std::isfinite(b)) return 0;  // no budget can be derived (NaN/Inf around)
   return b > 0 ? std::fabs(err) / b : INFINITY;
