@@ -66,14 +66,8 @@ const parity::DeviceProfile kProfile = parity::profile_nvidia_like();
 
 // A reference run of `p` (with the profile's sub-texel bits, as the oracle samples) keeping
 // every stage.
-std::map<std::string, Image> trace_of(BloomParams p, const Image& scene) {
-  p.subtexel_bits = kProfile.subtexel_bits;
-  ExecuteOptions eo;
-  eo.keep_all = true;
-  const StageTrace t = execute(make_plan(p, scene.cview()), scene.cview(), eo);
-  std::map<std::string, Image> out;
-  for (const StageResult& s : t.stages) out[s.name] = s.image;
-  return out;
+std::map<std::string, Image> trace_of(const BloomParams& p, const Image& scene) {
+  return test::run_stages(p, scene, kProfile.subtexel_bits);
 }
 
 // `interpolated_reads`: the captures may come from reads at interpolated coordinates

@@ -83,15 +83,9 @@ BloomParams params(int passes) {
   return p;
 }
 
-std::map<std::string, Image> reference_trace(BloomParams p, const Image& scene,
+std::map<std::string, Image> reference_trace(const BloomParams& p, const Image& scene,
                                              const parity::DeviceProfile& profile) {
-  p.subtexel_bits = profile.subtexel_bits;
-  ExecuteOptions eo;
-  eo.keep_all = true;
-  const StageTrace t = execute(make_plan(p, scene.cview()), scene.cview(), eo);
-  std::map<std::string, Image> out;
-  for (const StageResult& s : t.stages) out[s.name] = s.image;
-  return out;
+  return test::run_stages(p, scene, profile.subtexel_bits);
 }
 
 // composite, tonemap and output from `scene` and `bloom`, in double (the specification's

@@ -59,6 +59,16 @@ Image run_output(const Image& scene, const BloomParams& p) {
   return execute(make_plan(p, scene.cview()), scene.cview()).final_image();
 }
 
+std::map<std::string, Image> run_stages(BloomParams p, const Image& scene, int subtexel_bits) {
+  p.subtexel_bits = subtexel_bits;
+  ExecuteOptions eo;
+  eo.keep_all = true;
+  const StageTrace t = execute(make_plan(p, scene.cview()), scene.cview(), eo);
+  std::map<std::string, Image> out;
+  for (const StageResult& s : t.stages) out[s.name] = s.image;
+  return out;
+}
+
 Image constant_image(int w, int h, float v) {
   Image img(w, h);
   for (std::size_t i = 0; i < img.pixel_count(); ++i) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -35,6 +36,9 @@ std::vector<std::pair<std::string, Image>> scenes_and_corpus(
 
 /// The display output of a CPU run with these parameters.
 Image run_output(const Image& scene, const BloomParams& p);
+
+/// Every stage of a CPU run of `p` with `subtexel_bits` (as a profile's oracle samples), by name.
+std::map<std::string, Image> run_stages(BloomParams p, const Image& scene, int subtexel_bits);
 
 /// A w x h image with every pixel set to (v, v, v, 1).
 Image constant_image(int w, int h, float v);
