@@ -199,11 +199,6 @@ class Comparison {
   std::map<std::string, Energy> energy_;   // each stage's, for the stages that read it
   std::unique_ptr<BlurDeviation> deviation_;  // of the blur pass being judged (when usable)
   int stage_width_ = 0;                    // its width
-  // The first pass over a blur pass's bands leaves its deviations out and takes the tiles'
-  // budgets as their rounding alone (less than any signed budget): where even that passes,
-  // the deviations are not needed (`lower_tiles_`). `energy_only_`: a second pass that makes
-  // only the gates' sums, with the deviations.
-  bool lower_tiles_ = false, energy_only_ = false;
   const StageSpec* spec_ = nullptr;        // the stage being judged
   std::string name_;
   JudgeRules iso_rules_, e2e_rules_;       // how its values are judged
@@ -384,7 +379,6 @@ void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally&
   if (codes) add_rows(rounding, q, n);
   const float* slack = p_.storage == Storage::f16 ? inherited : nullptr;
   energy_band(y0, y1, cap.image.row(y0), oracle, full, bound, rounding, inherited, e, es);
-  if (energy_only_) return;
   const std::size_t row = std::size_t(t.oracle.width()) * kChannels;
   for (int y = y0; y < y1; ++y) {
     const std::size_t at = std::size_t(y - y0) * row;
@@ -430,42 +424,15 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   std::vector<Tally> iso((h + rows - 1) / rows), e2e(iso.size());
   deviation_.reset();
   stage_width_ = w;
-  std::unique_ptr<BlurDeviation> deviation;
   if (spec_->kind == StageKind::blur && !codes && fits) {
-    deviation = std::make_unique<BlurDeviation>(V(stage_inputs(plan_, *spec_)[0]), spec_->axis,
-                                                kernel_, profile_);
-    if (!deviation->usable()) deviation.reset();
+    deviation_ = std::make_unique<BlurDeviation>(V(stage_inputs(plan_, *spec_)[0]), spec_->axis,
+                                                 kernel_, profile_);
+    if (!deviation_->usable()) deviation_.reset();
   }
-  lower_tiles_ = deviation != nullptr;
   std::vector<EnergySums> energy(iso.size());
   over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
     band_captured(y0, y1, t, iso[b], e2e[b], kept, fits, energy[b]);
   });
-  lower_tiles_ = false;
-  if (deviation && fits) {
-    // The deviations are needed only where a total error exceeds what a signed budget could
-    // be at the least (the rounding: every other term adds to it), over the image or a tile.
-    EnergySums first;
-    for (const EnergySums& b : energy) first.merge(b);
-    const StageOverride* o = stage_override(profile_, name_);
-    const double limit = (o && o->has_gates ? o->gates : profile_.gates).gain;
-    bool needed = limit > 0 && first.tile_ratio > limit;
-    for (int c = 0; c < 3 && limit > 0; ++c) {
-      const double low = std::min(first.l1[c], first.rounding[c]);
-      needed |= budget_ratio(first.err[c], low, low) > limit;
-    }
-    if (needed) {
-      deviation_ = std::move(deviation);
-      energy_only_ = true;
-      std::vector<EnergySums> again(iso.size());
-      std::vector<Tally> unused_iso(iso.size()), unused_e2e(iso.size());
-      over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
-        band_captured(y0, y1, t, unused_iso[b], unused_e2e[b], Kept{}, fits, again[b]);
-      });
-      energy_only_ = false;
-      energy = std::move(again);
-    }
-  }
   if (kept.e2e) e2e_[name_] = std::move(e_kept);
   if (!fits) {
     result_.isolated.push_back(size_fault(name_, cap.image, t.oracle.cview()));
@@ -733,8 +700,7 @@ void Comparison::energy_band(int y0, int y1, const float* gl, const float* oracl
   }
   for (std::size_t t = 0; gl && t < n_tiles; ++t)
     for (int c = 0; c < 3; ++c) {
-      const double none = lower_tiles_ ? tl[t][c] : INFINITY;
-      const double b_up = up ? tu[t][c] + tl[t][c] : none, b_down = up ? td[t][c] + tl[t][c] : none;
+      const double b_up = up ? tu[t][c] + tl[t][c] : INFINITY, b_down = up ? td[t][c] + tl[t][c] : INFINITY;
       const double r = budget_ratio(te[t][c], std::min(tb[t][c], b_up), std::min(tb[t][c], b_down));
       if (r > es.tile_ratio) es.tile_ratio = r, es.tile_x = static_cast<int>(t) * kTile, es.tile_y = y0;
     }
