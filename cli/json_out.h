@@ -1,4 +1,4 @@
-// Machine-readable results (DESIGN.md, "Command line contract": --json).
+// Machine-readable results (docs/usage.md; the schemas in docs/schemas/).
 #pragma once
 
 #include <nlohmann/json.hpp>

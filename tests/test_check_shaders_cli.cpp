@@ -1,4 +1,4 @@
-// bloomref check --shaders learnopengl as a CI job runs it: shaders written here from DESIGN.md
+// bloomref check --shaders learnopengl as a CI job runs it: shaders written here from docs/design.md
 // (tests/user_shader_sources.h) pass, every pass; a copy with one blur weight 1% too large fails
 // at blur.1, a final pass reading half a texel off or clamping exposure at output;
 // a shader that does not compile, or a missing --final-fs, is exit 2 naming the problem. Shaders
@@ -175,7 +175,7 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
 
 namespace {
 
-// The preset's passes under an engine's names, written for this test from DESIGN.md: a blur
+// The preset's passes under an engine's names, written for this test from docs/design.md ("Specification"): a blur
 // stepping along a direction vector by a texel size the host sets (instead of a bool and
 // textureSize), samplers and the varying renamed, a final pass without the `bloom` switch and
 // with its gamma a uniform. Declared to the preset by kEngineLayout.

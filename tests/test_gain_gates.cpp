@@ -89,7 +89,7 @@ std::map<std::string, Image> reference_trace(const BloomParams& p, const Image& 
 }
 
 // composite, tonemap and output from `scene` and `bloom`, in double (the specification's
-// formulas, DESIGN.md's pipeline), rounded to float once.
+// formulas, docs/design.md's "Specification"), rounded to float once.
 void finish(const BloomParams& p, const Image& scene, const Image& bloom,
             std::map<std::string, Image>& out) {
   Image comp(scene.width(), scene.height()), tm(comp.width(), comp.height()),

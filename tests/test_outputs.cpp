@@ -183,7 +183,7 @@ TEST_CASE("run publishes its outputs together, stage dumps included", "[outputs]
   std::vector<std::string> stages;
   for (const auto& e : fs::directory_iterator(d / "st")) stages.push_back(e.path().filename());
   std::sort(stages.begin(), stages.end());
-  // input, bright, blur.1, blur.2, composite, tonemap, output (DESIGN.md, the pipeline).
+  // input, bright, blur.1, blur.2, composite, tonemap, output (docs/design.md, "Specification").
   CHECK(stages == std::vector<std::string>{"blur.1.exr", "blur.2.exr", "bright.exr",
                                            "composite.exr", "input.exr", "output.exr",
                                            "tonemap.exr"});

@@ -189,7 +189,7 @@ TEST_CASE("the threshold-tie scene: exactly one band of three is bright", "[stag
 }
 
 namespace {
-// What the plan's scan must find, read value by value from the policy's definition (DESIGN.md:
+// What the plan's scan must find, read value by value from the policy's definition (docs/design.md, "Specification":
 // the input stage), written out here without the library's functions: NaN -> 0 unless
 // propagated; +-Inf -> 0 (zero), +-the storage's largest value (clamp: 65504 for f16, 2^120 for
 // f32) or itself (propagate); finite beyond 2^120 -> +-2^120 under every policy; bright when

@@ -1,5 +1,5 @@
 // A user's own GLSL run through the learnopengl preset (gpu/user_pipeline.h): shaders written
-// from DESIGN.md with the tutorial's interface, judged against the CPU stages; the declared host
+// from docs/design.md ("Specification") with the tutorial's interface, judged against the CPU stages; the declared host
 // state (format, filter, wrap, clear colour, row order) checked on inputs whose results are
 // known by hand; the user's bright pass. The refusals: test_user_shader_refusals.cpp.
 #include <catch2/catch.hpp>

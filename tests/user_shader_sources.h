@@ -1,4 +1,4 @@
-// Shaders written for the tests from DESIGN.md, with the interface of the learnopengl preset
+// Shaders written for the tests from docs/design.md ("Specification"), with the interface of the learnopengl preset
 // (gpu/user_pipeline.h): the tutorial's names, written independently of its files.
 #pragma once
 
@@ -8,7 +8,7 @@
 
 namespace bloomref::test {
 
-// discrete9 written from DESIGN.md ("The pipeline", 3.): a centre tap and four pairs at i texels,
+// discrete9 written from docs/design.md ("Specification", stage 3): a centre tap and four pairs at i texels,
 // weights 924, 792, 495, 220, 66 over 4070, added centre first, then +i before -i.
 inline const char* kBlur9 = R"glsl(#version 330 core
 in vec2 TexCoords;
@@ -29,7 +29,7 @@ void main() {
 }
 )glsl";
 
-// DESIGN.md stages 4-6 in one pass (strength 1, gamma 2.2), as the tutorial's final pass does.
+// docs/design.md ("Specification") stages 4-6 in one pass (strength 1, gamma 2.2), as the tutorial's final pass does.
 inline const char* kFinal = R"glsl(#version 330 core
 in vec2 TexCoords;
 out vec4 colour;
@@ -45,7 +45,7 @@ void main() {
 }
 )glsl";
 
-// A bright pass written from DESIGN.md stage 2 (Rec. 709 luminance, strictly above the
+// A bright pass written from docs/design.md ("Specification") stage 2 (Rec. 709 luminance, strictly above the
 // threshold), reading the scene with texture() at TexCoords as a user writes it.
 inline const char* kBright = R"glsl(#version 330 core
 in vec2 TexCoords;

@@ -3,7 +3,7 @@
 // The scene is 64x32 at 0.25 (below the threshold of 1) with one pixel of 8 at (48, 24). Ten
 // passes of the 9-tap kernel reach 5 x 4 = 20 texels along each axis, so at (0, 0) the bloom is
 // exactly 0 and the output is the tone map and gamma of 0.25 alone:
-// pow(1 - exp(-0.25), 1 / 2.2) (DESIGN.md, stages 5 and 6). Next to the bright pixel the bloom
+// pow(1 - exp(-0.25), 1 / 2.2) (docs/design.md, "Specification", stages 5 and 6). Next to the bright pixel the bloom
 // adds light. With a path argument, the output is written there as EXR and read back.
 #include <cmath>
 #include <cstdio>

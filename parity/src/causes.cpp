@@ -1,5 +1,5 @@
 // The usual causes of a bloom stage that fails, each tested as the oracle run with that one
-// change (DESIGN.md, "Anyone's GPU"). The failing stage is recomputed from the same captures as
+// change (docs/design.md, "Parity and the tolerance model"). The failing stage is recomputed from the same captures as
 // its isolated oracle, through the stages without capture between them, with the change; the
 // hypothesis's score is the fraction of values it brings within the stage's bound.
 //

@@ -14,7 +14,7 @@ F32_ULP = 2.0 ** -24  # relative
 
 
 def tone_and_gamma(hdr, exposure=1.0, gamma=2.2):
-    """DESIGN.md stages 5 and 6, in double: pow(1 - exp(-hdr * exposure), 1 / gamma)."""
+    """docs/design.md, "Specification", stages 5 and 6, in double: pow(1 - exp(-hdr * exposure), 1 / gamma)."""
     return (1.0 - np.exp(-np.float64(hdr) * exposure)) ** (1.0 / gamma)
 
 

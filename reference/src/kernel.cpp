@@ -10,7 +10,7 @@ int Kernel::radius_texels() const {
 }
 
 const Kernel& kernel_discrete9() {
-  // Seed 004 (FS_blur.glsl) and DESIGN.md: binomial row 12 without its two outer terms,
+  // Seed 004 (FS_blur.glsl) and docs/design.md ("Specification"): binomial row 12 without its two outer terms,
   // 924, 792, 495, 220, 66 over 4070, printed to 10 digits.
   static const Kernel k{"discrete9",
                         {0.0f, 1.0f, 2.0f, 3.0f, 4.0f},

@@ -15,7 +15,7 @@ enum class KernelName { discrete9, linear5 };
 enum class Storage { f32, f16 };
 /// f32 mirrors the shaders' operation order; f64 is the truth used to measure error.
 enum class Precision { f32, f64 };
-/// What happens to NaN and +-Inf in the input (DESIGN.md, "Non-finite input policy").
+/// What happens to NaN and +-Inf in the input (docs/design.md, "Specification").
 enum class NonFinite { zero, clamp, propagate, error };
 /// `adaptive` leaves out work the scene does not need (same bits as `full`).
 enum class PlanMode { adaptive, full };

@@ -5,7 +5,7 @@
 // i = floor(u), a = frac(u); the texels i and i + 1 are clamped to [0, n - 1] and weighted
 // 1 - a and a. In f32 every step is done in float as a shader would, and `subtexel_bits` > 0
 // rounds a to that many fractional bits (hardware filtering units use 8-bit fixed point;
-// llvmpipe uses float weights, measured: DESIGN.md). The f64 truth takes coordinates in texel
+// llvmpipe uses float weights, measured: docs/design.md, "GL path"). The f64 truth takes coordinates in texel
 // units directly (u = 0 is the centre of texel 0), so integer taps are exact.
 //
 // A texel whose weight is exactly zero does not contribute (so an Inf beside an exact tap does

@@ -1,4 +1,4 @@
-// bloomref — the pipeline stages (DESIGN.md, "The pipeline"), one function each.
+// bloomref — the pipeline stages (docs/design.md, "Specification"), one function each.
 //
 // Every stage reads const views and writes one image of the same size; `T` is the precision
 // (float mirrors the shaders' operation order, double is the truth). The f32 operation order is

@@ -1,6 +1,6 @@
 // bloomref GPU — a headless OpenGL 4.3+ core context through EGL. Only gpu/ includes EGL or GL.
 //
-// Device choice (DESIGN.md, "GL facts measured"): the EGL device platform, preferring a hardware
+// Device choice (docs/design.md, "GL path"): the EGL device platform, preferring a hardware
 // device, else Mesa's software device (llvmpipe); else the surfaceless platform.
 // BLOOMREF_EGL_DEVICE overrides: a device index ("0", "1"...), "software", "hardware" or
 // "surfaceless". Every EGL/GL call is checked; GL_KHR_debug messages of type error are errors.

@@ -1,4 +1,4 @@
-// bloomref GPU — facts about the GL device, measured rather than assumed (DESIGN.md: "GL does
+// bloomref GPU — facts about the GL device, measured rather than assumed (docs/design.md, "Specification": "GL does
 // not pin how a render-target write rounds float to half ... measure"). The tolerance model
 // builds its device profile from them.
 #pragma once

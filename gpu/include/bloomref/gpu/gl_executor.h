@@ -19,7 +19,7 @@ enum class ShaderKind { fragment, compute };
 std::string to_string(ShaderKind k);
 ShaderKind parse_shader_kind(const std::string& s);
 
-/// Deliberate bugs, each charged to the stage it is injected in (DESIGN.md, Parity: "not
+/// Deliberate bugs, each charged to the stage it is injected in (docs/design.md, "Parity and the tolerance model": "not
 /// vacuous"). Names are the CLI's --inject-fault values.
 enum class Fault {
   none,
