@@ -20,6 +20,7 @@
 #include <cstring>
 #include <map>
 #include <memory>
+#include <optional>
 #include <tuple>
 #include <cfloat>
 #include <cstdio>
@@ -71,6 +72,7 @@ constexpr int kTile = 32;
 struct EnergySums {
   using Sum = std::array<double, 3>;
   Sum err{}, err_e2e{}, oracle{}, full{}, l1{}, l1_e2e{}, l1_own{}, up{}, down{}, most{}, rounding{};
+  Sum storage{};  // a stage without capture: the oracle's value's own storage rounding
   double tile_ratio = 0;
   int tile_x = -1, tile_y = -1;
   void merge(const EnergySums& b) {
@@ -78,6 +80,7 @@ struct EnergySums {
       err[c] += b.err[c], err_e2e[c] += b.err_e2e[c], oracle[c] += b.oracle[c];
       full[c] += b.full[c], l1[c] += b.l1[c], l1_e2e[c] += b.l1_e2e[c], l1_own[c] += b.l1_own[c];
       up[c] += b.up[c], down[c] += b.down[c], most[c] += b.most[c], rounding[c] += b.rounding[c];
+      storage[c] += b.storage[c];
     }
     if (b.tile_ratio > tile_ratio) tile_ratio = b.tile_ratio, tile_x = b.tile_x, tile_y = b.tile_y;
   }
@@ -127,12 +130,14 @@ class Comparison {
   void judge_captured(std::size_t index, StageTerms& t);
   void band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept, bool judge,
                      EnergySums& es);
-  void energy_band(int y0, int y1, const float* gl, const float* oracle, const float* full,
+  void energy_band(int y0, int y1, bool gl, const float* oracle, const float* full,
                    const float* bound, const float* rounding, const float* inherited,
                    const float* e, EnergySums& es) const;
-  std::pair<SignedBudget, SignedBudget> signed_budgets(const std::vector<std::string>& in,
-                                                       const EnergySums& es, double storage,
-                                                       std::array<double, 3>* tv) const;
+  struct Budgets {
+    SignedBudget iso, e2e;
+    std::optional<std::array<double, 3>> tv;
+  };
+  Budgets signed_budgets(const std::vector<std::string>& in, const EnergySums& es) const;
   void gain_gates(StageComparison& iso, StageComparison& e2e, const EnergySums& es,
                   const std::vector<std::string>& in);
   ExtraTerms iso_terms(const StageTerms& t, const CapturedStage& cap, const Image& inherited) const;
@@ -378,7 +383,7 @@ void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally&
     for (std::size_t i = 0; i < values; ++i) rounding[i] = static_cast<float>(rounding[i] * over->scale);
   if (codes) add_rows(rounding, q, n);
   const float* slack = p_.storage == Storage::f16 ? inherited : nullptr;
-  energy_band(y0, y1, cap.image.row(y0), oracle, full, bound, rounding, inherited, e, es);
+  energy_band(y0, y1, true, oracle, full, bound, rounding, inherited, e, es);
   const std::size_t row = std::size_t(t.oracle.width()) * kChannels;
   for (int y = y0; y < y1; ++y) {
     const std::size_t at = std::size_t(y - y0) * row;
@@ -553,7 +558,6 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
   }
   const int rows = judge_band(0);
   std::vector<EnergySums> energy(std::size_t((h + rows - 1) / rows));
-  std::vector<double> storage(energy.size(), 0.0);
   over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
     const std::size_t n = std::size_t(y1 - y0) * w, values = n * kChannels;
     BandScratch& s = band_scratch();
@@ -572,32 +576,33 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
     float* o = t.oracle.pixel(0, y0);
     std::copy(o, o + values, unrounded);
     store(ImageView{w, y1 - y0, w, o}, p_.storage, rounding_, 1);
-    double st = 0;
+    EnergySums& es = energy[std::size_t(b)];
     for (std::size_t i = 0; i < values; ++i) {
       const float r = std::fabs(o[i] - unrounded[i]);
       bound[i] += r;
-      if (i % kChannels != 3) st += r;
+      if (i % kChannels != 3) es.storage[i % kChannels] += r;
     }
-    storage[std::size_t(b)] = st;
     if (read_later)
-      energy_band(y0, y1, nullptr, nullptr, nullptr, bound, rounding, inherited, e, energy[std::size_t(b)]);
+      energy_band(y0, y1, false, nullptr, nullptr, bound, rounding, inherited, e, es);
     if (!e_kept.empty()) put_rows(e_kept, y0, e, n);
     if (read_later) put_rows(carried, y0, bound, n);
   });
   if (read_later) {
     EnergySums es;
-    double st = 0;
-    for (std::size_t b = 0; b < energy.size(); ++b) es.merge(energy[b]), st += storage[b];
+    for (const EnergySums& b : energy) es.merge(b);
     Energy& en = energy_[name_];
-    en.tv = {std::nan(""), 0, 0};
-    std::tie(en.chain, en.e2e) = signed_budgets(stage_inputs(plan_, *spec_), es, st, &en.tv);
+    const Budgets sb = signed_budgets(stage_inputs(plan_, *spec_), es);
+    en.chain = sb.iso;
+    en.e2e = sb.e2e;
+    // Without a signed budget, the error's variation is bounded by its per-value bound: each
+    // value is in two differences along each axis.
+    en.tv = sb.tv ? *sb.tv : std::array<double, 3>{4 * es.l1[0], 4 * es.l1[1], 4 * es.l1[2]};
     for (int c = 0; c < 3; ++c) {
       en.chain.up[c] = std::min(en.chain.up[c], es.l1[c]);
       en.chain.down[c] = std::min(en.chain.down[c], es.l1[c]);
       en.e2e.up[c] = std::min(en.e2e.up[c], es.l1_e2e[c]);
       en.e2e.down[c] = std::min(en.e2e.down[c], es.l1_e2e[c]);
     }
-    if (std::isnan(en.tv[0])) en.tv = {4 * es.l1[0], 4 * es.l1[1], 4 * es.l1[2]};
   }
   deviation_.reset();
   computed_[name_] = std::move(t.oracle);
@@ -605,9 +610,9 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
   if (read_later) carried_[name_] = std::move(carried);
 }
 
-// A band's sums for the gain gates (EnergySums). `gl` (null for a stage without capture: only
-// its budgets are summed) is the capture's row y0, rows `stride` apart as the view holds them.
-void Comparison::energy_band(int y0, int y1, const float* gl, const float* oracle,
+// A band's sums for the gain gates (EnergySums), of the captured stage being judged (`gl`:
+// its errors and budgets) or of a stage without capture (its budgets only).
+void Comparison::energy_band(int y0, int y1, bool gl, const float* oracle,
                              const float* full, const float* bound, const float* rounding,
                              const float* inherited, const float* e, EnergySums& es) const {
   const int width = stage_width_;
@@ -713,29 +718,29 @@ void Comparison::energy_band(int y0, int y1, const float* gl, const float* oracl
 }
 
 // The signed budgets of the stage being judged (its total error against the isolated oracle,
-// and against the full run), from its band sums, its storage rounding (a stage without capture:
-// the oracle's value as stored), and what its inputs carry. Only a blur pass and the composite
-// have budgets tighter than the sum of their per-value bounds; `tv` receives a bound on the
-// total variation of the isolated error (for the stages that read it).
-std::pair<SignedBudget, SignedBudget> Comparison::signed_budgets(
-    const std::vector<std::string>& in, const EnergySums& es, double storage,
-    std::array<double, 3>* tv) const {
+// and against the full run), from its band sums (with a stage without capture's storage
+// rounding: the oracle's value as stored) and what its inputs carry. Only a blur pass and the
+// composite have budgets tighter than the sum of their per-value bounds (otherwise infinite,
+// and no `tv`); `tv` bounds the total variation of the isolated error (for the stages that
+// read it).
+Comparison::Budgets Comparison::signed_budgets(const std::vector<std::string>& in,
+                                               const EnergySums& es) const {
   SignedBudget iso, e2e;
   std::array<double, 3> t{};
-  const double per_channel_storage = storage / 3;
+  const Budgets none{SignedBudget::infinite(), SignedBudget::infinite(), std::nullopt};
   if (spec_->kind == StageKind::blur && deviation_) {
     const std::string& i = in[0];
     for (int c = 0; c < 3; ++c) {
-      iso.up[c] = es.up[c] + es.rounding[c] + per_channel_storage;
-      iso.down[c] = es.down[c] + es.rounding[c] + per_channel_storage;
+      iso.up[c] = es.up[c] + es.rounding[c] + es.storage[c];
+      iso.down[c] = es.down[c] + es.rounding[c] + es.storage[c];
       // The error a pass creates is at most max(up, down) at each value; its total variation
       // at most 4 times its sum (each value is in two differences along each axis).
-      t[c] = 4 * (es.most[c] + es.rounding[c] + per_channel_storage);
+      t[c] = 4 * (es.most[c] + es.rounding[c] + es.storage[c]);
     }
     e2e = iso;
     e2e.add_both(es.rounding);  // the full run's own storage rounding
     const auto ei = energy_.find(i);
-    if (ei == energy_.end()) return {SignedBudget::infinite(), SignedBudget::infinite()};
+    if (ei == energy_.end()) return none;
     const bool hz = spec_->axis == Axis::horizontal;
     const std::vector<double> excess =
         edge_weight_excess(hz ? V(i).width : V(i).height, kernel_);
@@ -754,18 +759,18 @@ std::pair<SignedBudget, SignedBudget> Comparison::signed_budgets(
     }
     e2e.add(ei->second.e2e);
     const BoundRows r = e2e_rows(i);
-    if (!r.image) return {iso, SignedBudget::infinite()};
+    if (!r.image) return {iso, SignedBudget::infinite(), t};
     e2e.add_both(edge_leak(r.image->cview(), spec_->axis, excess));
   } else if (spec_->kind == StageKind::composite) {
     // hdr = scene + strength * bloom: the inputs' totals pass through, scaled.
     std::array<double, 3> own{};
-    for (int c = 0; c < 3; ++c) own[c] = es.l1_own[c] + per_channel_storage;
+    for (int c = 0; c < 3; ++c) own[c] = es.l1_own[c] + es.storage[c];
     iso.add_both(own);
     e2e.add_both(own);
     e2e.add_both(es.rounding);
     for (std::size_t j = 0; j < in.size(); ++j) {
       const auto ej = energy_.find(in[j]);
-      if (ej == energy_.end()) return {SignedBudget::infinite(), SignedBudget::infinite()};
+      if (ej == energy_.end()) return none;
       const double scale = j == 1 ? std::fabs(p_.strength) : 1.0;
       if (!streams_.captured(in[j])) {
         iso.add(ej->second.chain, scale);
@@ -785,10 +790,9 @@ std::pair<SignedBudget, SignedBudget> Comparison::signed_budgets(
     }
     for (int c = 0; c < 3; ++c) t[c] += 4 * (own[c] + es.rounding[c]);
   } else {
-    return {SignedBudget::infinite(), SignedBudget::infinite()};
+    return none;
   }
-  if (tv) *tv = t;
-  return {iso, e2e};
+  return {iso, e2e, t};
 }
 
 // The gain gates of a captured stage: its total error per channel against the smaller of two
@@ -796,7 +800,9 @@ std::pair<SignedBudget, SignedBudget> Comparison::signed_budgets(
 // (signed_budgets); over the whole image and (isolated) each tile.
 void Comparison::gain_gates(StageComparison& iso, StageComparison& e2e, const EnergySums& es,
                             const std::vector<std::string>& in) {
-  auto [signed_iso, signed_e2e] = signed_budgets(in, es, 0.0, nullptr);
+  const Budgets sb = signed_budgets(in, es);
+  SignedBudget signed_iso = sb.iso;
+  const SignedBudget& signed_e2e = sb.e2e;
   // A profile's override widens the stage's per-value bounds (and so their sum) by a factor and
   // a constant the signed budget knows nothing of: the sum alone then.
   const StageOverride* over = stage_override(profile_, name_);

@@ -24,7 +24,7 @@ DeviceProfile profile_llvmpipe() {
 DeviceProfile profile_nvidia_like() {
   DeviceProfile p;
   p.name = "nvidia";
-  p.source = "device class: 8-bit fixed-point filtering weights (docs/design.md, "GL path")";
+  p.source = "device class: 8-bit fixed-point filtering weights (docs/design.md, GL path)";
   p.subtexel_bits = 8;
   return p;
 }
