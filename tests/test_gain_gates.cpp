@@ -232,7 +232,10 @@ TEST_CASE("a pass's signed deviation on one lit texel, by hand", "[gain]") {
   Image img(13, 1, 0.0f);
   img.pixel(6, 0)[0] = 1.0f;
   const parity::DeviceProfile v = quiet_profile(8, 4);
-  const auto s = parity::detail::lookup_shift(13, v, 0.0);
+  // By hand: on a centre a 4-bit truncation moves a lookup 1/16 below; above, only the
+  // coordinates' float error, 13 texels x 2^-24 x (2 x 2.5 + 4) (GLSL's 2.5-ULP divisions).
+  const double noise = 13 * std::ldexp(1.0, -24) * 9;
+  const struct { double minus, plus; } s{1.0 / 16 + noise, noise};
   parity::detail::BlurDeviation dev(img.cview(), Axis::horizontal, kernel_discrete9(), v);
   REQUIRE(dev.usable());
   std::vector<float> up(13 * 4), down(13 * 4);
