@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "bloomref/error.h"
+#include "escape.h"
 #include "bloomref/executor.h"
 #include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
@@ -349,7 +350,7 @@ std::function<int()> add_bench(CLI::App& app) {
     j["fits"] = fits;
     if (!a->out_dir.empty()) {
       std::filesystem::create_directories(a->out_dir);
-      save_text((std::filesystem::path(a->out_dir) / "bench.json").string(), j.dump(2) + "\n");
+      save_text((std::filesystem::path(a->out_dir) / "bench.json").string(), escape::json_text(j) + "\n");
       save_text((std::filesystem::path(a->out_dir) / "bench.csv").string(), rows_csv(rows));
     }
     bool all_ok = true;

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "bloomref/error.h"
+#include "escape.h"
 #include "bloomref/executor.h"
 #include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
@@ -125,7 +126,7 @@ int compare_cmd(CompareArgs& a) {
                         {"isolated", stage_json(r.isolated[i])},
                         {"end_to_end", stage_json(r.end_to_end[i])}});
     j["stages"] = stages;
-    outs.write_text(a.json_path, j.dump(2) + "\n");
+    outs.write_text(a.json_path, escape::json_text(j) + "\n");
   }
   if (!a.report_dir.empty())
     write_report_files(outs.folder(a.report_dir), source, renderer, plan, gl, r, a.fault);

@@ -3,6 +3,7 @@
 #include <memory>
 
 #include "bloomref/gpu/device_facts.h"
+#include "escape.h"
 #include "bloomref/io.h"
 #include "commands.h"
 #include "json_out.h"
@@ -30,8 +31,8 @@ std::function<int()> add_gl_info(CLI::App& app) {
         {"half_denormal_texels", f.half_denormal_texels},
         {"half_filter_denormals", f.half_filter_denormals},
         {"half_filter_normals", f.half_filter_normals}};
-    std::cout << j.dump(2) << "\n";
-    if (!json_path->empty()) save_text(*json_path, j.dump(2) + "\n");
+    std::cout << escape::json_text(j) << "\n";
+    if (!json_path->empty()) save_text(*json_path, escape::json_text(j) + "\n");
     return 0;
   };
 }

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "batch/merge.h"
+#include "escape.h"
 #include "bloomref/error.h"
 #include "bloomref/io.h"
 #include "commands.h"
@@ -57,7 +58,7 @@ int merge(const MergeArgs& a) {
     throw InputError(names, std::string("could not be merged: ") + e.what());
   }
 
-  if (!a.json_path.empty()) save_text(a.json_path, m.doc.dump(2) + "\n");
+  if (!a.json_path.empty()) save_text(a.json_path, escape::json_text(m.doc) + "\n");
   if (!a.junit_path.empty()) save_text(a.junit_path, batch::merged_junit(m));
   if (!a.markdown_path.empty()) save_text(a.markdown_path, batch::merged_markdown(m));
   if (!a.report_dir.empty()) {

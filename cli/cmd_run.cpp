@@ -6,6 +6,7 @@
 #include <optional>
 
 #include "bloomref/error.h"
+#include "escape.h"
 #include "bloomref/executor.h"
 #include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
@@ -169,7 +170,7 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
                   {"has_alpha", in.info.has_alpha}};
     j["outputs"] = a.outputs;
     if (!repeated.is_null()) j["repeat"] = repeated;
-    outs.write_text(a.json_path, j.dump(2) + "\n");
+    outs.write_text(a.json_path, escape::json_text(j) + "\n");
   }
   outs.publish();
   if (record)

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "bloomref/error.h"
+#include "escape.h"
 #include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
 #include "bloomref/stability.h"
@@ -186,7 +187,7 @@ std::function<int()> add_stability(CLI::App& app) {
                             : "Every expectation holds.\n");
     j["failures"] = failures;
     if (!args->markdown.empty()) save_text(args->markdown, md.str());
-    if (!args->json.empty()) save_text(args->json, j.dump(2) + "\n");
+    if (!args->json.empty()) save_text(args->json, escape::json_text(j) + "\n");
     if (args->markdown.empty()) std::cout << md.str();
     return failures ? 1 : 0;
   };

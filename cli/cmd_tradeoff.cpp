@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "bloomref/error.h"
+#include "escape.h"
 #include "bloomref/gpu/gl_executor.h"
 #include "bloomref/io.h"
 #include "bloomref/scenes.h"
@@ -277,7 +278,7 @@ std::function<int()> add_tradeoff(CLI::App& app) {
                                           ctx ? ctx->info().renderer : std::string("no GL"));
     if (!a->markdown.empty()) save_text(a->markdown, md);
     if (!a->svg.empty()) save_text(a->svg, svg_plot(points));
-    if (!a->json.empty()) save_text(a->json, points_json(points).dump(2) + "\n");
+    if (!a->json.empty()) save_text(a->json, escape::json_text(points_json(points)) + "\n");
     if (a->markdown.empty()) std::fputs(md.c_str(), stdout);
     return 0;
   };

@@ -10,6 +10,7 @@
 #include "bloomref/error.h"
 #include "bloomref/io.h"
 #include "bloomref/output_files.h"
+#include "escape.h"
 
 namespace fs = std::filesystem;
 
@@ -36,11 +37,6 @@ std::string base64(const std::string& in) {
   return out;
 }
 
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) o += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
-  return o;
-}
 
 std::string num(double v) {
   char b[32];
@@ -201,16 +197,16 @@ std::string percent(double f) {
 void write_head(std::ostringstream& html, const std::string& source, const std::string& renderer,
                 const Plan& plan, const parity::ParityResult& r, const std::string& fault) {
   const std::string first = r.first_divergent_stage.value_or("");
-  html << "<!doctype html><html><head><meta charset='utf-8'><title>bloomref: " << esc(source)
+  html << "<!doctype html><html><head><meta charset='utf-8'><title>bloomref: " << escape::html(source)
        << "</title><style>" << kStyle << "</style></head><body>";
-  html << "<h1>bloomref: " << esc(source) << "</h1><p>" << esc(renderer) << "<br>profile "
-       << esc(r.profile.name) << " (" << esc(r.profile.source) << ")<br>"
+  html << "<h1>bloomref: " << escape::html(source) << "</h1><p>" << escape::html(renderer) << "<br>profile "
+       << escape::html(r.profile.name) << " (" << escape::html(r.profile.source) << ")<br>"
        << plan.facts.width << "x" << plan.facts.height << ", " << plan.params.passes << " passes, "
        << to_string(plan.params.kernel) << ", storage " << to_string(plan.params.storage)
-       << (fault == "none" ? std::string() : ", injected fault <b>" + esc(fault) + "</b>")
+       << (fault == "none" ? std::string() : ", injected fault <b>" + escape::html(fault) + "</b>")
        << "</p><h2 class='" << parity::to_string(r.verdict) << "'>verdict "
        << parity::to_string(r.verdict) << "; first divergent stage: "
-       << (first.empty() ? "none" : "<a href='#stage-" + first + "'>" + first + "</a>")
+       << (first.empty() ? "none" : "<a href='#stage-" + escape::html(first) + "'>" + escape::html(first) + "</a>")
        << "</h2>";
 }
 
@@ -221,12 +217,12 @@ void write_summary(std::ostringstream& html, const parity::ParityResult& r) {
   for (std::size_t i = 0; i < r.isolated.size(); ++i) {
     const auto& s = r.isolated[i];
     const auto& e = r.end_to_end[i];
-    html << "<tr><td><a href='#stage-" << s.stage << "'>" << s.stage << "</a></td><td class='"
+    html << "<tr><td><a href='#stage-" << escape::html(s.stage) << "'>" << escape::html(s.stage) << "</a></td><td class='"
          << parity::to_string(s.verdict) << "'>" << parity::to_string(s.verdict) << "</td><td>"
          << num(s.max_abs) << "</td><td>" << num(s.max_ulp16) << "</td><td>" << num(s.max_ratio)
          << "</td><td>" << s.over_bound + s.nonfinite_mismatch << "</td><td class='"
          << parity::to_string(e.verdict) << "'>" << parity::to_string(e.verdict) << "</td><td>"
-         << num(e.max_ratio) << "</td><td style='text-align:left'>" << esc(cause_line(s))
+         << num(e.max_ratio) << "</td><td style='text-align:left'>" << escape::html(cause_line(s))
          << "</td></tr>";
   }
   html << "</table><p>Isolated: each stage against the CPU stage recomputed from the previous "
@@ -239,15 +235,15 @@ void write_summary(std::ostringstream& html, const parity::ParityResult& r) {
 // and the fraction of the stage's values it brings within bound.
 void write_causes(std::ostringstream& html, const parity::StageComparison& s) {
   if (s.verdict == parity::Verdict::pass) return;
-  html << "<p class='cause'>" << esc(cause_line(s)) << "</p>";
+  html << "<p class='cause'>" << escape::html(cause_line(s)) << "</p>";
   if (s.causes.empty()) return;
   html << "<h3>causes tested (the oracle with one change)</h3><table><tr><th>hypothesis</th>"
           "<th>values within bound</th><th>as specified</th><th style='text-align:left'>detail"
           "</th></tr>";
   for (const parity::CauseFit& c : s.causes)
-    html << "<tr><td style='text-align:left'>" << esc(c.description) << "</td><td>"
+    html << "<tr><td style='text-align:left'>" << escape::html(c.description) << "</td><td>"
          << percent(c.within) << "</td><td>" << percent(c.oracle_within)
-         << "</td><td style='text-align:left'>" << esc(c.detail) << "</td></tr>";
+         << "</td><td style='text-align:left'>" << escape::html(c.detail) << "</td></tr>";
   html << "</table>";
 }
 
@@ -258,7 +254,7 @@ void write_worst(std::ostringstream& html, const parity::StageComparison& s) {
   for (const auto& w : s.worst) {
     std::string terms;
     for (const auto& t : w.terms)
-      if (t.value != 0) terms += esc(t.name) + " = " + num(t.value) + "<br>";
+      if (t.value != 0) terms += escape::html(t.name) + " = " + num(t.value) + "<br>";
     html << "<tr><td>" << w.x << "</td><td>" << w.y << "</td><td>" << "RGB"[w.channel]
          << "</td><td>" << num(w.oracle) << "</td><td>" << num(w.gl) << "</td><td>"
          << (std::isfinite(w.error) ? num(w.error) : "non-finite") << "</td><td>" << num(w.bound)
@@ -302,14 +298,14 @@ void write_stage(std::ostringstream& html, const fs::path& root, const parity::S
   save_png(base + ".ratio.png", heat.cview());
   save_png(base + ".mask.png", mask.cview());
 
-  html << "<section id='stage-" << s.stage << "'" << (first ? " class='first'" : "") << "><h2>"
-       << s.stage << ": <span class='" << parity::to_string(s.verdict) << "'>"
+  html << "<section id='stage-" << escape::html(s.stage) << "'" << (first ? " class='first'" : "")
+       << "><h2>" << escape::html(s.stage) << ": <span class='" << parity::to_string(s.verdict) << "'>"
        << parity::to_string(s.verdict) << "</span>" << (first ? " (first divergent)" : "")
-       << "</h2><p>" << esc(s.reason) << "; end to end " << parity::to_string(end_to_end.verdict)
-       << ": " << esc(end_to_end.reason) << "</p><p class='files'>full size: <a href='"
-       << esc(s.stage) << ".oracle.exr'>oracle</a>, <a href='" << esc(under_test)
-       << "'>under test</a>, <a href='" << esc(s.stage) << ".diff.exr'>difference</a>, <a href='"
-       << esc(s.stage) << ".ratio.exr'>error / bound</a> (EXR)</p>";
+       << "</h2><p>" << escape::html(s.reason) << "; end to end " << parity::to_string(end_to_end.verdict)
+       << ": " << escape::html(end_to_end.reason) << "</p><p class='files'>full size: <a href='"
+       << escape::url(s.stage + ".oracle.exr") << "'>oracle</a>, <a href='" << escape::url(under_test)
+       << "'>under test</a>, <a href='" << escape::url(s.stage + ".diff.exr") << "'>difference</a>, <a href='"
+       << escape::url(s.stage + ".ratio.exr") << "'>error / bound</a> (EXR)</p>";
   write_causes(html, s);
   const std::pair<const Image*, std::string> figs[] = {
       {&d_or, "oracle (CPU from the previous stage under test)"},
@@ -319,7 +315,7 @@ void write_stage(std::ostringstream& html, const fs::path& root, const parity::S
       {&mask, "pass (green) / fail (red)"}};
   for (const auto& [img, caption] : figs)
     html << "<figure><img src='" << png_data_uri(preview(*img, img != &d_or && img != &d_gl))
-         << "'><figcaption>" << esc(caption) << "</figcaption></figure>";
+         << "'><figcaption>" << escape::html(caption) << "</figcaption></figure>";
   write_worst(html, s);
   html << "</section>";
 }
@@ -334,6 +330,18 @@ std::string cause_line(const parity::StageComparison& s) {
                      " of values within bound; as specified " + percent(c.oracle_within) + ")";
   if (!c.detail.empty()) line += "; " + c.detail;
   return line;
+}
+
+bool report_may_write(const std::string& filename) {
+  if (filename == "index.html") return true;
+  auto ends = [&filename](const std::string& tail) {
+    return filename.size() > tail.size() &&
+           filename.compare(filename.size() - tail.size(), tail.size(), tail) == 0;
+  };
+  for (const char* kind : {".oracle", ".gl", ".diff", ".ratio", ".mask"})
+    for (const char* ext : {".exr", ".png"})
+      if (ends(std::string(kind) + ext)) return true;
+  return false;
 }
 
 void write_report(const std::string& dir, const std::string& source, const std::string& renderer,

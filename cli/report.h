@@ -19,6 +19,11 @@ std::string cause_line(const parity::StageComparison& s);
 /// instead of writing a copy (<stage>.gl.exr) of each.
 using CapturedFiles = std::map<std::string, std::string>;
 
+/// Whether a report may write a file of this name into its folder (index.html, and each stage's
+/// <stage>.oracle|gl|diff|ratio.exr|png and <stage>.mask.png): an input of that name there would
+/// be replaced, so the caller refuses the folder first.
+bool report_may_write(const std::string& filename);
+
 /// Builds the report in a hidden folder beside `dir` and moves it into place when complete
 /// (StagedFolder): an interrupted run leaves no half-written report.
 void write_report(const std::string& dir, const std::string& source, const std::string& renderer,

@@ -17,6 +17,7 @@
 #include "check/command.h"
 #include "check/shaders.h"
 #include "check/stage_images.h"
+#include "escape.h"
 #include "keywords.h"
 
 namespace py = pybind11;
@@ -122,7 +123,7 @@ py::dict check(const py::object& scene, const py::object& stages, const py::kwar
   try {
     py::gil_scoped_release unlocked;
     in.write_arrays();
-    text = cli::check_results(in.args).dump();
+    text = escape::json_text(cli::check_results(in.args), -1);
   } catch (const InputError& e) {
     throw py::value_error("bloomref.check: " + in.relabel(e.what(), false));
   } catch (const ParamError& e) {

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cstdio>
 #include <map>
+#include <set>
 
 #include "bloomref/error.h"
+#include "escape.h"
 
 using nlohmann::ordered_json;
 
@@ -78,6 +80,36 @@ void require_types(const ResultsFile& f) {
   }
 }
 
+// An item's verdict (check) or status (run), and a check stage's status, must be one the
+// tools write: merge decides the exit code from them.
+void require_known_values(const ResultsFile& f) {
+  const bool check = is_check(f.doc);
+  static const std::set<std::string> verdicts = {"PASS", "WARN", "FAIL", "NOTHING", "ERROR"};
+  static const std::set<std::string> statuses = {"done", "resumed", "error", "not-run"};
+  static const std::set<std::string> stage_statuses = {"pass", "warn", "fail", "expected-fail", "fixed"};
+  auto list = [](const std::set<std::string>& s) {
+    std::string o;
+    for (const std::string& v : s) o += (o.empty() ? "" : ", ") + v;
+    return o;
+  };
+  for (const ordered_json& it : f.doc["items"]) {
+    const std::string where = "item " + escape::utf8(it["id"].get<std::string>()) + ": ";
+    const char* key = check ? "verdict" : "status";
+    const std::set<std::string>& known = check ? verdicts : statuses;
+    if (!it.contains(key) || !known.count(it[key].get<std::string>()))
+      throw InputError(f.name, where + "\"" + key + "\" is " +
+                                   (it.contains(key) ? "'" + escape::utf8(it[key].get<std::string>()) + "'" : "missing") +
+                                   ", not one of " + list(known));
+    if (!check || !it.contains("stages")) continue;
+    for (const ordered_json& s : it["stages"]) {
+      const std::string st = s.value("status", "");
+      if (!stage_statuses.count(st))
+        throw InputError(f.name, where + "a stage's \"status\" is '" + escape::utf8(st) +
+                                     "', not one of " + list(stage_statuses));
+    }
+  }
+}
+
 void require_results(const ResultsFile& f) {
   const ordered_json& d = f.doc;
   if (!d.is_object() || !d.contains("tool") || !d["tool"].is_string())
@@ -103,6 +135,7 @@ void require_results(const ResultsFile& f) {
   for (const ordered_json& it : d["items"])
     if (!it.is_object() || !it.contains("id") || !it["id"].is_string())
       throw InputError(f.name, "has an item without a string \"id\"");
+  require_known_values(f);
 }
 
 std::string shard_label(const ordered_json& doc) {
@@ -177,31 +210,7 @@ void finish_run(ordered_json& doc) {
   doc.erase("frames_per_second");
 }
 
-std::string xml(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '<':
-        o += "&lt;";
-        break;
-      case '>':
-        o += "&gt;";
-        break;
-      case '&':
-        o += "&amp;";
-        break;
-      case '"':
-        o += "&quot;";
-        break;
-      case '\n':
-        o += "&#10;";
-        break;
-      default:
-        o += c;
-    }
-  }
-  return o;
-}
+using escape::xml;
 
 std::string str(const ordered_json& j, const char* key) {
   return j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : "";
@@ -379,11 +388,11 @@ std::string merged_markdown(const Merged& m) {
                               : d.value("exit_code", 0) == 0 ? "OK"
                                                              : "FAILED";
   std::string out = "### bloomref " + std::string(check ? "check" : "run") +
-                    " (merged): " + verdict + "\n\n" +
+                    " (merged): " + escape::markdown_cell(verdict) + "\n\n" +
                     std::to_string(d["batch"]["items_total"].get<std::size_t>()) + " items from " +
                     std::to_string(d["batch"]["shards"].size()) + " results file(s); exit code " +
                     std::to_string(m.exit_code) + ".\n\n";
-  for (const std::string& p : m.problems) out += "- :x: " + p + "\n";
+  for (const std::string& p : m.problems) out += "- :x: " + escape::markdown_cell(p) + "\n";
   std::string rows;
   for (const ordered_json& it : d["items"]) {
     const std::string v = check ? str(it, "verdict") : str(it, "status");
@@ -391,10 +400,9 @@ std::string merged_markdown(const Merged& m) {
     std::string why = str(it, "error");
     if (why.empty() && it.contains("first_divergent_stage") &&
         it["first_divergent_stage"].is_string())
-      why = "first divergent stage `" + it["first_divergent_stage"].get<std::string>() + "`";
-    for (char& c : why)
-      if (c == '|' || c == '\n') c = ' ';
-    rows += "| " + str(it, "id") + " | " + v + " | " + why + " | " + str(it, "shard") + " |\n";
+      why = "first divergent stage " + it["first_divergent_stage"].get<std::string>();
+    rows += "| " + escape::markdown_cell(str(it, "id")) + " | " + escape::markdown_cell(v) + " | " +
+            escape::markdown_cell(why) + " | " + escape::markdown_cell(str(it, "shard")) + " |\n";
   }
   if (!rows.empty())
     out += "\n| item | " + std::string(check ? "verdict" : "status") +
@@ -415,21 +423,21 @@ std::string merged_html(const Merged& m, const std::set<std::string>& item_repor
       "margin:2em}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 8px;"
       "text-align:left}.bad{background:#fdd}.warn{background:#ffd}.ok{background:#dfd}</style>"
       "</head><body>\n<h1>bloomref " +
-      std::string(check ? "check" : "run") + ": " + xml(verdict) + " (exit " +
+      std::string(check ? "check" : "run") + ": " + escape::html(verdict) + " (exit " +
       std::to_string(m.exit_code) + ")</h1>\n";
   h += "<p>" + std::to_string(d["batch"]["items_total"].get<std::size_t>()) + " items in " +
        std::to_string(d["batch"]["shards"].size()) +
-       " results file(s). Summary: " + xml(d["summary"].dump()) + "</p>\n";
+       " results file(s). Summary: " + escape::html(d["summary"].dump()) + "</p>\n";
   if (!m.problems.empty()) {
     h += "<h2>Problems</h2><ul>\n";
-    for (const std::string& p : m.problems) h += "<li class=\"bad\">" + xml(p) + "</li>\n";
+    for (const std::string& p : m.problems) h += "<li class=\"bad\">" + escape::html(p) + "</li>\n";
     h += "</ul>\n";
   }
   h += "<h2>Shards</h2><table><tr><th>file</th><th>shard</th><th>from</th><th>items</th>"
        "<th>finished</th></tr>\n";
   for (const ordered_json& s : d["batch"]["shards"])
-    h += "<tr><td>" + xml(str(s, "file")) + "</td><td>" + xml(str(s, "shard")) + "</td><td>" +
-         xml(str(s, "source")) + "</td><td>" + std::to_string(s.value("items", 0)) + "</td><td>" +
+    h += "<tr><td>" + escape::html(str(s, "file")) + "</td><td>" + escape::html(str(s, "shard")) + "</td><td>" +
+         escape::html(str(s, "source")) + "</td><td>" + std::to_string(s.value("items", 0)) + "</td><td>" +
          (s.value("finished", true) ? "yes" : "no") + "</td></tr>\n";
   h += "</table>\n<h2>Items</h2><table><tr><th>item</th><th>" +
        std::string(check ? "verdict</th><th>first divergent stage</th><th>cause"
@@ -441,16 +449,16 @@ std::string merged_html(const Merged& m, const std::set<std::string>& item_repor
     const char* cls = v == "PASS" || v == "done" || v == "resumed" ? "ok"
                       : v == "WARN"                                ? "warn"
                                                                    : "bad";
-    std::string name = xml(id);
-    if (item_reports.count(id)) name = "<a href=\"" + xml(id) + "/index.html\">" + name + "</a>";
-    h += "<tr class=\"" + std::string(cls) + "\"><td>" + name + "</td><td>" + xml(v) + "</td><td>";
+    std::string name = escape::html(id);
+    if (item_reports.count(id)) name = "<a href=\"" + escape::url(id + "/index.html") + "\">" + name + "</a>";
+    h += "<tr class=\"" + std::string(cls) + "\"><td>" + name + "</td><td>" + escape::html(v) + "</td><td>";
     if (check) {
-      h += xml(it.contains("first_divergent_stage") && it["first_divergent_stage"].is_string()
+      h += escape::html(it.contains("first_divergent_stage") && it["first_divergent_stage"].is_string()
                    ? it["first_divergent_stage"].get<std::string>()
                    : "-") +
            "</td><td>";
       const std::string err = str(it, "error");
-      h += xml(!err.empty() ? err
+      h += escape::html(!err.empty() ? err
                : it.contains("first_divergent_cause") && it["first_divergent_cause"].is_object()
                    ? str(it["first_divergent_cause"], "description")
                    : "-");
@@ -460,14 +468,14 @@ std::string merged_html(const Merged& m, const std::set<std::string>& item_repor
       h += std::string(ms) + "</td><td>";
       const std::string err = str(it, "error");
       if (!err.empty())
-        h += xml(err);
+        h += escape::html(err);
       else if (it.contains("outputs"))
-        for (const ordered_json& o : it["outputs"]) h += xml(o.get<std::string>()) + " ";
+        for (const ordered_json& o : it["outputs"]) h += escape::html(o.get<std::string>()) + " ";
     }
-    h += "</td><td>" + xml(str(it, "shard")) + "</td></tr>\n";
+    h += "</td><td>" + escape::html(str(it, "shard")) + "</td></tr>\n";
   }
   for (const std::string& id : m.missing)
-    h += "<tr class=\"bad\"><td>" + xml(id) +
+    h += "<tr class=\"bad\"><td>" + escape::html(id) +
          "</td><td>MISSING</td><td colspan=\"3\">no shard's "
          "results have this item</td></tr>\n";
   return h + "</table>\n</body></html>\n";

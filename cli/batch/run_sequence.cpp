@@ -1,4 +1,5 @@
 #include "batch/run_sequence.h"
+#include "escape.h"
 
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
@@ -234,7 +235,7 @@ int run_sequence(const RunSequenceArgs& a, const RunFrame& frame) {
     return sequence_results(a, p, frames, ids, sel, outcomes, finished, interrupted, code, t0);
   };
   auto save = [&](const ordered_json& j) {
-    if (!a.json_path.empty()) save_text(a.json_path, j.dump(2) + "\n");
+    if (!a.json_path.empty()) save_text(a.json_path, escape::json_text(j) + "\n");
   };
 
   if (sel.mine.empty()) {

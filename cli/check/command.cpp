@@ -14,8 +14,10 @@
 #include <set>
 
 #include "batch/sequence.h"
+#include "escape.h"
 #include "bloomref/error.h"
 #include "bloomref/io.h"
+#include "bloomref/memory_budget.h"
 #include "bloomref/output_files.h"
 #include "bloomref/parity/compare.h"
 #include "check/command.h"
@@ -238,7 +240,7 @@ CheckItem shaders_item(CheckArgs& a, CheckRun& run, ScratchDir& scratch) {
   for (const std::string* p : {&a.json_path, &a.junit_path, &a.markdown_path})
     if (!p->empty()) require_writable_file(*p, "output");
   bool software = false;
-  const std::string gl = run_user_shaders(a.shaders, a.scene, a.pipeline, scratch.path(), software);
+  const std::string gl = run_user_shaders_bounded(a.shaders, a.scene, a.pipeline, scratch.path(), software);
   // Without --profile, the device's own: llvmpipe's measured facts, or NVIDIA-like hardware.
   if (a.sub->count("--profile") == 0)
     run.profile = software ? parity::profile_llvmpipe() : parity::profile_nvidia_like();
@@ -258,13 +260,33 @@ CheckItem folder_item(const CheckArgs& a) {
   CheckItem item;
   item.scene = a.scene;
   item.stages_dir = a.stages_dir;
-  item.id = fs::path(a.stages_dir).lexically_normal().filename().string();
-  if (item.id.empty() || item.id == ".") item.id = "stages";
+  item.id = folder_item_id(a.stages_dir);
   item.defaults.encoding = parse_encoding(a.encoding);
   item.defaults.origin = parse_origin(a.origin);
   item.defaults.channels = parse_channel_order(a.channels);
   item.defaults.format = parse_raw_format(a.raw_format);
   return item;
+}
+
+// What one item's results hold in memory until the results are written, measured (4.7 KiB an
+// item over 50,000 missing frames), with room: a list whose results would not fit --max-memory
+// is refused before any work, pointing to --shard.
+constexpr std::uint64_t kResultBytesPerItem = 8 << 10;
+constexpr std::uint64_t kListBytesPerItem = 1 << 10;  // an item to take: names and paths
+
+// `listed` items, `run` of them taken by this process.
+void require_results_fit(const CheckArgs& a, std::size_t listed, std::size_t run) {
+  const std::uint64_t budget = a.pipeline.max_memory.empty()
+                                   ? default_memory_budget()
+                                   : parse_byte_size(a.pipeline.max_memory, "--max-memory");
+  const std::uint64_t need = std::uint64_t(listed) * kListBytesPerItem +
+                             std::uint64_t(run) * kResultBytesPerItem;
+  if (need > budget)
+    throw ParamError(std::to_string(listed) + " items" +
+                     (run != listed ? " (" + std::to_string(run) + " taken here)" : "") +
+                     ": their results need about " + byte_size_text(need) +
+                     ", over the memory limit (" + byte_size_text(budget) +
+                     ", --max-memory): split the list with --shard K/N");
 }
 
 // SCENE 'scene.####.exr' --stages 'stages.####/': an item per frame, named by its number.
@@ -279,7 +301,11 @@ std::vector<CheckItem> sequence_items(const CheckArgs& a) {
                      "pattern such as stages.####/");
   const batch::FramePattern& first = scene.has_wildcard() ? scene : stages;
   std::vector<CheckItem> items;
-  for (int f : sequence_frames(a.sequence, first, scene.has_wildcard() ? "SCENE" : "--stages")) {
+  const std::vector<int> frames =
+      sequence_frames(a.sequence, first, scene.has_wildcard() ? "SCENE" : "--stages");
+  // Before the list is made: with --shard, only a part is taken (checked again once known).
+  require_results_fit(a, frames.size(), a.sequence.shard.empty() ? frames.size() : 0);
+  for (int f : frames) {
     CheckItem item = folder_item(a);
     item.scene = scene.name(f);
     item.stages_dir = stages.name(f);
@@ -369,7 +395,26 @@ void require_destinations(const CheckArgs& a, const std::vector<CheckItem>& item
     if (!seen.insert(fs::weakly_canonical(*path, ec)).second)
       throw InputError(*path, "is named twice as an output");
   }
-  if (!a.report_dir.empty()) require_writable_dir(a.report_dir, "--report");
+  if (a.report_dir.empty()) return;
+  require_writable_dir(a.report_dir, "--report");
+  // A report replaces files of its names in REPORT/<id>: none of them may be an input.
+  for (const CheckItem& it : items) {
+    if (it.scratch) continue;
+    std::error_code ec;
+    const fs::path folder = fs::weakly_canonical(fs::path(a.report_dir) / it.id, ec);
+    std::vector<std::string> mine = {it.scene};
+    for (const StageFile& f : it.files) mine.push_back(f.path);
+    if (!it.stages_dir.empty())
+      for (const auto& e : fs::directory_iterator(it.stages_dir, ec)) mine.push_back(e.path().string());
+    for (const std::string& in : mine) {
+      if (in.empty()) continue;
+      const fs::path p = fs::weakly_canonical(in, ec);
+      if (!ec && p.parent_path() == folder && report_may_write(p.filename().string()))
+        throw InputError(in, "would be replaced by the report written to " +
+                                 (fs::path(a.report_dir) / it.id).string() +
+                                 ": give --report another folder");
+    }
+  }
 }
 
 void print_run(const CheckArgs& a, const CheckRun& run, const std::vector<Expectation>& expectations) {
@@ -428,7 +473,10 @@ CheckRun check_cmd(CheckArgs& a) {
   }
   const bool batch = frames || !a.manifest.empty() || !a.sequence.shard.empty();
   ItemSelection selection;
-  if (batch) selection = select_check_items(a, items);
+  if (batch) {
+    selection = select_check_items(a, items);
+    require_results_fit(a, selection.ids.size(), items.size());
+  }
   run.params = a.pipeline.params;
   std::vector<Expectation> expectations;
   if (!a.expectations.empty()) {
@@ -458,7 +506,7 @@ CheckRun check_cmd(CheckArgs& a) {
   else if (run.verdict == "NOTHING")
     std::fprintf(stderr, "bloomref: nothing compared: no stage image matched in %s\n",
                  a.manifest.empty() ? a.stages_dir.c_str() : a.manifest.c_str());
-  if (!a.json_path.empty()) save_text(a.json_path, check_json(run).dump(2) + "\n");
+  if (!a.json_path.empty()) save_text(a.json_path, escape::json_text(check_json(run)) + "\n");
   if (!a.junit_path.empty()) save_text(a.junit_path, junit_xml(run));
   if (!a.markdown_path.empty()) save_text(a.markdown_path, markdown_summary(run));
   return run;
@@ -493,6 +541,13 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
                   "--shaders: the final pass draws into a target like the others (same) or an "
                   "8-bit one like the tutorial's window (rgba8)")
       ->capture_default_str();
+  sub->add_option("--shader-timeout", args->shaders.timeout_s,
+                  "--shaders: seconds the passes may take, compiling included, before they are "
+                  "stopped (exit 2; default: 120 and 20 per million texels of the scene)")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--shader-memory", args->shaders.max_memory,
+                  "--shaders: memory the passes may use, e.g. 2G (exit 2 past it; default: 1 GiB "
+                  "and 24 float images of the scene, at most --max-memory)");
   sub->add_option("--profile", args->profile,
                   "device precision profile: " + parity::profile_names() +
                       ", or a profile file NAME.json (docs/check.md)")
@@ -534,6 +589,14 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
   args->sequence.add_to(*sub, false);
 }
 
+// --max-memory bounds check by the images it holds: measured at 1920x1080 with every stage
+// captured, about twelve stage-sized images at once (the oracle's, the capture's, bounds and
+// deviations); the model of a run keeping every stage (sixteen) is above it.
+void bound_memory(CheckArgs& a) {
+  a.pipeline.kept_traces = 1;
+  a.pipeline.gl = a.shaders.any();
+}
+
 }  // namespace
 
 std::function<int()> add_check(CLI::App& app) {
@@ -542,6 +605,7 @@ std::function<int()> add_check(CLI::App& app) {
   return [args]() -> int {
     if (!args->sub->parsed()) return -1;
     args->pipeline.finish();
+    bound_memory(*args);
     return check_cmd(*args).exit_code;
   };
 }
@@ -559,6 +623,7 @@ nlohmann::ordered_json check_results(const std::vector<std::string>& args) {
     throw ParamError(e.what());
   }
   a->pipeline.finish();
+  bound_memory(*a);
   return check_json(check_cmd(*a));
 }
 

@@ -153,6 +153,30 @@ DeviceKeys read_device(const std::string& path, const json& d) {
 
 }  // namespace
 
+std::string item_id_problem(const std::string& id) {
+  if (id.empty()) return "is empty";
+  if (id.size() > 200) return "is longer than 200 bytes";
+  if (id[0] == '.') return "starts with '.'";
+  for (char c : id) {
+    if (c == '/' || c == '\\') return "holds a '/' or '\\'";
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) return "holds a control character";
+  }
+  return "";
+}
+
+std::string folder_item_id(const std::string& dir) {
+  std::error_code ec;
+  fs::path p = fs::weakly_canonical(fs::absolute(dir, ec), ec);
+  if (ec) p = fs::path(dir).lexically_normal();
+  std::string id = p.filename().string();
+  if (id.empty() || id == "." || id == "..") id = "stages";
+  for (char& c : id)
+    if (c == '/' || c == '\\' || static_cast<unsigned char>(c) < 0x20 || c == 0x7F) c = '_';
+  if (id[0] == '.') id[0] = '_';
+  if (id.size() > 200) id.resize(200);
+  return id;
+}
+
 Manifest read_manifest(const std::string& path, const CLI::App& sub, PipelineOptions& pipeline) {
   const json j = read_json(path);
   check_version(path, j);
@@ -192,8 +216,8 @@ Manifest read_manifest(const std::string& path, const CLI::App& sub, PipelineOpt
     CheckItem item;
     item.defaults = defaults;
     item.id = it.contains("id") ? get_string(path, it, field, "id") : "item-" + std::to_string(index);
-    if (item.id.empty() || item.id.find_first_of("/\\") != std::string::npos || item.id[0] == '.')
-      bad(path, field + ".id", "must be a non-empty name without '/' (it names report folders)");
+    if (const std::string why = item_id_problem(item.id); !why.empty())
+      bad(path, field + ".id", why + " (an id names the item's report folder)");
     if (!ids.insert(item.id).second) bad(path, field + ".id", "'" + item.id + "' is used twice");
     if (!it.contains("scene")) bad(path, field + ".scene", "missing (the scene image's path)");
     item.scene = resolve_path(base, get_string(path, it, field, "scene")).string();

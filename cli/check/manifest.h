@@ -11,6 +11,15 @@
 
 namespace bloomref::cli {
 
+/// What is wrong with `id` as an item's id, or "" when nothing is: an id names the item's report
+/// folder (REPORT/<id>), so it is not empty, at most 200 bytes, holds no '/', '\\' or control
+/// character (NUL included) and does not start with '.'.
+std::string item_id_problem(const std::string& id);
+
+/// The id of an item read from the folder `dir`: the folder's own name (`..` and `.` resolved
+/// to the folder they name), with what item_id_problem refuses replaced by '_'.
+std::string folder_item_id(const std::string& dir);
+
 struct Manifest {
   DeviceKeys device;
   std::vector<CheckItem> items;

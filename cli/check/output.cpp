@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "escape.h"
 #include "json_out.h"
 #include "report.h"
 
@@ -79,26 +80,8 @@ ordered_json device_json(const DeviceKeys& d) {
   return {{"api", d.api}, {"vendor", d.vendor}, {"renderer", d.renderer}, {"driver", d.driver}};
 }
 
-std::string xml(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      case '\n': o += "&#10;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
-
-std::string md(const std::string& s) {
-  std::string o;
-  for (char c : s) o += c == '|' ? std::string("\\|") : std::string(1, c);
-  return o;
-}
+using escape::xml;
+using escape::markdown_cell;
 
 // The cause of an item's first divergent stage, if one was found.
 const parity::StageComparison* first_divergent(const ItemResult& r) {
@@ -318,19 +301,19 @@ std::string markdown_summary(const CheckRun& run) {
   if (n.expected) out += ", " + std::to_string(n.expected) + " expected failure(s)";
   if (n.fixed) out += ", " + std::to_string(n.fixed) + " known deviation(s) now passing";
   if (n.errors) out += ", " + std::to_string(n.errors) + " item(s) not read";
-  out += ". Profile `" + run.profile.name + "`";
+  out += ". Profile " + escape::markdown_code(run.profile.name);
   if (run.device.any()) {
     std::string d;
     for (const std::string& k : {run.device.api, run.device.vendor, run.device.renderer, run.device.driver})
       if (!k.empty()) d += (d.empty() ? "" : ", ") + k;
-    out += ", device " + md(d);
+    out += ", device " + markdown_cell(d);
   }
   out += ".\n\n| item | verdict | first divergent stage | likely cause |\n|---|---|---|---|\n";
   for (const ItemResult& r : run.items) {
     const parity::StageComparison* first = first_divergent(r);
-    out += "| " + md(r.id) + " | " + r.verdict + (r.weak() ? " (weak verdict: " + md(weak_line(r)) + ")" : "") + " | " +
-           (r.parity.first_divergent_stage ? "`" + *r.parity.first_divergent_stage + "`" : "-") +
-           " | " + (first ? md(cause_line(*first)) : !r.error.empty() ? md(r.error) : "-") + " |\n";
+    out += "| " + markdown_cell(r.id) + " | " + markdown_cell(r.verdict) + (r.weak() ? " (weak verdict: " + markdown_cell(weak_line(r)) + ")" : "") + " | " +
+           (r.parity.first_divergent_stage ? escape::markdown_code(*r.parity.first_divergent_stage) : "-") +
+           " | " + (first ? markdown_cell(cause_line(*first)) : !r.error.empty() ? markdown_cell(r.error) : "-") + " |\n";
   }
   return out;
 }

@@ -1,9 +1,18 @@
 #include "check/shaders.h"
 
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cstdlib>
+#include <fstream>
+#include <new>
 #include <string>
 #include <system_error>
 
@@ -11,28 +20,12 @@
 #include "bloomref/gpu/context.h"
 #include "bloomref/gpu/user_pipeline.h"
 #include "bloomref/io.h"
+#include "bloomref/memory_budget.h"
 #include "check/layout.h"
 
 namespace bloomref::cli {
 
 namespace fs = std::filesystem;
-
-ScratchDir::ScratchDir() {
-  static std::atomic<int> counter{0};
-  const char* tmp = std::getenv("TMPDIR");
-  const fs::path base = tmp && *tmp ? fs::path(tmp) : fs::temp_directory_path();
-  path_ = base / ("bloomref-check-" + std::to_string(::getpid()) + "-" +
-                  std::to_string(counter++));
-  std::error_code ec;
-  fs::remove_all(path_, ec);
-  if (!fs::create_directories(path_, ec) || ec)
-    throw InputError(path_.string(), "cannot make a temporary folder: " + ec.message());
-}
-
-ScratchDir::~ScratchDir() {
-  std::error_code ec;
-  fs::remove_all(path_, ec);
-}
 
 namespace {
 
@@ -86,6 +79,165 @@ std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
   const gpu::ContextInfo& d = ctx->info();
   software = d.software;
   return d.renderer + " (" + d.version + ")";
+}
+
+double shader_timeout(int width, int height) {
+  return 120.0 + 20.0 * double(width) * double(height) / 1e6;
+}
+
+std::uint64_t shader_memory(int width, int height, std::uint64_t max_memory) {
+  const std::uint64_t image = std::uint64_t(std::max(width, 1)) * std::uint64_t(std::max(height, 1)) * 16;
+  return std::min<std::uint64_t>(max_memory, (std::uint64_t(1) << 30) + 24 * image);
+}
+
+namespace {
+
+// The child's report through the pipe: fields separated by NUL bytes.
+//   ok      software  renderer
+//   input   file      problem
+//   gl | error | memory | internal   message
+void send(int fd, const std::vector<std::string>& fields) {
+  std::string msg;
+  for (const std::string& f : fields) msg += f + '\0';
+  for (std::size_t off = 0; off < msg.size();) {
+    const ssize_t n = ::write(fd, msg.data() + off, msg.size() - off);
+    if (n <= 0) return;
+    off += static_cast<std::size_t>(n);
+  }
+}
+
+[[noreturn]] void child_main(int fd, const ShaderArgs& s, const std::string& scene_path,
+                             const PipelineOptions& pipeline, const fs::path& dir) {
+  int code = 0;
+  try {
+    bool software = false;
+    const std::string renderer = run_user_shaders(s, scene_path, pipeline, dir, software);
+    send(fd, {"ok", software ? "1" : "0", renderer});
+  } catch (const gpu::GlUnavailable& e) {
+    send(fd, {"gl", e.what()});
+  } catch (const InputError& e) {
+    send(fd, {"input", e.file(), e.problem()});
+  } catch (const Error& e) {
+    send(fd, {"error", e.what()});
+  } catch (const std::bad_alloc&) {
+    send(fd, {"memory", "out of memory"});
+  } catch (const std::exception& e) {
+    send(fd, {"internal", e.what()});
+    code = 4;
+  }
+  ::close(fd);
+  ::_exit(code);  // no destructors, no atexit: the parent owns the folder and the terminal
+}
+
+// Resident bytes of process `pid` (/proc/PID/statm), 0 when unreadable.
+std::uint64_t resident_bytes(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/statm");
+  std::uint64_t size = 0, resident = 0;
+  if (!(f >> size >> resident)) return 0;
+  return resident * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+}
+
+std::string shader_names(const ShaderArgs& s) {
+  std::string out;
+  for (const std::string* f : {&s.bright_fs, &s.blur_vs, &s.blur_fs, &s.final_vs, &s.final_fs})
+    if (!f->empty()) out += (out.empty() ? "" : ", ") + *f;
+  return out;
+}
+
+}  // namespace
+
+std::string run_user_shaders_bounded(const ShaderArgs& s, const std::string& scene_path,
+                                     const PipelineOptions& pipeline, const fs::path& dir,
+                                     bool& software) {
+  int w = 0, h = 0;
+  if (scene_path.empty()) {
+    pipeline.scene_size(w, h);
+  } else {
+    // The scene's size bounds what its passes may use; the child reads it again.
+    std::string source;
+    const LoadedImage scene = pipeline.load_input(scene_path, source);
+    w = scene.image.width();
+    h = scene.image.height();
+  }
+  const std::uint64_t budget = pipeline.max_memory.empty() ? default_memory_budget()
+                                                           : parse_byte_size(pipeline.max_memory, "--max-memory");
+  const std::uint64_t memory = s.max_memory.empty()
+                                   ? shader_memory(w, h, budget)
+                                   : parse_byte_size(s.max_memory, "--shader-memory");
+  const double timeout = s.timeout_s > 0 ? s.timeout_s : shader_timeout(w, h);
+  const std::uint64_t baseline = resident_bytes(::getpid());  // a forked child starts with it
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0) throw Error("cannot make a pipe for the shaders' process");
+  std::fflush(nullptr);
+  const pid_t parent = ::getpid();
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(fds[0]);
+    ::close(fds[1]);
+    throw Error("cannot start a process for the shaders");
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);  // ends with the parent, however it ends
+    if (::getppid() != parent) ::_exit(4);
+    for (int sig : {SIGINT, SIGTERM, SIGHUP}) ::signal(sig, SIG_DFL);  // the parent cleans up
+    child_main(fds[1], s, scene_path, pipeline, dir);
+  }
+  ::close(fds[1]);
+  std::string msg;
+  std::string over;  // why the child was ended
+  const auto t0 = std::chrono::steady_clock::now();
+  std::uint64_t peak = 0;
+  for (bool open = true; open;) {
+    pollfd p{fds[0], POLLIN, 0};
+    const int r = ::poll(&p, 1, 20);
+    if (r > 0) {
+      char buf[4096];
+      const ssize_t n = ::read(fds[0], buf, sizeof buf);
+      if (n > 0) msg.append(buf, static_cast<std::size_t>(n));
+      else if (n == 0 || errno != EINTR) open = false;
+    }
+    peak = std::max(peak, resident_bytes(pid));
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (open && peak > baseline + memory) over = "used more than " + byte_size_text(memory) + " of memory";
+    else if (open && seconds > timeout)
+      over = "ran longer than " + std::to_string(static_cast<long>(timeout)) + " s";
+    if (!over.empty()) {
+      ::kill(pid, SIGKILL);
+      break;
+    }
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!over.empty())
+    throw InputError(shader_names(s),
+                     "compiling and running these shaders " + over +
+                         " (limits: --shader-timeout, --shader-memory); nothing was judged");
+  std::vector<std::string> f;
+  for (std::size_t a = 0, b; a < msg.size(); a = b + 1) {
+    b = msg.find('\0', a);
+    if (b == std::string::npos) break;
+    f.push_back(msg.substr(a, b - a));
+  }
+  if (f.empty()) {
+    const std::string how = WIFSIGNALED(status) ? "was ended by signal " + std::to_string(WTERMSIG(status))
+                                                : "exited with status " + std::to_string(WEXITSTATUS(status));
+    throw InputError(shader_names(s), "the GL driver's process " + how +
+                                          " while compiling or running these shaders; nothing was judged");
+  }
+  if (f[0] == "ok" && f.size() == 3) {
+    software = f[1] == "1";
+    return f[2];
+  }
+  if (f[0] == "gl" && f.size() == 2) throw gpu::GlUnavailable(f[1]);
+  if (f[0] == "input" && f.size() == 3) throw InputError(f[1], f[2]);
+  if (f[0] == "error" && f.size() == 2) throw Error(f[1]);
+  if (f[0] == "memory")
+    throw InputError(shader_names(s), "compiling and running these shaders ran out of memory");
+  throw std::runtime_error(f.size() > 1 ? f[1] : "the shaders' process failed");
 }
 
 }  // namespace bloomref::cli

@@ -2,9 +2,11 @@
 // handed to check as captured stages (docs/check.md, "Your own shaders").
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
+#include "bloomref/output_files.h"
 #include "options.h"
 
 namespace bloomref::cli {
@@ -14,22 +16,15 @@ struct ShaderArgs {
   std::string blur_fs, final_fs, blur_vs, final_vs, bright_fs;
   std::string target_format, filter = "linear", wrap = "clamp-to-edge", final_target = "same";
   std::string layout;  ///< a layout file: the names the shaders use (check/layout.h)
+  /// What running them may cost: seconds of wall time (0: shader_timeout's default) and bytes
+  /// of resident memory (0: shader_memory's default), compiling and linking included.
+  double timeout_s = 0;
+  std::string max_memory;
   bool any() const { return !preset.empty(); }
 };
 
-/// A folder of the process's own under the system temporary folder, removed with its files
-/// when the run ends (normally or by an exception).
-class ScratchDir {
- public:
-  ScratchDir();
-  ~ScratchDir();
-  ScratchDir(const ScratchDir&) = delete;
-  ScratchDir& operator=(const ScratchDir&) = delete;
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
+/// The folder the user's passes are read back into (removed at exit and on SIGINT/SIGTERM).
+using ScratchDir = ScratchFolder;  // bloomref/output_files.h
 
 /// Loads the user's shader files (InputError naming a missing one), runs them on `scene` through
 /// the preset in a headless GL context (GlUnavailable where there is none: exit 3), and writes
@@ -37,6 +32,22 @@ class ScratchDir {
 /// 8-bit final target's output as an 8-bit linear PNG: its codes), named as --dump-stages names
 /// them. Returns a one-line description of the GL device; `software`
 /// says whether it is a software renderer (llvmpipe).
+/// The default time limit of the user's passes: 120 s, and 20 s per million texels of the scene
+/// (a normal run at 1920x1080 on llvmpipe takes a few seconds).
+double shader_timeout(int width, int height);
+
+/// The default memory limit of the user's passes: 1 GiB and 24 float RGBA images of the scene's
+/// size (the targets, the readbacks and the driver's copies), never over --max-memory.
+std::uint64_t shader_memory(int width, int height, std::uint64_t max_memory);
+
+/// run_user_shaders in a child process, watched: one whose resident memory passes the limit or
+/// that runs past the time limit is ended (compiling, linking or drawing), and InputError names
+/// the shaders and the limit (exit 2). What the child throws is thrown here as it was
+/// (GlUnavailable: exit 3). The child ends with this process.
+std::string run_user_shaders_bounded(const ShaderArgs& s, const std::string& scene_path,
+                                     const PipelineOptions& pipeline,
+                                     const std::filesystem::path& dir, bool& software);
+
 std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
                              const PipelineOptions& pipeline, const std::filesystem::path& dir,
                              bool& software);

@@ -32,6 +32,11 @@ Image read_raw(const StageFile& f, int width, int height) {
   const int w = f.width > 0 ? f.width : width, h = f.height > 0 ? f.height : height;
   const int ch = f.channels == ChannelOrder::rgb ? 3 : 4;
   const std::size_t bytes_per = f.format == RawFormat::f16 ? 2 : 4;
+  // The declared size is compared first: nothing is read for a size the stage does not have.
+  if (w != width || h != height)
+    throw InputError(f.path, "is declared " + std::to_string(w) + "x" + std::to_string(h) +
+                                 ", but stage '" + f.stage + "' of this scene is " +
+                                 std::to_string(width) + "x" + std::to_string(height));
   const std::size_t expected = std::size_t(w) * h * ch * bytes_per;
   std::error_code ec;
   const auto size = fs::file_size(f.path, ec);
@@ -131,7 +136,15 @@ LoadedStage load_stage(const StageFile& f, int width, int height) {
     if (!fs::exists(f.path, ec)) throw InputError(f.path, "no such file");
     // R, G and B are judged: alpha is 1 (a PIZ file's is not decoded). InputError naming the
     // file when it is corrupt.
-    out.image = load_image_rgb(f.path).image;
+    // The header's size is compared before any pixel memory is allocated.
+    SizeLimits limits;
+    limits.accept = [&f, width, height](const std::string& path, int w, int h) {
+      if (w != width || h != height)
+        throw InputError(path, "is " + std::to_string(w) + "x" + std::to_string(h) +
+                                   ", but stage '" + f.stage + "' of this scene is " +
+                                   std::to_string(width) + "x" + std::to_string(height));
+    };
+    out.image = load_image_rgb(f.path, limits).image;
     if (enc == Encoding::png_linear || enc == Encoding::png_srgb) out.code_bits = 8;
     if (enc == Encoding::png_srgb) {
       out.srgb = true;

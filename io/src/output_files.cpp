@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -168,6 +169,31 @@ void PendingFile::commit() {
 }
 
 // --- StagedFolder ----------------------------------------------------------------------------
+
+struct ScratchFolder::State {
+  fs::path path;
+  detail::TempRegistration watched;
+};
+
+ScratchFolder::ScratchFolder() : s_(std::make_unique<State>()) {
+  static std::atomic<int> counter{0};
+  const char* tmp = std::getenv("TMPDIR");
+  const fs::path base = tmp && *tmp ? fs::path(tmp) : fs::temp_directory_path();
+  s_->path = base / ("bloomref-scratch-" + std::to_string(::getpid()) + "-" +
+                     std::to_string(counter++));
+  s_->watched = detail::TempRegistration(s_->path, true);  // before it exists
+  std::error_code ec;
+  fs::remove_all(s_->path, ec);
+  if (!fs::create_directories(s_->path, ec) || ec)
+    throw InputError(s_->path.string(), "cannot make a temporary folder: " + ec.message());
+}
+
+ScratchFolder::~ScratchFolder() {
+  std::error_code ec;
+  fs::remove_all(s_->path, ec);
+}
+
+const fs::path& ScratchFolder::path() const { return s_->path; }
 
 struct StagedFolder::State {
   std::string dest, path;

@@ -17,6 +17,7 @@
 //     file is complete before the first is renamed into place.
 #pragma once
 
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -75,6 +76,22 @@ class StagedFolder {
   const std::string& path() const;
   const std::string& destination() const;
   void publish();
+
+ private:
+  struct State;
+  std::unique_ptr<State> s_;
+};
+
+/// A private, flat temporary folder (files only) under TMPDIR or the system's: removed with what
+/// it holds by the destructor, and by the handlers of SIGINT, SIGTERM and SIGHUP (then the
+/// signal ends the process as it would have). For files a command makes and reads back itself.
+class ScratchFolder {
+ public:
+  ScratchFolder();
+  ~ScratchFolder();
+  ScratchFolder(const ScratchFolder&) = delete;
+  ScratchFolder& operator=(const ScratchFolder&) = delete;
+  const std::filesystem::path& path() const;
 
  private:
   struct State;
