@@ -88,7 +88,9 @@ std::string html(std::string_view s) {
 }
 
 std::string url(std::string_view path) {
-  std::string enc = "./";
+  // ':' is encoded, so no scheme can start it; a leading "//" (another host) becomes "/".
+  while (path.size() > 1 && path[0] == '/' && path[1] == '/') path.remove_prefix(1);
+  std::string enc;
   for (unsigned char c : path) {
     const bool keep = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
                       c == '-' || c == '.' || c == '_' || c == '~' || c == '/';

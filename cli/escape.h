@@ -21,7 +21,8 @@ std::string utf8(std::string_view s);
 std::string html(std::string_view s);
 
 /// A relative link to a file named by user text: every byte but A-Z a-z 0-9 - . _ ~ / is
-/// percent-encoded (so ':' cannot start a scheme), then HTML-escaped; "./" is put before it.
+/// percent-encoded (so ':' cannot start a scheme), a leading "//" (another host) made "/", then
+/// HTML-escaped.
 std::string url(std::string_view path);
 
 /// XML 1.0 text and attribute values: & < > " ' as references, tab, newline and carriage return

@@ -163,8 +163,13 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
     StageTrace trace;
     for (const parity::StageComparison& s : r.parity.isolated)
       if (!s.oracle.empty()) trace.stages.push_back({s.stage, read(s.stage).image, 0, false});
-    write_report(report_dir, source, "captured stages: " + (r.stages_from.empty() ? item.id : r.stages_from),
-                 plan, trace, r.parity, "none", item.scratch ? CapturedFiles{} : r.file_of);
+    try {  // the verdict stands, and the other outputs are written, without the report
+      write_report(report_dir, source,
+                   "captured stages: " + (r.stages_from.empty() ? item.id : r.stages_from), plan,
+                   trace, r.parity, "none", item.scratch ? CapturedFiles{} : r.file_of);
+    } catch (const Error& e) {
+      r.report_error = e.what();
+    }
   }
   if (item.scratch) {
     // The passes' readbacks are in a temporary folder, gone at exit: the results name the
@@ -283,7 +288,7 @@ void require_results_fit(const CheckArgs& a, std::size_t listed, std::size_t run
                              std::uint64_t(run) * kResultBytesPerItem;
   if (need > budget)
     throw ParamError(std::to_string(listed) + " items" +
-                     (run != listed ? " (" + std::to_string(run) + " taken here)" : "") +
+                     (run != listed ? run ? " (" + std::to_string(run) + " taken here)" : " (the list alone)" : "") +
                      ": their results need about " + byte_size_text(need) +
                      ", over the memory limit (" + byte_size_text(budget) +
                      ", --max-memory): split the list with --shard K/N");
@@ -417,6 +422,32 @@ void require_destinations(const CheckArgs& a, const std::vector<CheckItem>& item
   }
 }
 
+// Each output is written or fails on its own: a report that could not be written leaves the
+// JSON, JUnit and Markdown to be written, and the other way round. Any failure: exit 6, each
+// named on stderr (and in the JSON's "output_errors", for those before it).
+void write_outputs(const CheckArgs& a, CheckRun& run) {
+  for (const ItemResult& r : run.items)
+    if (!r.report_error.empty())
+      run.output_errors.push_back({"--report", a.report_dir, r.id + ": " + r.report_error});
+  const bool any_before = !run.output_errors.empty();
+  if (any_before) run.exit_code = 6;
+  auto attempt = [&run](const char* option, const std::string& path, auto write) {
+    if (path.empty()) return;
+    try {
+      write();
+    } catch (const std::exception& e) {
+      run.output_errors.push_back({option, path, e.what()});
+      run.exit_code = 6;
+    }
+  };
+  attempt("--json", a.json_path, [&] { save_text(a.json_path, escape::json_text(check_json(run)) + "\n"); });
+  attempt("--junit", a.junit_path, [&] { save_text(a.junit_path, junit_xml(run)); });
+  attempt("--markdown", a.markdown_path, [&] { save_text(a.markdown_path, markdown_summary(run)); });
+  for (const CheckRun::OutputError& e : run.output_errors)
+    std::fprintf(stderr, "bloomref: %s %s was not written: %s\n", e.option.c_str(), e.path.c_str(),
+                 e.why.c_str());
+}
+
 void print_run(const CheckArgs& a, const CheckRun& run, const std::vector<Expectation>& expectations) {
   if (a.quiet) return;
   for (const Expectation& e : expectations)
@@ -506,9 +537,7 @@ CheckRun check_cmd(CheckArgs& a) {
   else if (run.verdict == "NOTHING")
     std::fprintf(stderr, "bloomref: nothing compared: no stage image matched in %s\n",
                  a.manifest.empty() ? a.stages_dir.c_str() : a.manifest.c_str());
-  if (!a.json_path.empty()) save_text(a.json_path, escape::json_text(check_json(run)) + "\n");
-  if (!a.junit_path.empty()) save_text(a.junit_path, junit_xml(run));
-  if (!a.markdown_path.empty()) save_text(a.markdown_path, markdown_summary(run));
+  write_outputs(a, run);
   return run;
 }
 

@@ -181,6 +181,12 @@ ordered_json check_json(const CheckRun& run) {
                        {"warn", n.warn}, {"fail", n.fail}, {"expected_fail", n.expected},
                        {"fixed", n.fixed}, {"errors", n.errors}}},
           {"batch", run.batch},
+          {"output_errors", [&run] {
+             ordered_json e = ordered_json::array();
+             for (const CheckRun::OutputError& o : run.output_errors)
+               e.push_back({{"option", o.option}, {"path", o.path}, {"error", o.why}});
+             return e;
+           }()},
           {"items", items}};
 }
 

@@ -56,6 +56,7 @@ struct ItemResult {
   std::string verdict;                         ///< PASS, WARN, FAIL (after expectations), NOTHING,
                                                ///< or ERROR: the item could not be judged
   std::string error;                           ///< why (ERROR: a missing scene or folder)
+  std::string report_error;                    ///< why --report could not be written for it
   double load_ms = 0, oracle_ms = 0, judge_ms = 0, sensitivity_ms = 0;
   /// What the verdict could have seen (a verdict that does not fail), the bloom gain it had to
   /// see, and what would strengthen it (more captures, or the device's sub-texel bits
@@ -81,6 +82,11 @@ struct CheckRun {
   nlohmann::ordered_json batch;
   std::optional<std::string> expectations_file;
   std::string report_dir;  ///< --report, where the failing stages' images are
+  /// Outputs that could not be written (option, path, why); the others were written.
+  struct OutputError {
+    std::string option, path, why;
+  };
+  std::vector<OutputError> output_errors;
 };
 
 }  // namespace bloomref::cli
