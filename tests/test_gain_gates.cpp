@@ -250,6 +250,33 @@ TEST_CASE("a pass's signed deviation on one lit texel, by hand", "[gain]") {
   CHECK(up[6 * 4] == Approx(kD9[1] * (s.plus + s.minus)).epsilon(1e-5));
 }
 
+TEST_CASE("with float weights the oracle moves too: a device on the other side stays in budget",
+          "[gain]") {
+  // One row, texel 6 of 13 lit with 1, float weights (llvmpipe's profile): the oracle's own
+  // coordinates may put its lookup on 7 up to c right of the centre, picking up c of texel 6,
+  // while the device's lookup on 7 sits c left of it and picks up nothing. Measured on
+  // StarField.exr through a user's shader: GL 0 where the oracle had 6.7e-11 from such a leak,
+  // 37x a tile budget that counted only the device's side. Both sides, by hand: every lookup
+  // may differ from the oracle's by its rise and its fall together.
+  Image img(13, 1, 0.0f);
+  img.pixel(6, 0)[0] = 1.0f;
+  const parity::DeviceProfile v = quiet_profile(0, 0);
+  const double c = 2 * 13 * std::ldexp(1.0, -24) * 9;  // the shift each way, as lookup_shift
+  parity::detail::BlurDeviation dev(img.cview(), Axis::horizontal, kernel_discrete9(), v);
+  REQUIRE(dev.usable());
+  std::vector<float> up(13 * 4), down(13 * 4);
+  dev.rows(0, 1, up.data(), down.data());
+  // Output 7 reads texels 5, 6 and 7 (taps -2, -1, 0): the lookups on 5 and 7 may pick up c of
+  // the lit texel (their rise), the one on 6 lose c (its fall); either may be the oracle's
+  // and the other the device's, so each side's budget is the three together.
+  const double w0 = kD9[0], w1 = kD9[1], w2 = kD9[2];
+  CHECK(down[7 * 4] == Approx((w0 + w1 + w2) * c).epsilon(1e-4));
+  CHECK(up[7 * 4] == Approx(down[7 * 4]).epsilon(1e-6));
+  // The device's shortfall at 7 when the oracle leaked c of texel 6 into its centre tap and
+  // the device leaked none: within the budget's down.
+  CHECK(w0 * c <= down[7 * 4]);
+}
+
 TEST_CASE("clamp-to-edge gives the texels near an edge more or less than their weight",
           "[gain]") {
   // discrete9 on 20 texels: texel 0 is read by output 0's taps -4..0, output 1's -4..-1, ...,

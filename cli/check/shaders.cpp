@@ -51,7 +51,8 @@ gpu::LearnOpenGLShaders load_shaders(const ShaderArgs& s) {
 }  // namespace
 
 std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
-                             const PipelineOptions& pipeline, const fs::path& dir, bool& software) {
+                             const PipelineOptions& pipeline, const fs::path& dir, bool& software,
+                             const std::function<void(int, int)>& on_scene) {
   const gpu::LearnOpenGLShaders shaders = load_shaders(s);
   gpu::UserPipelineOptions opt = gpu::options_for(pipeline.params);
   if (!s.target_format.empty()) opt.format = gpu::parse_target_format(s.target_format);
@@ -61,6 +62,7 @@ std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
   if (!s.layout.empty()) opt.layout = read_layout(s.layout);
   std::string source;
   const LoadedImage scene = pipeline.load_input(scene_path, source);
+  if (on_scene) on_scene(scene.image.width(), scene.image.height());
   auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3
   // Refused shaders (a missing or unknown uniform, a compile error) stop here, before drawing.
   gpu::check_learnopengl(*ctx, shaders, opt);
@@ -111,7 +113,9 @@ void send(int fd, const std::vector<std::string>& fields) {
   int code = 0;
   try {
     bool software = false;
-    const std::string renderer = run_user_shaders(s, scene_path, pipeline, dir, software);
+    const std::string renderer = run_user_shaders(
+        s, scene_path, pipeline, dir, software,
+        [fd](int w, int h) { send(fd, {"size", std::to_string(w), std::to_string(h)}); });
     send(fd, {"ok", software ? "1" : "0", renderer});
   } catch (const gpu::GlUnavailable& e) {
     send(fd, {"gl", e.what()});
@@ -149,22 +153,17 @@ std::string shader_names(const ShaderArgs& s) {
 std::string run_user_shaders_bounded(const ShaderArgs& s, const std::string& scene_path,
                                      const PipelineOptions& pipeline, const fs::path& dir,
                                      bool& software) {
-  int w = 0, h = 0;
-  if (scene_path.empty()) {
-    pipeline.scene_size(w, h);
-  } else {
-    // The scene's size bounds what its passes may use; the child reads it again.
-    std::string source;
-    const LoadedImage scene = pipeline.load_input(scene_path, source);
-    w = scene.image.width();
-    h = scene.image.height();
-  }
-  const std::uint64_t budget = pipeline.max_memory.empty() ? default_memory_budget()
-                                                           : parse_byte_size(pipeline.max_memory, "--max-memory");
-  const std::uint64_t memory = s.max_memory.empty()
-                                   ? shader_memory(w, h, budget)
-                                   : parse_byte_size(s.max_memory, "--shader-memory");
-  const double timeout = s.timeout_s > 0 ? s.timeout_s : shader_timeout(w, h);
+  const std::uint64_t budget = pipeline.max_memory.empty()
+                                   ? default_memory_budget()
+                                   : parse_byte_size(pipeline.max_memory, "--max-memory");
+  // Until the child says the scene's size: the run's memory limit, and the time a scene of the
+  // largest size bloomref reads would be given.
+  std::uint64_t memory = s.max_memory.empty() ? budget : parse_byte_size(s.max_memory, "--shader-memory");
+  double timeout = s.timeout_s > 0 ? s.timeout_s : shader_timeout(65536, 2048);
+  auto limit_by_scene = [&](int w, int h) {
+    if (s.max_memory.empty()) memory = shader_memory(w, h, budget);
+    if (s.timeout_s <= 0) timeout = shader_timeout(w, h);
+  };
   const std::uint64_t baseline = resident_bytes(::getpid());  // a forked child starts with it
   int fds[2];
   if (::pipe2(fds, O_CLOEXEC) != 0) throw Error("cannot make a pipe for the shaders' process");
@@ -188,6 +187,7 @@ std::string run_user_shaders_bounded(const ShaderArgs& s, const std::string& sce
   std::string over;  // why the child was ended
   const auto t0 = std::chrono::steady_clock::now();
   std::uint64_t peak = 0;
+  bool sized = false;
   for (bool open = true; open;) {
     pollfd p{fds[0], POLLIN, 0};
     const int r = ::poll(&p, 1, 20);
@@ -196,6 +196,13 @@ std::string run_user_shaders_bounded(const ShaderArgs& s, const std::string& sce
       const ssize_t n = ::read(fds[0], buf, sizeof buf);
       if (n > 0) msg.append(buf, static_cast<std::size_t>(n));
       else if (n == 0 || errno != EINTR) open = false;
+    }
+    if (!sized && msg.rfind("size", 0) == 0 && std::count(msg.begin(), msg.end(), '\0') >= 3) {
+      const std::size_t a = msg.find('\0') + 1, b = msg.find('\0', a), c = msg.find('\0', b + 1);
+      limit_by_scene(std::atoi(msg.substr(a, b - a).c_str()),
+                     std::atoi(msg.substr(b + 1, c - b - 1).c_str()));
+      msg.erase(0, c + 1);
+      sized = true;
     }
     peak = std::max(peak, resident_bytes(pid));
     const double seconds =

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include "bloomref/output_files.h"
@@ -43,13 +44,17 @@ std::uint64_t shader_memory(int width, int height, std::uint64_t max_memory);
 /// run_user_shaders in a child process, watched: one whose resident memory passes the limit or
 /// that runs past the time limit is ended (compiling, linking or drawing), and InputError names
 /// the shaders and the limit (exit 2). What the child throws is thrown here as it was
-/// (GlUnavailable: exit 3). The child ends with this process.
+/// (GlUnavailable: exit 3). The child ends with this process. It is started before this process
+/// reads any image or starts any thread (a forked child has none of its parent's threads, and
+/// a thread pool started before the fork would wait for them); it reads the scene itself and
+/// sends its size back first, from which the default limits follow.
 std::string run_user_shaders_bounded(const ShaderArgs& s, const std::string& scene_path,
                                      const PipelineOptions& pipeline,
                                      const std::filesystem::path& dir, bool& software);
 
 std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
                              const PipelineOptions& pipeline, const std::filesystem::path& dir,
-                             bool& software);
+                             bool& software,
+                             const std::function<void(int width, int height)>& on_scene = {});
 
 }  // namespace bloomref::cli

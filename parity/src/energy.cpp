@@ -21,7 +21,7 @@ AxisShift lookup_shift(int n, const DeviceProfile& p, double fraction) {
   auto on = [fraction](double q) { return q == 0 || std::floor(fraction / q) * q == fraction; };
   if (fraction >= 0 && on(qd) && on(qo)) {
     const double noise = qo == 0 ? 2 * coords : coords;
-    return {qd + noise, noise};
+    return {qd + noise, noise, qo > 0};
   }
   // Elsewhere the oracle rounds its fraction to the nearest quantum (within qo / 2 either way)
   // and the device truncates (up to qd below) or rounds (qd / 2 either way).
@@ -240,9 +240,11 @@ void BlurDeviation::rows(int y0, int y1, float* up, float* down) const {
     blur_pass_fast(su, ImageView{w, n, w, bu.data()}, {axis_, k, 8}, 1);
     blur_pass_fast(sd, ImageView{w, n, w, bd.data()}, {axis_, k, 8}, 1);
     const std::size_t from = std::size_t(y0 - r0) * row, count = std::size_t(y1 - y0) * row;
+    const bool exact = along_.exact_reference && across_.exact_reference;
     for (std::size_t i = 0; i < count; ++i) {
-      up[i] = static_cast<float>(bu[from + i] * (1 + 0x1p-18));
-      down[i] = static_cast<float>(bd[from + i] * (1 + 0x1p-18));
+      const double u = bu[from + i] * (1 + 0x1p-18), d = bd[from + i] * (1 + 0x1p-18);
+      up[i] = static_cast<float>(exact ? u : (u + d) * (1 + 0x1p-23));
+      down[i] = static_cast<float>(exact ? d : (u + d) * (1 + 0x1p-23));
     }
     return;
   }
@@ -256,9 +258,10 @@ void BlurDeviation::rows(int y0, int y1, float* up, float* down) const {
         for (std::size_t k = 0; k < offsets_.size(); ++k) {
           float u[3], d[3];
           deviation(x, y, (hz ? x : y) + offsets_[k], tap_shift_[k], u, d);
+          const bool exact = tap_shift_[k].exact_reference && across_.exact_reference;
           for (int c = 0; c < 3; ++c) {
-            acc_up[out + c] += weights_[k] * u[c];
-            acc_dn[out + c] += weights_[k] * d[c];
+            acc_up[out + c] += weights_[k] * (exact ? u[c] : double(u[c]) + d[c]);
+            acc_dn[out + c] += weights_[k] * (exact ? d[c] : double(u[c]) + d[c]);
           }
         }
       }

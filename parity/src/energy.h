@@ -30,6 +30,11 @@ namespace bloomref::parity::detail {
 /// (tolerance.h).
 struct AxisShift {
   double minus = 0, plus = 0;
+  /// The oracle's own lookup sits exactly at the reference position (a fraction on its weight
+  /// grid, weights quantized): the device's deviation from it is one-sided as the shifts say.
+  /// Otherwise the oracle itself moves within the shifts too, and a device below it may be as
+  /// far as the rise and the fall together (BlurDeviation makes up and down their sum).
+  bool exact_reference = false;
   double most() const { return minus > plus ? minus : plus; }
 };
 AxisShift lookup_shift(int n, const DeviceProfile& p, double fraction);
