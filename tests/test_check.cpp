@@ -228,6 +228,79 @@ TEST_CASE("a blur pass with a wrong weight fails there, the weights are fitted",
   CHECK(s.causes.front().detail.find("0.25") != std::string::npos);
 }
 
+// A discrete9 pass with its taps k texels apart along its axis (bilinear, clamped): a pass
+// reading the texel size of the other axis or of another level.
+Image blur_spaced(const Image& src, double k, bool vertical) {
+  Image out(src.width(), src.height());
+  for (int y = 0; y < src.height(); ++y)
+    for (int x = 0; x < src.width(); ++x) {
+      double r[3] = {0, 0, 0}, t[3];
+      for (int i = -4; i <= 4; ++i) {
+        bilinear(src, x + (vertical ? 0 : i * k), y + (vertical ? i * k : 0), t);
+        for (int c = 0; c < 3; ++c) r[c] += kD9[std::abs(i)] * t[c];
+      }
+      float* o = out.pixel(x, y);
+      for (int c = 0; c < 3; ++c) o[c] = static_cast<float>(r[c]);
+      o[3] = 1;
+    }
+  return out;
+}
+
+TEST_CASE("tap spacing and a weight sum are fitted and named before fitted weights", "[check]") {
+  // The LearnOpenGL blur with its vertical pass offset by the x texel size (a bug seen by new
+  // users: vec2(0.0, tex_offset.x * i)) on a non-square image: five fitted weights absorb it
+  // too, so the one-parameter cause must win on merit and the weights read as a description.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  struct Case {
+    const char* name;
+    double spacing, gain;
+    bool vertical;
+    const char* cause;
+    const char* detail;
+  };
+  for (const Case c : {Case{"blur.2", double(kH) / kW, 1, true, "anisotropic-blur", "1 / width where 1 / height"},
+                       Case{"blur.3", 2.0, 1, false, "tap-spacing", "taps 2x as far apart on x"},
+                       Case{"blur.3", 1.0, 1.07, false, "weight-sum", "sum to 1.07"}}) {
+    auto user = trace_of(p, scene);
+    const std::string prev = c.name == std::string("blur.2") ? "blur.1" : "blur.2";
+    if (c.gain != 1) {
+      double w[5];
+      for (int i = 0; i < 5; ++i) w[i] = kD9[i] * c.gain;
+      user[c.name] = blur_h(user[prev], w, 'c', 0, c.vertical);
+    } else {
+      user[c.name] = blur_spaced(user[prev], c.spacing, c.vertical);
+    }
+    const auto r = check(p, scene, user);
+    INFO(c.cause);
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == c.name);
+    const auto& s = stage(r, c.name);
+    REQUIRE(best_cause(s) == c.cause);
+    CHECK(s.causes.front().likely());
+    CHECK(s.causes.front().params == 1);
+    CHECK(s.causes.front().detail.find(c.detail) != std::string::npos);
+    for (std::size_t i = 1; i < s.causes.size(); ++i)
+      if (s.causes[i].id == "wrong-weights")
+        CHECK(s.causes[i].description.find("description") != std::string::npos);
+  }
+}
+
+TEST_CASE("a bug no hypothesis covers is not named as a likely cause", "[check]") {
+  // An overlay drawn into one pass (a 5x5 patch of 0.3 added): no usual cause explains it.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  auto user = trace_of(p, scene);
+  for (int y = 20; y < 25; ++y)
+    for (int x = 5; x < 10; ++x)
+      for (int c = 0; c < 3; ++c) user["blur.3"].pixel(x, y)[c] += 0.3f;
+  const auto r = check(p, scene, user);
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "blur.3");
+  const auto& s = stage(r, "blur.3");
+  for (const parity::CauseFit& c : s.causes) CHECK_FALSE(c.likely());
+}
+
 TEST_CASE("sampling bugs in a blur pass are named", "[check]") {
   const Image scene = test_scene();
   const BloomParams p = test_params();

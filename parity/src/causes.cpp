@@ -41,6 +41,9 @@ struct Hypothesis {
   int gamma_times = 1;
   bool pow_negative = false;  // gamma as pow(x, 1 / gamma) without max(x, 0): NaN below 0
   float gamma = 0.0f;         // another gamma (fitted); 0: the plan's
+  float spacing = 1.0f;       // the target pass's taps this many times as far apart (fitted)
+  float target_gain = 1.0f;   // the target stage's output times this (fitted)
+  int params = 0;             // how many numbers were fitted to the capture
   bool sampled() const { return !sampling.is_default(); }
 };
 
@@ -52,7 +55,8 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
     case StageKind::bright: return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold);
     case StageKind::blur:
       return h.sampled() || h.kernel || h.clamp_blur ||
-             (is_target && (!h.weights.empty() || h.stale || h.along_x)) || h.f16;
+             (is_target && (!h.weights.empty() || h.stale || h.along_x || h.spacing != 1.0f)) ||
+             h.f16;
     case StageKind::down: return h.sampled() || h.ge || h.f16;
     case StageKind::up:
     case StageKind::bloom: return h.sampled() || h.f16;
@@ -72,6 +76,9 @@ class Evaluator {
 
   Image target() {
     Image out = compute(target_, true);
+    if (h_.target_gain != 1.0f)
+      for (std::size_t i = 0; i < out.values().size(); ++i)
+        if (i % kChannels != 3) out.data()[i] *= h_.target_gain;
     if (h_.f16) store(out.view(), Storage::f16, ctx_.rounding, ctx_.threads);
     if (h_.flip) flip_vertically(out);
     if (h_.swap_rb) swap_red_blue(out);
@@ -200,6 +207,16 @@ class Evaluator {
           plain.subtexel_bits = ctx_.profile.subtexel_bits;
           blur_pass_variant(in[0], out.view(), Axis::horizontal, k.offsets_f32, k.weights_f32, plain,
                             threads, 1.0f / static_cast<float>(in[0].height));
+          return out;
+        }
+        if (is_target && h_.spacing != 1.0f) {
+          const Kernel& k = kernel_for(p_.kernel);
+          Image out(in[0].width, in[0].height);
+          Sampling plain;
+          plain.subtexel_bits = ctx_.profile.subtexel_bits;
+          const int n = spec.axis == Axis::horizontal ? in[0].width : in[0].height;
+          blur_pass_variant(in[0], out.view(), spec.axis, k.offsets_f32, k.weights_f32, plain,
+                            threads, h_.spacing / static_cast<float>(n));
           return out;
         }
         Image out = blur(in[0], spec.axis, true);
@@ -455,6 +472,83 @@ std::optional<std::pair<float, float>> fit_threshold(const CauseContext& ctx, co
   return std::pair<float, float>(dark, kept);
 }
 
+// Sum of squared differences between `a` and `b` over finite RGB values.
+double squared_residual(ConstImageView a, ConstImageView b) {
+  double r = 0;
+  for (int y = 0; y < a.height; ++y)
+    for (int x = 0; x < a.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double d = double(a.pixel(x, y)[c]) - b.pixel(x, y)[c];
+        if (std::isfinite(d)) r += d * d;
+      }
+  return r;
+}
+
+// The factor k by which the target pass's taps are spaced (texel step k / n along its axis)
+// that best explains the capture, by least squares: the likely values first (the other axis's
+// texel size, as a pass reading the other texture's size or the wrong component takes it;
+// twice, half), then refined by golden-section search around the best. Nothing when it is 1
+// within 0.2% or nothing fits better than the specified spacing.
+std::optional<float> fit_spacing(const CauseContext& ctx, const StageSpec& target, int threads) {
+  if (target.kind != StageKind::blur) return std::nullopt;
+  const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]), user = ctx.view(target.name);
+  if (!src.data || !user.data || user.width != src.width || user.height != src.height)
+    return std::nullopt;
+  const Kernel& k = kernel_for(ctx.plan.params.kernel);
+  Sampling plain;
+  plain.subtexel_bits = ctx.profile.subtexel_bits;
+  const bool hz = target.axis == Axis::horizontal;
+  const int n = hz ? src.width : src.height, other = hz ? src.height : src.width;
+  Image out(src.width, src.height);
+  auto cost = [&](double f) {
+    blur_pass_variant(src, out.view(), target.axis, k.offsets_f32, k.weights_f32, plain, threads,
+                      static_cast<float>(f / n));
+    return squared_residual(out.cview(), user);
+  };
+  const double specified = cost(1.0);
+  double best = 1.0, best_cost = specified;
+  for (double f : {double(n) / other, double(other) / n, 2.0, 0.5, 1.5, 0.75, 3.0}) {
+    if (std::fabs(f - 1) < 0.02 || f < 0.1 || f > 8) continue;
+    const double c = cost(f);
+    if (c < best_cost) best = f, best_cost = c;
+  }
+  if (best == 1.0) return std::nullopt;
+  double lo = best / 1.25, hi = best * 1.25;
+  const double g = (std::sqrt(5.0) - 1) / 2;
+  double a = hi - g * (hi - lo), b = lo + g * (hi - lo), ca = cost(a), cb = cost(b);
+  for (int i = 0; i < 14; ++i) {
+    if (ca < cb) hi = b, b = a, cb = ca, a = hi - g * (hi - lo), ca = cost(a);
+    else lo = a, a = b, ca = cb, b = lo + g * (hi - lo), cb = cost(b);
+  }
+  const double fit = ca < cb ? a : b, fit_cost = std::min(ca, cb);
+  const double f = fit_cost < best_cost ? fit : best;
+  // A fitted spacing on the other axis's texel size is that size, not a near miss of it.
+  for (double snap : {double(n) / other, double(other) / n, 2.0, 0.5})
+    if (std::fabs(f / snap - 1) < 0.002) return static_cast<float>(snap);
+  if (std::fabs(f - 1) < 0.002) return std::nullopt;
+  return static_cast<float>(f);
+}
+
+// The gain g of the target stage's output against the isolated oracle's (least squares over
+// finite RGB values): a blur whose weights sum to g, an upsample that adds g times a level.
+std::optional<float> fit_gain(ConstImageView user, ConstImageView oracle) {
+  if (!user.data || !oracle.data || user.width != oracle.width || user.height != oracle.height)
+    return std::nullopt;
+  double num = 0, den = 0;
+  for (int y = 0; y < user.height; ++y)
+    for (int x = 0; x < user.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double u = user.pixel(x, y)[c], o = oracle.pixel(x, y)[c];
+        if (!std::isfinite(u) || !std::isfinite(o)) continue;
+        num += u * o;
+        den += o * o;
+      }
+  if (!(den > 0)) return std::nullopt;
+  const double g = num / den;
+  if (!std::isfinite(g) || g <= 0 || std::fabs(g - 1) < 1e-4) return std::nullopt;
+  return static_cast<float>(g);
+}
+
 std::string weights_text(const std::vector<float>& w) {
   std::string s = "{";
   double sum = 0;
@@ -548,6 +642,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       Hypothesis* h = add("bloom-scaled",
                           "bloom scaled (blur weights not summing to 1, or another strength)");
       h->strength_scale = *k;
+      h->params = 1;
       char b[96];
       std::snprintf(b, sizeof b, "the bloom fits best scaled by %.6g", *k);
       h->detail = b;
@@ -555,6 +650,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   if (const auto t = fit_threshold(ctx, target)) {
     Hypothesis* h = add("threshold-other", "another threshold");
     h->threshold = t->first;
+    h->params = 1;
     char b[160];
     std::snprintf(b, sizeof b,
                   "the bright mask fits a threshold from %.6g up to %.6g (specified %.6g)",
@@ -564,9 +660,47 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   if (const auto g = fit_gamma(ctx, target)) {
     Hypothesis* h = add("gamma-other", "another gamma");
     h->gamma = *g;
+    h->params = 1;
     char b[96];
     std::snprintf(b, sizeof b, "the output fits gamma %.4g (specified %.4g)", *g, double(p.gamma));
     h->detail = b;
+  }
+  if (target.kind == StageKind::blur)
+    if (const auto f = fit_spacing(ctx, target, ctx.threads)) {
+      const bool hz = target.axis == Axis::horizontal;
+      const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]);
+      const int n = hz ? src.width : src.height, other = hz ? src.height : src.width;
+      const bool other_axis = *f == static_cast<float>(double(n) / other) && n != other;
+      Hypothesis* h = add(other_axis ? "anisotropic-blur" : "tap-spacing",
+                          other_axis ? "the pass's taps spaced by the other axis's texel size"
+                                     : "taps spaced another distance apart");
+      h->spacing = *f;
+      h->params = 1;
+      char b[200];
+      std::snprintf(b, sizeof b, "taps %.3gx as far apart on %s%s", double(*f), hz ? "x" : "y",
+                    other_axis ? (hz ? " (1 / height where 1 / width was meant)"
+                                     : " (1 / width where 1 / height was meant)")
+                               : *f == 2.0f || *f == 0.5f ? " (the texel size of another level?)" : "");
+      h->detail = b;
+    }
+  if (target.kind == StageKind::blur || target.kind == StageKind::up) {
+    Hypothesis none;
+    Image oracle;
+    try {
+      oracle = Evaluator(ctx, none, target).target();
+    } catch (const NotApplicable&) {
+    }
+    if (const auto g = oracle.width() ? fit_gain(ctx.view(target.name), oracle.cview()) : std::nullopt) {
+      const bool blur = target.kind == StageKind::blur;
+      Hypothesis* h = add(blur ? "weight-sum" : "upsample-gain",
+                          blur ? "blur weights not summing to 1" : "an upsample whose gain is not 1");
+      h->target_gain = *g;
+      h->params = 1;
+      char b[160];
+      std::snprintf(b, sizeof b, blur ? "the weights sum to %.4g: each pass scales the bloom by it"
+                                      : "the level fits %.4g times the oracle's", double(*g));
+      h->detail = b;
+    }
   }
   if (target.kind == StageKind::blur) {
     const Kernel& k = kernel_for(p.kernel);
@@ -574,6 +708,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     if (auto w = !src.data ? std::nullopt : fit_weights(src, ctx.view(target.name), target.axis, k, ctx.profile.subtexel_bits)) {
       Hypothesis* h = add("wrong-weights", "wrong kernel weights");
       h->weights = *w;
+      h->params = static_cast<int>(w->size());
       h->detail = "fitted weights " + weights_text(*w) + "; specified " + weights_text(k.weights_f32);
     }
   }
@@ -600,13 +735,21 @@ std::vector<CauseFit> test_causes(const CauseContext& ctx, const StageSpec& targ
     // Two hypotheses of one id (the half-texel shift's two signs): keep the better.
     auto same = std::find_if(fits.begin(), fits.end(), [&](const CauseFit& c) { return c.id == h.id; });
     if (same != fits.end()) {
-      if (f > same->within) *same = {h.id, h.description, h.detail, f, oracle_within};
+      if (f > same->within) *same = {h.id, h.description, h.detail, f, oracle_within, h.params};
       continue;
     }
-    fits.push_back({h.id, h.description, h.detail, f, oracle_within});
+    fits.push_back({h.id, h.description, h.detail, f, oracle_within, h.params});
   }
+  // Ranked by what they explain less 0.2% of the values per fitted parameter: five fitted
+  // weights absorb any symmetric change of kernel, so a one-parameter cause (a tap spacing, a
+  // gain) that explains about as much is named before them.
+  auto score = [](const CauseFit& c) { return c.within - 0.002 * c.params; };
   std::stable_sort(fits.begin(), fits.end(),
-                   [](const CauseFit& a, const CauseFit& b) { return a.within > b.within; });
+                   [&](const CauseFit& a, const CauseFit& b) { return score(a) > score(b); });
+  // A flexible fit behind a simpler cause describes the capture rather than explaining it.
+  for (std::size_t i = 1; i < fits.size(); ++i)
+    if (fits[i].id == "wrong-weights")
+      fits[i].description = "the pass acts as a kernel of other weights (a description)";
   return fits;
 }
 

@@ -54,6 +54,11 @@ struct CauseFit {
   /// hypothesis's own rounding: captured.cpp says how much).
   double within = 0;
   double oracle_within = 0;  ///< the same measure of the oracle as specified
+  /// Parameters fitted to the capture (0 for a fixed change such as a flip, 1 for a fitted
+  /// spacing or gain, 5 for discrete9's weights): causes are ranked by the fraction within
+  /// bound less 0.2% per parameter, so that a flexible fit loses to a simpler cause that
+  /// explains about as much.
+  int params = 0;
   /// Whether it explains the failure (a "likely cause"): at most 0.1% of all values left out of
   /// bound, and at most a tenth of those the oracle as specified leaves out. Otherwise it is a
   /// partial explanation (test_causes keeps none that brings in less than a tenth of them).
