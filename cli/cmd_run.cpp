@@ -28,6 +28,7 @@ struct RunArgs {
   std::string backend = "cpu";
   std::string gl_shaders = "fragment";
   std::string dump_dir;
+  std::string dump_compression = "zip";
   std::string json_path;
   bool quiet = false;
   int repeat = 1;
@@ -161,7 +162,7 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
   if (!a.dump_dir.empty())
     for (const StageResult& s : trace.stages)
       outs.write_image((fs::path(a.dump_dir) / (s.name + ".exr")).string(), s.image.cview(),
-                       windows);
+                       windows, parse_exr_compression(a.dump_compression, "--dump-compression"));
   if (!a.json_path.empty()) {
     nlohmann::ordered_json j = run_json(plan, trace);
     if (a.backend == "gl") j["renderer"] = renderer;
@@ -192,6 +193,11 @@ std::function<int()> add_run(CLI::App& app) {
   sub->add_option("--gl-shaders", args->gl_shaders, "fragment | compute (GL backend)")
       ->capture_default_str();
   sub->add_option("--dump-stages", args->dump_dir, "write DIR/<stage>.exr for every stage");
+  sub->add_option("--dump-compression", args->dump_compression,
+                  "--dump-stages files: zip (read fastest by check at their size) | piz (smaller "
+                  "on grainy images) | none (fastest, 16 bytes a texel)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"zip", "piz", "none"}));
   sub->add_option("--json", args->json_path, "write parameters, timings and counts as JSON");
   sub->add_flag("-q,--quiet", args->quiet, "print nothing on success");
   sub->add_option("--repeat", args->repeat,

@@ -329,6 +329,13 @@ std::string cause_line(const parity::StageComparison& s) {
                      c.description + " (brings " + percent(c.within) +
                      " of values within bound; as specified " + percent(c.oracle_within) + ")";
   if (!c.detail.empty()) line += "; " + c.detail;
+  // Another cause that explains as much is said too: the captures cannot tell them apart.
+  for (std::size_t i = 1; i < s.causes.size(); ++i) {
+    const parity::CauseFit& o = s.causes[i];
+    if (o.id == c.id || !o.likely() || o.within < c.within - 0.0005) continue;
+    line += "; as likely: " + o.description + (o.detail.empty() ? "" : " (" + o.detail + ")");
+    break;
+  }
   return line;
 }
 

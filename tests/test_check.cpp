@@ -524,6 +524,78 @@ TEST_CASE("a pass too few or too many, a scaled bloom, f16 storage are named", "
   }
 }
 
+TEST_CASE("composite bugs real projects shipped are named, the mix amount fitted", "[check]") {
+  // bugs.md: composite by mix where add was meant (LearnOpenGL's mip-chain article blends
+  // mix(scene, bloom, 0.04)), the bloom term zeroed by an unset uniform, one input flipped by a
+  // render-target convention, exposure applied to the bloom twice. Written here from the
+  // trace's input and bloom images.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto t = trace_of(p, scene);
+  const Image& in = t.at("input");
+  const Image& bloom = t.at("blur.4");
+  auto combine = [&](const std::function<float(float, float)>& f, bool flip_bloom) {
+    Image b = bloom;
+    if (flip_bloom) flip(b);
+    Image out(in.width(), in.height());
+    for (int y = 0; y < in.height(); ++y)
+      for (int x = 0; x < in.width(); ++x) {
+        for (int c = 0; c < 3; ++c) out.pixel(x, y)[c] = f(in.pixel(x, y)[c], b.pixel(x, y)[c]);
+        out.pixel(x, y)[3] = 1;
+      }
+    return out;
+  };
+  BloomParams twice = p;
+  twice.strength = p.exposure;  // the bloom weighted by the exposure, the tone map applies it again
+  struct Case {
+    const char* cause;
+    std::string stage;
+    Image image;
+    const char* detail;
+  };
+  const Case cases[] = {
+      {"composite-mode", "composite", combine([](float s, float b) { return s + 0.04f * (b - s); }, false), "a = 0.04"},
+      {"bloom-zeroed", "composite", combine([](float s, float) { return s; }, false), ""},
+      {"one-input-flipped", "composite", combine([](float s, float b) { return s + b; }, true), ""},
+      {"exposure-twice", "output", trace_of(twice, scene).at("output"), "1.5"}};
+  for (const Case& c : cases) {
+    INFO(c.cause);
+    const auto r = check(p, scene, {{c.stage, c.image}});
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == c.stage);
+    const auto& s = stage(r, c.stage);
+    REQUIRE(best_cause(s) == c.cause);
+    CHECK(s.causes.front().likely());
+    CHECK(s.causes.front().detail.find(c.detail) != std::string::npos);
+  }
+}
+
+TEST_CASE("stages stored in 8-bit targets are named", "[check]") {
+  // Every stage written to an RGBA8 target: clamped to [0, 1] and rounded to 255ths, written
+  // out here (the bright image, then the first pass over it). With blur.1 alone captured, the
+  // clamp without the rounding (blur-clamped) explains part of it, not all.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto t = trace_of(p, scene);
+  auto unorm8 = [](Image img) {
+    for (std::size_t i = 0; i < img.values().size(); ++i)
+      if (i % 4 != 3)
+        img.data()[i] = static_cast<float>(
+            std::floor(std::min(std::max(double(img.data()[i]), 0.0), 1.0) * 255 + 0.5) / 255);
+    return img;
+  };
+  const Image bright8 = unorm8(t.at("bright"));
+  const auto r = check(p, scene, {{"blur.1", unorm8(blur_h(bright8, kD9, 'c'))}});
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "blur.1");
+  std::string seen;
+  for (const parity::CauseFit& c : stage(r, "blur.1").causes)
+    seen += c.id + " " + std::to_string(c.within) + "; ";
+  INFO(seen);
+  CHECK(best_cause(stage(r, "blur.1")) == "rgba8-storage");
+  CHECK(stage(r, "blur.1").causes.front().likely());
+}
+
 TEST_CASE("the variants with nothing changed give the reference stages' bits", "[check]") {
   const Image scene = test_scene();
   const BloomParams p = test_params();

@@ -94,6 +94,16 @@ TEST_CASE("compare's injected faults are named as their cause", "[gl][check]") {
                 s->causes.empty() ? 0.0 : s->causes.front().within, s->within());
     INFO(fault.name);
     if (fault.fault != gpu::Fault::f16_storage) CHECK(*r.first_divergent_stage == fault.stage);
+    if (fault.fault == gpu::Fault::weight_0_1pct) {
+      // weight[1] 0.1% too large makes the weights sum to 1.0004: a gain of the pass explains
+      // every value as well as the fitted weights do, and with one parameter instead of five it
+      // comes first; the weights are said beside it.
+      CHECK((named == "weight-sum" || named == "wrong-weights"));
+      bool both = false;
+      for (const parity::CauseFit& c : s->causes) both |= c.id == "wrong-weights" && c.likely();
+      CHECK(both);
+      continue;
+    }
     CHECK(named == cause.at(fault.name));
   }
 }

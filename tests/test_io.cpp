@@ -725,8 +725,7 @@ TEST_CASE("EXR files of every lossless compression, half or float, read the valu
   // RenderDoc's half EXR saves are); or those and Z beside them. Distinct values per channel, a
   // data window off the origin and lines in decreasing order, so that a value read into the
   // wrong texel, channel or row shows. A sparse image (zeros but one row) and a dense one. Files go
-  // to OpenEXRCore, to bloomref's PIZ reader or to the C++ reader (io_exr.cpp): every one must
-  // give the values written.
+  // to OpenEXRCore or to the C++ reader (io_exr.cpp): every one must give the values written.
   TempDir dir;
   const int w = 67, h = 45, x0 = -3, y0 = 5;
   bool piz_packed = false, piz_raw = false;
@@ -800,7 +799,7 @@ TEST_CASE("EXR files of every lossless compression, half or float, read the valu
             }
         CHECK(wrong == 0);
         // load_image_rgb (check's stage images): the same R, G and B, alpha 1 whatever the
-        // file holds (PIZ's and the core's alpha not decoded, Z read past).
+        // file holds (Z read past).
         const LoadedImage rgb = load_image_rgb(path);
         CHECK(rgb.info.has_alpha == alpha);
         int wrong_rgb = 0;

@@ -76,7 +76,8 @@ std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
     if (st.name == "output" && run.output_code_bits == 8)
       save_png((dir / "output.png").string(), st.image.cview());  // codes / 255: exact
     else
-      save_exr((dir / (st.name + ".exr")).string(), st.image.cview());
+      save_exr((dir / (st.name + ".exr")).string(), st.image.cview(), nullptr,
+               ExrCompression::none);  // read back at once, never kept
   }
   const gpu::ContextInfo& d = ctx->info();
   software = d.software;

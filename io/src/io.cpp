@@ -102,9 +102,19 @@ LoadedImage load_image_rgb(const std::string& path, const SizeLimits& limits) {
   return load(path, limits, true);
 }
 
-void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows) {
+void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows,
+              ExrCompression compression) {
   require_pixels(path, img);
-  write_atomically(path, [&](std::FILE* f) { detail::write_exr_stream(f, path, img, windows); });
+  write_atomically(path, [&](std::FILE* f) {
+    detail::write_exr_stream(f, path, img, windows, compression);
+  });
+}
+
+ExrCompression parse_exr_compression(const std::string& name, const std::string& option) {
+  if (name == "piz") return ExrCompression::piz;
+  if (name == "zip") return ExrCompression::zip;
+  if (name == "none") return ExrCompression::none;
+  throw ParamError(option + " '" + name + "' is not one of: zip, piz, none");
 }
 
 void save_png(const std::string& path, ConstImageView img) {
@@ -167,14 +177,15 @@ void write_pending(PendingFile& file, const std::function<void(std::FILE*)>& wri
     throw InputError(path, std::string("cannot write: ") + std::strerror(failed ? e : errno));
 }
 
-void write_image_pending(PendingFile& file, ConstImageView img, const ImageInfo* windows) {
+void write_image_pending(PendingFile& file, ConstImageView img, const ImageInfo* windows,
+                         ExrCompression compression) {
   const std::string& path = file.destination();
   const std::string e = lower_extension(path);
   if (e != ".exr" && e != ".png")
     throw InputError(path, "cannot write '" + e + "' files: the output must end in .exr or .png");
   require_pixels(path, img);
   write_pending(file, [&](std::FILE* f) {
-    if (e == ".exr") write_exr_stream(f, path, img, windows);
+    if (e == ".exr") write_exr_stream(f, path, img, windows, compression);
     else write_png_stream(f, img);
   });
 }

@@ -30,8 +30,6 @@
 #include <vector>
 
 #include "bloomref/error.h"
-#include "huffman.h"
-#include "wavelet.h"
 #include "io_internal.h"
 
 namespace bloomref {
@@ -291,203 +289,34 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
   return true;
 }
 
-// PIZ, read through bloomref's own Huffman and wavelet decoders (huffman.h: OpenEXR's looks
-// codes of more than 12 bits up length by length, and those are most of a FLOAT stage's;
-// wavelet.h: its finest level 8 words at a time), with each decoded chunk put into the image
-// directly: OpenEXR's C++ reader would copy it value by value through its generic loop. A PIZ
-// chunk (OpenEXR's PizCompressor; "OpenEXR File Layout", PIZ) holds the byte range [lo, hi] of a 65536-bit bitmap of the 16-bit words that occur, that range, the length
-// of the Huffman-coded data and the data. Decoded, it is the channels one after another (in the
-// file's order), each a block of its rows with every value's 16-bit words side by side (one for
-// HALF, two for FLOAT and UINT, the low word first), each word position wavelet-coded on its
-// own, every word an index into the words the bitmap holds. A chunk no smaller than its raw
-// size is stored raw: line after line, each the channels' values in turn, little-endian.
-
-/// A channel of a PIZ file: 16-bit words per value, where it goes in a pixel (-1: skipped).
-struct WordChannel {
-  int words = 2;
-  int at = -1;
-  bool half = false;
-};
-
-struct PizScratch {
-  std::vector<std::uint8_t> packed;
-  std::vector<std::uint16_t> words, lut;
-  HufScratch huf;
-};
-
-/// Decodes the PIZ chunk in[0, n) of `lines` rows of `width` into s.words (channel blocks, as
-/// above), each word still its index into s.lut. False where the chunk is inconsistent;
-/// OpenEXR's decoders throw on corrupt data.
-bool piz_words(const std::uint8_t* in, std::size_t n, const std::vector<WordChannel>& channels,
-               int width, int lines, std::size_t total, PizScratch& s) {
-  constexpr std::size_t kBitmapBytes = 65536 / 8;
-  const auto u16 = [in](std::size_t at) { return unsigned(in[at]) | unsigned(in[at + 1]) << 8; };
-  if (n < 4) return false;
-  const unsigned lo = u16(0), hi = u16(2);
-  std::size_t at = 4;
-  std::array<std::uint8_t, kBitmapBytes> bitmap{};
-  if (lo <= hi) {
-    if (hi >= kBitmapBytes || n - at < hi - lo + 1) return false;
-    std::memcpy(bitmap.data() + lo, in + at, hi - lo + 1);
-    at += hi - lo + 1;
-  }
-  // Index k of the decoded words stands for the k-th word the bitmap holds (0 always); indices
-  // past the last (corrupt data) for 0.
-  s.lut.assign(65536, 0);
-  unsigned k = 1;
-  for (unsigned byte = lo; byte <= hi && byte < kBitmapBytes; ++byte)
-    for (unsigned bit = 0, b = bitmap[byte]; b; ++bit, b >>= 1)
-      if ((b & 1) && (byte != 0 || bit != 0))
-        s.lut[k++] = static_cast<std::uint16_t>(byte * 8 + bit);
-  const auto max_index = static_cast<std::uint16_t>(k - 1);
-  if (n - at < 4) return false;
-  const std::uint32_t length = u16(at) | std::uint32_t(u16(at + 2)) << 16;
-  at += 4;
-  if (length > n - at || length > std::uint32_t(INT32_MAX) || total > std::size_t(INT32_MAX))
-    return false;
-  s.words.resize(total);
-  if (!huf_decode(in + at, length, s.words.data(), total, s.huf)) return false;
-  std::size_t start = 0;
-  for (const WordChannel& c : channels) {  // a channel read past needs no wavelet
-    if (c.at >= 0) wavelet_decode_block(s.words.data() + start, width, c.words, lines, max_index);
-    start += std::size_t(c.words) * width * lines;
-  }
-  return true;
-}
-
-/// The channels R, G, B and A of a file fast_reader gives to read_piz, into `img` (the data
-/// window's size), the chunks decoded on as many threads as exr_threads' pool has; without
-/// `alpha`, A is read past (not decoded) and alpha is 1. False, with `img` in any state, when a
-/// chunk cannot be decoded: the C++ reader then reads the file and reports the problem in its
-/// words.
-bool read_piz(const std::string& path, bool alpha, Image& img) {
-  exr_context_t ctxt = open_silently(path);
-  if (!ctxt) return false;
-  exr_attr_box2i_t dw{};
-  int32_t lines = 0, chunks = 0;
-  const exr_attr_chlist_t* list = nullptr;
-  bool ok = chunk_layout(ctxt, img, dw, lines, chunks) &&
-            exr_get_channels(ctxt, 0, &list) == EXR_ERR_SUCCESS && list;
-  std::vector<WordChannel> channels;
-  int words = 0;  // per pixel, every channel
-  for (int i = 0; ok && i < list->num_channels; ++i) {
-    const exr_attr_chlist_entry_t& e = list->entries[i];
-    const bool half = e.pixel_type == EXR_PIXEL_HALF;
-    channels.push_back({half ? 1 : 2, placed_index(e.name.str, alpha), half});
-    words += channels.back().words;
-    ok = e.x_sampling == 1 && e.y_sampling == 1;
-  }
-  const int width = img.width();
-  const auto decode = [&](PizScratch& s, int c) {
-    exr_chunk_info_t ci{};
-    if (exr_read_scanline_chunk_info(ctxt, 0, dw.min.y + c * lines, &ci) != EXR_ERR_SUCCESS)
-      return false;
-    const int rows = ci.height;
-    const std::size_t total = std::size_t(words) * width * std::size_t(rows);
-    if (rows <= 0 || ci.start_y < dw.min.y || (long long)ci.start_y + rows - 1 > dw.max.y ||
-        ci.unpacked_size != 2 * total || ci.packed_size > ci.unpacked_size)
-      return false;
-    s.packed.resize(ci.packed_size);
-    if (exr_read_chunk(ctxt, 0, &ci, s.packed.data()) != EXR_ERR_SUCCESS) return false;
-    const bool raw = ci.packed_size == ci.unpacked_size;
-    try {
-      if (raw) {
-        s.words.resize(total);
-        for (std::size_t i = 0; i < total; ++i)
-          s.words[i] = static_cast<std::uint16_t>(s.packed[2 * i] | s.packed[2 * i + 1] << 8);
-      } else if (!piz_words(s.packed.data(), s.packed.size(), channels, width, rows, total, s)) {
-        return false;
-      }
-    } catch (const std::exception&) {
-      return false;
-    }
-    // Channel block by block (PIZ) or line by line (raw): where row 0 of each channel starts,
-    // and the step from row to row.
-    static const std::vector<std::uint16_t> identity = [] {
-      std::vector<std::uint16_t> v(65536);
-      for (unsigned i = 0; i < 65536; ++i) v[i] = static_cast<std::uint16_t>(i);
-      return v;
-    }();
-    const std::uint16_t* lut = raw ? identity.data() : s.lut.data();
-    const std::uint16_t* first[kChannels] = {};
-    std::size_t step[kChannels] = {};
-    bool half_at[kChannels] = {};
-    std::size_t start = 0;
-    for (const WordChannel& ch : channels) {
-      const std::size_t row_words = std::size_t(ch.words) * width;
-      if (ch.at >= 0) {
-        first[ch.at] = s.words.data() + start;
-        step[ch.at] = raw ? std::size_t(words) * width : row_words;
-        half_at[ch.at] = ch.half;
-      }
-      start += raw ? row_words : row_words * rows;
-    }
-    for (int y = 0; y < rows; ++y) {
-      const std::uint16_t* w[kChannels];
-      for (int i = 0; i < kChannels; ++i) w[i] = first[i] ? first[i] + y * step[i] : nullptr;
-      float* out = img.data() + std::size_t(ci.start_y - dw.min.y + y) * width * kChannels;
-      for (int x = 0; x < width; ++x, out += kChannels)
-        for (int i = 0; i < kChannels; ++i) {
-          if (!w[i]) {
-            if (i == 3) out[3] = 1.0f;  // no alpha read: 1, in the same pass
-            continue;
-          }
-          if (half_at[i]) {
-            half h;
-            h.setBits(lut[w[i][x]]);
-            out[i] = h;
-          } else {
-            const std::uint32_t bits =
-                std::uint32_t(lut[w[i][2 * x]]) | std::uint32_t(lut[w[i][2 * x + 1]]) << 16;
-            std::memcpy(out + i, &bits, sizeof bits);
-          }
-        }
-    }
-    return true;
-  };
-  ok = ok && on_io_threads(chunks, [] { return PizScratch{}; }, decode);
-  exr_finish(&ctxt);
-  return ok;
-}
-
-/// The faster reader of part `chosen` of `file`, where there is one. Both take the only part,
-/// scanline, with R, G and B (A optional), none subsampled:
-/// - read_piz PIZ files in HALF or FLOAT, every channel unsubsampled (its chunk layout);
-/// - read_core FLOAT files uncompressed or compressed by RLE, ZIPS or ZIP. Not HALF:
-///   OpenEXRCore 3.1 converts a file of exactly the four half channels A, B, G, R (RenderDoc's
-///   EXR save of a 16-bit float target) to float in reverse channel order (tests/test_io.cpp
-///   writes that file). Core 3.1's Huffman decoder is the slower one, hence read_piz.
-/// PXR24, B44 and DWA are left to the C++ reader.
-enum class FastReader { none, core, piz };
-FastReader fast_reader(const Imf::MultiPartInputFile& file, int chosen) {
-  if (file.parts() != 1 || chosen != 0) return FastReader::none;
+/// Whether OpenEXRCore's reader (read_core) takes part `chosen` of `file`: the only part,
+/// scanline, with R, G and B (A optional) in FLOAT, none subsampled, compressed by a lossless
+/// method OpenEXR offers (none, RLE, ZIPS, ZIP, PIZ). Not HALF: OpenEXRCore 3.1 converts a file
+/// of exactly the four half channels A, B, G, R (RenderDoc's EXR save of a 16-bit float target)
+/// to float in reverse channel order (tests/test_io.cpp writes that file). PXR24, B44 and DWA,
+/// and everything else, are left to the C++ reader.
+bool core_reads(const Imf::MultiPartInputFile& file, int chosen) {
+  if (file.parts() != 1 || chosen != 0) return false;
   const Imf::Header& h = file.header(0);
-  if (h.hasTileDescription() || (h.hasType() && h.type() != Imf::SCANLINEIMAGE))
-    return FastReader::none;
-  const bool piz = h.compression() == Imf::PIZ_COMPRESSION;
+  if (h.hasTileDescription() || (h.hasType() && h.type() != Imf::SCANLINEIMAGE)) return false;
   int colour = 0;
   for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
     const Imf::Channel& c = it.channel();
-    const bool sampled = c.xSampling == 1 && c.ySampling == 1;
     const int at = rgba_index(it.name());
-    if (at < 0) {
-      if (piz && !sampled) return FastReader::none;
-      continue;
-    }
-    if (!sampled || c.type == Imf::UINT || (!piz && c.type != Imf::FLOAT)) return FastReader::none;
+    if (at < 0) continue;
+    if (c.xSampling != 1 || c.ySampling != 1 || c.type != Imf::FLOAT) return false;
     colour += at < 3;
   }
-  if (colour != 3) return FastReader::none;
+  if (colour != 3) return false;
   switch (h.compression()) {
-    case Imf::PIZ_COMPRESSION:
-      return FastReader::piz;
     case Imf::NO_COMPRESSION:
     case Imf::RLE_COMPRESSION:
     case Imf::ZIPS_COMPRESSION:
     case Imf::ZIP_COMPRESSION:
-      return FastReader::core;
+    case Imf::PIZ_COMPRESSION:
+      return true;
     default:
-      return FastReader::none;
+      return false;
   }
 }
 
@@ -551,10 +380,9 @@ LoadedImage load_exr(const std::string& path, const SizeLimits& limits, bool rgb
 
     // The file's alpha, unless the caller reads R, G and B alone: then alpha is 1.
     const bool alpha = pc.alpha && !rgb_only;
-    if (const FastReader reader = fast_reader(file, chosen); reader != FastReader::none) {
+    if (core_reads(file, chosen)) {
       Image fast = Image::uninitialised(static_cast<int>(w), static_cast<int>(ht));
-      if (reader == FastReader::piz ? read_piz(path, alpha, fast)
-                                    : read_core(path, alpha, fast)) {
+      if (read_core(path, alpha, fast)) {
         out.image = std::move(fast);
         return out;
       }
@@ -638,7 +466,7 @@ class StdioOStream : public Imf::OStream {
 }  // namespace
 
 void write_exr_stream(std::FILE* f, const std::string& name, ConstImageView img,
-                      const ImageInfo* windows) {
+                      const ImageInfo* windows, ExrCompression compression) {
   // The windows (io.h): the input's when the image is its data window's size, checked again
   // here for callers that make their own; otherwise both the image at the origin.
   Imf::Header header(img.width, img.height);
@@ -654,9 +482,10 @@ void write_exr_stream(std::FILE* f, const std::string& name, ConstImageView img,
     header.displayWindow() = v.width() > 0 && v.height() > 0 ? box(v, "display window")
                                                               : header.dataWindow();
   }
-  // PIZ (lossless: wavelet + Huffman): on the demo scene's 3840x2160 output 82 MB against ZIP's
-  // 89 MB, written in ~1.35 s against ~2.0 s on two threads, read as fast.
-  header.compression() = Imf::PIZ_COMPRESSION;
+  // Every choice lossless; the figures behind each are in docs/design.md, "EXR compression".
+  header.compression() = compression == ExrCompression::piz   ? Imf::PIZ_COMPRESSION
+                         : compression == ExrCompression::zip ? Imf::ZIP_COMPRESSION
+                                                              : Imf::NO_COMPRESSION;
   for (const char* c : {"R", "G", "B", "A"}) header.channels().insert(c, Imf::Channel(Imf::FLOAT));
   const Imath::Box2i dw = header.dataWindow();
   // OpenEXR takes non-const pointers for writing too; it only reads through them.

@@ -20,7 +20,7 @@ void fill_alpha(Image& img);
 
 /// The writers, into an open stream (`name` for OpenEXR's messages).
 void write_exr_stream(std::FILE* f, const std::string& name, ConstImageView img,
-                      const ImageInfo* windows);
+                      const ImageInfo* windows, ExrCompression compression = ExrCompression::piz);
 void write_png_stream(std::FILE* f, ConstImageView img);
 
 /// Runs `write` on a stdio stream over the pending file, then flushes it; every failure is an
@@ -29,6 +29,7 @@ void write_pending(PendingFile& file, const std::function<void(std::FILE*)>& wri
 
 /// Writes `img` by the extension of `path` (.exr or .png) into the pending file; InputError for
 /// another extension or an empty image.
-void write_image_pending(PendingFile& file, ConstImageView img, const ImageInfo* windows);
+void write_image_pending(PendingFile& file, ConstImageView img, const ImageInfo* windows,
+                         ExrCompression compression = ExrCompression::piz);
 
 }  // namespace bloomref::detail

@@ -335,7 +335,7 @@ void OutputSet::add_folder(const std::string& path, const std::string& option, b
 }
 
 void OutputSet::write_image(const std::string& path, ConstImageView img,
-                            const ImageInfo* windows) {
+                            const ImageInfo* windows, ExrCompression compression) {
   const fs::path key = key_of(path);
   if (!s_->declared_files.count(key))
     throw std::logic_error("OutputSet: " + path + " was not declared with add_file");
@@ -347,7 +347,7 @@ void OutputSet::write_image(const std::string& path, ConstImageView img,
     }
   }
   PendingFile file(path);
-  detail::write_image_pending(file, img, windows);
+  detail::write_image_pending(file, img, windows, compression);
   if (++s_->open > kMaxOpenPending) file.prepare();
   s_->written.push_back(std::move(file));
 }

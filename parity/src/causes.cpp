@@ -43,6 +43,9 @@ struct Hypothesis {
   float gamma = 0.0f;         // another gamma (fitted); 0: the plan's
   float spacing = 1.0f;       // the target pass's taps this many times as far apart (fitted)
   float target_gain = 1.0f;   // the target stage's output times this (fitted)
+  float mix_amount = NAN;     // composite as mix(scene, bloom, a) (fitted); NaN: scene + s bloom
+  int flip_input = -1;        // the composite reads one input flipped: 0 the scene, 1 the bloom
+  bool rgba8 = false;         // every stage stored in an 8-bit unsigned normalised target
   int params = 0;             // how many numbers were fitted to the capture
   bool sampled() const { return !sampling.is_default(); }
 };
@@ -50,6 +53,7 @@ struct Hypothesis {
 struct NotApplicable {};
 
 bool changes(const Hypothesis& h, StageKind k, bool is_target) {
+  if (h.rgba8) return true;
   switch (k) {
     case StageKind::input: return h.f16;
     case StageKind::bright: return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold);
@@ -60,7 +64,9 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
     case StageKind::down: return h.sampled() || h.ge || h.f16;
     case StageKind::up:
     case StageKind::bloom: return h.sampled() || h.f16;
-    case StageKind::composite: return h.f16 || h.strength_scale != 1.0f;
+    case StageKind::composite:
+      return h.f16 || h.rgba8 || h.strength_scale != 1.0f || !std::isnan(h.mix_amount) ||
+             h.flip_input >= 0;
     case StageKind::tonemap: return h.no_exposure || h.f16;
     case StageKind::output: return h.gamma_times != 1 || h.pow_negative || h.gamma > 0 || h.f16;
   }
@@ -76,6 +82,7 @@ class Evaluator {
 
   Image target() {
     Image out = compute(target_, true);
+    if (h_.rgba8) to_unorm8(out);
     if (h_.target_gain != 1.0f)
       for (std::size_t i = 0; i < out.values().size(); ++i)
         if (i % kChannels != 3) out.data()[i] *= h_.target_gain;
@@ -143,6 +150,16 @@ class Evaluator {
   void store_as_device(Image& img) const {
     store(img.view(), p_.storage, ctx_.rounding, ctx_.threads);
     if (h_.f16) store(img.view(), Storage::f16, ctx_.rounding, ctx_.threads);
+    if (h_.rgba8) to_unorm8(img);
+  }
+
+  // An RGBA8 target's write (GL 4.6, 2.3.5.2): clamped to [0, 1], the nearest of the 255ths.
+  static void to_unorm8(Image& img) {
+    for (std::size_t i = 0; i < img.values().size(); ++i)
+      if (i % kChannels != 3) {
+        const float v = img.data()[i];
+        img.data()[i] = std::isnan(v) ? 0.0f : std::round(std::min(std::max(v, 0.0f), 1.0f) * 255.0f) / 255.0f;
+      }
   }
 
   Image blur(ConstImageView src, Axis axis, bool is_target) const {
@@ -253,6 +270,23 @@ class Evaluator {
       }
       case StageKind::composite: {
         Image out(in[0].width, in[0].height);
+        Image flipped;
+        if (h_.flip_input >= 0) {
+          flipped = copy(in[std::size_t(h_.flip_input)]);
+          flip_vertically(flipped);
+          in[std::size_t(h_.flip_input)] = flipped.cview();
+        }
+        if (!std::isnan(h_.mix_amount)) {  // mix(scene, bloom, a) = scene + a (bloom - scene)
+          const float a = h_.mix_amount;
+          for (int y = 0; y < out.height(); ++y)
+            for (int x = 0; x < out.width(); ++x) {
+              const float *sc = in[0].pixel(x, y), *b = in[1].pixel(x, y);
+              float* o = out.pixel(x, y);
+              for (int c = 0; c < 3; ++c) o[c] = sc[c] + a * (b[c] - sc[c]);
+              o[3] = 1.0f;
+            }
+          return out;
+        }
         composite(in[0], in[1], out.view(), p_.strength * h_.strength_scale, threads);
         return out;
       }
@@ -388,19 +422,33 @@ std::optional<std::vector<float>> fit_weights(ConstImageView src, ConstImageView
 // bloom (least squares over the composite's values): a per-pass weight sum s != 1 scales the
 // bloom of N passes by s^N. The target is taken back to the composite through the stages
 // between (gamma: v^gamma; tone map: -ln(1 - v) / exposure, where v < 1).
+struct CompositeFit {
+  double add = NAN, mix = NAN;  // scene + add s bloom; mix(scene, bloom, mix)
+};
+
+CompositeFit fit_composite(const CauseContext& ctx, const StageSpec& target);
+
 std::optional<float> fit_bloom_scale(const CauseContext& ctx, const StageSpec& target) {
+  const double k = fit_composite(ctx, target).add;
+  if (!std::isfinite(k) || k <= 0 || std::fabs(k - 1) < 1e-4) return std::nullopt;
+  return static_cast<float>(k);
+}
+
+// Both models of the composite fitted by least squares over its values (the target taken back
+// to the composite through the stages between: gamma v^gamma, tone map -ln(1 - v) / exposure).
+CompositeFit fit_composite(const CauseContext& ctx, const StageSpec& target) {
   const BloomParams& p = ctx.plan.params;
   std::vector<const StageSpec*> chain;  // target back to (not including) the composite
   const StageSpec* s = &target;
   while (s->kind != StageKind::composite) {
-    if (s->kind != StageKind::output && s->kind != StageKind::tonemap) return std::nullopt;
+    if (s->kind != StageKind::output && s->kind != StageKind::tonemap) return {};
     chain.push_back(s);
     s = find_stage(ctx.plan, stage_inputs(ctx.plan, *s)[0]);
   }
   const std::vector<std::string> in = stage_inputs(ctx.plan, *s);
   const ConstImageView user = ctx.view(target.name), base = ctx.view(in[0]), bloom = ctx.view(in[1]);
-  if (!user.data || !base.data || !bloom.data) return std::nullopt;
-  double num = 0, den = 0;
+  if (!user.data || !base.data || !bloom.data) return {};
+  double num = 0, den = 0, mnum = 0, mden = 0;
   for (int y = 0; y < user.height; ++y)
     for (int x = 0; x < user.width; ++x)
       for (int c = 0; c < 3; ++c) {
@@ -411,14 +459,17 @@ std::optional<float> fit_bloom_scale(const CauseContext& ctx, const StageSpec& t
         }
         const double b = double(p.strength) * bloom.pixel(x, y)[c];
         const double r = v - base.pixel(x, y)[c];
-        if (!std::isfinite(r) || !std::isfinite(b) || b == 0) continue;
+        const double d = double(bloom.pixel(x, y)[c]) - base.pixel(x, y)[c];
+        if (!std::isfinite(r) || !std::isfinite(b) || !std::isfinite(d)) continue;
         num += r * b;
         den += b * b;
+        mnum += r * d;
+        mden += d * d;
       }
-  if (!(den > 0)) return std::nullopt;
-  const double k = num / den;
-  if (!std::isfinite(k) || k <= 0 || std::fabs(k - 1) < 1e-4) return std::nullopt;
-  return static_cast<float>(k);
+  CompositeFit f;
+  if (den > 0) f.add = num / den;
+  if (mden > 0) f.mix = mnum / mden;
+  return f;
 }
 
 // The gamma g that best explains the output as pow(t, 1 / g) of its input t: the median of
@@ -635,16 +686,40 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   }
   if (p.storage == Storage::f32)
     add("f16-storage", "f16 storage where f32 was declared")->f16 = true;
+  add("rgba8-storage", "stages stored in 8-bit targets (RGBA8: clamped to [0, 1], 255ths)")->rgba8 =
+      true;
+  if (has(StageKind::composite)) {
+    add("bloom-zeroed", "the bloom term zeroed (an unset strength or bloom flag)")->strength_scale = 0;
+    Hypothesis* h = add("one-input-flipped", "the composite reads the bloom flipped vertically");
+    h->flip_input = 1;
+    h = add("one-input-flipped", "the composite reads the scene flipped vertically");
+    h->flip_input = 0;
+    const double a = fit_composite(ctx, target).mix;
+    if (std::isfinite(a) && a > 0 && a < 1) {
+      h = add("composite-mode", "composite by mix(scene, bloom, a) where scene + bloom was meant");
+      h->mix_amount = static_cast<float>(a);
+      h->params = 1;
+      char b[96];
+      std::snprintf(b, sizeof b, "the composite fits mix with a = %.4g", a);
+      h->detail = b;
+    }
+  }
   // Fitted last: they can mimic a simpler cause (a copy of the input is weights {1, 0, ...}),
   // and a tie goes to the hypothesis listed first.
   if (has(StageKind::composite))
     if (const auto k = fit_bloom_scale(ctx, target)) {
-      Hypothesis* h = add("bloom-scaled",
-                          "bloom scaled (blur weights not summing to 1, or another strength)");
+      // Scaled by the exposure itself: the bloom weighted by it before the tone map applies it.
+      const bool exposure = p.exposure != 1.0f && std::fabs(*k / p.exposure - 1) < 0.005;
+      Hypothesis* h = exposure ? add("exposure-twice",
+                                     "exposure applied twice to the bloom (weighted by it before "
+                                     "the tone map applies it)")
+                               : add("bloom-scaled",
+                                     "bloom scaled (blur weights not summing to 1, or another strength)");
       h->strength_scale = *k;
       h->params = 1;
       char b[96];
-      std::snprintf(b, sizeof b, "the bloom fits best scaled by %.6g", *k);
+      std::snprintf(b, sizeof b, exposure ? "the bloom fits best scaled by %.4g, the exposure"
+                                          : "the bloom fits best scaled by %.6g", *k);
       h->detail = b;
     }
   if (const auto t = fit_threshold(ctx, target)) {

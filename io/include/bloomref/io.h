@@ -71,8 +71,8 @@ struct LoadedImage {
 LoadedImage load_image(const std::string& path, const SizeLimits& limits = {});
 
 /// load_image for a caller that reads R, G and B alone (check's stage images): alpha is 1 in
-/// the image, and a PIZ file's alpha channel is not decoded (its wavelet and its copy are a
-/// quarter of a FLOAT RGBA file's). info.has_alpha still says whether the file has one.
+/// the image, and not converted where the reader can skip it. info.has_alpha still says whether
+/// the file has one.
 LoadedImage load_image_rgb(const std::string& path, const SizeLimits& limits = {});
 
 /// Throws InputError naming `path` if width x height breaks a limit (says which).
@@ -85,7 +85,16 @@ void check_size(const std::string& path, long long width, long long height,
 /// input's size); otherwise, and without `windows`, both windows are the image at (0, 0). A
 /// PNG holds the data window's pixels alone.
 void save_image(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
-void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
+
+/// How a float EXR is compressed, all lossless (docs/design.md, "EXR compression"): PIZ for
+/// outputs (smallest, fastest to write), ZIP for stage images read back by check (OpenEXRCore
+/// decodes it on every thread), none where size does not matter and reading must be fastest.
+enum class ExrCompression { piz, zip, none };
+/// "piz", "zip" or "none"; ParamError naming `option` otherwise.
+ExrCompression parse_exr_compression(const std::string& name, const std::string& option);
+
+void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr,
+              ExrCompression compression = ExrCompression::piz);
 void save_png(const std::string& path, ConstImageView img);
 /// The bytes of the PNG save_png would write (for pages that embed images).
 std::string encode_png(ConstImageView img);

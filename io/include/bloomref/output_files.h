@@ -120,7 +120,8 @@ class OutputSet {
   void add_folder(const std::string& path, const std::string& option, bool whole);
 
   /// Writes an output declared with add_file (by extension, as save_image).
-  void write_image(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
+  void write_image(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr,
+                   ExrCompression compression = ExrCompression::piz);
   void write_text(const std::string& path, const std::string& text);
   /// Where to write the files of a folder declared whole.
   const std::string& folder(const std::string& path);
