@@ -55,6 +55,16 @@ void each(std::string_view s, Put put, Bad bad) {
   }
 }
 
+// & < > as the references HTML, XML and Markdown share; false for any other character.
+bool put_markup(char32_t cp, std::string& o) {
+  switch (cp) {
+    case '&': o += "&amp;"; return true;
+    case '<': o += "&lt;"; return true;
+    case '>': o += "&gt;"; return true;
+    default: return false;
+  }
+}
+
 }  // namespace
 
 std::string utf8(std::string_view s) {
@@ -70,10 +80,8 @@ std::string html(std::string_view s) {
   o.reserve(s.size());
   each(s,
        [&](char32_t cp, std::string_view bytes) {
+         if (put_markup(cp, o)) return;
          switch (cp) {
-           case '&': o += "&amp;"; break;
-           case '<': o += "&lt;"; break;
-           case '>': o += "&gt;"; break;
            case '"': o += "&quot;"; break;
            case '\'': o += "&#39;"; break;
            default:
@@ -110,10 +118,8 @@ std::string xml(std::string_view s) {
   o.reserve(s.size());
   each(s,
        [&](char32_t cp, std::string_view bytes) {
+         if (put_markup(cp, o)) return;
          switch (cp) {
-           case '&': o += "&amp;"; break;
-           case '<': o += "&lt;"; break;
-           case '>': o += "&gt;"; break;
            case '"': o += "&quot;"; break;
            case '\'': o += "&apos;"; break;
            case '\t': o += "&#9;"; break;
@@ -134,10 +140,8 @@ std::string markdown_cell(std::string_view s) {
   o.reserve(s.size());
   each(s,
        [&](char32_t cp, std::string_view bytes) {
+         if (put_markup(cp, o)) return;
          switch (cp) {
-           case '&': o += "&amp;"; break;
-           case '<': o += "&lt;"; break;
-           case '>': o += "&gt;"; break;
            case '\\': case '|': case '`': case '*': case '_': case '[': case ']': case '~':
            case '!': case '#':
              o += '\\';

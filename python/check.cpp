@@ -78,7 +78,9 @@ class CheckInputs {
 
   /// Writes the arrays (without the GIL: the arrays are held by this object).
   void write_arrays() const {
-    for (const auto& [array, file] : arrays_) save_exr(file.string(), array.view);
+    // Read back at once and removed: uncompressed, the fastest to write and to read.
+    for (const auto& [array, file] : arrays_)
+      save_exr(file.string(), array.view, nullptr, ExrCompression::none);
   }
 
   /// `text` with every scratch path replaced by the caller's name for it; `json` escapes the
