@@ -570,6 +570,30 @@ TEST_CASE("composite bugs real projects shipped are named, the mix amount fitted
   }
 }
 
+TEST_CASE("a threshold taken in gamma space is named", "[check]") {
+  // Unity-Technologies/PostProcessing#629: the threshold compared with sRGB-encoded values. The
+  // bright image written here: a texel is kept when the Rec. 709 luminance of its colour
+  // encoded with the sRGB curve (extended above 1 by its power law) exceeds the threshold.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  auto enc = [](double v) {
+    v = std::max(v, 0.0);
+    return v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+  };
+  Image bright(kW, kH);
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      const float* s = scene.pixel(x, y);
+      const double l = 0.2126 * enc(s[0]) + 0.7152 * enc(s[1]) + 0.0722 * enc(s[2]);
+      for (int c = 0; c < 3; ++c) bright.pixel(x, y)[c] = l > p.threshold ? s[c] : 0.0f;
+      bright.pixel(x, y)[3] = 1;
+    }
+  const auto r = check(p, scene, {{"bright", bright}});
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "bright");
+  CHECK(best_cause(stage(r, "bright")) == "threshold-color-space");
+}
+
 TEST_CASE("stages stored in 8-bit targets are named", "[check]") {
   // Every stage written to an RGBA8 target: clamped to [0, 1] and rounded to 255ths, written
   // out here (the bright image, then the first pass over it). With blur.1 alone captured, the

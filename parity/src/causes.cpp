@@ -46,6 +46,8 @@ struct Hypothesis {
   float mix_amount = NAN;     // composite as mix(scene, bloom, a) (fitted); NaN: scene + s bloom
   int flip_input = -1;        // the composite reads one input flipped: 0 the scene, 1 the bloom
   bool rgba8 = false;         // every stage stored in an 8-bit unsigned normalised target
+  int encoded_luma = 0;       // the threshold compared with the luminance of encoded colour:
+                              // 1 sRGB (IEC 61966-2-1), 2 x^(1 / gamma)
   int params = 0;             // how many numbers were fitted to the capture
   bool sampled() const { return !sampling.is_default(); }
 };
@@ -56,7 +58,8 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
   if (h.rgba8) return true;
   switch (k) {
     case StageKind::input: return h.f16;
-    case StageKind::bright: return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold);
+    case StageKind::bright:
+      return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold) || h.encoded_luma;
     case StageKind::blur:
       return h.sampled() || h.kernel || h.clamp_blur ||
              (is_target && (!h.weights.empty() || h.stale || h.along_x || h.spacing != 1.0f)) ||
@@ -207,6 +210,24 @@ class Evaluator {
       case StageKind::bright: {
         Image out(ctx_.sanitized.width, ctx_.sanitized.height);
         const float threshold = std::isnan(h_.threshold) ? p_.threshold : h_.threshold;
+        if (h_.encoded_luma) {
+          // The colour encoded before its luminance is taken (a threshold set in gamma space):
+          // the texel itself is kept as it is.
+          auto encode = [this](float v) {
+            const double x = std::max(double(v), 0.0);
+            if (h_.encoded_luma == 2) return static_cast<float>(std::pow(x, 1.0 / p_.gamma));
+            return static_cast<float>(x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1 / 2.4) - 0.055);
+          };
+          for (int y = 0; y < out.height(); ++y)
+            for (int x = 0; x < out.width(); ++x) {
+              const float* sc = ctx_.sanitized.pixel(x, y);
+              float* o = out.pixel(x, y);
+              const bool bright = luminance(encode(sc[0]), encode(sc[1]), encode(sc[2])) > threshold;
+              for (int c = 0; c < 3; ++c) o[c] = bright ? sc[c] : 0.0f;
+              o[3] = 1.0f;
+            }
+          return out;
+        }
         if (h_.ge || h_.clamp_bright)
           extract_bright_variant(ctx_.sanitized, out.view(), threshold, h_.ge, h_.clamp_bright,
                                  threads);
@@ -680,6 +701,10 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     add("threshold-ge", "`>=` instead of `>` at the threshold")->ge = true;
     add("bright-clamped", "bright pass clamped to [0, 1] (an 8-bit target or saturate())")
         ->clamp_bright = true;
+    add("threshold-color-space", "the threshold compared with the luminance of sRGB-encoded colour")
+        ->encoded_luma = 1;
+    add("threshold-color-space", "the threshold compared with the luminance of gamma-encoded colour")
+        ->encoded_luma = 2;
   } else if (std::find(names.begin(), names.end(), "down.1") != names.end()) {
     add("threshold-ge", "threshold tie on the other side (`>` where the specification keeps ties)")
         ->ge = true;
