@@ -427,6 +427,20 @@ TEST_CASE("merge: check verdicts and counts over all shards", "[batch]") {
   CHECK_THAT(html, Catch::Contains("INCOMPLETE"));
 }
 
+TEST_CASE("merge keeps the cause check named, in JUnit and Markdown", "[batch]") {
+  ordered_json a = check_item("a", "FAIL", {"fail"});
+  const ordered_json cause = {{"id", "tap-spacing"}, {"description", "taps spaced another distance apart"},
+                              {"detail", "taps 2x as far apart on x"}};
+  a["stages"][0]["cause"] = cause;
+  a["first_divergent_stage"] = "blur.1";
+  a["first_divergent_cause"] = cause;
+  const Merged m = merge_results(
+      {{"a.json", check_doc({a, check_item("b", "PASS", {"pass"})})}});
+  CHECK_THAT(merged_junit(m),
+             Catch::Contains("cause: taps spaced another distance apart (taps 2x as far apart on x)"));
+  CHECK_THAT(merged_markdown(m), Catch::Contains("cause: taps spaced another distance apart"));
+}
+
 TEST_CASE("merge refuses files of different runs, naming them", "[batch]") {
   CHECK_THAT(input_error_of([] {
                ordered_json other = run_doc("2/2", {run_item("2")});

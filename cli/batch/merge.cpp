@@ -338,7 +338,13 @@ std::string merged_junit(const Merged& m) {
         if (st == "fail" || (st == "warn" && d.value("warn_as_error", false))) {
           ++f;
           const std::string reason = s.contains("isolated") ? str(s["isolated"], "reason") : "";
-          cases += "<failure message=\"" + xml(str(s, "stage") + " " + st + ": " + reason) +
+          // The cause check named, as its own JUnit says it.
+          std::string cause;
+          if (s.contains("cause") && s["cause"].is_object()) {
+            cause = "; cause: " + str(s["cause"], "description");
+            if (!str(s["cause"], "detail").empty()) cause += " (" + str(s["cause"], "detail") + ")";
+          }
+          cases += "<failure message=\"" + xml(str(s, "stage") + " " + st + ": " + reason + cause) +
                    "\" type=\"" + xml(st) + "\"/>";
         } else if (st == "expected-fail") {
           cases += "<skipped message=\"expected failure\"/>";
@@ -401,6 +407,8 @@ std::string merged_markdown(const Merged& m) {
     if (why.empty() && it.contains("first_divergent_stage") &&
         it["first_divergent_stage"].is_string())
       why = "first divergent stage " + it["first_divergent_stage"].get<std::string>();
+    if (it.contains("first_divergent_cause") && it["first_divergent_cause"].is_object())
+      why += "; cause: " + str(it["first_divergent_cause"], "description");
     rows += "| " + escape::markdown_cell(str(it, "id")) + " | " + escape::markdown_cell(v) + " | " +
             escape::markdown_cell(why) + " | " + escape::markdown_cell(str(it, "shard")) + " |\n";
   }
