@@ -123,6 +123,25 @@ TEST_CASE("a flipped or R/B-swapped dump fails at its first stage, declared, it 
   }
 }
 
+TEST_CASE("where NaN first enters a capture is named", "[check-cli]") {
+  // overte-org/overte#2297: one non-finite texel spreads through every later stage. Planted at
+  // blur.3 and (as a pass spreads it) in blur.4 and blur.5 around it.
+  TempDir dir;
+  dump(dir, "d");
+  for (int k = 3; k <= 5; ++k) {
+    const std::string f = dir / ("d/blur." + std::to_string(k) + ".exr");
+    bloomref::Image img = bloomref::load_image(f).image;
+    for (int d = -(k - 3); d <= k - 3; ++d) img.pixel(20 + d, 12)[1] = NAN;
+    bloomref::save_exr(f, img.cview());
+  }
+  const CliResult r = run_cli(dir, "check " + kSize + " --stages d --json r.json");
+  INFO(r.out << r.err);
+  CHECK(r.code == 1);
+  CHECK(r.out.find("NaN/Inf first stand against finite values at blur.3 (1 values)") != std::string::npos);
+  const json j = json::parse(bloomref::test::read_bytes(dir / "r.json"));
+  CHECK(j["items"][0]["first_nonfinite_stage"] == "blur.3");
+}
+
 TEST_CASE("a blur pass with a wrong weight fails there, and says so", "[check-cli]") {
   TempDir dir;
   dump(dir, "d");

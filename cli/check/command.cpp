@@ -218,6 +218,12 @@ void print_item(const ItemResult& r, const parity::DeviceProfile& profile) {
       if (!cause.empty()) std::printf("             %s\n", cause.c_str());
     }
   }
+  if (const std::string nf = r.first_nonfinite(); !nf.empty())
+    for (const auto& s : r.parity.isolated)
+      if (s.stage == nf)
+        std::printf("  NaN/Inf first stand against finite values at %s (%llu values): the stages "
+                    "after it inherit them\n",
+                    nf.c_str(), static_cast<unsigned long long>(s.nonfinite_mismatch));
   if (r.sensitivity) std::printf("  could see: %s\n", sensitivity_line(r).c_str());
   std::printf("  verdict %s%s; first divergent stage: %s\n", r.verdict.c_str(),
               r.weak() ? (": weak verdict: " + weak_line(r)).c_str() : "",

@@ -150,6 +150,8 @@ ordered_json check_json(const CheckRun& run) {
          {"first_divergent_cause", first && !first->causes.empty()
                                        ? cause_json(first->causes.front())
                                        : ordered_json(nullptr)},
+         {"first_nonfinite_stage", r.first_nonfinite().empty() ? ordered_json(nullptr)
+                                                                : ordered_json(r.first_nonfinite())},
          {"ignored_files", r.ignored},
          {"error", r.error.empty() ? ordered_json(nullptr) : ordered_json(r.error)},
          {"sensitivity", sensitivity_json(r)},

@@ -64,6 +64,13 @@ struct ItemResult {
   std::optional<parity::Sensitivity> sensitivity;
   double required_gain = 0;
   std::string strengthen;
+  /// The first judged stage where NaN or Inf stand against the oracle's finite values (or the
+  /// other way round), and how many: where a non-finite value entered the capture.
+  std::string first_nonfinite() const {
+    for (const parity::StageComparison& s : parity.isolated)
+      if (s.nonfinite_mismatch > 0) return s.stage;
+    return "";
+  }
   bool weak() const {
     return sensitivity && (sensitivity->gain == 0 || sensitivity->gain > required_gain * (1 + 1e-9));
   }
