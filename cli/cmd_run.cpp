@@ -118,7 +118,8 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
   for (const std::string& o : a.outputs) {
     const std::string e = fs::path(o).extension().string();
     if (e != ".exr" && e != ".png" && e != ".EXR" && e != ".PNG")
-      throw InputError(o, "cannot write '" + e + "' files: the output must end in .exr or .png");
+      throw InputError(o, (e.empty() ? std::string("has no extension") : "cannot write '" + e + "' files") +
+                              ": the output must end in .exr or .png");
     outs.add_file(o, "-o");
   }
   if (!a.json_path.empty()) outs.add_file(a.json_path, "--json");

@@ -89,6 +89,9 @@ TEST_CASE("bloomref run refuses bad input with exit code 2", "[cli]") {
     std::filesystem::remove(dir / "whole.png");
     expect_bad_input(dir, run + "cut.png -o out.exr", {"cut.png"}, {"cut.png"});
   }
+  SECTION("an output without an extension (/dev/null) says so") {
+    expect_bad_input(dir, run + "in.exr -o /dev/null", {"/dev/null", "has no extension", ".exr or .png"});
+  }
   SECTION("a text file named .exr") {
     bloomref::test::write_bytes(dir / "notes.exr", "not an image, just text\n");
     expect_bad_input(dir, run + "notes.exr -o out.exr", {"notes.exr", "not an OpenEXR file"},

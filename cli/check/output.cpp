@@ -316,7 +316,7 @@ std::string markdown_summary(const CheckRun& run) {
       if (!k.empty()) d += (d.empty() ? "" : ", ") + k;
     out += ", device " + markdown_cell(d);
   }
-  out += ".\n\n| item | verdict | first divergent stage | likely cause |\n|---|---|---|---|\n";
+  out += ".\n\n| item | verdict | first divergent stage | cause |\n|---|---|---|---|\n";
   for (const ItemResult& r : run.items) {
     const parity::StageComparison* first = first_divergent(r);
     out += "| " + markdown_cell(r.id) + " | " + markdown_cell(r.verdict) + (r.weak() ? " (weak verdict: " + markdown_cell(weak_line(r)) + ")" : "") + " | " +

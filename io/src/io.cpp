@@ -126,7 +126,8 @@ void save_image(const std::string& path, ConstImageView img, const ImageInfo* wi
   const std::string e = lower_extension(path);
   if (e == ".exr") return save_exr(path, img, windows);
   if (e == ".png") return save_png(path, img);
-  throw InputError(path, "cannot write '" + e + "' files: the output must end in .exr or .png");
+  throw InputError(path, (e.empty() ? std::string("has no extension") : "cannot write '" + e + "' files") +
+                             ": the output must end in .exr or .png");
 }
 
 void refuse_overwrite(const std::string& output, const std::string& input) {
@@ -182,7 +183,8 @@ void write_image_pending(PendingFile& file, ConstImageView img, const ImageInfo*
   const std::string& path = file.destination();
   const std::string e = lower_extension(path);
   if (e != ".exr" && e != ".png")
-    throw InputError(path, "cannot write '" + e + "' files: the output must end in .exr or .png");
+    throw InputError(path, (e.empty() ? std::string("has no extension") : "cannot write '" + e + "' files") +
+                             ": the output must end in .exr or .png");
   require_pixels(path, img);
   write_pending(file, [&](std::FILE* f) {
     if (e == ".exr") write_exr_stream(f, path, img, windows, compression);
