@@ -197,6 +197,17 @@ def test_a_declared_raw_size_is_compared_before_anything_is_read(stages, tmp_pat
     assert after < 300 * 1024 or after == before  # KiB: nowhere near the file's 1 GiB
 
 
+def test_max_memory_bounds_check_as_it_bounds_run(stages, tmp_path):
+    # check holds about a dozen stage-sized images: a limit below that is refused before any
+    # work, naming the option; the same scene within the default limit is judged.
+    code, out, err = run(["check", str(stages / "input.exr"), "--stages", str(stages),
+                          "--max-memory", "40K", "-q"], tmp_path)
+    assert code == 2 and "--max-memory" in err, err
+    code, out, err = run(["check", str(stages / "input.exr"), "--stages", str(stages), "-q"],
+                         tmp_path)
+    assert code == 0, err
+
+
 def test_a_frame_list_whose_results_cannot_fit_is_refused_at_once(tmp_path):
     t = time.monotonic()
     code, out, err = run(["check", "s.####.exr", "--stages", "st.####/", "--frames", "1-10000000",
