@@ -235,7 +235,8 @@ void write_summary(std::ostringstream& html, const parity::ParityResult& r) {
 // and the fraction of the stage's values it brings within bound.
 void write_causes(std::ostringstream& html, const parity::StageComparison& s) {
   if (s.verdict == parity::Verdict::pass) return;
-  html << "<p class='cause'>" << escape::html(cause_line(s)) << "</p>";
+  html << "<p class='cause'><b>" << escape::html(action_line(s)) << "</b><br>"
+       << escape::html(cause_line(s)) << "</p>";
   if (s.causes.empty()) return;
   html << "<h3>causes tested (the oracle with one change)</h3><table><tr><th>hypothesis</th>"
           "<th>values within bound</th><th>as specified</th><th style='text-align:left'>detail"
@@ -321,6 +322,19 @@ void write_stage(std::ostringstream& html, const fs::path& root, const parity::S
 }
 
 }  // namespace
+
+std::string action_line(const parity::StageComparison& s) {
+  if (s.verdict == parity::Verdict::pass) return "";
+  std::string v = parity::to_string(s.verdict);
+  const std::string head = s.stage + ": " + v + " \u2014 ";
+  if (s.causes.empty()) return head + "no usual cause explains it; " + s.reason;
+  const parity::CauseFit& c = s.causes.front();
+  // A fitted cause's detail says what changed and by how much; a long one (fitted weights)
+  // gives way to the description.
+  const std::string what = !c.detail.empty() && c.detail.size() <= 100 ? c.detail : c.description;
+  return head + what + ", explains " + percent(c.within) +
+         (c.likely() ? "" : " (a partial explanation)");
+}
 
 std::string cause_line(const parity::StageComparison& s) {
   if (s.causes.empty()) return s.verdict == parity::Verdict::pass ? "" : "no usual cause explains it";

@@ -15,6 +15,10 @@ namespace bloomref::cli {
 /// The best-supported cause of a stage's failure, in one line ("" when the stage passed).
 std::string cause_line(const parity::StageComparison& s);
 
+/// What a person acts on, first: "blur.1: FAIL — taps 2x as far apart on x (...), explains
+/// 99.8%" ("" when the stage passed). The console, JUnit, Markdown and the report open with it.
+std::string action_line(const parity::StageComparison& s);
+
 /// The user's own files of the stages under test (stage -> path): the report links to them
 /// instead of writing a copy (<stage>.gl.exr) of each.
 using CapturedFiles = std::map<std::string, std::string>;

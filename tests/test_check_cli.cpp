@@ -171,6 +171,8 @@ TEST_CASE("a blur pass with a wrong weight fails there, and says so", "[check-cl
   CHECK(j["items"][0]["first_divergent_stage"] == "blur.3");
   CHECK(j["items"][0]["first_divergent_cause"]["id"] == "wrong-weights");
   CHECK(r.out.find("likely cause: wrong kernel weights") != std::string::npos);
+  // The first line under the stage says what to change, and how much it explains.
+  CHECK(r.out.find("blur.3: FAIL \u2014 wrong kernel weights, explains ") != std::string::npos);
   // The HTML report names the cause and lists the hypotheses tried; with the default
   // --artifacts fail it holds the failing stage's images only.
   const std::string html = bloomref::test::read_bytes(dir / "rep/d/index.html");

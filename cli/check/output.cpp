@@ -243,8 +243,7 @@ std::string junit_xml(const CheckRun& run) {
       out += "    <testcase classname=\"bloomref.check." + xml(r.id) + "\" name=\"" + xml(s.stage) +
              "\">";
       const std::string cause = cause_line(s);
-      const std::string line = s.stage + " " + parity::to_string(s.verdict) + ": " + s.reason +
-                               (cause.empty() ? "" : "; " + cause);
+      const std::string line = action_line(s) + "; " + s.reason + (cause.empty() ? "" : "; " + cause);
       if (failed(o.status)) {
         out += "\n      <failure message=\"" + xml(line) + "\" type=\"" +
                parity::to_string(s.verdict) + "\">" +
@@ -321,7 +320,7 @@ std::string markdown_summary(const CheckRun& run) {
     const parity::StageComparison* first = first_divergent(r);
     out += "| " + markdown_cell(r.id) + " | " + markdown_cell(r.verdict) + (r.weak() ? " (weak verdict: " + markdown_cell(weak_line(r)) + ")" : "") + " | " +
            (r.parity.first_divergent_stage ? escape::markdown_code(*r.parity.first_divergent_stage) : "-") +
-           " | " + (first ? markdown_cell(cause_line(*first)) : !r.error.empty() ? markdown_cell(r.error) : "-") + " |\n";
+           " | " + (first ? markdown_cell(action_line(*first)) : !r.error.empty() ? markdown_cell(r.error) : "-") + " |\n";
   }
   return out;
 }
