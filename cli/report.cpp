@@ -346,7 +346,8 @@ std::string cause_line(const parity::StageComparison& s) {
   // Another cause that explains as much is said too: the captures cannot tell them apart.
   for (std::size_t i = 1; i < s.causes.size(); ++i) {
     const parity::CauseFit& o = s.causes[i];
-    if (o.id == c.id || !o.likely() || o.within < c.within - 0.0005) continue;
+    // A more flexible fit that explains as much describes the capture; it is no other cause.
+    if (o.id == c.id || !o.likely() || o.within < c.within - 0.0005 || o.params > c.params) continue;
     line += "; as likely: " + o.description + (o.detail.empty() ? "" : " (" + o.detail + ")");
     break;
   }
