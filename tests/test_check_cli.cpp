@@ -123,6 +123,25 @@ TEST_CASE("a flipped or R/B-swapped dump fails at its first stage, declared, it 
   }
 }
 
+TEST_CASE("a stage judged from an earlier wrong capture says it follows from it", "[check-cli]") {
+  // The ping-pong bug of docs/check.md: pass 3 leaves its input unchanged. blur.4 is right, but
+  // judged from the wrong blur.3 it fails in isolation; end to end it passes.
+  TempDir dir;
+  dump(dir, "d");
+  fs::copy_file(dir / "d/blur.2.exr", dir / "d/blur.3.exr", fs::copy_options::overwrite_existing);
+  const CliResult r = run_cli(dir, "check " + kSize + " --stages d --json r.json --junit r.xml");
+  INFO(r.out << r.err);
+  CHECK(r.code == 1);
+  CHECK(r.out.find("blur.3: FAIL \u2014 one blur pass too few") != std::string::npos);
+  CHECK(r.out.find("blur.4: FAIL \u2014 follows from blur.3") != std::string::npos);
+  const json j = json::parse(bloomref::test::read_bytes(dir / "r.json"));
+  for (const json& st : j["items"][0]["stages"]) {
+    INFO(st["stage"]);
+    CHECK(st["follows_from"] == (st["stage"] == "blur.4" ? json("blur.3") : json(nullptr)));
+  }
+  CHECK(bloomref::test::read_bytes(dir / "r.xml").find("follows from blur.3") != std::string::npos);
+}
+
 TEST_CASE("where NaN first enters a capture is named", "[check-cli]") {
   // overte-org/overte#2297: one non-finite texel spreads through every later stage. Planted at
   // blur.3 and (as a pass spreads it) in blur.4 and blur.5 around it.

@@ -213,10 +213,10 @@ void print_item(const ItemResult& r, const parity::DeviceProfile& profile) {
                 s.max_ratio, parity::to_string(e.verdict).c_str(), e.max_ratio,
                 f == r.file_of.end() ? "" : fs::path(f->second).filename().c_str());
     if (s.verdict != parity::Verdict::pass) {
-      std::printf("             %s\n", action_line(s).c_str());
+      std::printf("             %s\n", r.first_line(i, action_line(s)).c_str());
       std::printf("             %s\n", s.reason.c_str());
       const std::string cause = cause_line(s);
-      if (!cause.empty()) std::printf("             %s\n", cause.c_str());
+      if (!cause.empty() && r.follows_from(i).empty()) std::printf("             %s\n", cause.c_str());
     }
   }
   if (const std::string nf = r.first_nonfinite(); !nf.empty())

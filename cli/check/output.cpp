@@ -129,6 +129,8 @@ ordered_json check_json(const CheckRun& run) {
            {"file", f == r.file_of.end() || f->second.empty() ? ordered_json(nullptr)
                                                               : ordered_json(f->second)},
            {"status", o.status},
+           {"follows_from", r.follows_from(i).empty() ? ordered_json(nullptr)
+                                                       : ordered_json(r.follows_from(i))},
            {"expectation", o.expectation ? ordered_json({{"item", o.expectation->item},
                                                          {"stage", o.expectation->stage},
                                                          {"device", o.expectation->device},
@@ -243,7 +245,8 @@ std::string junit_xml(const CheckRun& run) {
       out += "    <testcase classname=\"bloomref.check." + xml(r.id) + "\" name=\"" + xml(s.stage) +
              "\">";
       const std::string cause = cause_line(s);
-      const std::string line = action_line(s) + "; " + s.reason + (cause.empty() ? "" : "; " + cause);
+      const std::string line = r.first_line(i, action_line(s)) + "; " + s.reason +
+                               (cause.empty() || !r.follows_from(i).empty() ? "" : "; " + cause);
       if (failed(o.status)) {
         out += "\n      <failure message=\"" + xml(line) + "\" type=\"" +
                parity::to_string(s.verdict) + "\">" +

@@ -71,6 +71,26 @@ struct ItemResult {
       if (s.nonfinite_mismatch > 0) return s.stage;
     return "";
   }
+  /// For a stage that fails in isolation but passes end to end, the failing stage before it:
+  /// its capture is right, and it failed only because it was judged from that stage's wrong
+  /// capture. "" otherwise.
+  std::string follows_from(std::size_t i) const {
+    if (i >= parity.isolated.size() || i >= parity.end_to_end.size() ||
+        parity.isolated[i].verdict == parity::Verdict::pass ||
+        parity.end_to_end[i].verdict != parity::Verdict::pass)
+      return "";
+    for (std::size_t j = i; j-- > 0;)
+      if (parity.isolated[j].verdict == parity::Verdict::fail) return parity.isolated[j].stage;
+    return "";
+  }
+  /// The first line said of stage i: what to change (action_line), or what it follows from.
+  std::string first_line(std::size_t i, const std::string& action) const {
+    const std::string from = follows_from(i);
+    if (from.empty()) return action;
+    const parity::StageComparison& s = parity.isolated[i];
+    return s.stage + ": " + parity::to_string(s.verdict) + " \u2014 follows from " + from +
+           ": judged from that stage's capture; end to end this stage is right";
+  }
   bool weak() const {
     return sensitivity && (sensitivity->gain == 0 || sensitivity->gain > required_gain * (1 + 1e-9));
   }
