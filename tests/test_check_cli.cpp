@@ -95,6 +95,9 @@ TEST_CASE("bloomref's own dumped stages pass, results are written", "[check-cli]
   CHECK(count(xml, "<failure") == 0);
   CHECK(count(xml, "<testsuite ") == 1);
   CHECK(xml.find("name=\"device.vendor\" value=\"Mesa\"") != std::string::npos);
+  // Undeclared device keys are left out; each passing stage says its margin.
+  CHECK(xml.find("device.driver") == std::string::npos);
+  CHECK(count(xml, "largest error / bound: ") == 15);
   CHECK(bloomref::test::read_bytes(dir / "r.md").find("PASS") != std::string::npos);
 }
 

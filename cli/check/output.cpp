@@ -226,8 +226,9 @@ std::string junit_xml(const CheckRun& run) {
         {"scene", r.source},         {"profile", run.profile.name},
         {"device.api", run.device.api}, {"device.vendor", run.device.vendor},
         {"device.renderer", run.device.renderer}, {"device.driver", run.device.driver}};
-    for (const auto& [k, v] : props)
-      out += "      <property name=\"" + std::string(k) + "\" value=\"" + xml(v) + "\"/>\n";
+    for (const auto& [k, v] : props)  // device keys nobody declared are left out
+      if (!v.empty())
+        out += "      <property name=\"" + std::string(k) + "\" value=\"" + xml(v) + "\"/>\n";
     if (r.sensitivity) {
       out += "      <property name=\"sensitivity\" value=\"" + xml(sensitivity_line(r)) + "\"/>\n";
       if (r.weak())
@@ -259,6 +260,12 @@ std::string junit_xml(const CheckRun& run) {
       // attachment line per image of a failing stage (the Jenkins JUnit attachments convention).
       std::string system_out;
       if (o.status == "warn") system_out = line + "\n";
+      if (o.status == "pass") {  // the margin a passing stage had
+        char b[128];
+        std::snprintf(b, sizeof b, "largest error / bound: %.3g isolated, %.3g end to end\n",
+                      s.max_ratio, r.parity.end_to_end[i].max_ratio);
+        system_out = b;
+      }
       if (o.status == "fixed")
         system_out = "a known deviation (" + o.expectation->reason +
                      ") now passes: remove the expectation\n";
