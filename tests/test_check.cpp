@@ -594,6 +594,39 @@ TEST_CASE("a threshold taken in gamma space is named", "[check]") {
   CHECK(best_cause(stage(r, "bright")) == "threshold-color-space");
 }
 
+TEST_CASE("stages stored as packed floats are named", "[check]") {
+  // FlaxEngine/FlaxEngine#3618: bloom accumulated in R11F_G11F_B10F. Written here: each value
+  // rounded to the nearest of its binade's 64 steps (32 for blue), the binade [2^e, 2^(e+1))
+  // found by a loop, never below 2^-14; negatives to 0.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto t = trace_of(p, scene);
+  auto packed = [](Image img) {
+    for (std::size_t i = 0; i < img.values().size(); ++i) {
+      if (i % 4 == 3) continue;
+      const double v = img.data()[i];
+      if (!(v > 0)) {
+        img.data()[i] = 0;
+        continue;
+      }
+      const int steps = i % 4 == 2 ? 32 : 64;
+      double lo = std::ldexp(1.0, -14);
+      while (lo * 2 <= v) lo *= 2;
+      const double q = lo / steps;
+      img.data()[i] = static_cast<float>(std::floor(v / q + 0.5) * q);
+    }
+    return img;
+  };
+  // The bright pass is exact: its rounding shows there (a blur's bound near a light holds it),
+  // declared as read exactly (at interpolated coordinates 1/256 of a neighbour may blend in,
+  // as much as this rounding next to a light).
+  const auto r = check(p, scene, {{"bright", packed(t.at("bright"))}}, false);
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "bright");
+  CHECK(best_cause(stage(r, "bright")) == "r11g11b10-storage");
+  CHECK(stage(r, "bright").causes.front().likely());
+}
+
 TEST_CASE("stages stored in 8-bit targets are named", "[check]") {
   // Every stage written to an RGBA8 target: clamped to [0, 1] and rounded to 255ths, written
   // out here (the bright image, then the first pass over it). With blur.1 alone captured, the

@@ -46,6 +46,7 @@ struct Hypothesis {
   float mix_amount = NAN;     // composite as mix(scene, bloom, a) (fitted); NaN: scene + s bloom
   int flip_input = -1;        // the composite reads one input flipped: 0 the scene, 1 the bloom
   bool rgba8 = false;         // every stage stored in an 8-bit unsigned normalised target
+  bool r11g11b10 = false;     // every stage stored in R11F_G11F_B10F (packed unsigned floats)
   int encoded_luma = 0;       // the threshold compared with the luminance of encoded colour:
                               // 1 sRGB (IEC 61966-2-1), 2 x^(1 / gamma)
   int params = 0;             // how many numbers were fitted to the capture
@@ -55,7 +56,7 @@ struct Hypothesis {
 struct NotApplicable {};
 
 bool changes(const Hypothesis& h, StageKind k, bool is_target) {
-  if (h.rgba8) return true;
+  if (h.rgba8 || h.r11g11b10) return true;
   switch (k) {
     case StageKind::input: return h.f16;
     case StageKind::bright:
@@ -86,6 +87,7 @@ class Evaluator {
   Image target() {
     Image out = compute(target_, true);
     if (h_.rgba8) to_unorm8(out);
+    if (h_.r11g11b10) to_packed_float(out);
     if (h_.target_gain != 1.0f)
       for (std::size_t i = 0; i < out.values().size(); ++i)
         if (i % kChannels != 3) out.data()[i] *= h_.target_gain;
@@ -154,6 +156,24 @@ class Evaluator {
     store(img.view(), p_.storage, ctx_.rounding, ctx_.threads);
     if (h_.f16) store(img.view(), Storage::f16, ctx_.rounding, ctx_.threads);
     if (h_.rgba8) to_unorm8(img);
+    if (h_.r11g11b10) to_packed_float(img);
+  }
+
+  // An R11F_G11F_B10F target's write (GL 4.6, 2.3.4.3-4): unsigned floats with a 5-bit exponent
+  // and 6 (R, G) or 5 (B) mantissa bits; negative values and NaN become 0, values above the
+  // largest finite one become it. Rounded to the nearest (ties away from zero).
+  static float packed(float v, int mantissa) {
+    if (!(v > 0)) return 0.0f;
+    const double top = std::ldexp(2.0 - std::ldexp(1.0, -mantissa), 15);
+    if (v >= top) return static_cast<float>(top);
+    int e = 0;
+    std::frexp(double(v), &e);                          // v = f 2^e, f in [0.5, 1)
+    const double q = std::ldexp(1.0, std::max(e - 1, -14) - mantissa);  // denormals below 2^-14
+    return static_cast<float>(std::min(std::round(v / q) * q, top));
+  }
+  static void to_packed_float(Image& img) {
+    for (std::size_t i = 0; i < img.values().size(); ++i)
+      if (i % kChannels != 3) img.data()[i] = packed(img.data()[i], i % kChannels == 2 ? 5 : 6);
   }
 
   // An RGBA8 target's write (GL 4.6, 2.3.5.2): clamped to [0, 1], the nearest of the 255ths.
@@ -713,6 +733,8 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     add("f16-storage", "f16 storage where f32 was declared")->f16 = true;
   add("rgba8-storage", "stages stored in 8-bit targets (RGBA8: clamped to [0, 1], 255ths)")->rgba8 =
       true;
+  add("r11g11b10-storage",
+      "stages stored as R11F_G11F_B10F (6-bit mantissas, 5 for blue, no sign)")->r11g11b10 = true;
   if (has(StageKind::composite)) {
     add("bloom-zeroed", "the bloom term zeroed (an unset strength or bloom flag)")->strength_scale = 0;
     Hypothesis* h = add("one-input-flipped", "the composite reads the bloom flipped vertically");
