@@ -586,8 +586,8 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
                   "and 24 float images of the scene, at most --max-memory)");
   sub->add_option("--profile", args->profile,
                   "device precision profile: " + parity::profile_names() +
-                      ", or a profile file NAME.json (docs/check.md)")
-      ->capture_default_str();
+                      ", or a profile file NAME.json (docs/check.md); default nvidia, and with "
+                      "--shaders the device's own (llvmpipe on a software renderer)");
   sub->add_option("--json", args->json_path, "write the results as JSON (version 1)");
   sub->add_option("--junit", args->junit_path, "write JUnit XML (a testsuite per item)");
   sub->add_option("--markdown", args->markdown_path, "write a short Markdown summary (CI job summary)");
