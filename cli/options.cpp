@@ -92,10 +92,13 @@ LoadedImage PipelineOptions::load_input(const std::string& input, std::string& s
   return in;
 }
 
+std::uint64_t PipelineOptions::memory_budget() const {
+  return max_memory.empty() ? default_memory_budget() : parse_byte_size(max_memory, "--max-memory");
+}
+
 void PipelineOptions::check_memory(const std::string& what, int width, int height,
                                    bool is_file) const {
-  const std::uint64_t budget =
-      max_memory.empty() ? default_memory_budget() : parse_byte_size(max_memory, "--max-memory");
+  const std::uint64_t budget = memory_budget();
   const WorkingSet ws = working_set(params, width, height, kept_traces, gl);
   if (ws.bytes <= budget) return;
   const std::string problem =

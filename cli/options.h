@@ -2,6 +2,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <string>
 
 #include "bloomref/io.h"
@@ -30,6 +31,8 @@ struct PipelineOptions {
   /// Refuses (InputError, ParamError for a scene) an image whose run would need more memory
   /// than --max-memory (working_set), before its pixels are allocated.
   LoadedImage load_input(const std::string& input, std::string& source) const;
+  /// --max-memory in bytes, or its default (default_memory_budget).
+  std::uint64_t memory_budget() const;
   /// Throws unless a run over width x height fits --max-memory; `what` names the image.
   void check_memory(const std::string& what, int width, int height, bool is_file) const;
 };

@@ -288,9 +288,7 @@ constexpr std::uint64_t kListBytesPerItem = 1 << 10;  // an item to take: names 
 
 // `listed` items, `run` of them taken by this process.
 void require_results_fit(const CheckArgs& a, std::size_t listed, std::size_t run) {
-  const std::uint64_t budget = a.pipeline.max_memory.empty()
-                                   ? default_memory_budget()
-                                   : parse_byte_size(a.pipeline.max_memory, "--max-memory");
+  const std::uint64_t budget = a.pipeline.memory_budget();
   const std::uint64_t need = std::uint64_t(listed) * kListBytesPerItem +
                              std::uint64_t(run) * kResultBytesPerItem;
   if (need > budget)

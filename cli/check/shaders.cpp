@@ -154,9 +154,7 @@ std::string shader_names(const ShaderArgs& s) {
 std::string run_user_shaders_bounded(const ShaderArgs& s, const std::string& scene_path,
                                      const PipelineOptions& pipeline, const fs::path& dir,
                                      bool& software) {
-  const std::uint64_t budget = pipeline.max_memory.empty()
-                                   ? default_memory_budget()
-                                   : parse_byte_size(pipeline.max_memory, "--max-memory");
+  const std::uint64_t budget = pipeline.memory_budget();
   // Until the child says the scene's size: the run's memory limit, and the time a scene of the
   // largest size bloomref reads would be given.
   std::uint64_t memory = s.max_memory.empty() ? budget : parse_byte_size(s.max_memory, "--shader-memory");
