@@ -467,14 +467,6 @@ struct CompositeFit {
   double add = NAN, mix = NAN;  // scene + add s bloom; mix(scene, bloom, mix)
 };
 
-CompositeFit fit_composite(const CauseContext& ctx, const StageSpec& target);
-
-std::optional<float> fit_bloom_scale(const CauseContext& ctx, const StageSpec& target) {
-  const double k = fit_composite(ctx, target).add;
-  if (!std::isfinite(k) || k <= 0 || std::fabs(k - 1) < 1e-4) return std::nullopt;
-  return static_cast<float>(k);
-}
-
 // Both models of the composite fitted by least squares over its values (the target taken back
 // to the composite through the stages between: gamma v^gamma, tone map -ln(1 - v) / exposure).
 CompositeFit fit_composite(const CauseContext& ctx, const StageSpec& target) {
@@ -735,13 +727,15 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       true;
   add("r11g11b10-storage",
       "stages stored as R11F_G11F_B10F (6-bit mantissas, 5 for blue, no sign)")->r11g11b10 = true;
+  // Both models of the composite, fitted once (scene + k bloom, and mix).
+  const CompositeFit composite_fit = has(StageKind::composite) ? fit_composite(ctx, target) : CompositeFit{};
   if (has(StageKind::composite)) {
     add("bloom-zeroed", "the bloom term zeroed (an unset strength or bloom flag)")->strength_scale = 0;
     Hypothesis* h = add("one-input-flipped", "the composite reads the bloom flipped vertically");
     h->flip_input = 1;
     h = add("one-input-flipped", "the composite reads the scene flipped vertically");
     h->flip_input = 0;
-    const double a = fit_composite(ctx, target).mix;
+    const double a = composite_fit.mix;
     if (std::isfinite(a) && a > 0 && a < 1) {
       h = add("composite-mode", "composite by mix(scene, bloom, a) where scene + bloom was meant");
       h->mix_amount = static_cast<float>(a);
@@ -753,21 +747,21 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   }
   // Fitted last: they can mimic a simpler cause (a copy of the input is weights {1, 0, ...}),
   // and a tie goes to the hypothesis listed first.
-  if (has(StageKind::composite))
-    if (const auto k = fit_bloom_scale(ctx, target)) {
-      // Scaled by the exposure itself: the bloom weighted by it before the tone map applies it.
-      const bool exposure = p.exposure != 1.0f && std::fabs(*k / p.exposure - 1) < 0.005;
-      Hypothesis* h = exposure ? add("exposure-twice",
-                                     "exposure applied twice to the bloom (weighted by it before "
-                                     "the tone map applies it)")
-                               : add("bloom-scaled",
-                                     "bloom scaled (blur weights not summing to 1, or another strength)");
-      h->strength_scale = *k;
-      h->params = 1;
-      char b[96];
-      std::snprintf(b, sizeof b, exposure ? "the bloom fits best scaled by %.4g, the exposure"
-                                          : "the bloom fits best scaled by %.6g", *k);
-      h->detail = b;
+  if (const double k = composite_fit.add;
+      std::isfinite(k) && k > 0 && std::fabs(k - 1) >= 1e-4) {
+    // Scaled by the exposure itself: the bloom weighted by it before the tone map applies it.
+    const bool exposure = p.exposure != 1.0f && std::fabs(k / p.exposure - 1) < 0.005;
+    Hypothesis* h = exposure ? add("exposure-twice",
+                                   "exposure applied twice to the bloom (weighted by it before "
+                                   "the tone map applies it)")
+                             : add("bloom-scaled",
+                                   "bloom scaled (blur weights not summing to 1, or another strength)");
+    h->strength_scale = static_cast<float>(k);
+    h->params = 1;
+    char b[96];
+    std::snprintf(b, sizeof b, exposure ? "the bloom fits best scaled by %.4g, the exposure"
+                                        : "the bloom fits best scaled by %.6g", k);
+    h->detail = b;
     }
   if (const auto t = fit_threshold(ctx, target)) {
     Hypothesis* h = add("threshold-other", "another threshold");
