@@ -99,10 +99,12 @@ double budget_ratio(double err, double up, double down) {
 
 // The error and budgets of one stage, for the stages after it: what its value may be off by
 // in total, against the isolated oracle (`chain`: zero for a capture) and the full run (`e2e`),
-// and a bound on the total variation of its isolated error (`tv`).
+// a bound on the total variation of its isolated error (`tv`) and one on the sum of its
+// magnitudes (`mass`).
 struct Energy {
   SignedBudget chain, e2e;
   std::array<double, 3> tv{};
+  std::array<double, 3> mass{};  // a bound on the sum of the isolated error's magnitudes
 };
 
 class Comparison {
@@ -135,7 +137,7 @@ class Comparison {
                    const float* e, EnergySums& es) const;
   struct Budgets {
     SignedBudget iso, e2e;
-    std::optional<std::array<double, 3>> tv;
+    std::optional<std::array<double, 3>> tv, mass;
   };
   Budgets signed_budgets(const std::vector<std::string>& in, const EnergySums& es) const;
   void gain_gates(StageComparison& iso, StageComparison& e2e, const EnergySums& es,
@@ -597,6 +599,8 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
     // Without a signed budget, the error's variation is bounded by its per-value bound: each
     // value is in two differences along each axis.
     en.tv = sb.tv ? *sb.tv : std::array<double, 3>{4 * es.l1[0], 4 * es.l1[1], 4 * es.l1[2]};
+    // The sum of the per-value bounds bounds the error's magnitudes too.
+    for (int c = 0; c < 3; ++c) en.mass[c] = sb.mass ? std::min((*sb.mass)[c], es.l1[c]) : es.l1[c];
     for (int c = 0; c < 3; ++c) {
       en.chain.up[c] = std::min(en.chain.up[c], es.l1[c]);
       en.chain.down[c] = std::min(en.chain.down[c], es.l1[c]);
@@ -726,8 +730,8 @@ void Comparison::energy_band(int y0, int y1, bool gl, const float* oracle,
 Comparison::Budgets Comparison::signed_budgets(const std::vector<std::string>& in,
                                                const EnergySums& es) const {
   SignedBudget iso, e2e;
-  std::array<double, 3> t{};
-  const Budgets none{SignedBudget::infinite(), SignedBudget::infinite(), std::nullopt};
+  std::array<double, 3> t{}, m{};
+  const Budgets none{SignedBudget::infinite(), SignedBudget::infinite(), std::nullopt, std::nullopt};
   if (spec_->kind == StageKind::blur && deviation_) {
     const std::string& i = in[0];
     for (int c = 0; c < 3; ++c) {
@@ -736,6 +740,7 @@ Comparison::Budgets Comparison::signed_budgets(const std::vector<std::string>& i
       // The error a pass creates is at most max(up, down) at each value; its total variation
       // at most 4 times its sum (each value is in two differences along each axis).
       t[c] = 4 * (es.most[c] + es.rounding[c] + es.storage[c]);
+      m[c] = es.most[c] + es.rounding[c] + es.storage[c];
     }
     e2e = iso;
     e2e.add_both(es.rounding);  // the full run's own storage rounding
@@ -747,19 +752,27 @@ Comparison::Budgets Comparison::signed_budgets(const std::vector<std::string>& i
     if (!streams_.captured(i)) {
       // The device's lookups of the error carried in: its sum moves by at most the shifts
       // times the error's variation (a shift moves weight to a neighbour), and by the weight
-      // clamp-to-edge gives texels near the edges.
-      const double k = deviation_->shift_sum() * (1 + deviation_->shift_sum());
+      // clamp-to-edge gives texels near the edges. Equally, a texel's total weight over the
+      // device's lookups differs from the oracle's by at most s per axis (s = the shifts'
+      // span; weights sum to 1 over the taps), so the sum moves by at most (2s + s^2) times
+      // the error's magnitudes: the smaller of the two applies.
+      const double s = deviation_->shift_sum(), k = s * (1 + s), a = s * (2 + s);
+      const std::array<double, 3> leak = edge_leak(E(i)->cview(), spec_->axis, excess);
       std::array<double, 3> second{};
-      for (int c = 0; c < 3; ++c) second[c] = k * ei->second.tv[c];
+      for (int c = 0; c < 3; ++c) {
+        const double by_variation = k * ei->second.tv[c];
+        second[c] = std::min(by_variation, a * ei->second.mass[c]);
+        t[c] += ei->second.tv[c] + 4 * by_variation;
+        m[c] += (1 + a) * ei->second.mass[c] + leak[c];
+      }
       iso.add(ei->second.chain);
       iso.add_both(second);
-      iso.add_both(edge_leak(E(i)->cview(), spec_->axis, excess));
+      iso.add_both(leak);
       e2e.add_both(second);
-      for (int c = 0; c < 3; ++c) t[c] += ei->second.tv[c] + 4 * second[c];
     }
     e2e.add(ei->second.e2e);
     const BoundRows r = e2e_rows(i);
-    if (!r.image) return {iso, SignedBudget::infinite(), t};
+    if (!r.image) return {iso, SignedBudget::infinite(), t, m};
     e2e.add_both(edge_leak(r.image->cview(), spec_->axis, excess));
   } else if (spec_->kind == StageKind::composite) {
     // hdr = scene + strength * bloom: the inputs' totals pass through, scaled.
@@ -779,8 +792,10 @@ Comparison::Budgets Comparison::signed_budgets(const std::vector<std::string>& i
           const ConstImageView v = V(in[j]);
           const AxisShift sx = lookup_shift(v.width, profile_, 0.0), sy = lookup_shift(v.height, profile_, 0.0);
           const double k = sx.minus + sx.plus + sy.minus + sy.plus;
+          const double a = k + (sx.minus + sx.plus) * (sy.minus + sy.plus);  // as for a blur
           std::array<double, 3> second{};
-          for (int c = 0; c < 3; ++c) second[c] = k * scale * ej->second.tv[c];
+          for (int c = 0; c < 3; ++c)
+            second[c] = scale * std::min(k * ej->second.tv[c], a * ej->second.mass[c]);
           iso.add_both(second);
           e2e.add_both(second);
         }
@@ -792,7 +807,8 @@ Comparison::Budgets Comparison::signed_budgets(const std::vector<std::string>& i
   } else {
     return none;
   }
-  return {iso, e2e, t};
+  if (spec_->kind == StageKind::blur) return {iso, e2e, t, m};
+  return {iso, e2e, t, std::nullopt};  // the composite's magnitudes: the per-value bounds' sum
 }
 
 // The gain gates of a captured stage: its total error per channel against the smaller of two
@@ -812,6 +828,7 @@ void Comparison::gain_gates(StageComparison& iso, StageComparison& e2e, const En
   Energy& mine = energy_[name_];
   mine.chain = SignedBudget{};
   mine.tv = {};
+  mine.mass = {};
   for (int c = 0; c < 3; ++c) {
     mine.e2e.up[c] = std::min(es.l1_e2e[c], signed_e2e.up[c]);
     mine.e2e.down[c] = std::min(es.l1_e2e[c], signed_e2e.down[c]);
