@@ -292,6 +292,25 @@ TEST_CASE("a verdict says what it could see, a weak one is WARN, a brighter bloo
   CHECK(blur10["verdict"] == "FAIL");
   CHECK(blur10["gain_gate"].get<double>() > 1);
   CHECK(blur10["gain"][1].get<double>() == Approx(1.1).epsilon(0.01));
+  // Under vulkan the same two captures see 2x: a bloom twice too strong fails by its gain gate.
+  for (int y = 0; y < bloom.height(); ++y)
+    for (int x = 0; x < bloom.width(); ++x)
+      for (int c = 0; c < 3; ++c) {
+        float& b = bloom.pixel(x, y)[c];
+        b = static_cast<float>(b / 1.1 * 2.0);
+        const double h = double(input.pixel(x, y)[c]) + b;
+        out.pixel(x, y)[c] = static_cast<float>(std::pow(-std::expm1(-h), 1 / 2.2));
+      }
+  bloomref::save_exr(dir / "two/blur.10.exr", bloom.cview());
+  bloomref::save_exr(dir / "two/output.exr", out.cview());
+  r = run_cli(dir, "check " + size + " --stages two --profile vulkan --json v.json");
+  INFO(r.out << r.err);
+  CHECK(r.code == 1);
+  j = read_json(dir / "v.json");
+  CHECK(j["items"][0]["first_divergent_stage"] == "blur.10");
+  const json& v10 = j["items"][0]["stages"][0]["isolated"];
+  CHECK(v10["gain_gate"].get<double>() > 1);
+  CHECK(r.out.find("gain gate") != std::string::npos);
 }
 
 TEST_CASE("nothing compared is exit 5", "[check-cli]") {
