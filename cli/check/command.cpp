@@ -564,7 +564,7 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
   sub->add_option("--bright-fs", args->shaders.bright_fs,
                   "--shaders: your bright-pass fragment shader (default: the oracle's bright image)");
   sub->add_option("--target-format", args->shaders.target_format,
-                  "--shaders: render targets RGBA16F | RGB16F | RGBA32F (default: from --storage)");
+                  "--shaders: render targets RGBA16F | RGB16F | RGBA32F | R11F_G11F_B10F (default: from --storage)");
   sub->add_option("--filter", args->shaders.filter, "--shaders: texture filter linear | nearest");
   sub->add_option("--wrap", args->shaders.wrap,
                   "--shaders: texture wrap clamp-to-edge | repeat | mirrored-repeat");

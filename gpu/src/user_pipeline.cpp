@@ -1,6 +1,7 @@
 #include "bloomref/gpu/user_pipeline.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -30,7 +31,9 @@ struct Named {
 
 constexpr Named<TargetFormat> kFormats[] = {{TargetFormat::rgba16f, "rgba16f", "GL_RGBA16F"},
                                             {TargetFormat::rgb16f, "rgb16f", "GL_RGB16F"},
-                                            {TargetFormat::rgba32f, "rgba32f", "GL_RGBA32F"}};
+                                            {TargetFormat::rgba32f, "rgba32f", "GL_RGBA32F"},
+                                            {TargetFormat::r11f_g11f_b10f, "r11f_g11f_b10f",
+                                             "GL_R11F_G11F_B10F"}};
 constexpr Named<TextureFilter> kFilters[] = {{TextureFilter::linear, "linear", "GL_LINEAR"},
                                              {TextureFilter::nearest, "nearest", "GL_NEAREST"}};
 constexpr Named<TextureWrap> kWraps[] = {
@@ -52,8 +55,15 @@ std::string name_of(const Named<E> (&table)[N], E v) {
 template <class E, std::size_t N>
 E parse(const Named<E> (&table)[N], const char* what, const std::string& s) {
   std::string names;
+  // Case aside: the help and GL's own spelling say RGBA16F, GL_CLAMP_TO_EDGE, ...
+  auto same = [](const std::string& a, const char* b) {
+    return a.size() == std::strlen(b) &&
+           std::equal(a.begin(), a.end(), b, [](char x, char y) {
+             return std::tolower(static_cast<unsigned char>(x)) == std::tolower(static_cast<unsigned char>(y));
+           });
+  };
   for (const auto& n : table) {
-    if (s == n.name || s == n.gl_name) return n.value;
+    if (same(s, n.name) || same(s, n.gl_name)) return n.value;
     names += (names.empty() ? "" : ", ") + std::string(n.name);
   }
   throw ParamError(std::string(what) + " '" + s + "' is not one of: " + names);
@@ -67,6 +77,8 @@ GLenum gl_format(TargetFormat f) {
       return GL_RGB16F;
     case TargetFormat::rgba32f:
       return GL_RGBA32F;
+    case TargetFormat::r11f_g11f_b10f:
+      return GL_R11F_G11F_B10F;
   }
   return GL_RGBA32F;
 }

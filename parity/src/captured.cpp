@@ -531,7 +531,7 @@ void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Ima
   const CapturedStage cap = capture(name_);
   const CauseContext cc{plan_, sanitized_, profile_, rounding_, threads_,
                         [this](const std::string& n) { return V(n); },
-                        [this](const std::string& n) { return streams_.captured(n); }};
+                        [this](const std::string& n) { return streams_.captured(n); }, &bound};
   auto score = [&](Image& variant) {
     if (cap.code_bits > 0) {
       std::vector<float> q(variant.values().size());

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <map>
 #include <optional>
@@ -47,8 +48,14 @@ struct Hypothesis {
   int flip_input = -1;        // the composite reads one input flipped: 0 the scene, 1 the bloom
   bool rgba8 = false;         // every stage stored in an 8-bit unsigned normalised target
   bool r11g11b10 = false;     // every stage stored in R11F_G11F_B10F (packed unsigned floats)
+  bool packed_toward_zero = false;  // ... rounded toward zero (llvmpipe), not to the nearest
+  bool scene_stored = false;  // the scene texture too, which the bright pass reads
   int encoded_luma = 0;       // the threshold compared with the luminance of encoded colour:
                               // 1 sRGB (IEC 61966-2-1), 2 x^(1 / gamma)
+  bool unwritten = false;     // the bright output left unwritten below the threshold: those
+                              // texels hold whatever the target held (the capture's values)
+  bool nonfinite = false;     // NaN/Inf made at the target stage (the capture's, where the
+                              // oracle's value is finite)
   int params = 0;             // how many numbers were fitted to the capture
   bool sampled() const { return !sampling.is_default(); }
 };
@@ -86,8 +93,13 @@ class Evaluator {
 
   Image target() {
     Image out = compute(target_, true);
-    if (h_.rgba8) to_unorm8(out);
-    if (h_.r11g11b10) to_packed_float(out);
+    if (h_.unwritten || h_.nonfinite) take_from_capture(out);
+    if ((h_.rgba8 || h_.r11g11b10) && ctx_.target_bound) {
+      round_within_bound(out);
+    } else {
+      if (h_.rgba8) to_unorm8(out);
+      if (h_.r11g11b10) to_packed_float(out, h_.packed_toward_zero);
+    }
     if (h_.target_gain != 1.0f)
       for (std::size_t i = 0; i < out.values().size(); ++i)
         if (i % kChannels != 3) out.data()[i] *= h_.target_gain;
@@ -138,6 +150,50 @@ class Evaluator {
     return {it->second.cview(), true};
   }
 
+  // The capture's own values where the hypothesis says the stage did not compute them: the
+  // texels the bright pass leaves dark (unwritten), or the values the capture holds as NaN or
+  // Inf where the oracle's are finite (made there).
+  void take_from_capture(Image& out) const {
+    const ConstImageView cap = ctx_.view(target_.name);
+    if (!cap.data || cap.width != out.width() || cap.height != out.height()) throw NotApplicable{};
+    for (int y = 0; y < out.height(); ++y)
+      for (int x = 0; x < out.width(); ++x) {
+        float* o = out.pixel(x, y);
+        const float* g = cap.pixel(x, y);
+        if (h_.unwritten && o[0] == 0 && o[1] == 0 && o[2] == 0) std::copy(g, g + 3, o);
+        if (h_.nonfinite)
+          for (int c = 0; c < 3; ++c)
+            if (std::isfinite(o[c]) && !std::isfinite(g[c])) o[c] = g[c];
+      }
+  }
+
+  // The target stored as the hypothesis's format: the device's value before the write lies
+  // within the bound of the oracle's, and the write rounds it monotonically, so the stored
+  // value lies between the rounded ends of that range. The capture is taken where it lies
+  // there, else the nearer end.
+  void round_within_bound(Image& out) const {
+    const ConstImageView cap = ctx_.view(target_.name);
+    const Image& bound = *ctx_.target_bound;
+    if (!cap.data || cap.width != out.width() || cap.height != out.height() ||
+        bound.width() != out.width() || bound.height() != out.height()) {
+      if (h_.rgba8) to_unorm8(out);
+      if (h_.r11g11b10) to_packed_float(out, h_.packed_toward_zero);
+      return;
+    }
+    auto write = [this](float v, int c) {
+      if (h_.rgba8) return std::isnan(v) ? 0.0f : std::round(std::min(std::max(v, 0.0f), 1.0f) * 255.0f) / 255.0f;
+      return packed(v, c == 2 ? 5 : 6, h_.packed_toward_zero);
+    };
+    for (int y = 0; y < out.height(); ++y)
+      for (int x = 0; x < out.width(); ++x)
+        for (int c = 0; c < 3; ++c) {
+          float& v = out.pixel(x, y)[c];
+          const float b = bound.cview().pixel(x, y)[c], g = cap.pixel(x, y)[c];
+          const float lo = write(v - b, c), hi = write(v + b, c);
+          v = std::isnan(g) || !(b < INFINITY) ? lo : std::min(std::max(g, lo), hi);
+        }
+  }
+
   // RGB clamped to [0, 1] as GLSL's clamp() and an 8-bit target do (NaN left as it is).
   static void clamp_to_unit(Image& img) {
     for (std::size_t i = 0; i < img.values().size(); ++i)
@@ -156,24 +212,27 @@ class Evaluator {
     store(img.view(), p_.storage, ctx_.rounding, ctx_.threads);
     if (h_.f16) store(img.view(), Storage::f16, ctx_.rounding, ctx_.threads);
     if (h_.rgba8) to_unorm8(img);
-    if (h_.r11g11b10) to_packed_float(img);
+    if (h_.r11g11b10) to_packed_float(img, h_.packed_toward_zero);
   }
 
   // An R11F_G11F_B10F target's write (GL 4.6, 2.3.4.3-4): unsigned floats with a 5-bit exponent
   // and 6 (R, G) or 5 (B) mantissa bits; negative values and NaN become 0, values above the
-  // largest finite one become it. Rounded to the nearest (ties away from zero).
-  static float packed(float v, int mantissa) {
+  // largest finite one become it. Rounded to the nearest (ties away from zero), or toward zero
+  // as llvmpipe does (measured: 2.0234375 is stored as 2 in R, 4.1171875 as 4 in B).
+  static float packed(float v, int mantissa, bool toward_zero) {
     if (!(v > 0)) return 0.0f;
     const double top = std::ldexp(2.0 - std::ldexp(1.0, -mantissa), 15);
     if (v >= top) return static_cast<float>(top);
     int e = 0;
     std::frexp(double(v), &e);                          // v = f 2^e, f in [0.5, 1)
     const double q = std::ldexp(1.0, std::max(e - 1, -14) - mantissa);  // denormals below 2^-14
-    return static_cast<float>(std::min(std::round(v / q) * q, top));
+    const double n = toward_zero ? std::floor(v / q) : std::round(v / q);
+    return static_cast<float>(std::min(n * q, top));
   }
-  static void to_packed_float(Image& img) {
+  static void to_packed_float(Image& img, bool toward_zero) {
     for (std::size_t i = 0; i < img.values().size(); ++i)
-      if (i % kChannels != 3) img.data()[i] = packed(img.data()[i], i % kChannels == 2 ? 5 : 6);
+      if (i % kChannels != 3)
+        img.data()[i] = packed(img.data()[i], i % kChannels == 2 ? 5 : 6, toward_zero);
   }
 
   // An RGBA8 target's write (GL 4.6, 2.3.5.2): clamped to [0, 1], the nearest of the 255ths.
@@ -229,6 +288,14 @@ class Evaluator {
         return copy(ctx_.sanitized);
       case StageKind::bright: {
         Image out(ctx_.sanitized.width, ctx_.sanitized.height);
+        // A scene stored in the hypothesis's target format is what the bright pass reads.
+        Image stored_scene;
+        ConstImageView scene = ctx_.sanitized;
+        if (h_.scene_stored) {
+          stored_scene = copy(ctx_.sanitized);
+          store_as_device(stored_scene);
+          scene = stored_scene.cview();
+        }
         const float threshold = std::isnan(h_.threshold) ? p_.threshold : h_.threshold;
         if (h_.encoded_luma) {
           // The colour encoded before its luminance is taken (a threshold set in gamma space):
@@ -240,7 +307,7 @@ class Evaluator {
           };
           for (int y = 0; y < out.height(); ++y)
             for (int x = 0; x < out.width(); ++x) {
-              const float* sc = ctx_.sanitized.pixel(x, y);
+              const float* sc = scene.pixel(x, y);
               float* o = out.pixel(x, y);
               const bool bright = luminance(encode(sc[0]), encode(sc[1]), encode(sc[2])) > threshold;
               for (int c = 0; c < 3; ++c) o[c] = bright ? sc[c] : 0.0f;
@@ -249,10 +316,10 @@ class Evaluator {
           return out;
         }
         if (h_.ge || h_.clamp_bright)
-          extract_bright_variant(ctx_.sanitized, out.view(), threshold, h_.ge, h_.clamp_bright,
+          extract_bright_variant(scene, out.view(), threshold, h_.ge, h_.clamp_bright,
                                  threads);
         else
-          extract_bright(ctx_.sanitized, out.view(), threshold, threads);
+          extract_bright(scene, out.view(), threshold, threads);
         return out;
       }
       case StageKind::blur: {
@@ -633,6 +700,93 @@ std::optional<float> fit_gain(ConstImageView user, ConstImageView oracle) {
   return static_cast<float>(g);
 }
 
+// The shift s (texels added to both lookup coordinates, as a shader's offset does) that best
+// explains the target pass from its input, by least squares over candidates and a golden-
+// section refinement around the best. Nothing when no shift fits better than none, or when it
+// is a half texel (half-texel-shift tests that one) or under 0.05 texel.
+std::optional<float> fit_shift(const CauseContext& ctx, const StageSpec& target, int threads) {
+  if (target.kind != StageKind::blur) return std::nullopt;
+  const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]), user = ctx.view(target.name);
+  if (!src.data || !user.data || user.width != src.width || user.height != src.height)
+    return std::nullopt;
+  const Kernel& k = kernel_for(ctx.plan.params.kernel);
+  Image out(src.width, src.height);
+  auto cost = [&](double shift) {
+    Sampling smp;
+    smp.subtexel_bits = ctx.profile.subtexel_bits;
+    smp.shift = static_cast<float>(shift);
+    blur_pass_variant(src, out.view(), target.axis, k.offsets_f32, k.weights_f32, smp, threads);
+    return squared_residual(out.cview(), user);
+  };
+  const double none = cost(0.0);
+  double best = 0.0, best_cost = none;
+  for (double c : {0.25, -0.25, 0.75, -0.75, 1.0, -1.0, 1.5, -1.5, 2.0, -2.0, 3.0, -3.0}) {
+    const double v = cost(c);
+    if (v < best_cost) best = c, best_cost = v;
+  }
+  if (best == 0.0) return std::nullopt;
+  double lo = best - 0.25, hi = best + 0.25;
+  const double g = (std::sqrt(5.0) - 1) / 2;
+  double a = hi - g * (hi - lo), b = lo + g * (hi - lo), ca = cost(a), cb = cost(b);
+  for (int i = 0; i < 14; ++i) {
+    if (ca < cb) hi = b, b = a, cb = ca, a = hi - g * (hi - lo), ca = cost(a);
+    else lo = a, a = b, ca = cb, b = lo + g * (hi - lo), cb = cost(b);
+  }
+  double f = std::min(ca, cb) < best_cost ? (ca < cb ? a : b) : best;
+  const double snapped = std::round(f * 4) / 4;  // quarter texels, as shaders write them
+  if (std::fabs(f - snapped) < 0.01) f = snapped;
+  if (std::fabs(std::fabs(f) - 0.5) < 0.02 || std::fabs(f) < 0.05) return std::nullopt;
+  return static_cast<float>(f);
+}
+
+// The signature of a bright output left unwritten below the threshold, in a captured bright
+// image: light where the oracle's is dark. Either it is not the texel's own colour at most of
+// those texels (what the target held before: undefined in GL), or it is the texel's own colour
+// at every dark texel that has any (a driver that writes the pass's other output there, as
+// llvmpipe does: a threshold's change would light only the texels above another luminance).
+enum class Unwritten { no, foreign, own_colour };
+Unwritten unwritten_signature(const CauseContext& ctx, const StageSpec& target) {
+  if (target.kind != StageKind::bright || !ctx.captured(target.name) || !ctx.target_bound)
+    return Unwritten::no;
+  const ConstImageView cap = ctx.view(target.name), scene = ctx.sanitized;
+  if (!cap.data || cap.width != scene.width || cap.height != scene.height) return Unwritten::no;
+  Image oracle(scene.width, scene.height);
+  extract_bright(scene, oracle.view(), ctx.plan.params.threshold, ctx.threads);
+  const Image& bound = *ctx.target_bound;
+  std::uint64_t lit = 0, foreign = 0, coloured = 0, own = 0;
+  for (int y = 0; y < scene.height; ++y)
+    for (int x = 0; x < scene.width; ++x) {
+      const float *o = oracle.pixel(x, y), *g = cap.pixel(x, y), *sc = scene.pixel(x, y);
+      const float* b = bound.cview().pixel(x, y);
+      if (o[0] != 0 || o[1] != 0 || o[2] != 0) continue;
+      bool on = false, other = false, colour = false;
+      for (int c = 0; c < 3; ++c) {
+        on = on || !(std::fabs(g[c]) <= b[c]);
+        other = other || !(std::fabs(g[c] - sc[c]) <= b[c] + 1e-3f * std::fabs(sc[c]));
+        colour = colour || !(std::fabs(sc[c]) <= b[c]);  // a colour told from black
+      }
+      lit += on;
+      foreign += on && other;
+      coloured += colour;
+      own += colour && on && !other;
+    }
+  if (lit == 0) return Unwritten::no;
+  if (2 * foreign > lit) return Unwritten::foreign;
+  return own == coloured && foreign == 0 ? Unwritten::own_colour : Unwritten::no;
+}
+
+// Whether the capture holds NaN or Inf where the isolated oracle's stage is finite.
+bool nonfinite_signature(const CauseContext& ctx, const StageSpec& target, ConstImageView oracle) {
+  const ConstImageView cap = ctx.view(target.name);
+  if (!cap.data || !oracle.data || cap.width != oracle.width || cap.height != oracle.height)
+    return false;
+  for (int y = 0; y < cap.height; ++y)
+    for (int x = 0; x < cap.width; ++x)
+      for (int c = 0; c < 3; ++c)
+        if (!std::isfinite(cap.pixel(x, y)[c]) && std::isfinite(oracle.pixel(x, y)[c])) return true;
+  return false;
+}
+
 std::string weights_text(const std::vector<float>& w) {
   std::string s = "{";
   double sum = 0;
@@ -717,6 +871,19 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
         ->encoded_luma = 1;
     add("threshold-color-space", "the threshold compared with the luminance of gamma-encoded colour")
         ->encoded_luma = 2;
+    if (const Unwritten u = unwritten_signature(ctx, target); u != Unwritten::no) {
+      // Foreign values are taken from the capture, a value per dark texel: counted as many
+      // parameters, so that any cause that explains as much is named first. The texels' own
+      // colour is a fixed change (the bright image is the scene).
+      Hypothesis* h = add("bright-unwritten",
+                          u == Unwritten::foreign
+                              ? "the bright output not written below the threshold: those texels "
+                                "hold what the target held (undefined in GL)"
+                              : "the bright output not written below the threshold: the driver "
+                                "wrote the pass's other output, the scene, there (undefined in GL)");
+      h->unwritten = true;
+      h->params = u == Unwritten::foreign ? 50 : 0;
+    }
   } else if (std::find(names.begin(), names.end(), "down.1") != names.end()) {
     add("threshold-ge", "threshold tie on the other side (`>` where the specification keeps ties)")
         ->ge = true;
@@ -725,8 +892,17 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     add("f16-storage", "f16 storage where f32 was declared")->f16 = true;
   add("rgba8-storage", "stages stored in 8-bit targets (RGBA8: clamped to [0, 1], 255ths)")->rgba8 =
       true;
-  add("r11g11b10-storage",
-      "stages stored as R11F_G11F_B10F (6-bit mantissas, 5 for blue, no sign)")->r11g11b10 = true;
+  for (bool scene : {false, true})
+    for (bool toward_zero : {false, true}) {
+      Hypothesis* h = add("r11g11b10-storage",
+                          scene ? "stages and the scene stored as R11F_G11F_B10F (6-bit mantissas, "
+                                  "5 for blue, no sign)"
+                                : "stages stored as R11F_G11F_B10F (6-bit mantissas, 5 for blue, "
+                                  "no sign)");
+      h->r11g11b10 = true;
+      h->packed_toward_zero = toward_zero;
+      h->scene_stored = scene;
+    }
   // Both models of the composite, fitted once (scene + k bloom, and mix).
   const CompositeFit composite_fit = has(StageKind::composite) ? fit_composite(ctx, target) : CompositeFit{};
   if (has(StageKind::composite)) {
@@ -799,6 +975,34 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
                                : *f == 2.0f || *f == 0.5f ? " (the texel size of another level?)" : "");
       h->detail = b;
     }
+  if (const auto f = fit_shift(ctx, target, ctx.threads)) {
+    Hypothesis* h = add("texel-shift", "lookups shifted by a constant offset");
+    h->sampling.shift = *f;
+    h->params = 1;
+    char b[160];
+    std::snprintf(b, sizeof b,
+                  "lookups %.3g texels off on both axes (an offset in another resolution's texels?)",
+                  double(*f));
+    h->detail = b;
+  }
+  if (const ConstImageView cap = ctx.view(target.name); cap.data) {
+    bool any = false;
+    for (int y = 0; y < cap.height && !any; ++y)
+      for (int i = 0; i < cap.width * kChannels && !any; ++i)
+        any = i % kChannels != 3 && !std::isfinite(cap.row(y)[i]);
+    Image oracle;
+    if (any) try {
+        oracle = Evaluator(ctx, Hypothesis{}, target).target();
+      } catch (const NotApplicable&) {
+      }
+    if (any && oracle.width() && nonfinite_signature(ctx, target, oracle.cview())) {
+      Hypothesis* h = add("nonfinite-spread",
+                          "NaN/Inf made at this stage (a division by zero, a log or pow of a "
+                          "negative, an overflow), carried by every stage after it");
+      h->nonfinite = true;
+      h->params = 20;
+    }
+  }
   if (target.kind == StageKind::blur || target.kind == StageKind::up) {
     Hypothesis none;
     Image oracle;

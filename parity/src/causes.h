@@ -20,6 +20,9 @@ struct CauseContext {
   /// A stage as the isolated oracle reads it: the capture, or the oracle's recomputation.
   std::function<ConstImageView(const std::string&)> view;
   std::function<bool(const std::string&)> captured;
+  /// The target stage's bound, value by value (a storage hypothesis rounds the oracle's value
+  /// give or take it: any value of that range may be the one the device rounded).
+  const Image* target_bound = nullptr;
 };
 
 /// Recomputes `target` once per hypothesis (the oracle with one change, from the same captures)

@@ -69,7 +69,8 @@ class UserShaderError : public InputError {
 };
 
 /// Internal formats of every texture and render target of the user's pipeline.
-enum class TargetFormat { rgba16f, rgb16f, rgba32f };
+/// r11f_g11f_b10f: packed unsigned floats (no alpha, no sign), as engines store HDR colour.
+enum class TargetFormat { rgba16f, rgb16f, rgba32f, r11f_g11f_b10f };
 enum class TextureFilter { linear, nearest };
 enum class TextureWrap { clamp_to_edge, repeat, mirrored_repeat };
 enum class RowOrder { same, flipped };
@@ -89,7 +90,8 @@ TextureFilter parse_texture_filter(const std::string& s);
 TextureWrap parse_texture_wrap(const std::string& s);
 RowOrder parse_row_order(const std::string& s);
 FinalTarget parse_final_target(const std::string& s);
-/// f16 for the half formats, f32 for RGBA32F: the storage the oracle must be run with.
+/// f16 for the half formats (and the packed R11F_G11F_B10F, whose values f16 holds exactly),
+/// f32 for RGBA32F: the storage the oracle must be run with.
 Storage storage_of(TargetFormat f);
 
 /// One shader's text and the file it came from (named in every error about it).
