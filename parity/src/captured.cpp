@@ -532,14 +532,15 @@ void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Ima
   const CauseContext cc{plan_, sanitized_, profile_, rounding_, threads_,
                         [this](const std::string& n) { return V(n); },
                         [this](const std::string& n) { return streams_.captured(n); }, &bound};
-  auto score = [&](Image& variant) {
+  auto score = [&](Image& variant, double absolute) {
     if (cap.code_bits > 0) {
       std::vector<float> q(variant.values().size());
       capture_codes(cap, variant.data(), q.data(), variant.pixel_count());
     }
-    return within_bound(cap.image, variant.cview(), bound, 32 * kU, p_.storage, profile_, threads_);
+    return within_bound(cap.image, variant.cview(), bound, 32 * kU, p_.storage, profile_, threads_,
+                        absolute);
   };
-  const double oracle_score = score(oracle);
+  const double oracle_score = score(oracle, 0.0);
   iso.causes = test_causes(cc, spec, oracle_score, score);
 }
 

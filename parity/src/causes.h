@@ -27,10 +27,13 @@ struct CauseContext {
 
 /// Recomputes `target` once per hypothesis (the oracle with one change, from the same captures)
 /// and scores each with `within` (which may adjust the image, e.g. clamp it as an 8-bit capture
-/// was, and returns the fraction of values within the stage's bound). Returns the hypotheses
+/// was, and returns the fraction of values within the stage's bound widened by the absolute
+/// amount it is given: a hypothesis that samples at other positions than the oracle's carries
+/// its own coordinates' float error, which the stage's bound does not hold where the oracle's
+/// neighbourhood is dark). Returns the hypotheses
 /// that score above `oracle_within`, best first (ties: the simpler, listed first).
 std::vector<CauseFit> test_causes(const CauseContext& ctx, const StageSpec& target,
                                   double oracle_within,
-                                  const std::function<double(Image&)>& within);
+                                  const std::function<double(Image&, double)>& within);
 
 }  // namespace bloomref::parity::detail

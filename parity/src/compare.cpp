@@ -387,7 +387,7 @@ bool uniform_rgb(ConstImageView img, bool clamped) {
 }
 
 double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound, double relative,
-                    Storage storage, const DeviceProfile& p, int threads) {
+                    Storage storage, const DeviceProfile& p, int threads, double absolute) {
   if (gl.width != oracle.width || gl.height != oracle.height) return 0.0;
   std::vector<std::uint64_t> outside(std::size_t(gl.height), 0);
   parallel_rows(gl.height, threads, [&](int y0, int y1) {
@@ -396,7 +396,7 @@ double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound
       std::uint64_t n = 0;
       for (int i = 0; i < gl.width * kChannels; ++i) {
         if (i % kChannels == 3) continue;
-        const float relaxed = b[i] + static_cast<float>(relative * std::fabs(o[i]));
+        const float relaxed = b[i] + static_cast<float>(relative * std::fabs(o[i]) + absolute);
         if (!(relaxed < INFINITY)) continue;
         const int special = special_case(o[i], g[i], storage, p, relaxed);
         if (special != -1) {

@@ -78,8 +78,8 @@ int judge_band(int window);
 
 /// The fraction of values of `gl` within their bound against `oracle` (what
 /// StageComparison::within gives of the whole comparison, without the rest), the bound of each value being `bound`'s plus
-/// `relative` x |oracle value| (rounded to float, then added in float).
+/// `relative` x |oracle value| and `absolute` (rounded to float, then added in float).
 double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound, double relative,
-                    Storage storage, const DeviceProfile& p, int threads);
+                    Storage storage, const DeviceProfile& p, int threads, double absolute = 0.0);
 
 }  // namespace bloomref::parity::detail
