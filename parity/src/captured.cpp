@@ -140,6 +140,8 @@ class Comparison {
     std::optional<std::array<double, 3>> tv, mass;
   };
   Budgets signed_budgets(const std::vector<std::string>& in, const EnergySums& es) const;
+  // The likely cause named at the last failing stage of each kind, and that stage.
+  std::map<StageKind, std::pair<std::string, std::string>> last_cause_;
   void gain_gates(StageComparison& iso, StageComparison& e2e, const EnergySums& es,
                   const std::vector<std::string>& in);
   ExtraTerms iso_terms(const StageTerms& t, const CapturedStage& cap, const Image& inherited) const;
@@ -529,9 +531,11 @@ Image Comparison::final_bound(const StageTerms& t) {
 void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Image& oracle,
                                 const Image& bound) {
   const CapturedStage cap = capture(name_);
-  const CauseContext cc{plan_, sanitized_, profile_, rounding_, threads_,
-                        [this](const std::string& n) { return V(n); },
-                        [this](const std::string& n) { return streams_.captured(n); }, &bound};
+  CauseContext cc{plan_, sanitized_, profile_, rounding_, threads_,
+                  [this](const std::string& n) { return V(n); },
+                  [this](const std::string& n) { return streams_.captured(n); }, &bound};
+  const auto prior = last_cause_.find(spec.kind);
+  if (prior != last_cause_.end()) cc.prior = prior->second.first, cc.prior_stage = prior->second.second;
   auto score = [&](Image& variant, double absolute) {
     if (cap.code_bits > 0) {
       std::vector<float> q(variant.values().size());
@@ -542,6 +546,8 @@ void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Ima
   };
   const double oracle_score = score(oracle, 0.0);
   iso.causes = test_causes(cc, spec, oracle_score, score);
+  if (!iso.causes.empty() && iso.causes.front().likely())
+    last_cause_[spec.kind] = {iso.causes.front().id, spec.name};
 }
 
 // A stage without capture: the oracle's recomputation stored as the device stores it, carrying

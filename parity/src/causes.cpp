@@ -14,10 +14,12 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <optional>
 
 #include "bloomref/mip.h"
+#include "bloomref/parallel.h"
 #include "bloomref/parity/variants.h"
 #include "bloomref/stages.h"
 #include "chain.h"
@@ -58,6 +60,15 @@ struct Hypothesis {
                               // oracle's value is finite)
   int params = 0;             // how many numbers were fitted to the capture
   bool sampled() const { return !sampling.is_default(); }
+  /// Changes only the target's own output after the oracle computed it (a gain, the capture's
+  /// values taken where the stage did not compute them): made from the oracle's image.
+  bool after_oracle_only() const {
+    return !flip && !swap_rb && !stale && !along_x && !sampled() && !kernel && weights.empty() &&
+           pass_delta == 0 && strength_scale == 1.0f && !ge && !clamp_bright && !f16 &&
+           !no_exposure && !clamp_blur && std::isnan(threshold) && gamma_times == 1 &&
+           !pow_negative && gamma == 0.0f && spacing == 1.0f && std::isnan(mix_amount) &&
+           flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored;
+  }
 };
 
 struct NotApplicable {};
@@ -88,11 +99,14 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
 // isolated oracle's own images.
 class Evaluator {
  public:
-  Evaluator(const CauseContext& ctx, const Hypothesis& h, const StageSpec& target)
-      : ctx_(ctx), p_(ctx.plan.params), h_(h), target_(target) {}
+  /// `oracle`: the target's isolated oracle when already computed (a hypothesis that changes
+  /// only the target's output starts from a copy of it).
+  Evaluator(const CauseContext& ctx, const Hypothesis& h, const StageSpec& target,
+            const Image* oracle = nullptr)
+      : ctx_(ctx), p_(ctx.plan.params), h_(h), target_(target), oracle_(oracle) {}
 
   Image target() {
-    Image out = compute(target_, true);
+    Image out = oracle_ && oracle_->width() && h_.after_oracle_only() ? *oracle_ : compute(target_, true);
     if (h_.unwritten || h_.nonfinite) take_from_capture(out);
     if ((h_.rgba8 || h_.r11g11b10) && ctx_.target_bound) {
       round_within_bound(out);
@@ -190,7 +204,7 @@ class Evaluator {
           float& v = out.pixel(x, y)[c];
           const float b = bound.cview().pixel(x, y)[c], g = cap.pixel(x, y)[c];
           const float lo = write(v - b, c), hi = write(v + b, c);
-          v = std::isnan(g) || !(b < INFINITY) ? lo : std::min(std::max(g, lo), hi);
+          v = std::isnan(g) || !(b < INFINITY) ? lo : std::min(std::max(write(g, c), lo), hi);
         }
   }
 
@@ -427,6 +441,7 @@ class Evaluator {
   const BloomParams& p_;
   const Hypothesis& h_;
   const StageSpec& target_;
+  const Image* oracle_;
   std::map<std::string, Image> memo_;
 };
 
@@ -811,7 +826,130 @@ std::string weights_text(const std::vector<float>& w) {
   return s + b;
 }
 
-std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& target) {
+// What a failing blur pass's residual (capture - isolated oracle) looks like, so that only the
+// hypotheses it could fit are fitted and tried. Each figure is the squared correlation of the
+// residual with the first-order change a hypothesis makes (1: the change explains all of it to
+// first order); `edge` is the fraction of the values out of bound within `reach` texels of an
+// edge (a wrap mode changes nothing farther in).
+struct Signature {
+  bool known = false;
+  double gain = 1, shift = 1, spacing = 1, edge = 1;
+};
+
+// The fraction of a capture's finite RGB values that a storage format holds exactly (`holds`:
+// value, channel): a stage written to that format holds nothing else.
+// Stops at the first 1% of all values that are not held (the answer is then below 0.99).
+double representable(ConstImageView cap, const std::function<bool(float, int)>& holds) {
+  std::uint64_t n = 0, yes = 0;
+  const std::uint64_t limit = std::uint64_t(cap.width) * cap.height * 3 / 100 + 1;
+  for (int y = 0; y < cap.height; ++y)
+    for (int x = 0; x < cap.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const float v = cap.pixel(x, y)[c];
+        if (!std::isfinite(v)) continue;
+        ++n;
+        yes += holds(v, c);
+        if (n - yes > limit) return 0.0;
+      }
+  return n ? double(yes) / double(n) : 1.0;
+}
+
+bool r11_holds(float v, int c) {
+  if (v < 0) return false;
+  if (v == 0) return true;
+  std::uint32_t bits;
+  std::memcpy(&bits, &v, sizeof bits);
+  const int low = 23 - (c == 2 ? 5 : 6);  // mantissa bits the packed float does not have
+  const int e = int((bits >> 23) & 0xff) - 127;
+  if (e < -14) return true;  // the packed format's denormals: fewer bits still, not tested
+  return (bits & ((1u << low) - 1)) == 0 && e <= 15;
+}
+
+bool unorm8_holds(float v, int) {
+  return v >= 0 && v <= 1 && std::fabs(v * 255.0f - std::round(v * 255.0f)) < 1e-3f;
+}
+
+bool f16_holds(float v, int) { return round_to_half(v) == v; }
+
+double squared_correlation(double rd, double rr, double dd) {
+  return rr > 0 && dd > 0 ? rd * rd / (rr * dd) : 0.0;
+}
+
+Signature blur_signature(const CauseContext& ctx, const StageSpec& target, ConstImageView oracle,
+                         int reach) {
+  Signature sg;
+  const ConstImageView cap = ctx.view(target.name);
+  if (!ctx.target_bound || !cap.data || !oracle.data || cap.width != oracle.width ||
+      cap.height != oracle.height)
+    return sg;
+  const ConstImageView in = ctx.view(stage_inputs(ctx.plan, target)[0]);
+  const bool have_in = in.data && in.width == cap.width && in.height == cap.height;
+  const Kernel& k = kernel_for(ctx.plan.params.kernel);
+  const bool hz = target.axis == Axis::horizontal;
+  const int w = cap.width, h = cap.height;
+  const ConstImageView b = ctx.target_bound->cview();
+  // Sums over every `step`-th row (a statistic: about 250,000 pixels are enough), in parallel.
+  const int step = std::max(1, static_cast<int>(std::int64_t(w) * h / 262144));
+  const int rows = (h + step - 1) / step;
+  struct Sums {
+    double rr = 0, ro = 0, oo = 0, rs = 0, ss = 0, rk = 0, kk = 0;
+    std::uint64_t out = 0, near = 0;
+  };
+  std::vector<Sums> part(static_cast<std::size_t>(rows));
+  auto at = [](ConstImageView v, int x, int y, int c) {
+    return double(v.pixel(std::clamp(x, 0, v.width - 1), std::clamp(y, 0, v.height - 1))[c]);
+  };
+  parallel_rows(rows, ctx.threads, [&](int r0, int r1) {
+    for (int row = r0; row < r1; ++row) {
+      const int y = row * step;
+      Sums& a = part[std::size_t(row)];
+      for (int x = 0; x < w; ++x)
+        for (int c = 0; c < 3; ++c) {
+          const double o = oracle.pixel(x, y)[c], r = cap.pixel(x, y)[c] - o;
+          if (!std::isfinite(r)) continue;
+          if (std::fabs(r) > b.pixel(x, y)[c]) {
+            ++a.out;
+            a.near += x < reach || y < reach || x >= w - reach || y >= h - reach;
+          }
+          // A shift by s on both axes: s (dO/dx + dO/dy).
+          const double d = (at(oracle, x + 1, y, c) - at(oracle, x - 1, y, c) +
+                            at(oracle, x, y + 1, c) - at(oracle, x, y - 1, c)) / 2;
+          // Taps k times as far apart: (k - 1) sum over the taps of w_i i I'(x + i).
+          double sp = 0;
+          if (have_in)
+            for (std::size_t i = 1; i < k.offsets_f64.size(); ++i) {
+              const int o_i = static_cast<int>(std::lround(k.offsets_f64[i]));
+              for (int sgn : {1, -1}) {
+                const int t = sgn * o_i;
+                const double g = hz ? at(in, x + t + 1, y, c) - at(in, x + t - 1, y, c)
+                                    : at(in, x, y + t + 1, c) - at(in, x, y + t - 1, c);
+                sp += k.weights_f64[i] * k.offsets_f64[i] * sgn * g / 2;
+              }
+            }
+          if (!std::isfinite(d) || !std::isfinite(sp) || !std::isfinite(o)) continue;
+          a.rr += r * r;
+          a.ro += r * o, a.oo += o * o;
+          a.rs += r * d, a.ss += d * d;
+          a.rk += r * sp, a.kk += sp * sp;
+        }
+    }
+  });
+  double rr = 0, ro = 0, oo = 0, rs = 0, ss = 0, rk = 0, kk = 0;
+  std::uint64_t out = 0, near = 0;
+  for (const Sums& a : part) {
+    rr += a.rr, ro += a.ro, oo += a.oo, rs += a.rs, ss += a.ss, rk += a.rk, kk += a.kk;
+    out += a.out, near += a.near;
+  }
+  sg.known = true;
+  sg.gain = squared_correlation(ro, rr, oo);
+  sg.shift = squared_correlation(rs, rr, ss);
+  sg.spacing = have_in ? squared_correlation(rk, rr, kk) : 1.0;
+  sg.edge = out ? double(near) / double(out) : 1.0;
+  return sg;
+}
+
+std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& target,
+                                   const std::string& only, Image& oracle) {
   const BloomParams& p = ctx.plan.params;
   const std::vector<std::string> names = segment(ctx, target);
   std::vector<StageKind> kinds;
@@ -819,13 +957,38 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   auto has = [&](StageKind k) { return std::find(kinds.begin(), kinds.end(), k) != kinds.end(); };
   const bool sampled = has(StageKind::blur) || has(StageKind::down) || has(StageKind::up) ||
                        has(StageKind::bloom);
+  // The target's isolated oracle (blur passes and upsamples: the fitted gain's reference), and
+  // a blur pass's residual signature.
+  if (target.kind == StageKind::blur || target.kind == StageKind::up) try {
+      oracle = Evaluator(ctx, Hypothesis{}, target).target();
+    } catch (const NotApplicable&) {
+    }
+  Signature sg;
+  if (target.kind == StageKind::blur && oracle.width() && only.empty()) {
+    const Kernel& kern = kernel_for(p.kernel);
+    double most = 0;
+    for (double o : kern.offsets_f64) most = std::max(most, std::fabs(o));
+    const int passes = static_cast<int>(std::count(kinds.begin(), kinds.end(), StageKind::blur));
+    sg = blur_signature(ctx, target, oracle.cview(), passes * (static_cast<int>(std::ceil(most)) + 1));
+  }
   std::vector<Hypothesis> out;
+  // `only`: the cause named at the failing stage before this one (of the same kind), tried
+  // alone first; hypotheses of other ids are made into a scratch list and dropped.
+  std::vector<Hypothesis> dropped;
+  auto want = [&](const char* id) { return only.empty() || only == id; };
   auto add = [&](std::string id, std::string words) {
     Hypothesis h;
+    std::vector<Hypothesis>& to = only.empty() || only == id ? out : dropped;
     h.id = std::move(id);
     h.description = std::move(words);
-    out.push_back(h);
-    return &out.back();
+    to.push_back(h);
+    return &to.back();
+  };
+  // A stage written to a storage format holds only values it can hold: a capture of the target
+  // in float that does not (1% of values allowed: an edge case of the format) rules it out.
+  const ConstImageView target_cap = ctx.captured(target.name) ? ctx.view(target.name) : ConstImageView{};
+  auto stored_as = [&](bool (*holds)(float, int)) {
+    return !target_cap.data || representable(target_cap, holds) >= 0.99;
   };
   // Flip and swap: of every capture (a readback's order), or of this stage's output alone.
   for (bool every : {true, false}) {
@@ -849,15 +1012,25 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   }
   if (has(StageKind::tonemap) && p.exposure != 1.0f)
     add("exposure-ignored", "exposure ignored (tone map with exposure 1)")->no_exposure = true;
+  // A blur pass's residual rules out what it does not look like (Signature): a shift where it
+  // is not along the image's gradient, a wrap mode where the values out of bound are not near
+  // an edge, GL_NEAREST where every tap sits on a texel centre (nothing changes).
+  bool centred = true;
+  for (double o : kernel_for(p.kernel).offsets_f64) centred = centred && o == std::floor(o);
   if (sampled) {
-    add("half-texel-shift", "half-texel shift (lookups at texel corners, +0.5 texel)")
-        ->sampling.shift = 0.5f;
-    add("half-texel-shift", "half-texel shift (lookups at texel corners, -0.5 texel)")
-        ->sampling.shift = -0.5f;
-    add("wrap-repeat", "GL_REPEAT instead of GL_CLAMP_TO_EDGE")->sampling.wrap = Wrap::repeat;
-    add("wrap-mirrored-repeat", "GL_MIRRORED_REPEAT instead of GL_CLAMP_TO_EDGE")
-        ->sampling.wrap = Wrap::mirrored_repeat;
-    add("nearest-filter", "GL_NEAREST instead of GL_LINEAR")->sampling.nearest = true;
+    if (!sg.known || sg.shift >= 0.1) {
+      add("half-texel-shift", "half-texel shift (lookups at texel corners, +0.5 texel)")
+          ->sampling.shift = 0.5f;
+      add("half-texel-shift", "half-texel shift (lookups at texel corners, -0.5 texel)")
+          ->sampling.shift = -0.5f;
+    }
+    if (!sg.known || sg.edge >= 0.5) {
+      add("wrap-repeat", "GL_REPEAT instead of GL_CLAMP_TO_EDGE")->sampling.wrap = Wrap::repeat;
+      add("wrap-mirrored-repeat", "GL_MIRRORED_REPEAT instead of GL_CLAMP_TO_EDGE")
+          ->sampling.wrap = Wrap::mirrored_repeat;
+    }
+    if (!(sg.known && centred && p.method == Method::gaussian))
+      add("nearest-filter", "GL_NEAREST instead of GL_LINEAR")->sampling.nearest = true;
   }
   if (has(StageKind::blur))
     add("blur-clamped", "blur passes clamped to [0, 1] (an 8-bit target, or clamp() in the shader)")
@@ -898,12 +1071,17 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     add("threshold-ge", "threshold tie on the other side (`>` where the specification keeps ties)")
         ->ge = true;
   }
-  if (p.storage == Storage::f32)
+  if (want("f16-storage") && p.storage == Storage::f32 && stored_as(f16_holds))
     add("f16-storage", "f16 storage where f32 was declared")->f16 = true;
-  add("rgba8-storage", "stages stored in 8-bit targets (RGBA8: clamped to [0, 1], 255ths)")->rgba8 =
-      true;
+  if (want("rgba8-storage") && stored_as(unorm8_holds))
+    add("rgba8-storage", "stages stored in 8-bit targets (RGBA8: clamped to [0, 1], 255ths)")->rgba8 =
+        true;
+  // The scene's texture in the format matters only to a bright pass recomputed here.
+  const bool bright_here = has(StageKind::bright);
+  const bool r11 = want("r11g11b10-storage") && stored_as(r11_holds);
   for (bool scene : {false, true})
     for (bool toward_zero : {false, true}) {
+      if ((scene && !bright_here) || !r11) continue;
       Hypothesis* h = add("r11g11b10-storage",
                           scene ? "stages and the scene stored as R11F_G11F_B10F (6-bit mantissas, "
                                   "5 for blue, no sign)"
@@ -971,7 +1149,9 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     h->detail = b;
   }
   if (target.kind == StageKind::blur)
-    if (const auto f = fit_spacing(ctx, target, ctx.threads)) {
+    if (const auto f = (want("tap-spacing") || want("anisotropic-blur")) && (!sg.known || sg.spacing >= 0.5)
+                           ? fit_spacing(ctx, target, ctx.threads)
+                           : std::nullopt) {
       const bool hz = target.axis == Axis::horizontal;
       const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]);
       const int n = hz ? src.width : src.height, other = hz ? src.height : src.width;
@@ -988,7 +1168,9 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
                                : *f == 2.0f || *f == 0.5f ? " (the texel size of another level?)" : "");
       h->detail = b;
     }
-  if (const auto f = fit_shift(ctx, target, ctx.threads)) {
+  if (const auto f = want("texel-shift") && (!sg.known || sg.shift >= 0.1)
+                         ? fit_shift(ctx, target, ctx.threads)
+                         : std::nullopt) {
     Hypothesis* h = add("texel-shift", "lookups shifted by a constant offset");
     h->sampling.shift = *f;
     h->params = 1;
@@ -1003,12 +1185,13 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     for (int y = 0; y < cap.height && !any; ++y)
       for (int i = 0; i < cap.width * kChannels && !any; ++i)
         any = i % kChannels != 3 && !std::isfinite(cap.row(y)[i]);
-    Image oracle;
-    if (any) try {
-        oracle = Evaluator(ctx, Hypothesis{}, target).target();
+    Image own;  // the isolated oracle, made here unless made above
+    if (any && !oracle.width()) try {
+        own = Evaluator(ctx, Hypothesis{}, target).target();
       } catch (const NotApplicable&) {
       }
-    if (any && oracle.width() && nonfinite_signature(ctx, target, oracle.cview())) {
+    const Image& o = oracle.width() ? oracle : own;
+    if (any && o.width() && nonfinite_signature(ctx, target, o.cview())) {
       Hypothesis* h = add("nonfinite-spread",
                           "NaN/Inf made at this stage (a division by zero, a log or pow of a "
                           "negative, an overflow), carried by every stage after it");
@@ -1017,12 +1200,6 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     }
   }
   if (target.kind == StageKind::blur || target.kind == StageKind::up) {
-    Hypothesis none;
-    Image oracle;
-    try {
-      oracle = Evaluator(ctx, none, target).target();
-    } catch (const NotApplicable&) {
-    }
     if (const auto g = oracle.width() ? fit_gain(ctx.view(target.name), oracle.cview()) : std::nullopt) {
       const bool blur = target.kind == StageKind::blur;
       Hypothesis* h = add(blur ? "weight-sum" : "upsample-gain",
@@ -1038,7 +1215,10 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   if (target.kind == StageKind::blur) {
     const Kernel& k = kernel_for(p.kernel);
     const ConstImageView src = ctx.view(stage_inputs(ctx.plan, target)[0]);
-    if (auto w = !src.data ? std::nullopt : fit_weights(src, ctx.view(target.name), target.axis, k, ctx.profile.subtexel_bits)) {
+    // A residual that is the oracle's own image scaled (a weight sum) is weight-sum's with one
+    // parameter: five fitted weights could not be named before it.
+    const bool fit = want("wrong-weights") && src.data && (!sg.known || sg.gain < 0.99);
+    if (auto w = !fit ? std::nullopt : fit_weights(src, ctx.view(target.name), target.axis, k, ctx.profile.subtexel_bits)) {
       Hypothesis* h = add("wrong-weights", "wrong kernel weights");
       h->weights = *w;
       h->params = static_cast<int>(w->size());
@@ -1050,14 +1230,19 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
 
 }  // namespace
 
-std::vector<CauseFit> test_causes(const CauseContext& ctx, const StageSpec& target,
-                                  double oracle_within,
-                                  const std::function<double(Image&, double)>& within) {
+namespace {
+
+// Every hypothesis of `only` (all when empty), scored, best first.
+std::vector<CauseFit> try_causes(const CauseContext& ctx, const StageSpec& target,
+                                 double oracle_within,
+                                 const std::function<double(Image&, double)>& within,
+                                 const std::string& only) {
   std::vector<CauseFit> fits;
-  for (const Hypothesis& h : hypotheses(ctx, target)) {
+  Image oracle;
+  for (const Hypothesis& h : hypotheses(ctx, target, only, oracle)) {
     Image img;
     try {
-      img = Evaluator(ctx, h, target).target();
+      img = Evaluator(ctx, h, target, &oracle).target();
     } catch (const NotApplicable&) {
       continue;
     }
@@ -1097,6 +1282,26 @@ std::vector<CauseFit> test_causes(const CauseContext& ctx, const StageSpec& targ
     if (fits[i].id == "wrong-weights")
       fits[i].description = "the pass acts as a kernel of other weights (a description)";
   return fits;
+}
+
+}  // namespace
+
+std::vector<CauseFit> test_causes(const CauseContext& ctx, const StageSpec& target,
+                                  double oracle_within,
+                                  const std::function<double(Image&, double)>& within) {
+  // The same bug at every pass: the cause named at the failing stage before this one, tried
+  // alone, is named again when it explains this one too (the full search there found no
+  // other cause as good); otherwise every hypothesis is tried.
+  if (!ctx.prior.empty()) {
+    std::vector<CauseFit> again = try_causes(ctx, target, oracle_within, within, ctx.prior);
+    if (!again.empty() && again.front().likely()) {
+      CauseFit& c = again.front();
+      c.detail += (c.detail.empty() ? "" : "; ") + std::string("as at ") + ctx.prior_stage +
+                  " (the other causes not tried again)";
+      return again;
+    }
+  }
+  return try_causes(ctx, target, oracle_within, within, "");
 }
 
 }  // namespace bloomref::parity::detail

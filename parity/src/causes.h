@@ -23,6 +23,9 @@ struct CauseContext {
   /// The target stage's bound, value by value (a storage hypothesis rounds the oracle's value
   /// give or take it: any value of that range may be the one the device rounded).
   const Image* target_bound = nullptr;
+  /// The likely cause named at the last failing stage of the target's kind before it, and
+  /// that stage: tried alone first (the same bug at every pass costs one hypothesis a pass).
+  std::string prior, prior_stage;
 };
 
 /// Recomputes `target` once per hypothesis (the oracle with one change, from the same captures)
