@@ -889,3 +889,119 @@ TEST_CASE("check's results are the same on any thread count", "[check]") {
     }
   CHECK(best_cause(stage(runs[0], "blur.2")) == "flipped-vertically");
 }
+
+TEST_CASE("a lookup offset by whole or fractional texels is fitted and named", "[check][causes]") {
+  // blur.1 written here with every lookup 1.5 texels off on both axes (an offset computed in
+  // another resolution's texels): texel-shift, fitted to 1.5; a half texel stays half-texel-shift.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto t = trace_of(p, scene);
+  for (const double shift : {1.5, -1.0, 0.5}) {
+    const auto r = check(p, scene, {{"bright", t.at("bright")}, {"blur.1", blur_h(t.at("bright"), kD9, 'c', shift)}});
+    INFO("shift " << shift);
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == "blur.1");
+    const auto& s = stage(r, "blur.1");
+    REQUIRE(!s.causes.empty());
+    CHECK(s.causes.front().likely());
+    if (shift == 0.5) {
+      CHECK(best_cause(s) == "half-texel-shift");
+    } else {
+      CHECK(best_cause(s) == "texel-shift");
+      char want[32];
+      std::snprintf(want, sizeof want, "lookups %g texels off", shift);
+      CHECK(s.causes.front().detail.find(want) != std::string::npos);
+    }
+  }
+}
+
+TEST_CASE("NaN made at a stage is named there, not at the stages that inherit it", "[check][causes]") {
+  // blur.1 holds NaN at one texel where the oracle is finite (a division by zero in the pass);
+  // blur.2, made from it by the CPU, inherits it and passes as judged from that capture.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  auto t = trace_of(p, scene);
+  Image b1 = t.at("blur.1");
+  b1.pixel(20, 10)[1] = NAN;
+  const Image b2 = blur_h(b1, kD9, 'c', 0, true);
+  const auto r = check(p, scene, {{"bright", t.at("bright")}, {"blur.1", b1}, {"blur.2", b2}});
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "blur.1");
+  CHECK(best_cause(stage(r, "blur.1")) == "nonfinite-spread");
+  CHECK(stage(r, "blur.1").causes.front().likely());
+  CHECK(stage(r, "blur.2").verdict == Verdict::pass);
+}
+
+TEST_CASE("an unwritten bright output is told from another threshold", "[check][causes]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const Image right = bright_written(scene, [&](float l) { return l > p.threshold; }, false);
+  // Dark texels holding what the target held before (here a constant light of 3): not their
+  // own colour.
+  Image stale = right;
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      float* d = stale.pixel(x, y);
+      if (d[0] == 0 && d[1] == 0 && d[2] == 0) d[0] = d[1] = d[2] = 3.0f;
+    }
+  // Every dark texel holding its own colour (the pass's other output, as llvmpipe writes it).
+  const Image own = bright_written(scene, [](float) { return true; }, false);
+  // A lower threshold, within the dark gradient's luminances (0.029 to 0.046): only the texels
+  // above it lit, in their own colour.
+  const Image lower = bright_written(scene, [](float l) { return l > 0.04f; }, false);
+  for (const auto& [name, img, want] :
+       {std::tuple<const char*, const Image*, const char*>{"stale", &stale, "bright-unwritten"},
+        {"own colour", &own, "bright-unwritten"},
+        {"lower threshold", &lower, "threshold-other"}}) {
+    INFO(name);
+    const auto r = check(p, scene, {{"bright", *img}});
+    REQUIRE(r.first_divergent_stage);
+    CHECK(*r.first_divergent_stage == "bright");
+    CHECK(best_cause(stage(r, "bright")) == want);
+    CHECK(stage(r, "bright").causes.front().likely());
+  }
+}
+
+TEST_CASE("the same bug at every pass is named at each, the search not repeated", "[check][causes]") {
+  // Weights summing to 1.07 in every pass, written out here: each pass fails on its own and
+  // names weight-sum; from the second on it is the cause found at blur.1, tried alone.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto t = trace_of(p, scene);
+  double w[5];
+  for (int i = 0; i < 5; ++i) w[i] = kD9[i] * 1.07;
+  std::map<std::string, Image> user{{"bright", t.at("bright")}};
+  Image prev = t.at("bright");
+  for (int k = 1; k <= p.passes; ++k) {
+    prev = blur_h(prev, w, 'c', 0, k % 2 == 0);
+    user["blur." + std::to_string(k)] = prev;
+  }
+  const auto r = check(p, scene, user);
+  for (int k = 1; k <= p.passes; ++k) {
+    const auto& s = stage(r, "blur." + std::to_string(k));
+    INFO(s.stage);
+    CHECK(s.verdict == Verdict::fail);
+    CHECK(best_cause(s) == "weight-sum");
+    CHECK(s.causes.front().likely());
+    CHECK((s.causes.front().detail.find("as at blur.1") != std::string::npos) == (k > 1));
+  }
+}
+
+TEST_CASE("storage causes are offered only for captures the format could hold", "[check][causes]") {
+  // A blur pass 7% too bright in f32: its values are not all f16, 8-bit or packed-float
+  // values, so no storage cause is offered for it.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto t = trace_of(p, scene);
+  Image b1 = t.at("blur.1");
+  for (std::size_t i = 0; i < b1.values().size(); ++i)
+    if (i % 4 != 3) b1.data()[i] *= 1.07f;
+  const auto r = check(p, scene, {{"bright", t.at("bright")}, {"blur.1", b1}});
+  INFO(stage(r, "blur.1").reason);
+  CHECK(stage(r, "blur.1").verdict == Verdict::fail);
+  for (const auto& c : stage(r, "blur.1").causes) {
+    INFO(c.id);
+    CHECK(c.id.find("storage") == std::string::npos);
+  }
+  CHECK(best_cause(stage(r, "blur.1")) == "weight-sum");
+}

@@ -546,7 +546,10 @@ void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Ima
   };
   const double oracle_score = score(oracle, 0.0);
   iso.causes = test_causes(cc, spec, oracle_score, score);
-  if (!iso.causes.empty() && iso.causes.front().likely())
+  // The stage where a cause was found by the full search stays its source while it is found
+  // again.
+  if (!iso.causes.empty() && iso.causes.front().likely() &&
+      (prior == last_cause_.end() || prior->second.first != iso.causes.front().id))
     last_cause_[spec.kind] = {iso.causes.front().id, spec.name};
 }
 

@@ -891,8 +891,11 @@ Signature blur_signature(const CauseContext& ctx, const StageSpec& target, Const
   // Sums over every `step`-th row (a statistic: about 250,000 pixels are enough), in parallel.
   const int step = std::max(1, static_cast<int>(std::int64_t(w) * h / 262144));
   const int rows = (h + step - 1) / step;
+  // Shifts: the gradient (small shifts), and whole texels (1 and 2, either way), exactly.
+  constexpr int kLags[4] = {1, -1, 2, -2};
   struct Sums {
     double rr = 0, ro = 0, oo = 0, rs = 0, ss = 0, rk = 0, kk = 0;
+    double rl[4] = {0, 0, 0, 0}, ll[4] = {0, 0, 0, 0};
     std::uint64_t out = 0, near = 0;
   };
   std::vector<Sums> part(static_cast<std::size_t>(rows));
@@ -927,6 +930,10 @@ Signature blur_signature(const CauseContext& ctx, const StageSpec& target, Const
               }
             }
           if (!std::isfinite(d) || !std::isfinite(sp) || !std::isfinite(o)) continue;
+          for (int l = 0; l < 4; ++l) {
+            const double dl = at(oracle, x + kLags[l], y + kLags[l], c) - o;
+            if (std::isfinite(dl)) a.rl[l] += r * dl, a.ll[l] += dl * dl;
+          }
           a.rr += r * r;
           a.ro += r * o, a.oo += o * o;
           a.rs += r * d, a.ss += d * d;
@@ -934,15 +941,18 @@ Signature blur_signature(const CauseContext& ctx, const StageSpec& target, Const
         }
     }
   });
-  double rr = 0, ro = 0, oo = 0, rs = 0, ss = 0, rk = 0, kk = 0;
+  double rr = 0, ro = 0, oo = 0, rs = 0, ss = 0, rk = 0, kk = 0, rl[4] = {0, 0, 0, 0},
+         ll[4] = {0, 0, 0, 0};
   std::uint64_t out = 0, near = 0;
   for (const Sums& a : part) {
     rr += a.rr, ro += a.ro, oo += a.oo, rs += a.rs, ss += a.ss, rk += a.rk, kk += a.kk;
+    for (int l = 0; l < 4; ++l) rl[l] += a.rl[l], ll[l] += a.ll[l];
     out += a.out, near += a.near;
   }
   sg.known = true;
   sg.gain = squared_correlation(ro, rr, oo);
   sg.shift = squared_correlation(rs, rr, ss);
+  for (int l = 0; l < 4; ++l) sg.shift = std::max(sg.shift, squared_correlation(rl[l], rr, ll[l]));
   sg.spacing = have_in ? squared_correlation(rk, rr, kk) : 1.0;
   sg.edge = out ? double(near) / double(out) : 1.0;
   return sg;

@@ -398,13 +398,19 @@ double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound
         if (i % kChannels == 3) continue;
         const float relaxed = b[i] + static_cast<float>(relative * std::fabs(o[i]) + absolute);
         if (!(relaxed < INFINITY)) continue;
-        const int special = special_case(o[i], g[i], storage, p, relaxed);
-        if (special != -1) {
-          n += special == 0;
-          continue;
+        // Finite values in the storage's range are numbers (special_case's -1), told apart here
+        // without the call.
+        const bool plain = std::isfinite(o[i]) && std::isfinite(g[i]) &&
+                           (storage != Storage::f16 || std::fabs(o[i]) <= 65504.0f);
+        if (!plain) {
+          const int special = special_case(o[i], g[i], storage, p, relaxed);
+          if (special != -1) {
+            n += special == 0;
+            continue;
+          }
         }
-        const double err = std::fabs(double(g[i]) - double(o[i]));
-        if (err != 0 && (relaxed > 0 ? err / relaxed : INFINITY) > 1) ++n;
+        // Outside when err / relaxed > 1 (relaxed >= 0; 0 admits no error).
+        n += std::fabs(double(g[i]) - double(o[i])) > relaxed;
       }
       outside[std::size_t(y)] = n;
     }
