@@ -330,10 +330,12 @@ std::string action_line(const parity::StageComparison& s) {
   if (s.causes.empty()) return head + "no usual cause explains it; " + s.reason;
   const parity::CauseFit& c = s.causes.front();
   // A fitted cause's detail says what changed and by how much; a long one (fitted weights)
-  // gives way to the description.
-  const std::string what = !c.detail.empty() && c.detail.size() <= 100 ? c.detail : c.description;
+  // gives way to the description. A fixed change's detail (the option that declares it) follows.
+  const bool short_detail = !c.detail.empty() && c.detail.size() <= 100;
+  const std::string what = c.params > 0 && short_detail ? c.detail : c.description;
   return head + what + ", explains " + percent(c.within) +
-         (c.likely() ? "" : " (a partial explanation)");
+         (c.likely() ? "" : " (a partial explanation)") +
+         (c.params == 0 && short_detail ? "; " + c.detail : "");
 }
 
 std::string cause_line(const parity::StageComparison& s) {

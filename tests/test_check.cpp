@@ -1005,3 +1005,26 @@ TEST_CASE("storage causes are offered only for captures the format could hold", 
   }
   CHECK(best_cause(stage(r, "blur.1")) == "weight-sum");
 }
+
+TEST_CASE("a blur that starts vertical is named, not a pass too few", "[check][causes]") {
+  // Every pass on the other axis (vertical first), written out here: each pass fails on its
+  // own and names vertical-first, not pass-skipped.
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto t = trace_of(p, scene);
+  std::map<std::string, Image> user{{"bright", t.at("bright")}};
+  Image prev = t.at("bright");
+  for (int k = 1; k <= p.passes; ++k) {
+    prev = blur_h(prev, kD9, 'c', 0, k % 2 == 1);
+    user["blur." + std::to_string(k)] = prev;
+  }
+  const auto r = check(p, scene, user);
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "blur.1");
+  for (int k = 1; k <= p.passes; ++k) {
+    const auto& s = stage(r, "blur." + std::to_string(k));
+    INFO(s.stage);
+    CHECK(best_cause(s) == "vertical-first");
+    CHECK(s.causes.front().likely());
+  }
+}

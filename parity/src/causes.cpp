@@ -58,6 +58,7 @@ struct Hypothesis {
                               // texels hold whatever the target held (the capture's values)
   bool nonfinite = false;     // NaN/Inf made at the target stage (the capture's, where the
                               // oracle's value is finite)
+  bool vertical_first = false;  // the blur starts with a vertical pass: every pass's axis swapped
   int params = 0;             // how many numbers were fitted to the capture
   bool sampled() const { return !sampling.is_default(); }
   /// Changes only the target's own output after the oracle computed it (a gain, the capture's
@@ -67,7 +68,8 @@ struct Hypothesis {
            pass_delta == 0 && strength_scale == 1.0f && !ge && !clamp_bright && !f16 &&
            !no_exposure && !clamp_blur && std::isnan(threshold) && gamma_times == 1 &&
            !pow_negative && gamma == 0.0f && spacing == 1.0f && std::isnan(mix_amount) &&
-           flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored;
+           flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored &&
+           !vertical_first;
   }
 };
 
@@ -80,7 +82,7 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
     case StageKind::bright:
       return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold) || h.encoded_luma;
     case StageKind::blur:
-      return h.sampled() || h.kernel || h.clamp_blur ||
+      return h.sampled() || h.kernel || h.clamp_blur || h.vertical_first ||
              (is_target && (!h.weights.empty() || h.stale || h.along_x || h.spacing != 1.0f)) ||
              h.f16;
     case StageKind::down: return h.sampled() || h.ge || h.f16;
@@ -274,7 +276,9 @@ class Evaluator {
     return out;
   }
 
-  static Axis axis_of(int pass) { return pass % 2 == 1 ? Axis::horizontal : Axis::vertical; }
+  Axis axis_of(int pass) const {
+    return (pass % 2 == 1) != h_.vertical_first ? Axis::horizontal : Axis::vertical;
+  }
 
   // The bloom of a plan with one pass fewer or more: from the last captured pass (or bright).
   Image bloom_with_delta() {
@@ -358,7 +362,7 @@ class Evaluator {
                             threads, h_.spacing / static_cast<float>(n));
           return out;
         }
-        Image out = blur(in[0], spec.axis, true);
+        Image out = blur(in[0], axis_of(spec.pass), true);
         if (is_target && h_.pass_delta > 0) {
           store_as_device(out);
           out = blur(out.cview(), axis_of(spec.pass + 1), false);
@@ -1053,8 +1057,14 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
         ->along_x = true;
   // A blur pass in the segment: the bloom is not captured (or the target is a pass).
   if (p.method == Method::gaussian && p.passes > 0 && has(StageKind::blur)) {
-    add("pass-skipped", "one blur pass too few")->pass_delta = -1;
-    add("pass-added", "one blur pass too many")->pass_delta = 1;
+    Hypothesis* h = add("pass-skipped", "one blur pass too few");
+    h->pass_delta = -1;
+    h->detail = "--passes " + std::to_string(p.passes - 1) + " declares it";
+    h = add("pass-added", "one blur pass too many");
+    h->pass_delta = 1;
+    h->detail = "--passes " + std::to_string(p.passes + 1) + " declares it";
+    add("vertical-first", "the blur starts with a vertical pass (each pass's axis is the other one)")
+        ->vertical_first = true;
   }
   if (has(StageKind::bright)) {
     add("threshold-ge", "`>=` instead of `>` at the threshold")->ge = true;
@@ -1081,8 +1091,11 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     add("threshold-ge", "threshold tie on the other side (`>` where the specification keeps ties)")
         ->ge = true;
   }
-  if (want("f16-storage") && p.storage == Storage::f32 && stored_as(f16_holds))
-    add("f16-storage", "f16 storage where f32 was declared")->f16 = true;
+  if (want("f16-storage") && p.storage == Storage::f32 && stored_as(f16_holds)) {
+    Hypothesis* h = add("f16-storage", "f16 storage where f32 was declared");
+    h->f16 = true;
+    h->detail = "--storage f16 declares half-float targets";
+  }
   if (want("rgba8-storage") && stored_as(unorm8_holds))
     add("rgba8-storage", "stages stored in 8-bit targets (RGBA8: clamped to [0, 1], 255ths)")->rgba8 =
         true;
@@ -1146,7 +1159,8 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     h->params = 1;
     char b[160];
     std::snprintf(b, sizeof b,
-                  "the bright mask fits a threshold from %.6g up to %.6g (specified %.6g)",
+                  "the bright mask fits a threshold from %.6g up to %.6g (specified %.6g; "
+                  "--threshold declares it)",
                   double(t->first), double(t->second), double(p.threshold));
     h->detail = b;
   }
@@ -1155,7 +1169,8 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     h->gamma = *g;
     h->params = 1;
     char b[96];
-    std::snprintf(b, sizeof b, "the output fits gamma %.4g (specified %.4g)", *g, double(p.gamma));
+    std::snprintf(b, sizeof b, "the output fits gamma %.4g (specified %.4g; --gamma declares it)", *g,
+                  double(p.gamma));
     h->detail = b;
   }
   if (target.kind == StageKind::blur)
