@@ -333,9 +333,12 @@ std::string action_line(const parity::StageComparison& s) {
   // gives way to the description. A fixed change's detail (the option that declares it) follows.
   const bool short_detail = !c.detail.empty() && c.detail.size() <= 100;
   const std::string what = c.params > 0 && short_detail ? c.detail : c.description;
+  std::string also;
+  for (const parity::CauseFit& o : s.causes)
+    if (o.as_likely) also += (also.empty() ? " (as likely: " : "; ") + o.description;
   return head + what + ", explains " + percent(c.within) +
          (c.likely() ? "" : " (a partial explanation)") +
-         (c.params == 0 && short_detail ? "; " + c.detail : "");
+         (c.params == 0 && short_detail ? "; " + c.detail : "") + (also.empty() ? "" : also + ")");
 }
 
 std::string cause_line(const parity::StageComparison& s) {
@@ -345,13 +348,11 @@ std::string cause_line(const parity::StageComparison& s) {
                      c.description + " (brings " + percent(c.within) +
                      " of values within bound; as specified " + percent(c.oracle_within) + ")";
   if (!c.detail.empty()) line += "; " + c.detail;
-  // Another cause that explains as much is said too: the captures cannot tell them apart.
+  // Other causes that explain as much are said too: the captures cannot tell them apart.
   for (std::size_t i = 1; i < s.causes.size(); ++i) {
     const parity::CauseFit& o = s.causes[i];
-    // A more flexible fit that explains as much describes the capture; it is no other cause.
-    if (o.id == c.id || !o.likely() || o.within < c.within - 0.0005 || o.params > c.params) continue;
-    line += "; as likely: " + o.description + (o.detail.empty() ? "" : " (" + o.detail + ")");
-    break;
+    if (o.as_likely)
+      line += "; as likely: " + o.description + (o.detail.empty() ? "" : " (" + o.detail + ")");
   }
   return line;
 }

@@ -1174,7 +1174,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     h->detail = b;
   }
   if (target.kind == StageKind::blur)
-    if (const auto f = (want("tap-spacing") || want("anisotropic-blur")) && (!sg.known || sg.spacing >= 0.5)
+    if (const auto f = (want("tap-spacing") || want("anisotropic-blur")) && (!sg.known || sg.spacing >= 0.2)
                            ? fit_spacing(ctx, target, ctx.threads)
                            : std::nullopt) {
       const bool hz = target.axis == Axis::horizontal;
@@ -1306,6 +1306,16 @@ std::vector<CauseFit> try_causes(const CauseContext& ctx, const StageSpec& targe
   for (std::size_t i = 1; i < fits.size(); ++i)
     if (fits[i].id == "wrong-weights")
       fits[i].description = "the pass acts as a kernel of other weights (a description)";
+  // Causes the captures cannot tell from the first: a fixed change and a fitted one that both
+  // explain a sparse scene's few decisions (a threshold taken in sRGB and another threshold,
+  // when only a few lights are near either) are said together.
+  if (!fits.empty() && fits.front().likely())
+    for (std::size_t i = 1; i < fits.size(); ++i) {
+      const CauseFit& c = fits.front();
+      CauseFit& o = fits[i];
+      o.as_likely = o.likely() && o.id != c.id && o.within >= c.within - 0.0005 &&
+                    o.params <= c.params + 1 && o.id != "wrong-weights";
+    }
   return fits;
 }
 

@@ -63,6 +63,10 @@ struct CauseFit {
   /// bound, and at most a tenth of those the oracle as specified leaves out. Otherwise it is a
   /// partial explanation (test_causes keeps none that brings in less than a tenth of them).
   bool likely() const { return within >= 0.999 && 1 - within <= 0.1 * (1 - oracle_within); }
+  /// Not the first cause, but one the captures cannot tell from it: likely too, a different
+  /// id, within 0.05% of the values of what the first explains, and no more than one fitted
+  /// parameter more flexible (five fitted weights describe any kernel: they never are).
+  bool as_likely = false;
 };
 
 struct StageComparison {
