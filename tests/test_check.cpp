@@ -111,8 +111,10 @@ std::string best_cause(const parity::StageComparison& s) {
 }
 
 // Texel (x, y) of `img` with the coordinates wrapped as `wrap` says (written out here, not
-// parity's wrap_index): clamp, repeat, or mirrored repeat.
+// parity's wrap_index): clamp, repeat, mirrored repeat, or a black border ('b').
 const float* texel(const Image& img, int x, int y, char wrap) {
+  static const float black[4] = {0, 0, 0, 0};
+  if (wrap == 'b' && (x < 0 || y < 0 || x >= img.width() || y >= img.height())) return black;
   auto w = [&](int i, int n) {
     if (wrap == 'c') return std::min(std::max(i, 0), n - 1);
     if (wrap == 'r') return ((i % n) + n) % n;
@@ -698,6 +700,9 @@ TEST_CASE("wrap modes follow GL's definitions", "[check]") {
   CHECK(parity::wrap_index(5, 5, Wrap::mirrored_repeat) == 4);
   CHECK(parity::wrap_index(9, 5, Wrap::mirrored_repeat) == 0);
   CHECK(parity::wrap_index(10, 5, Wrap::mirrored_repeat) == 0);
+  CHECK(parity::wrap_index(-1, 5, Wrap::border) == -1);
+  CHECK(parity::wrap_index(5, 5, Wrap::border) == -1);
+  CHECK(parity::wrap_index(4, 5, Wrap::border) == 4);
 }
 
 namespace {
@@ -1067,7 +1072,7 @@ TEST_CASE("fuzz: a random bug in a random scene is named right or not at all", "
   auto uniform = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
   auto pick = [&](int n) { return std::uniform_int_distribution<int>(0, n - 1)(rng); };
   const std::vector<std::string> kinds = {"weight-sum", "tap-spacing", "texel-shift", "wrap-repeat",
-                                          "wrap-mirrored-repeat", "vertical-first", "threshold-other",
+                                          "wrap-mirrored-repeat", "padded-target", "vertical-first", "threshold-other",
                                           "bright-clamped", "flipped-vertically", "rb-swapped"};
   std::map<std::string, std::array<int, 3>> tally;  // right, none, undetected
   int wrong = 0, detected = 0, right = 0;
@@ -1110,6 +1115,8 @@ TEST_CASE("fuzz: a random bug in a random scene is named right or not at all", "
       wrap = 'r';
     } else if (kind == "wrap-mirrored-repeat") {
       wrap = 'm';
+    } else if (kind == "padded-target") {
+      wrap = 'b';
     } else if (kind == "vertical-first") {
       vertical_first = true;
     } else if (kind == "threshold-other") {

@@ -567,7 +567,7 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
                   "--shaders: render targets RGBA16F | RGB16F | RGBA32F | R11F_G11F_B10F (default: from --storage)");
   sub->add_option("--filter", args->shaders.filter, "--shaders: texture filter linear | nearest");
   sub->add_option("--wrap", args->shaders.wrap,
-                  "--shaders: texture wrap clamp-to-edge | repeat | mirrored-repeat");
+                  "--shaders: texture wrap clamp-to-edge | repeat | mirrored-repeat | clamp-to-border");
   sub->add_option("--layout", args->shaders.layout,
                   "--shaders: JSON file of the names your shaders use for the preset's samplers, "
                   "uniforms and attributes (docs/check.md)");

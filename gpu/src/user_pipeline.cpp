@@ -39,7 +39,8 @@ constexpr Named<TextureFilter> kFilters[] = {{TextureFilter::linear, "linear", "
 constexpr Named<TextureWrap> kWraps[] = {
     {TextureWrap::clamp_to_edge, "clamp-to-edge", "GL_CLAMP_TO_EDGE"},
     {TextureWrap::repeat, "repeat", "GL_REPEAT"},
-    {TextureWrap::mirrored_repeat, "mirrored-repeat", "GL_MIRRORED_REPEAT"}};
+    {TextureWrap::mirrored_repeat, "mirrored-repeat", "GL_MIRRORED_REPEAT"},
+    {TextureWrap::clamp_to_border, "clamp-to-border", "GL_CLAMP_TO_BORDER"}};
 constexpr Named<FinalTarget> kFinalTargets[] = {{FinalTarget::same, "same", "same"},
                                                 {FinalTarget::rgba8, "rgba8", "GL_RGBA8"}};
 constexpr Named<RowOrder> kRows[] = {{RowOrder::same, "same", "same"},
@@ -95,6 +96,8 @@ GLenum gl_wrap(TextureWrap w) {
       return GL_REPEAT;
     case TextureWrap::mirrored_repeat:
       return GL_MIRRORED_REPEAT;
+    case TextureWrap::clamp_to_border:
+      return GL_CLAMP_TO_BORDER;  // the default border colour: (0, 0, 0, 0)
   }
   return GL_CLAMP_TO_EDGE;
 }

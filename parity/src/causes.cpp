@@ -1042,6 +1042,10 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       add("wrap-repeat", "GL_REPEAT instead of GL_CLAMP_TO_EDGE")->sampling.wrap = Wrap::repeat;
       add("wrap-mirrored-repeat", "GL_MIRRORED_REPEAT instead of GL_CLAMP_TO_EDGE")
           ->sampling.wrap = Wrap::mirrored_repeat;
+      add("padded-target",
+          "taps past the image's edge read black (a render target larger than the image, its "
+          "padding cleared; or GL_CLAMP_TO_BORDER)")
+          ->sampling.wrap = Wrap::border;
     }
     if (!(sg.known && centred && p.method == Method::gaussian))
       add("nearest-filter", "GL_NEAREST instead of GL_LINEAR")->sampling.nearest = true;

@@ -21,6 +21,8 @@ int wrap_index(int i, int n, Wrap wrap) {
       const int m = ((i % (2 * n)) + 2 * n) % (2 * n);  // mirror(a) over a period of 2n
       return m < n ? m : 2 * n - 1 - m;
     }
+    case Wrap::border:
+      return i < 0 || i >= n ? -1 : i;  // the border: variant_axis_tap gives it weight 0
   }
   return i;
 }
@@ -33,8 +35,9 @@ AxisTap<float> variant_axis_tap(float s, int n, const Sampling& smp) {
     // Clamp in float first, as gl_axis_tap does: a far coordinate must not overflow int.
     const float f = std::clamp(std::floor(u), -4.0f * n, 4.0f * n);
     t.i0 = t.i1 = wrap_index(static_cast<int>(f), n, smp.wrap);
-    t.w0 = 1.0f;
+    t.w0 = t.i0 < 0 ? 0.0f : 1.0f;  // the black border
     t.w1 = 0.0f;
+    t.i0 = t.i1 = std::max(t.i0, 0);
     return t;
   }
   const float v = u - 0.5f;
@@ -53,6 +56,9 @@ AxisTap<float> variant_axis_tap(float s, int n, const Sampling& smp) {
   t.i1 = wrap_index(static_cast<int>(fi) + 1, n, smp.wrap);
   t.w0 = 1.0f - a;
   t.w1 = a;
+  // The black border: a texel past the edge adds nothing (its index kept in the image).
+  if (t.i0 < 0) t.w0 = 0.0f, t.i0 = std::max(t.i1, 0);
+  if (t.i1 < 0) t.w1 = 0.0f, t.i1 = t.i0;
   return t;
 }
 

@@ -72,7 +72,7 @@ class UserShaderError : public InputError {
 /// r11f_g11f_b10f: packed unsigned floats (no alpha, no sign), as engines store HDR colour.
 enum class TargetFormat { rgba16f, rgb16f, rgba32f, r11f_g11f_b10f };
 enum class TextureFilter { linear, nearest };
-enum class TextureWrap { clamp_to_edge, repeat, mirrored_repeat };
+enum class TextureWrap { clamp_to_edge, repeat, mirrored_repeat, clamp_to_border };
 enum class RowOrder { same, flipped };
 /// Where the final pass draws: a target of `format` like every other pass, or an 8-bit UNORM
 /// target as the tutorial's window (default framebuffer) is, whose codes are then what is judged.

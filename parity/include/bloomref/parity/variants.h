@@ -17,7 +17,9 @@
 
 namespace bloomref::parity {
 
-enum class Wrap { clamp_to_edge, repeat, mirrored_repeat };
+/// border: GL_CLAMP_TO_BORDER with a black border, as a render target larger than the image
+/// whose padding is cleared to black reads past the image's edge.
+enum class Wrap { clamp_to_edge, repeat, mirrored_repeat, border };
 
 struct Sampling {
   bool nearest = false;
