@@ -342,7 +342,10 @@ std::string action_line(const parity::StageComparison& s) {
 }
 
 std::string cause_line(const parity::StageComparison& s) {
-  if (s.causes.empty()) return s.verdict == parity::Verdict::pass ? "" : "no usual cause explains it";
+  if (s.causes.empty())
+    return s.verdict == parity::Verdict::pass
+               ? ""
+               : "no usual cause explains it" + (s.residual.empty() ? "" : "; the residual: " + s.residual);
   const parity::CauseFit& c = s.causes.front();
   std::string line = (c.likely() ? "likely cause: " : "best partial explanation: ") +
                      c.description + " (brings " + percent(c.within) +

@@ -303,6 +303,20 @@ TEST_CASE("a bug no hypothesis covers is not named as a likely cause", "[check]"
   CHECK(*r.first_divergent_stage == "blur.3");
   const auto& s = stage(r, "blur.3");
   for (const parity::CauseFit& c : s.causes) CHECK_FALSE(c.likely());
+  // The residual is described instead: its total against the oracle's (the patch adds
+  // 5 x 5 x 3 x 0.3 = 22.5 to blur.3's total, computed here from the clean pass), and where
+  // the values out of bound lie (none within 4 texels of an edge: the patch is 5 texels in).
+  double total = 0;
+  const auto clean_trace = trace_of(p, scene);
+  const Image& clean = clean_trace.at("blur.3");
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x)
+      for (int c = 0; c < 3; ++c) total += clean.pixel(x, y)[c];
+  char want[64];
+  std::snprintf(want, sizeof want, "total %.4gx the oracle's", (total + 22.5) / total);
+  INFO(s.residual);
+  CHECK(s.residual.find(want) != std::string::npos);
+  CHECK(s.residual.find("75 values out of bound: 0% within 4 texels of an edge") != std::string::npos);
 }
 
 TEST_CASE("sampling bugs in a blur pass are named", "[check]") {

@@ -140,7 +140,8 @@ ordered_json check_json(const CheckRun& run) {
            {"isolated", stage_json(s)},
            {"end_to_end", stage_json(r.parity.end_to_end[i])},
            {"cause", s.causes.empty() ? ordered_json(nullptr) : cause_json(s.causes.front())},
-           {"causes", causes}});
+           {"causes", causes},
+           {"residual", s.residual.empty() ? ordered_json(nullptr) : ordered_json(s.residual)}});
     }
     const parity::StageComparison* first = first_divergent(r);
     items.push_back(

@@ -546,6 +546,7 @@ void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Ima
   };
   const double oracle_score = score(oracle, 0.0);
   iso.causes = test_causes(cc, spec, oracle_score, score);
+  if (iso.causes.empty() || !iso.causes.front().likely()) iso.residual = describe_residual(cc, spec);
   // The stage where a cause was found by the full search stays its source while it is found
   // again.
   if (!iso.causes.empty() && iso.causes.front().likely() &&

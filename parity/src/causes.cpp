@@ -1259,6 +1259,68 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
 
 }  // namespace
 
+std::string describe_residual(const CauseContext& ctx, const StageSpec& target) {
+  const ConstImageView cap = ctx.view(target.name);
+  Image oracle;
+  try {
+    oracle = Evaluator(ctx, Hypothesis{}, target).target();
+  } catch (const NotApplicable&) {
+    return "";
+  }
+  if (!cap.data || !ctx.target_bound || cap.width != oracle.width() || cap.height != oracle.height())
+    return "";
+  const ConstImageView o = oracle.cview(), b = ctx.target_bound->cview();
+  const int w = cap.width, h = cap.height, edge = 4;
+  double sum_c = 0, sum_o = 0, most = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c)
+        if (std::isfinite(o.pixel(x, y)[c])) most = std::max(most, double(std::fabs(o.pixel(x, y)[c])));
+  std::uint64_t out = 0, near = 0, lit = 0, dark = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double g = cap.pixel(x, y)[c], v = o.pixel(x, y)[c];
+        if (!std::isfinite(g) || !std::isfinite(v)) continue;
+        sum_c += g, sum_o += v;
+        if (std::fabs(g - v) <= b.pixel(x, y)[c]) continue;
+        ++out;
+        near += x < edge || y < edge || x >= w - edge || y >= h - edge;
+        lit += std::fabs(v) >= 0.1 * most;
+        dark += std::fabs(v) < 0.01 * most;
+      }
+  char buf[320];
+  std::string s;
+  if (sum_o != 0) {
+    std::snprintf(buf, sizeof buf, "total %.4gx the oracle's", sum_c / sum_o);
+    s = buf;
+  }
+  if (out > 0) {
+    auto pc = [out](std::uint64_t n) { return 100.0 * double(n) / double(out); };
+    std::snprintf(buf, sizeof buf,
+                  "%s%llu values out of bound: %.0f%% within %d texels of an edge, %.0f%% on lit "
+                  "texels (a tenth of the brightest or more), %.0f%% in the dark (under a "
+                  "hundredth)",
+                  s.empty() ? "" : "; ", static_cast<unsigned long long>(out), pc(near), edge,
+                  pc(lit), pc(dark));
+    s += buf;
+  }
+  if (target.kind == StageKind::blur) {
+    const Kernel& k = kernel_for(ctx.plan.params.kernel);
+    double reach = 0;
+    for (double off : k.offsets_f64) reach = std::max(reach, std::fabs(off));
+    const Signature sg = blur_signature(ctx, target, o, static_cast<int>(std::ceil(reach)) + 1);
+    if (sg.known) {
+      const std::pair<double, const char*> like[] = {
+          {sg.gain, "a gain"}, {sg.shift, "a shift"}, {sg.spacing, "a change of the kernel's width"}};
+      const auto best = *std::max_element(std::begin(like), std::end(like));
+      std::snprintf(buf, sizeof buf, "; most like %s (squared correlation %.2f)", best.second, best.first);
+      s += buf;
+    }
+  }
+  return s;
+}
+
 namespace {
 
 // Every hypothesis of `only` (all when empty), scored, best first.

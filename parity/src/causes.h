@@ -28,6 +28,11 @@ struct CauseContext {
   std::string prior, prior_stage;
 };
 
+/// A failing stage's residual (capture - isolated oracle) in words, for a failure no cause
+/// explains: its total against the oracle's, where the values out of bound lie (near the
+/// edges, on the lit texels, in the dark), and the first-order change it resembles most.
+std::string describe_residual(const CauseContext& ctx, const StageSpec& target);
+
 /// Recomputes `target` once per hypothesis (the oracle with one change, from the same captures)
 /// and scores each with `within` (which may adjust the image, e.g. clamp it as an 8-bit capture
 /// was, and returns the fraction of values within the stage's bound widened by the absolute

@@ -111,6 +111,10 @@ struct StageComparison {
   /// Isolated stages not PASS, when CompareOptions::causes: the hypotheses that bring more
   /// values within bound than the oracle as specified, best first.
   std::vector<CauseFit> causes;
+  /// A failing stage no cause explains, described (CompareOptions::causes): its total against
+  /// the oracle's, where its values out of bound lie, and what its residual resembles, e.g.
+  /// "total 1.02x the oracle's; 92% of the values out of bound within 4 texels of an edge".
+  std::string residual;
 };
 
 struct ParityResult {
