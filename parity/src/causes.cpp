@@ -1061,12 +1061,15 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
         ->along_x = true;
   // A blur pass in the segment: the bloom is not captured (or the target is a pass).
   if (p.method == Method::gaussian && p.passes > 0 && has(StageKind::blur)) {
+    // Of the bloom as a whole (a stage after the passes), the pass count is a setting; a pass
+    // that leaves its input as it was is a bug of that pass, not of the count.
+    const bool count = target.kind != StageKind::blur;
     Hypothesis* h = add("pass-skipped", "one blur pass too few");
     h->pass_delta = -1;
-    h->detail = "--passes " + std::to_string(p.passes - 1) + " declares it";
+    if (count) h->detail = "--passes " + std::to_string(p.passes - 1) + " declares it";
     h = add("pass-added", "one blur pass too many");
     h->pass_delta = 1;
-    h->detail = "--passes " + std::to_string(p.passes + 1) + " declares it";
+    if (count) h->detail = "--passes " + std::to_string(p.passes + 1) + " declares it";
     add("vertical-first", "the blur starts with a vertical pass (each pass's axis is the other one)")
         ->vertical_first = true;
   }

@@ -164,11 +164,21 @@ void apply_gates(StageComparison& s, const Tally& t, const ImageGates& gates, in
 void decide(StageComparison& s) {
   if (s.nonfinite_mismatch > 0 || s.beyond_tier > 0) {
     s.verdict = Verdict::fail;
+    // Where the worst value's bound is all but 0 (a denormal floor: the oracle's value is
+    // exact there), a ratio such as 1e+35x says nothing: the values are said instead.
+    std::string worst = "worst " + fixed3(s.max_ratio) + "x";
+    if (!s.worst.empty() && !(s.worst.front().bound >= 1e-20)) {
+      const WorstValue& w = s.worst.front();
+      char b[200];
+      std::snprintf(b, sizeof b, "worst at (%d, %d) %c: oracle %.6g, capture %.6g, where it allows no error",
+                    w.x, w.y, "RGBA"[w.channel & 3], w.oracle, w.gl);
+      worst = b;
+    }
     s.reason = s.nonfinite_mismatch > 0
                    ? std::to_string(s.nonfinite_mismatch) + " values are NaN/Inf on one side only"
                    : std::to_string(s.beyond_tier) + " values exceed " +
-                         std::to_string(static_cast<int>(kWarnTier)) +
-                         "x their derived bound (worst " + fixed3(s.max_ratio) + "x)";
+                         std::to_string(static_cast<int>(kWarnTier)) + "x their derived bound (" +
+                         worst + ")";
   } else if (!s.gate.empty()) {
     s.verdict = Verdict::fail;
     s.reason = "image gate: " + s.gate;
