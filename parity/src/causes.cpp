@@ -113,8 +113,7 @@ class Evaluator {
     if ((h_.rgba8 || h_.r11g11b10) && ctx_.target_bound) {
       round_within_bound(out);
     } else {
-      if (h_.rgba8) to_unorm8(out);
-      if (h_.r11g11b10) to_packed_float(out, h_.packed_toward_zero);
+      write_all(out);
     }
     if (h_.target_gain != 1.0f)
       for (std::size_t i = 0; i < out.values().size(); ++i)
@@ -192,21 +191,16 @@ class Evaluator {
     const Image& bound = *ctx_.target_bound;
     if (!cap.data || cap.width != out.width() || cap.height != out.height() ||
         bound.width() != out.width() || bound.height() != out.height()) {
-      if (h_.rgba8) to_unorm8(out);
-      if (h_.r11g11b10) to_packed_float(out, h_.packed_toward_zero);
+      write_all(out);
       return;
     }
-    auto write = [this](float v, int c) {
-      if (h_.rgba8) return std::isnan(v) ? 0.0f : std::round(std::min(std::max(v, 0.0f), 1.0f) * 255.0f) / 255.0f;
-      return packed(v, c == 2 ? 5 : 6, h_.packed_toward_zero);
-    };
     for (int y = 0; y < out.height(); ++y)
       for (int x = 0; x < out.width(); ++x)
         for (int c = 0; c < 3; ++c) {
           float& v = out.pixel(x, y)[c];
           const float b = bound.cview().pixel(x, y)[c], g = cap.pixel(x, y)[c];
-          const float lo = write(v - b, c), hi = write(v + b, c);
-          v = std::isnan(g) || !(b < INFINITY) ? lo : std::min(std::max(write(g, c), lo), hi);
+          const float lo = written(v - b, c), hi = written(v + b, c);
+          v = std::isnan(g) || !(b < INFINITY) ? lo : std::min(std::max(written(g, c), lo), hi);
         }
   }
 
@@ -227,8 +221,7 @@ class Evaluator {
   void store_as_device(Image& img) const {
     store(img.view(), p_.storage, ctx_.rounding, ctx_.threads);
     if (h_.f16) store(img.view(), Storage::f16, ctx_.rounding, ctx_.threads);
-    if (h_.rgba8) to_unorm8(img);
-    if (h_.r11g11b10) to_packed_float(img, h_.packed_toward_zero);
+    write_all(img);
   }
 
   // An R11F_G11F_B10F target's write (GL 4.6, 2.3.4.3-4): unsigned floats with a 5-bit exponent
@@ -245,19 +238,18 @@ class Evaluator {
     const double n = toward_zero ? std::floor(v / q) : std::round(v / q);
     return static_cast<float>(std::min(n * q, top));
   }
-  static void to_packed_float(Image& img, bool toward_zero) {
-    for (std::size_t i = 0; i < img.values().size(); ++i)
-      if (i % kChannels != 3)
-        img.data()[i] = packed(img.data()[i], i % kChannels == 2 ? 5 : 6, toward_zero);
+  // Channel c of a value as the hypothesis's target format stores it: an RGBA8 target's write
+  // (GL 4.6, 2.3.5.2: clamped to [0, 1], the nearest of the 255ths; NaN as 0), a packed float's
+  // (packed), or the value itself.
+  float written(float v, int c) const {
+    if (h_.rgba8) return std::isnan(v) ? 0.0f : std::round(std::min(std::max(v, 0.0f), 1.0f) * 255.0f) / 255.0f;
+    if (h_.r11g11b10) return packed(v, c == 2 ? 5 : 6, h_.packed_toward_zero);
+    return v;
   }
-
-  // An RGBA8 target's write (GL 4.6, 2.3.5.2): clamped to [0, 1], the nearest of the 255ths.
-  static void to_unorm8(Image& img) {
+  void write_all(Image& img) const {
+    if (!h_.rgba8 && !h_.r11g11b10) return;
     for (std::size_t i = 0; i < img.values().size(); ++i)
-      if (i % kChannels != 3) {
-        const float v = img.data()[i];
-        img.data()[i] = std::isnan(v) ? 0.0f : std::round(std::min(std::max(v, 0.0f), 1.0f) * 255.0f) / 255.0f;
-      }
+      if (i % kChannels != 3) img.data()[i] = written(img.data()[i], int(i % kChannels));
   }
 
   Image blur(ConstImageView src, Axis axis, bool is_target) const {
