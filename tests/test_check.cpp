@@ -135,16 +135,17 @@ void bilinear(const Image& img, double u, double v, double out[3]) {
 
 // A discrete9 pass over `src` with weights `w` (horizontal, or vertical with `vertical`), its
 // taps on texel centres read with the wrap mode `wrap`; or, with `shift`, every lookup at +shift
-// texels on both axes (bilinear).
-Image blur_h(const Image& src, const double w[5], char wrap, double shift = 0, bool vertical = false) {
+// texels on both axes, or with `spacing`, the taps that many texels apart (bilinear, clamped).
+Image blur_h(const Image& src, const double w[5], char wrap, double shift = 0, bool vertical = false,
+             double spacing = 1) {
   Image out(src.width(), src.height());
   for (int y = 0; y < src.height(); ++y)
     for (int x = 0; x < src.width(); ++x) {
       double r[3] = {0, 0, 0}, s[3];
       for (int i = -4; i <= 4; ++i) {
         const int dx = vertical ? 0 : i, dy = vertical ? i : 0;
-        if (shift != 0) {
-          bilinear(src, x + dx + shift, y + dy + shift, s);
+        if (shift != 0 || spacing != 1) {
+          bilinear(src, x + spacing * dx + shift, y + spacing * dy + shift, s);
         } else {
           const float* t = texel(src, x + dx, y + dy, wrap);
           for (int c = 0; c < 3; ++c) s[c] = t[c];
@@ -1050,27 +1051,6 @@ TEST_CASE("a blur that starts vertical is named, not a pass too few", "[check][c
   }
 }
 
-namespace {
-
-// A discrete9 pass with its taps k texels apart (bilinear between texel centres, clamp-to-edge),
-// written out here in double.
-Image blur_spaced(const Image& src, const double w[5], double k, bool vertical) {
-  Image out(src.width(), src.height());
-  for (int y = 0; y < src.height(); ++y)
-    for (int x = 0; x < src.width(); ++x) {
-      double r[3] = {0, 0, 0}, s[3];
-      for (int i = -4; i <= 4; ++i) {
-        bilinear(src, x + (vertical ? 0 : k * i), y + (vertical ? k * i : 0), s);
-        for (int c = 0; c < 3; ++c) r[c] += w[std::abs(i)] * s[c];
-      }
-      float* o = out.pixel(x, y);
-      for (int c = 0; c < 3; ++c) o[c] = static_cast<float>(r[c]);
-      o[3] = 1;
-    }
-  return out;
-}
-
-}  // namespace
 
 TEST_CASE("fuzz: a random bug in a random scene is named right or not at all", "[check][causes][fuzz]") {
   // Each case: a random scene (a dark gradient, 3 to 8 coloured lights), one bug of random kind
@@ -1143,7 +1123,7 @@ TEST_CASE("fuzz: a random bug in a random scene is named right or not at all", "
     Image prev = user.at("bright");
     for (int k = 1; k <= p.passes; ++k) {
       const bool vertical = (k % 2 == 0) != vertical_first;
-      prev = spacing != 1 ? blur_spaced(prev, w, spacing, vertical) : blur_h(prev, w, wrap, shift, vertical);
+      prev = blur_h(prev, w, wrap, shift, vertical, spacing);
       user["blur." + std::to_string(k)] = prev;
     }
     if (kind == "flipped-vertically" || kind == "rb-swapped")
