@@ -646,6 +646,19 @@ double squared_residual(ConstImageView a, ConstImageView b) {
   return r;
 }
 
+// Golden-section search of `cost` over [lo, hi] (14 steps): its minimum, or `best` when that
+// costs no more (`best_cost`).
+template <class Cost>
+double refine(const Cost& cost, double lo, double hi, double best, double best_cost) {
+  const double g = (std::sqrt(5.0) - 1) / 2;
+  double a = hi - g * (hi - lo), b = lo + g * (hi - lo), ca = cost(a), cb = cost(b);
+  for (int i = 0; i < 14; ++i) {
+    if (ca < cb) hi = b, b = a, cb = ca, a = hi - g * (hi - lo), ca = cost(a);
+    else lo = a, a = b, ca = cb, b = lo + g * (hi - lo), cb = cost(b);
+  }
+  return std::min(ca, cb) < best_cost ? (ca < cb ? a : b) : best;
+}
+
 // The factor k by which the target pass's taps are spaced (texel step k / n along its axis)
 // that best explains the capture, by least squares: the likely values first (the other axis's
 // texel size, as a pass reading the other texture's size or the wrong component takes it;
@@ -675,15 +688,7 @@ std::optional<float> fit_spacing(const CauseContext& ctx, const StageSpec& targe
     if (c < best_cost) best = f, best_cost = c;
   }
   if (best == 1.0) return std::nullopt;
-  double lo = best / 1.25, hi = best * 1.25;
-  const double g = (std::sqrt(5.0) - 1) / 2;
-  double a = hi - g * (hi - lo), b = lo + g * (hi - lo), ca = cost(a), cb = cost(b);
-  for (int i = 0; i < 14; ++i) {
-    if (ca < cb) hi = b, b = a, cb = ca, a = hi - g * (hi - lo), ca = cost(a);
-    else lo = a, a = b, ca = cb, b = lo + g * (hi - lo), cb = cost(b);
-  }
-  const double fit = ca < cb ? a : b, fit_cost = std::min(ca, cb);
-  const double f = fit_cost < best_cost ? fit : best;
+  const double f = refine(cost, best / 1.25, best * 1.25, best, best_cost);
   // A fitted spacing on the other axis's texel size is that size, not a near miss of it.
   for (double snap : {double(n) / other, double(other) / n, 2.0, 0.5})
     if (std::fabs(f / snap - 1) < 0.002) return static_cast<float>(snap);
@@ -736,14 +741,7 @@ std::optional<float> fit_shift(const CauseContext& ctx, const StageSpec& target,
     if (v < best_cost) best = c, best_cost = v;
   }
   if (best == 0.0) return std::nullopt;
-  double lo = best - 0.25, hi = best + 0.25;
-  const double g = (std::sqrt(5.0) - 1) / 2;
-  double a = hi - g * (hi - lo), b = lo + g * (hi - lo), ca = cost(a), cb = cost(b);
-  for (int i = 0; i < 14; ++i) {
-    if (ca < cb) hi = b, b = a, cb = ca, a = hi - g * (hi - lo), ca = cost(a);
-    else lo = a, a = b, ca = cb, b = lo + g * (hi - lo), cb = cost(b);
-  }
-  double f = std::min(ca, cb) < best_cost ? (ca < cb ? a : b) : best;
+  double f = refine(cost, best - 0.25, best + 0.25, best, best_cost);
   const double snapped = std::round(f * 4) / 4;  // quarter texels, as shaders write them
   if (std::fabs(f - snapped) < 0.01) f = snapped;
   if (std::fabs(std::fabs(f) - 0.5) < 0.02 || std::fabs(f) < 0.05) return std::nullopt;
