@@ -174,6 +174,10 @@ class Comparison {
     return {nullptr, input_e2e_};
   }
   bool e2e_made_again(const std::string& n) const;
+  // How a stage's output is stored: the mip chain's levels as the chain stores them.
+  Storage storage_at(const StageSpec& s) const {
+    return s.kind == StageKind::down || s.kind == StageKind::up ? p_.level_storage() : p_.storage;
+  }
   // The capture of the stage being judged, as judged (the profile may say every capture holds
   // 8-bit codes).
   CapturedStage capture(const std::string& n) const {
@@ -245,7 +249,7 @@ void Comparison::oracle_full(const StageSpec& spec, const std::vector<std::strin
   std::vector<ConstImageView> cin;
   for (const std::string& n : in) cin.push_back(C(n));
   Image out = oracle_stage(plan_, spec, sanitized_, cin, profile_.subtexel_bits, pool_);
-  store(out.view(), p_.storage, rounding_, threads_);
+  store(out.view(), storage_at(spec), rounding_, threads_);
   full_[spec.name] = std::move(out);
   oracle_time_ +=
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -253,7 +257,9 @@ void Comparison::oracle_full(const StageSpec& spec, const std::vector<std::strin
 
 // The comparison's images, by stage name, as the stages' terms read them.
 TermInputs Comparison::inputs() {
-  return {plan_, profile_, ctx_, sanitized_, pool_,
+  BoundContext ctx = ctx_;
+  if (spec_) ctx.storage = storage_at(*spec_);
+  return {plan_, profile_, ctx, sanitized_, pool_,
           [this](const std::string& n) { return V(n); },
           [this](const std::string& n) { return E(n); },
           [this](const std::string& n) { return C(n); },
@@ -417,8 +423,8 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   const ImageGates& gates = over && over->has_gates ? over->gates : profile_.gates;
   const bool uniform = fits && uniform_rgb(t.oracle.cview(), codes);
   const std::size_t worst = static_cast<std::size_t>(opt_.worst_count);
-  iso_rules_ = {p_.storage, &profile_, worst, true, gates.window > 0 && !uniform ? gates.window_size : 0, w};
-  e2e_rules_ = {p_.storage, &profile_, worst, false, 0, w};
+  iso_rules_ = {storage_at(*spec_), &profile_, worst, true, gates.window > 0 && !uniform ? gates.window_size : 0, w};
+  e2e_rules_ = {storage_at(*spec_), &profile_, worst, false, 0, w};
   // Images kept whole: the end-to-end bound for the stages that read it; with an 8-bit capture,
   // whose clamp changes the oracle the bounds read, the bound and what inputs carry as they were
   // judged (without one, they are made again when needed).
@@ -533,7 +539,7 @@ void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Ima
   const CapturedStage cap = capture(name_);
   CauseContext cc{plan_, sanitized_, profile_, rounding_, threads_,
                   [this](const std::string& n) { return V(n); },
-                  [this](const std::string& n) { return streams_.captured(n); }, &bound};
+                  [this](const std::string& n) { return streams_.captured(n); }, &bound, "", ""};
   const auto prior = last_cause_.find(spec.kind);
   if (prior != last_cause_.end()) cc.prior = prior->second.first, cc.prior_stage = prior->second.second;
   auto score = [&](Image& variant, double absolute) {
@@ -588,7 +594,7 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
     float* unrounded = BandScratch::rows(s.kept, values);
     float* o = t.oracle.pixel(0, y0);
     std::copy(o, o + values, unrounded);
-    store(ImageView{w, y1 - y0, w, o}, p_.storage, rounding_, 1);
+    store(ImageView{w, y1 - y0, w, o}, storage_at(*spec_), rounding_, 1);
     EnergySums& es = energy[std::size_t(b)];
     for (std::size_t i = 0; i < values; ++i) {
       const float r = std::fabs(o[i] - unrounded[i]);

@@ -224,19 +224,8 @@ class Evaluator {
     write_all(img);
   }
 
-  // An R11F_G11F_B10F target's write (GL 4.6, 2.3.4.3-4): unsigned floats with a 5-bit exponent
-  // and 6 (R, G) or 5 (B) mantissa bits; negative values and NaN become 0, values above the
-  // largest finite one become it. Rounded to the nearest (ties away from zero), or toward zero
-  // as llvmpipe does (measured: 2.0234375 is stored as 2 in R, 4.1171875 as 4 in B).
   static float packed(float v, int mantissa, bool toward_zero) {
-    if (!(v > 0)) return 0.0f;
-    const double top = std::ldexp(2.0 - std::ldexp(1.0, -mantissa), 15);
-    if (v >= top) return static_cast<float>(top);
-    int e = 0;
-    std::frexp(double(v), &e);                          // v = f 2^e, f in [0.5, 1)
-    const double q = std::ldexp(1.0, std::max(e - 1, -14) - mantissa);  // denormals below 2^-14
-    const double n = toward_zero ? std::floor(v / q) : std::round(v / q);
-    return static_cast<float>(std::min(n * q, top));
+    return static_cast<float>(round_to_packed(v, mantissa, toward_zero));
   }
   // Channel c of a value as the hypothesis's target format stores it: an RGBA8 target's write
   // (GL 4.6, 2.3.5.2: clamped to [0, 1], the nearest of the 255ths; NaN as 0), a packed float's
@@ -366,12 +355,16 @@ class Evaluator {
         const LevelSize& l = ctx_.plan.levels[spec.pass - 1];
         Image out(l.width, l.height);
         const bool first = spec.pass == 1;
+        // The sampling hypotheses are written for seed 002's chain only.
+        if ((h_.sampled() || h_.ge) && p_.mip_variant()) throw NotApplicable{};
         if (h_.sampled() || h_.ge)
           downsample_variant(in[0], out.view(), first, p_.threshold, p_.karis && first, !h_.ge,
                              smp, threads);
         else
           downsample(in[0], out.view(),
-                     {first, p_.threshold, p_.karis && first, ctx_.profile.subtexel_bits}, threads);
+                     downsample_options(p_, spec.pass, ctx_.sanitized.width,
+                                        ctx_.sanitized.height, ctx_.profile.subtexel_bits),
+                     threads);
         return out;
       }
       case StageKind::up:
@@ -380,10 +373,14 @@ class Evaluator {
         const ConstImageView cur = up ? in[1] : ConstImageView{};
         Image out = up ? Image(cur.width, cur.height)
                        : Image(ctx_.sanitized.width, ctx_.sanitized.height);
+        if (h_.sampled() && p_.mip_variant()) throw NotApplicable{};
         if (h_.sampled())
           upsample_variant(in[0], cur, out.view(), smp, threads);
+        else if (!up && p_.bloom_upscale == BloomUpscale::bilinear)
+          upscale_bilinear(in[0], out.view(), ctx_.profile.subtexel_bits, threads);
         else
-          upsample_tent(in[0], cur, out.view(), ctx_.profile.subtexel_bits, threads);
+          upsample_tent(in[0], cur, out.view(), ctx_.profile.subtexel_bits, threads, nullptr,
+                        p_.upsample_radius);
         return out;
       }
       case StageKind::composite: {
@@ -405,7 +402,10 @@ class Evaluator {
             }
           return out;
         }
-        composite(in[0], in[1], out.view(), p_.strength * h_.strength_scale, threads);
+        if (p_.composite_mode == CompositeMode::mix)
+          composite_mix(in[0], in[1], out.view(), p_.strength * h_.strength_scale, threads);
+        else
+          composite(in[0], in[1], out.view(), p_.strength * h_.strength_scale, threads);
         return out;
       }
       case StageKind::tonemap: {

@@ -14,7 +14,8 @@ std::vector<std::string> stage_inputs(const Plan& plan, const StageSpec& spec) {
     case StageKind::blur:
       return {spec.pass == 1 ? "bright" : level("blur", spec.pass - 1)};
     case StageKind::down:
-      return {spec.pass == 1 ? "input" : level("down", spec.pass - 1)};
+      if (spec.pass > 1) return {level("down", spec.pass - 1)};
+      return {p.prefilter == Prefilter::bright ? "bright" : "input"};
     case StageKind::up:
       return {spec.pass + 1 == top ? level("down", top) : level("up", spec.pass + 1),
               level("down", spec.pass)};

@@ -132,8 +132,9 @@ Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanit
     case StageKind::down: {
       const LevelSize& l = plan.levels[spec.pass - 1];
       out = pool.take(l.width, l.height);
-      const bool first = spec.pass == 1;
-      downsample(in[0], out.view(), {first, p.threshold, p.karis && first, subtexel_bits}, threads);
+      downsample(in[0], out.view(),
+                 downsample_options(p, spec.pass, sanitized.width, sanitized.height, subtexel_bits),
+                 threads);
       break;
     }
     case StageKind::up:
@@ -141,12 +142,19 @@ Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanit
       const bool up = spec.kind == StageKind::up;
       out = up ? pool.take(in[1].width, in[1].height)
                : pool.take(sanitized.width, sanitized.height);
-      upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads);
+      if (!up && p.bloom_upscale == BloomUpscale::bilinear)
+        upscale_bilinear(in[0], out.view(), subtexel_bits, threads);
+      else
+        upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads,
+                      nullptr, p.upsample_radius);
       break;
     }
     case StageKind::composite:
       out = pool.take(in[0].width, in[0].height);
-      composite(in[0], in[1], out.view(), p.strength, threads);
+      if (p.composite_mode == CompositeMode::mix)
+        composite_mix(in[0], in[1], out.view(), p.strength, threads);
+      else
+        composite(in[0], in[1], out.view(), p.strength, threads);
       break;
     case StageKind::tonemap:
       out = pool.take(in[0].width, in[0].height);

@@ -38,6 +38,14 @@ float* sized(std::vector<float>& v, std::size_t n) {
 
 double storage_term(double v, Storage s, const DeviceProfile& p) {
   if (s == Storage::f32 || !std::isfinite(v)) return 0.0;
+  if (s == Storage::r11g11b10) {
+    // One quantum of the coarser (blue, 5-bit) mantissa: nearest or toward zero, against an
+    // oracle that rounds either way. Denormals below 2^-14.
+    if (!(v > 0)) return 0.0;
+    int e = 0;
+    std::frexp(v, &e);
+    return std::ldexp(1.0, std::max(e - 1, -14) - 5);
+  }
   // Toward zero loses up to one ULP; nearest-even half of one.
   return (p.half_toward_zero ? 1.0 : 0.5) * ulp16(v);
 }

@@ -50,4 +50,15 @@ float round_to_half(float x, HalfRounding mode) {
 }
 double round_to_half(double x, HalfRounding mode) { return round_half_impl(x, mode); }
 
+double round_to_packed(double v, int mantissa_bits, bool toward_zero) {
+  if (!(v > 0)) return 0.0;
+  const double top = std::ldexp(2.0 - std::ldexp(1.0, -mantissa_bits), 15);
+  if (v >= top) return top;
+  int e = 0;
+  std::frexp(v, &e);  // v = f 2^e, f in [0.5, 1)
+  const double q = std::ldexp(1.0, std::max(e - 1, -14) - mantissa_bits);  // denormals below 2^-14
+  const double n = toward_zero ? std::floor(v / q) : std::round(v / q);
+  return std::min(n * q, top);
+}
+
 }  // namespace bloomref

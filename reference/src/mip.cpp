@@ -30,27 +30,38 @@ constexpr int kTentOffset[kTentTaps][2] = {{0, 0}, {-1, -1}, {0, -1}, {1, -1}, {
 constexpr float kTentWeight[kTentTaps] = {0.25f,  0.0625f, 0.125f,  0.0625f, 0.125f,
                                           0.0625f, 0.125f, 0.0625f, 0.125f};
 
-// One axis of a lookup for target texel x of a tn-texel target axis, offset o source texels on
-// an sn-texel source axis: f32 as the shader computes uv + o * texel; f64 exactly in texel units.
-AxisTap<float> axis_lookup(int x, int tn, int sn, int o, int bits, float) {
+// The distance of one offset unit in texture coordinates: 1 / `size` (a source texture's size,
+// or the host's float size), or a radius given in texture coordinates.
+struct Step {
+  float size = 0.0f, radius = 0.0f;
+  float f32() const { return radius > 0.0f ? radius : 1.0f / size; }
+  double f64() const { return radius > 0.0f ? double(radius) : 1.0 / double(size); }
+};
+
+// One axis of a lookup for target texel x of a tn-texel target axis, offset o steps on an
+// sn-texel source axis: f32 as the shader computes uv + o * step; f64 exactly in texel units.
+AxisTap<float> axis_lookup(int x, int tn, int sn, int o, int bits, Step step, float) {
   const float u = texel_centre(x, tn);
-  const float texel = 1.0f / static_cast<float>(sn);
-  return gl_axis_tap(u + static_cast<float>(o) * texel, sn, bits);
+  return gl_axis_tap(u + static_cast<float>(o) * step.f32(), sn, bits);
 }
 
-AxisTap<double> axis_lookup(int x, int tn, int sn, int o, int, double) {
-  return exact_axis_tap((x + 0.5) * sn / tn - 0.5 + o, sn);
+AxisTap<double> axis_lookup(int x, int tn, int sn, int o, int, Step step, double) {
+  if (step.radius == 0.0f && step.size == float(sn))  // integer texels: exact as before
+    return exact_axis_tap((x + 0.5) * sn / tn - 0.5 + o, sn);
+  return exact_axis_tap(((x + 0.5) / tn + o * step.f64()) * sn - 0.5, sn);
 }
+
+Step texture_step(int sn) { return {static_cast<float>(sn), 0.0f}; }
 
 // A lookup's two axes depend on one coordinate and one offset each, so a stage computes them
 // once into tables (with axis_lookup, so the bits are the same) instead of per texel and tap.
 template <class T>
 class AxisTable {
  public:
-  AxisTable(int tn, int sn, int o_min, int o_max, int bits) : n_(tn), o_min_(o_min) {
+  AxisTable(int tn, int sn, int o_min, int o_max, int bits, Step step) : n_(tn), o_min_(o_min) {
     taps_.reserve(std::size_t(o_max - o_min + 1) * tn);
     for (int o = o_min; o <= o_max; ++o)
-      for (int x = 0; x < tn; ++x) taps_.push_back(axis_lookup(x, tn, sn, o, bits, T()));
+      for (int x = 0; x < tn; ++x) taps_.push_back(axis_lookup(x, tn, sn, o, bits, step, T()));
   }
   const AxisTap<T>& at(int x, int o) const { return taps_[std::size_t(o - o_min_) * n_ + x]; }
 
@@ -62,8 +73,10 @@ class AxisTable {
 template <class T>
 struct Lookups {
   AxisTable<T> x, y;
+  Lookups(BasicView<const T> src, int tw, int th, int reach, int bits, Step sx, Step sy)
+      : x(tw, src.width, -reach, reach, bits, sx), y(th, src.height, -reach, reach, bits, sy) {}
   Lookups(BasicView<const T> src, int tw, int th, int reach, int bits)
-      : x(tw, src.width, -reach, reach, bits), y(th, src.height, -reach, reach, bits) {}
+      : Lookups(src, tw, th, reach, bits, texture_step(src.width), texture_step(src.height)) {}
   void sample(BasicView<const T> src, int tx, int ty, int ox, int oy, T out[3]) const {
     sample_rgb(src, x.at(tx, ox), y.at(ty, oy), out);
   }
@@ -122,8 +135,31 @@ const std::vector<MipTap>& tent_taps() {
 
 void mip_lookup(ConstImageView src, int x, int y, int tw, int th, int ox, int oy,
                 int subtexel_bits, float out[3]) {
-  sample_rgb(src, axis_lookup(x, tw, src.width, ox, subtexel_bits, float()),
-             axis_lookup(y, th, src.height, oy, subtexel_bits, float()), out);
+  sample_rgb(src, axis_lookup(x, tw, src.width, ox, subtexel_bits, texture_step(src.width), float()),
+             axis_lookup(y, th, src.height, oy, subtexel_bits, texture_step(src.height), float()),
+             out);
+}
+
+DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int height,
+                                     int subtexel_bits) {
+  DownsampleOptions o;
+  o.first = k == 1;
+  o.threshold = p.threshold;
+  o.karis = p.karis && k == 1;
+  o.subtexel_bits = subtexel_bits;
+  o.threshold_taps = p.prefilter == Prefilter::per_lookup;
+  o.karis_form = p.karis_form;
+  if (p.texel_step == TexelStep::halved_float) {
+    o.step_width = halved_size(width, k - 1);
+    o.step_height = halved_size(height, k - 1);
+  }
+  return o;
+}
+
+float halved_size(int n, int k) {
+  float s = static_cast<float>(n);
+  for (int i = 0; i < k; ++i) s *= 0.5f;
+  return s;
 }
 
 std::vector<LevelSize> mip_levels(int width, int height, int levels) {
@@ -138,11 +174,43 @@ std::vector<LevelSize> mip_levels(int width, int height, int levels) {
   return out;
 }
 
+// The article's Karis average (6.new_downsample.fs, case 0), in its order. Its groups in tap
+// indices: a b d e, b c e f, d e g h, e f h i (the corners and edges around the centre, uv y
+// counting down the image as the rows do) and j k l m (the inner four).
+template <class T>
+void karis_group_srgb(const T q[13][3], T r[3]) {
+  // Tap indices of kDownOffset: a (-2,+2) = 11, b (0,+2) = 10, c (2,2) = 9, d (-2,0) = 12,
+  // e = 0, f (2,0) = 8, g (-2,-2) = 5, h (0,-2) = 6, i (2,-2) = 7, j (-1,+1) = 4, k (1,1) = 3,
+  // l (-1,-1) = 1, m (1,-1) = 2.
+  constexpr int kGroup[5][4] = {{11, 10, 12, 0}, {10, 9, 0, 8}, {12, 0, 5, 6}, {0, 8, 6, 7},
+                                {4, 3, 1, 2}};
+  const T scale[5] = {T(0.125f / 4.0f), T(0.125f / 4.0f), T(0.125f / 4.0f), T(0.125f / 4.0f),
+                      T(0.5f / 4.0f)};
+  const T inv_gamma = static_cast<T>(1.0f / 2.2f);  // the shader's const float 1.0 / 2.2
+  for (int g = 0; g < 5; ++g) {
+    T v[3];
+    for (int c = 0; c < 3; ++c) {
+      const int* t = kGroup[g];
+      v[c] = (((q[t[0]][c] + q[t[1]][c]) + q[t[2]][c]) + q[t[3]][c]) * scale[g];
+    }
+    const T luma = (std::pow(v[0], inv_gamma) * T(0.299f) + std::pow(v[1], inv_gamma) * T(0.587f) +
+                    std::pow(v[2], inv_gamma) * T(0.114f)) *
+                   T(0.25f);
+    const T w = T(1) / (T(1) + luma);
+    for (int c = 0; c < 3; ++c) r[c] = r[c] + v[c] * w;
+  }
+  for (int c = 0; c < 3; ++c) r[c] = std::max(r[c], T(0.0001f));
+}
+
 template <class T>
 void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
                 int threads) {
   const T threshold = static_cast<T>(opt.threshold);
-  const Lookups<T> lookups(src, dst.width, dst.height, 2, opt.subtexel_bits);
+  const bool thresholded = opt.first && opt.threshold_taps;
+  const bool karis = opt.first && opt.karis;
+  const Step sx{opt.step_width > 0 ? opt.step_width : float(src.width), 0.0f};
+  const Step sy{opt.step_height > 0 ? opt.step_height : float(src.height), 0.0f};
+  const Lookups<T> lookups(src, dst.width, dst.height, 2, opt.subtexel_bits, sx, sy);
   parallel_rows(dst.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y)
       for (int x = 0; x < dst.width; ++x) {
@@ -153,11 +221,13 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
         T q[kDownTaps][3];
         for (int i = 0; i < kDownTaps; ++i) {
           lookups.sample(src, x, y, kDownOffset[i][0], kDownOffset[i][1], q[i]);
-          if (opt.first && luminance(q[i][0], q[i][1], q[i][2]) < threshold)
+          if (thresholded && luminance(q[i][0], q[i][1], q[i][2]) < threshold)
             q[i][0] = q[i][1] = q[i][2] = T(0);
         }
         T r[3] = {0, 0, 0};
-        if (opt.first && opt.karis) {
+        if (karis && opt.karis_form == KarisForm::group_srgb) {
+          karis_group_srgb(q, r);
+        } else if (karis) {
           T w[kDownTaps];
           // Karis weight 1 / (1 + L): negative L (out-of-gamut input) would make it grow
           // without bound and divide by zero at L = -1; the weight uses max(L, 0) (at most 1).
@@ -183,8 +253,11 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
 
 template <class T>
 void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
-                   int subtexel_bits, int threads, const std::uint8_t* active) {
-  const Lookups<T> lookups(small, dst.width, dst.height, 1, subtexel_bits);
+                   int subtexel_bits, int threads, const std::uint8_t* active, float radius) {
+  const Lookups<T> lookups =
+      radius > 0.0f ? Lookups<T>(small, dst.width, dst.height, 1, subtexel_bits, {0.0f, radius},
+                                 {0.0f, radius})
+                    : Lookups<T>(small, dst.width, dst.height, 1, subtexel_bits);
   parallel_rows(dst.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y)
       for (int x = 0; x < dst.width; ++x) {
@@ -200,6 +273,19 @@ void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicVi
           lookups.sample(small, x, y, kTentOffset[i][0], kTentOffset[i][1], s);
           for (int c = 0; c < 3; ++c) r[c] = r[c] + s[c] * static_cast<T>(kTentWeight[i]);
         }
+        write_rgb1(dst.pixel(x, y), r);
+      }
+  });
+}
+
+template <class T>
+void upscale_bilinear(BasicView<const T> small, BasicView<T> dst, int subtexel_bits, int threads) {
+  const Lookups<T> lookups(small, dst.width, dst.height, 0, subtexel_bits);
+  parallel_rows(dst.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < dst.width; ++x) {
+        T r[3] = {};  // sample_rgb writes all three; the init only quiets -Wuninitialized
+        lookups.sample(small, x, y, 0, 0, r);
         write_rgb1(dst.pixel(x, y), r);
       }
   });
@@ -236,7 +322,7 @@ std::size_t mip_support(const std::uint8_t* src_mask, int sw, int sh, const std:
       lo[x] = sn;
       hi[x] = -1;
       for (int o = -reach; o <= reach; ++o) {
-        const AxisTap<T> t = axis_lookup(x, tn, sn, o, bits, T());
+        const AxisTap<T> t = axis_lookup(x, tn, sn, o, bits, texture_step(sn), T());
         lo[x] = std::min({lo[x], t.i0, t.i1});
         hi[x] = std::max({hi[x], t.i0, t.i1});
       }
@@ -277,9 +363,11 @@ template void downsample<float>(BasicView<const float>, BasicView<float>,
 template void downsample<double>(BasicView<const double>, BasicView<double>,
                                  const DownsampleOptions&, int);
 template void upsample_tent<float>(BasicView<const float>, BasicView<const float>,
-                                   BasicView<float>, int, int, const std::uint8_t*);
+                                   BasicView<float>, int, int, const std::uint8_t*, float);
 template void upsample_tent<double>(BasicView<const double>, BasicView<const double>,
-                                    BasicView<double>, int, int, const std::uint8_t*);
+                                    BasicView<double>, int, int, const std::uint8_t*, float);
+template void upscale_bilinear<float>(BasicView<const float>, BasicView<float>, int, int);
+template void upscale_bilinear<double>(BasicView<const double>, BasicView<double>, int, int);
 template bool mip_nothing_bright<float>(BasicView<const float>, double, int);
 template bool mip_nothing_bright<double>(BasicView<const double>, double, int);
 template std::size_t mip_support<float>(const std::uint8_t*, int, int, const std::uint8_t*, int,

@@ -40,6 +40,18 @@ constexpr std::pair<const char*, NonFinite> kPolicies[] = {{"zero", NonFinite::z
 constexpr std::pair<const char*, CompositeOrder> kOrders[] = {
     {"before-tonemap", CompositeOrder::before_tonemap},
     {"after-tonemap", CompositeOrder::after_tonemap}};
+constexpr std::pair<const char*, CompositeMode> kModes[] = {{"add", CompositeMode::add},
+                                                            {"mix", CompositeMode::mix}};
+constexpr std::pair<const char*, Prefilter> kPrefilters[] = {
+    {"per-lookup", Prefilter::per_lookup}, {"bright", Prefilter::bright}};
+constexpr std::pair<const char*, KarisForm> kKarisForms[] = {
+    {"per-tap", KarisForm::per_tap}, {"group-srgb", KarisForm::group_srgb}};
+constexpr std::pair<const char*, TexelStep> kTexelSteps[] = {
+    {"texture", TexelStep::texture}, {"halved-float", TexelStep::halved_float}};
+constexpr std::pair<const char*, BloomUpscale> kUpscales[] = {
+    {"tent", BloomUpscale::tent}, {"bilinear", BloomUpscale::bilinear}};
+constexpr std::pair<const char*, Storage> kChainStorages[] = {
+    {"f32", Storage::f32}, {"f16", Storage::f16}, {"r11g11b10", Storage::r11g11b10}};
 constexpr std::pair<const char*, PlanMode> kPlans[] = {{"adaptive", PlanMode::adaptive},
                                                        {"full", PlanMode::full}};
 constexpr std::pair<const char*, BlurImpl> kBlurs[] = {{"fast", BlurImpl::fast},
@@ -63,6 +75,16 @@ void validate(const BloomParams& p) {
   require(p.levels >= 1 && p.levels <= 16,
           "--levels must be in [1, 16], got " + std::to_string(p.levels));
   require(!p.karis || p.method == Method::mip, "--karis applies to --method mip only");
+  require(p.storage != Storage::r11g11b10,
+          "--storage r11g11b10 is for the mip chain's levels only (--chain-storage)");
+  require(p.method == Method::mip || !p.mip_variant(),
+          "--prefilter, --karis-form, --texel-step, --upsample-radius, --bloom-upscale and "
+          "--chain-storage apply to --method mip only");
+  require(std::isfinite(p.upsample_radius) && p.upsample_radius >= 0 && p.upsample_radius < 1,
+          "--upsample-radius must be in [0, 1) (texture coordinates; 0 = one texel), got " +
+              str(p.upsample_radius));
+  require(p.composite_mode == CompositeMode::add || p.strength <= 1,
+          "--composite-mode mix needs --strength in [0, 1], got " + str(p.strength));
   require(std::isfinite(p.threshold), "--threshold must be finite, got " + str(p.threshold));
   require(std::isfinite(p.exposure) && p.exposure > 0,
           "--exposure must be finite and > 0, got " + str(p.exposure));
@@ -81,12 +103,33 @@ void validate(const BloomParams& p) {
 
 std::string to_string(Method v) { return name_of(v, kMethods); }
 std::string to_string(KernelName v) { return name_of(v, kKernels); }
-std::string to_string(Storage v) { return name_of(v, kStorages); }
+std::string to_string(Storage v) { return name_of(v, kChainStorages); }
 std::string to_string(Precision v) { return name_of(v, kPrecisions); }
 std::string to_string(NonFinite v) { return name_of(v, kPolicies); }
 std::string to_string(PlanMode v) { return name_of(v, kPlans); }
 std::string to_string(BlurImpl v) { return name_of(v, kBlurs); }
 std::string to_string(CompositeOrder v) { return name_of(v, kOrders); }
+std::string to_string(CompositeMode v) { return name_of(v, kModes); }
+std::string to_string(Prefilter v) { return name_of(v, kPrefilters); }
+std::string to_string(KarisForm v) { return name_of(v, kKarisForms); }
+std::string to_string(TexelStep v) { return name_of(v, kTexelSteps); }
+std::string to_string(BloomUpscale v) { return name_of(v, kUpscales); }
+CompositeMode parse_composite_mode(const std::string& s) {
+  return parse_enum("--composite-mode", s, kModes);
+}
+Prefilter parse_prefilter(const std::string& s) { return parse_enum("--prefilter", s, kPrefilters); }
+KarisForm parse_karis_form(const std::string& s) {
+  return parse_enum("--karis-form", s, kKarisForms);
+}
+TexelStep parse_texel_step(const std::string& s) {
+  return parse_enum("--texel-step", s, kTexelSteps);
+}
+BloomUpscale parse_bloom_upscale(const std::string& s) {
+  return parse_enum("--bloom-upscale", s, kUpscales);
+}
+Storage parse_chain_storage(const std::string& s) {
+  return parse_enum("--chain-storage", s, kChainStorages);
+}
 CompositeOrder parse_composite_order(const std::string& s) {
   return parse_enum("--composite", s, kOrders);
 }

@@ -60,7 +60,7 @@ void gl_texture_rgb(ConstImageView img, float s, float t, int subtexel_bits, flo
 // ---- per-pixel stages --------------------------------------------------------------------
 
 double storage_max(Storage s) {
-  return s == Storage::f16 ? kHalfMax : kRangeGuard;
+  return s == Storage::f16 ? kHalfMax : s == Storage::r11g11b10 ? 65024.0 : kRangeGuard;
 }
 
 // One sweep: each row counted, then rewritten while it is in cache. A row with nothing to count
@@ -197,6 +197,27 @@ inline double tonemap_value(double h, double exposure) { return -std::expm1(-h *
 }  // namespace
 
 template <class T>
+void composite_mix(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> dst, T a,
+                   int threads) {
+  const T keep = T(1) - a;
+  parallel_rows(scene.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < scene.width; ++x) {
+        const T* s = scene.pixel(x, y);
+        const T* b = bloom.pixel(x, y);
+        T* d = dst.pixel(x, y);
+        const T alpha = s[3];
+        for (int c = 0; c < 3; ++c) {
+          const T u = s[c] * keep;
+          const T v = b[c] * a;
+          d[c] = u + v;
+        }
+        d[3] = alpha;
+      }
+  });
+}
+
+template <class T>
 void tonemap(BasicView<const T> hdr, BasicView<T> dst, T exposure, int threads) {
   parallel_rows(hdr.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
@@ -244,6 +265,20 @@ void encode_output(BasicView<const T> mapped, BasicView<T> dst, T gamma, int thr
 template <class T>
 void store(BasicView<T> img, Storage storage, HalfRounding rounding, int threads) {
   if (storage == Storage::f32) return;
+  if (storage == Storage::r11g11b10) {
+    const bool toward_zero = rounding == HalfRounding::toward_zero;
+    parallel_rows(img.height, threads, [&](int y0, int y1) {
+      for (int y = y0; y < y1; ++y) {
+        T* p = img.row(y);
+        for (int x = 0; x < img.width; ++x, p += kChannels) {
+          for (int c = 0; c < 3; ++c)
+            p[c] = static_cast<T>(round_to_packed(double(p[c]), c == 2 ? 5 : 6, toward_zero));
+          p[3] = T(1);  // no alpha: read back as 1
+        }
+      }
+    });
+    return;
+  }
   parallel_rows(img.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       T* p = img.row(y);
@@ -264,6 +299,7 @@ std::uint8_t quantize_8bit(float x) {
   template void extract_bright<T>(BasicView<const T>, BasicView<T>, T, int, bool,              \
                                   std::uint8_t*, const std::uint8_t*);                            \
   template void composite<T>(BasicView<const T>, BasicView<const T>, BasicView<T>, T, int);      \
+  template void composite_mix<T>(BasicView<const T>, BasicView<const T>, BasicView<T>, T, int);  \
   template void tonemap<T>(BasicView<const T>, BasicView<T>, T, int);                            \
   template void encode_output<T>(BasicView<const T>, BasicView<T>, T, int);                      \
   template void store<T>(BasicView<T>, Storage, HalfRounding, int);

@@ -166,7 +166,7 @@ bool may_box(const Plan& plan, const ExecuteOptions& opt) {
   const BloomParams& p = plan.params;
   const std::uint64_t pixels = std::uint64_t(plan.facts.width) * std::uint64_t(plan.facts.height);
   return p.plan == PlanMode::adaptive && p.method == Method::gaussian &&
-         p.precision == Precision::f32 && p.storage == Storage::f32 &&
+         p.composite_mode == CompositeMode::add && p.precision == Precision::f32 && p.storage == Storage::f32 &&
          p.blur == BlurImpl::fast && !opt.keep_all && !plan.sanitize && !plan.dense_scene &&
          p.passes > 0 && blurs_from_pass_1(plan) && plan.facts.bright_pixels * 100 <= pixels;
 }
@@ -220,7 +220,7 @@ Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt, bool boxed
       p.precision == Precision::f32 && p.blur != BlurImpl::reference && p.storage == Storage::f32;
   // Fused where no intermediate is kept; the finish only where the composite comes before the
   // tone map.
-  const bool fuse = fast && !opt.keep_all;
+  const bool fuse = fast && !opt.keep_all && p.composite_mode == CompositeMode::add;
   Schedule s;
   s.finish = !fast ? FinishPath::reference
              : fuse && !(p.method == Method::mip && p.composite == CompositeOrder::after_tonemap)
@@ -341,6 +341,10 @@ class Executor {
   void store_image(BasicImage<T>& img) {
     store(img.view(), p_.storage, opt_.half_rounding, threads_);
   }
+  // A mip level (down.k, up.k) as the chain stores it.
+  void store_level(BasicImage<T>& img) {
+    store(img.view(), p_.level_storage(), opt_.half_rounding, threads_);
+  }
   // The ledger of a pool image (image.h), found by the buffer it was made for.
   detail::PageLedger* ledger_of(const BasicImage<T>& img) {
     for (detail::PageLedger& l : ledgers_)
@@ -350,8 +354,8 @@ class Executor {
 
   // The gaussian method's bright image, unless stage bright runs inside the fused blur.
   bool makes_bright_image() const {
-    return p_.method == Method::gaussian && sched_.blur != BlurPath::fused_from_bright &&
-           sched_.blur != BlurPath::boxed;
+    if (p_.method == Method::mip) return p_.prefilter == Prefilter::bright;
+    return sched_.blur != BlurPath::fused_from_bright && sched_.blur != BlurPath::boxed;
   }
   // Written by the input stage (extract_bright): whole, or when sparse only its bright pixels
   // into a zeroed image (its pages exist where written; nothing after it reads its alpha).
@@ -644,13 +648,15 @@ class Executor {
   // Stage down.k: the 13-tap downsample of the scene (k = 1, thresholded) or of down.k-1.
   void down(const StageSpec& stage, Clock::time_point t0) {
     const int k = stage.pass;
-    const BasicImage<T>& src = k == 1 ? scene_ : down_[k - 1];
+    const bool from_bright = p_.prefilter == Prefilter::bright;
+    const BasicImage<T>& src = k > 1 ? down_[k - 1] : from_bright ? bright_ : scene_;
     BasicImage<T>& dst = down_[k];
     dst = BasicImage<T>(plan_.levels[k - 1].width, plan_.levels[k - 1].height);
-    DownsampleOptions o{k == 1, p_.threshold, p_.karis && k == 1, p_.subtexel_bits};
+    DownsampleOptions o = downsample_options(k);
     // The first level reads the whole scene; the others only where the level above has
-    // anything (adaptive plan).
-    if (k > 1) {
+    // anything (adaptive plan; seed 002's chain only).
+    if (p_.mip_variant()) {
+    } else if (k > 1) {
       o.active = mip_mask(stage.name, src, dst, 2, BasicImage<T>());
     } else if (sched_.track_support &&
                mip_nothing_bright(src.cview(), double(p_.threshold), threads_)) {
@@ -659,8 +665,12 @@ class Executor {
       trace_.skipped_fraction.emplace_back(stage.name, 1.0);
     }
     downsample(src.cview(), dst.view(), o, threads_);
-    store_image(dst);
+    store_level(dst);
     record(stage.name, dst, ms_since(t0), false);
+  }
+
+  DownsampleOptions downsample_options(int k) const {
+    return bloomref::downsample_options(p_, k, w_, h_, p_.subtexel_bits);
   }
 
   // Stage up.k = down.k + tent3x3(up.k+1) (the smallest level: down.K itself).
@@ -670,8 +680,9 @@ class Executor {
     BasicImage<T>& dst = up_[k];
     dst = BasicImage<T>(down_[k].width(), down_[k].height());
     upsample_tent(small.cview(), down_[k].cview(), dst.view(), p_.subtexel_bits, threads_,
-                  mip_mask(stage.name, small, dst, 1, down_[k]));
-    store_image(dst);
+                  p_.mip_variant() ? nullptr : mip_mask(stage.name, small, dst, 1, down_[k]),
+                  p_.upsample_radius);
+    store_level(dst);
     record(stage.name, dst, ms_since(t0), false);
   }
 
@@ -680,8 +691,14 @@ class Executor {
     const int top = static_cast<int>(plan_.levels.size());
     const BasicImage<T>& small = top == 1 ? down_[1] : up_[1];
     mip_bloom_ = BasicImage<T>(w_, h_);
-    upsample_tent(small.cview(), BasicView<const T>{}, mip_bloom_.view(), p_.subtexel_bits,
-                  threads_, mip_mask(stage.name, small, mip_bloom_, 1, BasicImage<T>()));
+    if (p_.bloom_upscale == BloomUpscale::bilinear)
+      upscale_bilinear(small.cview(), mip_bloom_.view(), p_.subtexel_bits, threads_);
+    else
+      upsample_tent(small.cview(), BasicView<const T>{}, mip_bloom_.view(), p_.subtexel_bits,
+                    threads_,
+                    p_.mip_variant() ? nullptr
+                                     : mip_mask(stage.name, small, mip_bloom_, 1, BasicImage<T>()),
+                    p_.upsample_radius);
     store_image(mip_bloom_);
     record(stage.name, mip_bloom_, ms_since(t0), false);
   }
@@ -704,13 +721,12 @@ class Executor {
       // before-tonemap: scene + strength * bloom; after-tonemap: mapped + strength * bloom.
       BasicImage<T>& base = p_.composite == CompositeOrder::after_tonemap ? mapped_ : scene_;
       BasicImage<T> out(w_, h_);
-      composite(base.cview(), bloom.cview(), out.view(), static_cast<T>(p_.strength), threads_);
+      composite_as(base, bloom, out);
       store_image(out);
       scene_ = std::move(out);
     } else {
       // In place into the scene (per value, same index).
-      composite(scene_.cview(), bloom.cview(), scene_.view(), static_cast<T>(p_.strength),
-                threads_);
+      composite_as(scene_, bloom, scene_);
       store_image(scene_);
     }
     release_blur_images();
@@ -718,6 +734,14 @@ class Executor {
       trace_.timings.emplace_back("composite+tonemap+output", ms_since(t0));
     else
       record(stage.name, scene_, ms_since(t0), false);
+  }
+
+  void composite_as(const BasicImage<T>& base, const BasicImage<T>& bloom, BasicImage<T>& out) {
+    const T s = static_cast<T>(p_.strength);
+    if (p_.composite_mode == CompositeMode::mix)
+      composite_mix(base.cview(), bloom.cview(), out.view(), s, threads_);
+    else
+      composite(base.cview(), bloom.cview(), out.view(), s, threads_);
   }
 
   // Composite, tonemap and output at once, in place into the scene (finish_fast: the three

@@ -82,6 +82,7 @@ namespace {
 
 std::vector<StageSpec> mip_stages(const BloomParams& p, std::size_t k) {
   std::vector<StageSpec> s = {{"input", StageKind::input}};
+  if (p.prefilter == Prefilter::bright) s.push_back({"bright", StageKind::bright});
   for (std::size_t i = 1; i <= k; ++i) s.push_back({"down." + std::to_string(i), StageKind::down, int(i)});
   for (std::size_t i = k; i-- > 1;) s.push_back({"up." + std::to_string(i), StageKind::up, int(i)});
   s.push_back({"bloom", StageKind::bloom});

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "bloomref/image.h"
+#include "bloomref/params.h"
 
 namespace bloomref {
 
@@ -45,18 +46,36 @@ void mip_lookup(ConstImageView src, int x, int y, int tw, int th, int ox, int oy
 struct DownsampleOptions {
   bool first = false;         ///< the first downsample thresholds each tap (L < threshold -> 0)
   float threshold = 1.0f;
-  bool karis = false;         ///< first downsample only: Karis average 1/(1+L) per group of 4
+  bool karis = false;         ///< first downsample only: the Karis average (karis_form)
   int subtexel_bits = 0;
   /// Optional dst-sized mask (adaptive plan): where 0 the texel is written (+0, +0, +0, 1), what
   /// it computes there: every texel it reads is +0 (mip_support), or, on the first level, no
   /// lookup reaches the threshold (mip_nothing_bright: all zero).
   const std::uint8_t* active = nullptr;
+  /// Prefilter::bright: the first level reads a thresholded image and thresholds nothing.
+  bool threshold_taps = true;
+  KarisForm karis_form = KarisForm::per_tap;
+  /// The size whose reciprocal is the texel step (TexelStep::halved_float: the host's float
+  /// size); 0: the source texture's.
+  float step_width = 0.0f, step_height = 0.0f;
 };
+
+/// The options of stage down.k of a w x h scene under `p` (its variant), sampling with
+/// `subtexel_bits`.
+DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int height,
+                                     int subtexel_bits);
+
+/// The host's float size of level k (0: the image) under TexelStep::halved_float: the image's
+/// size halved k times in float, as the article's bloomFBO::Init does (mipSize *= 0.5f).
+float halved_size(int n, int k);
 
 /// Stage `down.k`: dst (level k) from src (level k-1). f32 order (seed 003): q_i = lookup at
 /// uv + o_i * texel (texel = 1 / source size), thresholded on the first level; without Karis
 /// r = sum_i q_i * w_i in tap order; with Karis r = sum over groups of
 /// sum_j ((g * w_j) / s) * q_j, w_j = 1 / (1 + L(q_j)), s = w_a + w_b + w_c + w_d. Alpha 1.
+/// KarisForm::group_srgb (6.new_downsample.fs, mipLevel 0): G = (q_a + q_b + q_c + q_d) * (g / 4)
+/// per group in the shader's order, G * (1 / (1 + dot(pow(G, 1 / 2.2), (0.299, 0.587, 0.114))
+/// * 0.25)), r = G_0 + ... + G_4, then max(r, 0.0001).
 template <class T>
 void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
                 int threads);
@@ -64,9 +83,17 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
 /// Stage `up.k` (current = down.k) and `bloom` (current empty: full resolution, no add):
 /// r = current (or 0); r = r + lookup(small, uv + o_i * texel) * t_i over the 3x3 tent in seed
 /// 003's order. Alpha 1.
+/// `radius` > 0: the taps are `radius` apart in texture coordinates on both axes (the article's
+/// filterRadius) instead of one texel of `small`.
 template <class T>
 void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
-                   int subtexel_bits, int threads, const std::uint8_t* active = nullptr);
+                   int subtexel_bits, int threads, const std::uint8_t* active = nullptr,
+                   float radius = 0.0f);
+
+/// Stage `bloom` under BloomUpscale::bilinear: one GL_LINEAR lookup of `small` at each texel's
+/// centre of `dst` (the article's final pass reads the half-resolution level so). Alpha 1.
+template <class T>
+void upscale_bilinear(BasicView<const T> small, BasicView<T> dst, int subtexel_bits, int threads);
 
 /// Whether the first downsample is (+0, +0, +0, 1) everywhere because none of its lookups can
 /// reach the threshold: threshold > 0 and every texel finite with L + 1e-4 (|R| + |G| + |B|)

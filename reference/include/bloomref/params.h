@@ -11,8 +11,10 @@ namespace bloomref {
 
 enum class Method { gaussian, mip };
 enum class KernelName { discrete9, linear5 };
-/// How every stage's output is stored, as the GL path stores it (RGBA32F / RGBA16F).
-enum class Storage { f32, f16 };
+/// How a stage's output is stored, as the GL path stores it (RGBA32F / RGBA16F). r11g11b10
+/// (GL_R11F_G11F_B10F: unsigned floats, 6-bit mantissas for R and G, 5 for B, no alpha) is a
+/// storage of the mip chain's levels only (BloomParams::chain_storage).
+enum class Storage { f32, f16, r11g11b10 };
 /// f32 mirrors the shaders' operation order; f64 is the truth used to measure error.
 enum class Precision { f32, f64 };
 /// What happens to NaN and +-Inf in the input (docs/design.md, "Specification").
@@ -27,6 +29,29 @@ enum class BlurImpl { fast, reference, approx };
 /// Where the bloom is added: to the HDR scene before the tone map (the classic, seed 000), or to
 /// the tone-mapped image (seed 003: mapped + 0.02 * bloom with exposure 0.5).
 enum class CompositeOrder { before_tonemap, after_tonemap };
+/// How the bloom is combined with the image: `add` (image + strength * bloom, the seeds') or
+/// `mix` (GLSL mix(image, bloom, strength) = image * (1 - strength) + bloom * strength, as
+/// LearnOpenGL's "Physically Based Bloom" article, 6.bloom_final.fs, does).
+enum class CompositeMode { add, mix };
+
+// The mip chain's variants (docs/design.md, "Mip-chain variants"). The defaults are seed 002's
+// chain; preset learnopengl-pbb sets the article's (src/8.guest/2022/6.physically_based_bloom).
+/// Where the threshold is: on each lookup of the first downsample (seed 002), or in a `bright`
+/// stage before the chain (luminance > threshold, as the article's scene shader 6.bloom.fs
+/// writes its second output), the chain then reading that image without a threshold.
+enum class Prefilter { per_lookup, bright };
+/// The first downsample's Karis average: `per_tap` (seed 002: each tap weighted 1 / (1 + L),
+/// normalised within its group) or `group_srgb` (the article's 6.new_downsample.fs: each group
+/// of four scaled by 1 / (1 + luma / 4), luma = Rec. 601 weights of pow(group, 1 / 2.2), not
+/// normalised; the sum then max(., 0.0001)).
+enum class KarisForm { per_tap, group_srgb };
+/// The downsample's texel step: 1 / the source texture's size, or 1 / the size the host passes
+/// as a float that it halves per level (the article's srcResolution: 400.5 where the texture is
+/// 400 wide), so that odd levels are sampled off their texel grid.
+enum class TexelStep { texture, halved_float };
+/// The bloom at full resolution: the 3x3 tent of up.1 (seed 002), or one bilinear lookup of it
+/// (the article's final pass samples the half-resolution level directly).
+enum class BloomUpscale { tent, bilinear };
 
 struct BloomParams {
   Method method = Method::gaussian;
@@ -49,6 +74,25 @@ struct BloomParams {
   int levels = 6;           ///< downsample levels; fewer when the image reaches 1x1
   bool karis = false;       ///< Karis average on the first downsample
   CompositeOrder composite = CompositeOrder::before_tonemap;
+  CompositeMode composite_mode = CompositeMode::add;
+  Prefilter prefilter = Prefilter::per_lookup;
+  KarisForm karis_form = KarisForm::per_tap;
+  TexelStep texel_step = TexelStep::texture;
+  /// The upsample tent's tap distance in texture coordinates (the article's filterRadius,
+  /// 0.005); 0: one texel of the level it reads (seed 002).
+  float upsample_radius = 0.0f;
+  BloomUpscale bloom_upscale = BloomUpscale::tent;
+  /// How down.k and up.k are stored; f32 and f16 are `storage` itself.
+  Storage chain_storage = Storage::f32;
+  bool chain_storage_set = false;  ///< false: chain_storage follows `storage`
+  /// The storage of the chain's levels (chain_storage when set, else storage).
+  Storage level_storage() const { return chain_storage_set ? chain_storage : storage; }
+  /// Whether any mip-chain choice differs from seed 002's chain.
+  bool mip_variant() const {
+    return prefilter != Prefilter::per_lookup || karis_form != KarisForm::per_tap ||
+           texel_step != TexelStep::texture || upsample_radius != 0.0f ||
+           bloom_upscale != BloomUpscale::tent || chain_storage_set;
+  }
 };
 
 /// Throws ParamError for the first value out of its domain.
@@ -63,6 +107,11 @@ std::string to_string(NonFinite n);
 std::string to_string(PlanMode m);
 std::string to_string(BlurImpl b);
 std::string to_string(CompositeOrder c);
+std::string to_string(CompositeMode c);
+std::string to_string(Prefilter p);
+std::string to_string(KarisForm k);
+std::string to_string(TexelStep t);
+std::string to_string(BloomUpscale b);
 Method parse_method(const std::string& s);
 KernelName parse_kernel(const std::string& s);
 Storage parse_storage(const std::string& s);
@@ -71,5 +120,12 @@ NonFinite parse_nonfinite(const std::string& s);
 PlanMode parse_plan_mode(const std::string& s);
 BlurImpl parse_blur_impl(const std::string& s);
 CompositeOrder parse_composite_order(const std::string& s);
+CompositeMode parse_composite_mode(const std::string& s);
+Prefilter parse_prefilter(const std::string& s);
+KarisForm parse_karis_form(const std::string& s);
+TexelStep parse_texel_step(const std::string& s);
+BloomUpscale parse_bloom_upscale(const std::string& s);
+/// --chain-storage: f32, f16 or r11g11b10.
+Storage parse_chain_storage(const std::string& s);
 
 }  // namespace bloomref

@@ -144,6 +144,13 @@ template <class T>
 void composite(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> dst, T strength,
                int threads);
 
+/// Stage `composite` under CompositeMode::mix: GLSL mix(scene, bloom, a), defined (GLSL 4.60,
+/// 8.3) as scene * (1 - a) + bloom * a: f32 u = scene * (1 - a); v = bloom * a; u + v.
+/// `dst` may be `scene`.
+template <class T>
+void composite_mix(BasicView<const T> scene, BasicView<const T> bloom, BasicView<T> dst, T a,
+                   int threads);
+
 /// The f32 oracle's exp: IEEE basic operations only, evaluated in double and rounded once, so
 /// its bits are the same on every machine and in every vector lane (the C library's expf is
 /// not correctly rounded and differs between libraries). Within 1e-15 relative of e^x before
