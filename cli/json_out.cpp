@@ -28,7 +28,11 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
           {"subtexel_bits", p.subtexel_bits},    {"threads", resolve_threads(p.threads)},
           {"plan", to_string(p.plan)},          {"blur", to_string(p.blur)},
           {"levels", p.levels},             {"karis", p.karis},
-          {"composite", to_string(p.composite)}};
+          {"composite", to_string(p.composite)}, {"composite_mode", to_string(p.composite_mode)},
+          {"prefilter", to_string(p.prefilter)}, {"karis_form", to_string(p.karis_form)},
+          {"texel_step", to_string(p.texel_step)}, {"upsample_radius", shortest(p.upsample_radius)},
+          {"bloom_upscale", to_string(p.bloom_upscale)},
+          {"chain_storage", to_string(p.level_storage())}};
 }
 
 std::string cpu_renderer(const BloomParams& p) {

@@ -5,11 +5,27 @@
 #include "bloomref/error.h"
 #include "bloomref/memory_budget.h"
 #include "bloomref/scenes.h"
+#include "presets.h"
 
 namespace bloomref::cli {
 
 void PipelineOptions::add_to(CLI::App& app) {
   BloomParams& p = params;
+  // First: CLI11 runs the callbacks of the options given in the order they are defined here, so
+  // the preset sets every value before the options given beside it override theirs.
+  std::string names;
+  for (const PresetInfo& i : builtin_presets()) names += (names.empty() ? "" : " | ") + i.name;
+  app.add_option_function<std::string>(
+      "--preset",
+      [this](const std::string& name) {
+        try {
+          apply_preset(name, *this);
+        } catch (const Error& e) {
+          throw CLI::ValidationError("--preset", e.what());
+        }
+      },
+      names + " | FILE.json: a named parameter set (docs/presets.md); options given beside it "
+              "override its values");
   app.add_option("--method", method, "gaussian | mip (the mip chain of Jimenez 2014)")->capture_default_str();
   app.add_option("--threshold", p.threshold, "bright when luminance > threshold")
       ->capture_default_str();
@@ -41,6 +57,29 @@ void PipelineOptions::add_to(CLI::App& app) {
   app.add_flag("--karis", p.karis, "mip: Karis average on the first downsample");
   app.add_option("--composite", composite, "before-tonemap | after-tonemap (after: as the mip-chain tutorial)")
       ->capture_default_str();
+  app.add_option("--composite-mode", composite_mode,
+                 "add (image + strength * bloom) | mix (mix(image, bloom, strength))")
+      ->capture_default_str();
+  app.add_option("--prefilter", prefilter,
+                 "mip: per-lookup (the first downsample thresholds each tap) | bright (a bright "
+                 "stage, luminance > threshold, before the chain)")
+      ->capture_default_str();
+  app.add_option("--karis-form", karis_form,
+                 "mip, with --karis: per-tap (1 / (1 + L) per tap, normalised per group) | "
+                 "group-srgb (per group on pow(group, 1/2.2), Rec. 601, as LearnOpenGL's PBB)")
+      ->capture_default_str();
+  app.add_option("--texel-step", texel_step,
+                 "mip: the downsample's texel step from the source texture's size (texture) or "
+                 "from the image size halved per level in float (halved-float)")
+      ->capture_default_str();
+  app.add_option("--upsample-radius", p.upsample_radius,
+                 "mip: the upsample tent's tap distance in texture coordinates (0 = one texel)")
+      ->capture_default_str();
+  app.add_option("--bloom-upscale", bloom_upscale,
+                 "mip: the full-resolution bloom from up.1 by the tent | one bilinear lookup")
+      ->capture_default_str();
+  app.add_option("--chain-storage", chain_storage,
+                 "mip: how the levels are stored: f32 | f16 | r11g11b10 (default: --storage)");
   app.add_option("--scene", scene, "built-in scene used when no IN is given")
       ->capture_default_str();
   app.add_option("--size", size, "WxH of the built-in scene (default: the scene's own)");
@@ -58,6 +97,13 @@ void PipelineOptions::finish() {
   params.plan = parse_plan_mode(plan);
   params.blur = parse_blur_impl(blur);
   params.composite = parse_composite_order(composite);
+  params.composite_mode = parse_composite_mode(composite_mode);
+  params.prefilter = parse_prefilter(prefilter);
+  params.karis_form = parse_karis_form(karis_form);
+  params.texel_step = parse_texel_step(texel_step);
+  params.bloom_upscale = parse_bloom_upscale(bloom_upscale);
+  params.chain_storage_set = !chain_storage.empty();
+  if (params.chain_storage_set) params.chain_storage = parse_chain_storage(chain_storage);
   validate(params);
   if (!max_memory.empty()) parse_byte_size(max_memory, "--max-memory");  // a usage error now
 }

@@ -14,7 +14,10 @@ struct PipelineOptions {
   BloomParams params;
   std::string method = "gaussian", kernel = "discrete9", storage = "f32", precision = "f32",
               nonfinite = "zero", plan = "adaptive", blur = "fast",
-              composite = "before-tonemap";
+              composite = "before-tonemap", composite_mode = "add", prefilter = "per-lookup",
+              karis_form = "per-tap", texel_step = "texture", bloom_upscale = "tent";
+  std::string chain_storage;  ///< empty: the levels are stored as --storage says
+  std::string preset;         ///< the preset applied, if any
   std::string scene = "demo";
   std::string size;  ///< "WxH" for built-in scenes
   std::string max_memory;  ///< --max-memory; empty: default_memory_budget()
