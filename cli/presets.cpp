@@ -114,7 +114,8 @@ std::vector<PresetInfo> builtin_presets() {
   return out;
 }
 
-void apply_preset(const std::string& name_or_file, PipelineOptions& o) {
+void apply_preset(const std::string& name_or_file, PipelineOptions& o,
+                  const std::function<bool(const std::string&)>& given) {
   std::string what;
   const nlohmann::json j = load_preset(name_or_file, what);
   if (!j.is_object() || !j.contains("params") || !j["params"].is_object())
@@ -122,6 +123,7 @@ void apply_preset(const std::string& name_or_file, PipelineOptions& o) {
   for (const auto& [key, value] : j["params"].items()) {
     const auto it = setters().find(key);
     if (it == setters().end()) throw ParamError("preset " + what + ": unknown key '" + key + "'");
+    if (given && given(key)) continue;
     try {
       it->second(o, value);
     } catch (const ParamError& e) {

@@ -3,6 +3,7 @@
 // starting values; every option given on the command line overrides its value.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,8 @@ std::vector<PresetInfo> builtin_presets();
 /// Sets `o`'s options from preset `name_or_file` (a built-in name, or a path ending in .json).
 /// Throws ParamError naming the preset and the key for an unknown preset, an unreadable file,
 /// an unknown key or a value of the wrong kind.
-void apply_preset(const std::string& name_or_file, PipelineOptions& o);
+/// `given`, when set, says which keys the command line gave: those are left as they are.
+void apply_preset(const std::string& name_or_file, PipelineOptions& o,
+                  const std::function<bool(const std::string& key)>& given = {});
 
 }  // namespace bloomref::cli

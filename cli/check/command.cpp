@@ -24,6 +24,7 @@
 #include "check/manifest.h"
 #include "check/output.h"
 #include "check/shaders.h"
+#include "presets.h"
 #include "check/types.h"
 #include "commands.h"
 #include "options.h"
@@ -261,9 +262,9 @@ CheckItem shaders_item(CheckArgs& a, CheckRun& run, ScratchDir& scratch) {
   CheckItem item;
   item.scene = a.scene;
   item.stages_dir = scratch.path().string();
-  item.from = "the passes of " + a.shaders.blur_fs + " and " + a.shaders.final_fs +
+  item.from = "the passes of " + a.shaders.files() +
               (a.shaders.layout.empty() ? "" : " (names: " + a.shaders.layout + ")");
-  item.id = "learnopengl";
+  item.id = a.shaders.preset;
   item.scratch = true;
   return item;
 }
@@ -477,7 +478,7 @@ CheckRun check_cmd(CheckArgs& a) {
   if (a.artifacts != "fail" && a.artifacts != "all" && a.artifacts != "none")
     throw ParamError("--artifacts '" + a.artifacts + "' is not one of: fail, all, none");
   if (int(!a.stages_dir.empty()) + int(!a.manifest.empty()) + int(a.shaders.any()) != 1)
-    throw ParamError("give one of --stages DIR, --manifest FILE or --shaders learnopengl");
+    throw ParamError("give one of --stages DIR, --manifest FILE or --shaders PRESET");
   if (!a.shaders.layout.empty() && !a.shaders.any())
     throw ParamError("--layout names what --shaders learnopengl binds: give --shaders too");
   if (!a.manifest.empty() && !a.scene.empty())
@@ -555,8 +556,32 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
   sub->add_option("--stages", args->stages_dir,
                   "folder of stage images named as --dump-stages names them (any subset)");
   sub->add_option("--manifest", args->manifest, "JSON manifest of items (docs/check.md)");
-  sub->add_option("--shaders", args->shaders.preset,
-                  "run your own GLSL headless the way a preset's host code does: learnopengl");
+  sub->add_option_function<std::string>(
+      "--shaders",
+      [args](const std::string& preset) {
+        args->shaders.preset = preset;
+        // The preset's pipeline is what the shaders are judged against: its parameters, under
+        // any option given beside it (learnopengl keeps bloomref's defaults).
+        if (preset == "learnopengl-pbb" && args->pipeline.preset.empty()) {
+          try {
+            apply_preset(preset, args->pipeline, [args](const std::string& key) {
+              return args->sub->count("--" + key) > 0;
+            });
+          } catch (const Error& e) {
+            throw CLI::ValidationError("--shaders", e.what());
+          }
+        }
+      },
+      "run your own GLSL headless the way a preset's host code does: learnopengl | "
+      "learnopengl-pbb");
+  sub->add_option("--downsample-fs", args->shaders.downsample_fs,
+                  "--shaders learnopengl-pbb: the downsample fragment shader");
+  sub->add_option("--upsample-fs", args->shaders.upsample_fs,
+                  "--shaders learnopengl-pbb: the upsample fragment shader");
+  sub->add_option("--downsample-vs", args->shaders.downsample_vs,
+                  "--shaders learnopengl-pbb: the downsample vertex shader (default: a pass-through quad)");
+  sub->add_option("--upsample-vs", args->shaders.upsample_vs,
+                  "--shaders learnopengl-pbb: the upsample vertex shader");
   sub->add_option("--blur-fs", args->shaders.blur_fs, "--shaders: the blur fragment shader");
   sub->add_option("--final-fs", args->shaders.final_fs, "--shaders: the final (composite) fragment shader");
   sub->add_option("--blur-vs", args->shaders.blur_vs, "--shaders: the blur vertex shader (default: a pass-through quad)");

@@ -36,7 +36,8 @@ std::optional<gpu::ShaderSource> optional_shader(const std::string& path) {
 
 gpu::LearnOpenGLShaders load_shaders(const ShaderArgs& s) {
   if (s.preset != "learnopengl")
-    throw ParamError("--shaders '" + s.preset + "' is not a known preset (known: learnopengl)");
+    throw ParamError("--shaders '" + s.preset +
+                     "' is not a known preset (known: learnopengl, learnopengl-pbb)");
   if (s.blur_fs.empty() || s.final_fs.empty())
     throw ParamError("--shaders learnopengl needs --blur-fs FILE and --final-fs FILE");
   gpu::LearnOpenGLShaders sh;
@@ -48,11 +49,71 @@ gpu::LearnOpenGLShaders load_shaders(const ShaderArgs& s) {
   return sh;
 }
 
+gpu::MipChainShaders load_mip_chain_shaders(const ShaderArgs& s) {
+  if (s.downsample_fs.empty() || s.upsample_fs.empty() || s.final_fs.empty())
+    throw ParamError(
+        "--shaders learnopengl-pbb needs --downsample-fs FILE, --upsample-fs FILE and --final-fs "
+        "FILE");
+  if (!s.blur_fs.empty() || !s.blur_vs.empty() || !s.bright_fs.empty())
+    throw ParamError("--shaders learnopengl-pbb has no blur or bright pass: --blur-fs, --blur-vs "
+                     "and --bright-fs are for --shaders learnopengl");
+  gpu::MipChainShaders sh;
+  sh.downsample_fs = gpu::load_shader(s.downsample_fs);
+  sh.upsample_fs = gpu::load_shader(s.upsample_fs);
+  sh.final_fs = gpu::load_shader(s.final_fs);
+  sh.downsample_vs = optional_shader(s.downsample_vs);
+  sh.upsample_vs = optional_shader(s.upsample_vs);
+  sh.final_vs = optional_shader(s.final_vs);
+  return sh;
+}
+
+// The article's host code around the user's shaders; every pass they drew is written to `dir`.
+std::string run_mip_chain_shaders(const ShaderArgs& s, const std::string& scene_path,
+                                  const PipelineOptions& pipeline, const fs::path& dir,
+                                  bool& software, const std::function<void(int, int)>& on_scene) {
+  if (!s.layout.empty())
+    throw ParamError("--layout names what --shaders learnopengl binds; learnopengl-pbb takes the "
+                     "article's names");
+  const gpu::MipChainShaders shaders = load_mip_chain_shaders(s);
+  gpu::MipChainOptions opt = gpu::mip_chain_options_for(pipeline.params);
+  if (!s.target_format.empty()) opt.format = gpu::parse_target_format(s.target_format);
+  if (s.filter != "linear" || s.wrap != "clamp-to-edge")
+    throw ParamError("--shaders learnopengl-pbb samples as the article does (linear, clamp to "
+                     "edge): --filter and --wrap are for --shaders learnopengl");
+  opt.final_target = gpu::parse_final_target(s.final_target);
+  std::string source;
+  const LoadedImage scene = pipeline.load_input(scene_path, source);
+  if (on_scene) on_scene(scene.image.width(), scene.image.height());
+  auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3
+  gpu::check_mip_chain(*ctx, shaders, opt);
+  const gpu::MipChainRun run = gpu::run_mip_chain(*ctx, scene.image.cview(), shaders, opt);
+  for (const auto& st : run.run.trace.stages) {
+    if (st.name == "input" || st.name == "bright") continue;  // the oracle's
+    if (st.name == "output" && run.run.output_code_bits == 8)
+      save_png((dir / "output.png").string(), st.image.cview());
+    else
+      save_exr((dir / (st.name + ".exr")).string(), st.image.cview(), nullptr, ExrCompression::none);
+  }
+  const gpu::ContextInfo& d = ctx->info();
+  software = d.software;
+  return d.renderer + " (" + d.version + ")";
+}
+
 }  // namespace
+
+std::string ShaderArgs::files() const {
+  std::string out;
+  for (const std::string* f : {&bright_fs, &blur_vs, &blur_fs, &downsample_vs, &downsample_fs,
+                               &upsample_vs, &upsample_fs, &final_vs, &final_fs})
+    if (!f->empty()) out += (out.empty() ? "" : ", ") + *f;
+  return out;
+}
 
 std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
                              const PipelineOptions& pipeline, const fs::path& dir, bool& software,
                              const std::function<void(int, int)>& on_scene) {
+  if (s.preset == "learnopengl-pbb")
+    return run_mip_chain_shaders(s, scene_path, pipeline, dir, software, on_scene);
   const gpu::LearnOpenGLShaders shaders = load_shaders(s);
   gpu::UserPipelineOptions opt = gpu::options_for(pipeline.params);
   if (!s.target_format.empty()) opt.format = gpu::parse_target_format(s.target_format);
@@ -142,12 +203,7 @@ std::uint64_t resident_bytes(pid_t pid) {
   return resident * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
 }
 
-std::string shader_names(const ShaderArgs& s) {
-  std::string out;
-  for (const std::string* f : {&s.bright_fs, &s.blur_vs, &s.blur_fs, &s.final_vs, &s.final_fs})
-    if (!f->empty()) out += (out.empty() ? "" : ", ") + *f;
-  return out;
-}
+std::string shader_names(const ShaderArgs& s) { return s.files(); }
 
 }  // namespace
 

@@ -13,8 +13,9 @@
 namespace bloomref::cli {
 
 struct ShaderArgs {
-  std::string preset;  ///< "learnopengl"
+  std::string preset;  ///< "learnopengl" or "learnopengl-pbb"
   std::string blur_fs, final_fs, blur_vs, final_vs, bright_fs;
+  std::string downsample_fs, upsample_fs, downsample_vs, upsample_vs;  ///< learnopengl-pbb
   std::string target_format, filter = "linear", wrap = "clamp-to-edge", final_target = "same";
   std::string layout;  ///< a layout file: the names the shaders use (check/layout.h)
   /// What running them may cost: seconds of wall time (0: shader_timeout's default) and bytes
@@ -22,6 +23,8 @@ struct ShaderArgs {
   double timeout_s = 0;
   std::string max_memory;
   bool any() const { return !preset.empty(); }
+  /// The user's shader files, comma-separated (for messages).
+  std::string files() const;
 };
 
 /// The folder the user's passes are read back into (removed at exit and on SIGINT/SIGTERM).

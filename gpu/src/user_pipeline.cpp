@@ -11,16 +11,19 @@
 
 #include "bloomref/stages.h"
 #include "gl_objects.h"
+#include "user_host.h"
 #include "user_program.h"
 
 namespace bloomref::gpu {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+using host::Clock;
+using host::gl_filter;
+using host::gl_format;
+using host::gl_wrap;
+using host::flipped_rows;
+using host::ms_since;
+using host::QuadState;
 
 template <class E>
 struct Named {
@@ -68,38 +71,6 @@ E parse(const Named<E> (&table)[N], const char* what, const std::string& s) {
     names += (names.empty() ? "" : ", ") + std::string(n.name);
   }
   throw ParamError(std::string(what) + " '" + s + "' is not one of: " + names);
-}
-
-GLenum gl_format(TargetFormat f) {
-  switch (f) {
-    case TargetFormat::rgba16f:
-      return GL_RGBA16F;
-    case TargetFormat::rgb16f:
-      return GL_RGB16F;
-    case TargetFormat::rgba32f:
-      return GL_RGBA32F;
-    case TargetFormat::r11f_g11f_b10f:
-      return GL_R11F_G11F_B10F;
-  }
-  return GL_RGBA32F;
-}
-
-GLenum gl_filter(TextureFilter f) {
-  return f == TextureFilter::nearest ? GL_NEAREST : GL_LINEAR;
-}
-
-GLenum gl_wrap(TextureWrap w) {
-  switch (w) {
-    case TextureWrap::clamp_to_edge:
-      return GL_CLAMP_TO_EDGE;
-    case TextureWrap::repeat:
-      return GL_REPEAT;
-    case TextureWrap::mirrored_repeat:
-      return GL_MIRRORED_REPEAT;
-    case TextureWrap::clamp_to_border:
-      return GL_CLAMP_TO_BORDER;  // the default border colour: (0, 0, 0, 0)
-  }
-  return GL_CLAMP_TO_EDGE;
 }
 
 std::string number(float v) {
@@ -258,78 +229,6 @@ void validate(const UserPipelineOptions& opt) {
   for (float c : opt.clear_colour)
     if (!std::isfinite(c)) throw ParamError("the clear colour must be finite");
 }
-
-Image flipped_rows(ConstImageView src) {
-  Image out = Image::uninitialised(src.width, src.height);
-  for (int y = 0; y < src.height; ++y)
-    std::copy(src.row(y), src.row(y) + std::size_t(src.width) * kChannels,
-              out.view().row(src.height - 1 - y));
-  return out;
-}
-
-// The quad of bloom.cpp's renderQuad: a triangle strip, (x, y, z, s, t) per corner.
-constexpr float kQuad[] = {
-    -1.0f, 1.0f,  0.0f, 0.0f, 1.0f,  // top left
-    -1.0f, -1.0f, 0.0f, 0.0f, 0.0f,  // bottom left
-    1.0f,  1.0f,  0.0f, 1.0f, 1.0f,  // top right
-    1.0f,  -1.0f, 0.0f, 1.0f, 0.0f,  // bottom right
-};
-
-// The quad's vertex array, and the fixed-function state the tutorial's passes run with.
-class QuadState {
- public:
-  QuadState() {
-    glGenVertexArrays(1, &vao_);
-    glGenBuffers(1, &vbo_);
-    glBindVertexArray(vao_);
-    glBindBuffer(GL_ARRAY_BUFFER, vbo_);
-    glBufferData(GL_ARRAY_BUFFER, sizeof kQuad, kQuad, GL_STATIC_DRAW);
-    glEnableVertexAttribArray(0);
-    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 5 * sizeof(float), nullptr);
-    glEnableVertexAttribArray(1);
-    glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, 5 * sizeof(float),
-                          reinterpret_cast<const void*>(3 * sizeof(float)));
-    for (GLenum cap : {GL_BLEND, GL_DEPTH_TEST, GL_SCISSOR_TEST, GL_CULL_FACE, GL_STENCIL_TEST,
-                       GL_FRAMEBUFFER_SRGB})
-      glDisable(cap);
-  }
-  ~QuadState() {
-    glBindVertexArray(0);
-    glUseProgram(0);
-    glDeleteBuffers(1, &vbo_);
-    glDeleteVertexArrays(1, &vao_);
-  }
-  QuadState(const QuadState&) = delete;
-  QuadState& operator=(const QuadState&) = delete;
-
-  // Clears the target(s) to the clear colour and draws the quad with `prog`, `units[i]` bound
-  // to texture unit i; returns the wall time of the draw, glFinish included.
-  double draw(GlContext& ctx, const UserProgram& prog, const std::vector<const Texture*>& units,
-              const Texture& out0, const Texture* out1, const std::array<float, 4>& clear,
-              const std::string& what) {
-    Framebuffer fb(out0, out1);
-    glViewport(0, 0, out0.width, out0.height);
-    glClearColor(clear[0], clear[1], clear[2], clear[3]);
-    glClear(GL_COLOR_BUFFER_BIT);
-    glUseProgram(prog.program.id);
-    for (std::size_t i = 0; i < units.size(); ++i) {
-      glActiveTexture(GL_TEXTURE0 + static_cast<GLenum>(i));
-      glBindTexture(GL_TEXTURE_2D, units[i]->id);
-    }
-    glBindVertexArray(vao_);
-    glFinish();
-    const auto t0 = Clock::now();
-    glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
-    glFinish();
-    const double ms = ms_since(t0);
-    glActiveTexture(GL_TEXTURE0);
-    ctx.check(what.c_str());
-    return ms;
-  }
-
- private:
-  GLuint vao_ = 0, vbo_ = 0;
-};
 
 }  // namespace
 
@@ -505,10 +404,10 @@ class LearnOpenGLHost {
     } else if (prog_.bright->has_output(1)) {
       Texture scene_out = target();
       ms = quad_.draw(ctx_, *prog_.bright, {&scene_tex_}, scene_out, &bright_tex_,
-                      opt_.clear_colour, "the user's bright pass");
+                      &opt_.clear_colour, "the user's bright pass");
       scene_tex_ = std::move(scene_out);
     } else {
-      ms = quad_.draw(ctx_, *prog_.bright, {&scene_tex_}, bright_tex_, nullptr, opt_.clear_colour,
+      ms = quad_.draw(ctx_, *prog_.bright, {&scene_tex_}, bright_tex_, nullptr, &opt_.clear_colour,
                       "the user's bright pass");
     }
     add("input", read_back(scene_tex_), input_ms);
@@ -528,7 +427,7 @@ class LearnOpenGLHost {
       else prog_.blur.set_vector(l.direction, (horizontal ? l.direction_h : l.direction_v).at(w_, h_));
       const std::string name = "blur." + std::to_string(k);
       const double ms = quad_.draw(ctx_, prog_.blur, {&src}, ping_[horizontal ? 1 : 0], nullptr,
-                                   opt_.clear_colour, ("the user's blur pass " + name).c_str());
+                                   &opt_.clear_colour, ("the user's blur pass " + name).c_str());
       add(name, read_back(ping_[horizontal ? 1 : 0]), ms);
       horizontal = !horizontal;
     }
@@ -540,7 +439,7 @@ class LearnOpenGLHost {
     Texture out(w_, h_, unorm8 ? GL_RGBA8 : format_);
     run_.output_code_bits = unorm8 ? 8 : 0;
     const double ms = quad_.draw(ctx_, prog_.final, {&scene_tex_, &bloom}, out, nullptr,
-                                 opt_.clear_colour, "the user's final pass");
+                                 &opt_.clear_colour, "the user's final pass");
     add("output", read_back(out), ms);
   }
 

@@ -140,6 +140,8 @@ std::string kind_name(const HostUniform& h) {
       return "float";
     case HostUniform::vector:
       return h.components == 1 ? "float" : "vec" + std::to_string(h.components);
+    case HostUniform::integer:
+      return "int";
   }
   return "?";
 }
@@ -160,7 +162,8 @@ struct Files {
   }
 };
 
-void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostUniform>& host) {
+void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostUniform>& host,
+                    const std::string& preset) {
   const GLuint prog = up.program.id;
   GLint count = 0, blocks = 0;
   glGetProgramiv(prog, GL_ACTIVE_UNIFORMS, &count);
@@ -169,7 +172,7 @@ void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostU
     char name[256] = {};
     glGetActiveUniformBlockName(prog, 0, sizeof name, nullptr, name);
     throw UserShaderError(files.of(name), std::string("uniform block '") + name +
-                                              "' is not set by the learnopengl preset's host code");
+                                              "' is not set by the " + preset + " preset's host code");
   }
   std::vector<std::string> seen;
   for (GLint i = 0; i < count; ++i) {
@@ -186,6 +189,7 @@ void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostU
     if (it != host.end()) {
       const bool ok = size == 1 && (it->kind == HostUniform::sampler ? type == GL_SAMPLER_2D
                                     : it->kind == HostUniform::flag  ? is_flag_type(type)
+                                    : it->kind == HostUniform::integer ? type == GL_INT
                                     : it->kind == HostUniform::vector
                                         ? type == vector_type(it->components)
                                         : type == GL_FLOAT);
@@ -193,19 +197,21 @@ void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostU
         throw UserShaderError(file, (is_sampler(type) ? "sampler '" : "uniform '") + name +
                                         "' is declared " + v.type +
                                         (size > 1 ? "[" + std::to_string(size) + "]" : "") +
-                                        "; the learnopengl preset sets a " + kind_name(*it) +
+                                        "; the " + preset + " preset sets a " + kind_name(*it) +
                                         " (" + it->role + ")");
       v.role = "set by the host: " + it->role;
       seen.push_back(name);
     } else if (is_sampler(type)) {
       throw UserShaderError(file, "sampler '" + name + "' (" + v.type +
-                                      ") is not one the learnopengl preset binds here; it would "
-                                      "read texture unit 0");
+                                      ") is not one the " + preset + " preset binds here; it "
+                                      "would read texture unit 0");
     } else if (!initialised(prog, name, type, size)) {
-      throw UserShaderError(file, "uniform '" + name + "' (" + v.type +
-                                      ") is not set by the learnopengl preset's host code and has "
-                                      "no non-zero initialiser, so it would be used at 0 (a "
-                                      "--layout file's \"set\" gives it a value)");
+      throw UserShaderError(file, "uniform '" + name + "' (" + v.type + ") is not set by the " +
+                                      preset + " preset's host code and has no non-zero "
+                                      "initialiser, so it would be used at 0" +
+                                      (preset == "learnopengl"
+                                           ? " (a --layout file's \"set\" gives it a value)"
+                                           : ""));
     } else {
       v.role = "not set by the host: kept at its initialiser";
     }
@@ -222,7 +228,8 @@ void check_uniforms(UserProgram& up, const Files& files, const std::vector<HostU
   }
 }
 
-void check_attributes(UserProgram& up, const std::string& file, const VertexNames& names) {
+void check_attributes(UserProgram& up, const std::string& file, const VertexNames& names,
+                      const std::string& preset) {
   const GLuint prog = up.program.id;
   GLint count = 0;
   glGetProgramiv(prog, GL_ACTIVE_ATTRIBUTES, &count);
@@ -240,7 +247,7 @@ void check_attributes(UserProgram& up, const std::string& file, const VertexName
     if ((loc != 0 && loc != 1) || !vector || size != 1)
       throw UserShaderError(file, "attribute '" + name + "' (" + v.type + ", location " +
                                       std::to_string(loc) +
-                                      ") is not one the learnopengl preset feeds: it feeds "
+                                      ") is not one the " + preset + " preset feeds: it feeds "
                                       "location 0 " + names.position + " (vec3) and location 1 " +
                                       names.texcoords + " (vec2)");
     v.role = loc == 0 ? "fed by the host: the quad's corner (x, y, 0)"
@@ -288,6 +295,19 @@ void UserProgram::set_flag(const std::string& uniform, bool v) const {
 void UserProgram::set_number(const std::string& uniform, float v) const {
   const GLint loc = location(uniform);
   if (loc >= 0) glProgramUniform1f(program.id, loc, v);
+}
+
+void UserProgram::set_integer(const std::string& uniform, int v) const {
+  const GLint loc = location(uniform);
+  if (loc >= 0) glProgramUniform1i(program.id, loc, v);
+}
+
+float UserProgram::number(const std::string& uniform) const {
+  const GLint loc = location(uniform);
+  if (loc < 0) return NAN;
+  float v = NAN;
+  glGetUniformfv(program.id, loc, &v);
+  return v;
 }
 
 void UserProgram::set_sampler(const std::string& uniform, int unit) const {
@@ -455,7 +475,7 @@ ShaderSource pass_through(const std::string& varying) {
 
 UserProgram build_user_program(const std::string& name, const ShaderSource* vs,
                                const ShaderSource& fs, const std::vector<HostUniform>& host,
-                               const VertexNames& names) {
+                               const VertexNames& names, const std::string& preset) {
   const ShaderSource own = pass_through(names.varying);
   const ShaderSource& vertex = vs ? *vs : own;
   UserProgram up;
@@ -490,9 +510,9 @@ UserProgram build_user_program(const std::string& name, const ShaderSource* vs,
   if (!messages.empty()) log += name + " program: " + messages + "\n";
   up.interface.log = log;
   check_varyings(vertex, vs == nullptr, names.varying, fs);
-  check_uniforms(up, Files{vs, fs}, host);
+  check_uniforms(up, Files{vs, fs}, host, preset);
   check_attributes(up, vs ? vs->path : fs.path,
-                   vs ? names : VertexNames{"aPos", "aTexCoords", names.varying});
+                   vs ? names : VertexNames{"aPos", "aTexCoords", names.varying}, preset);
   read_outputs(up, fs.path);
   return up;
 }

@@ -175,9 +175,7 @@ class Comparison {
   }
   bool e2e_made_again(const std::string& n) const;
   // How a stage's output is stored: the mip chain's levels as the chain stores them.
-  Storage storage_at(const StageSpec& s) const {
-    return s.kind == StageKind::down || s.kind == StageKind::up ? p_.level_storage() : p_.storage;
-  }
+  Storage storage_at(const StageSpec& s) const { return stage_storage(p_, s); }
   // The capture of the stage being judged, as judged (the profile may say every capture holds
   // 8-bit codes).
   CapturedStage capture(const std::string& n) const {

@@ -148,7 +148,7 @@ class Evaluator {
     for (const std::string& in : stage_inputs(ctx_.plan, *spec)) changed |= value(in).changed;
     if (!changed) return {held(name), false};
     Image img = compute(*spec, false);
-    store_as_device(img);
+    store_as_device(img, spec->kind);
     return keep(name, std::move(img));
   }
 
@@ -218,8 +218,11 @@ class Evaluator {
     return out;
   }
 
-  void store_as_device(Image& img) const {
-    store(img.view(), p_.storage, ctx_.rounding, ctx_.threads);
+  // `kind`: the stage the image is of (the mip chain's levels may be stored otherwise).
+  void store_as_device(Image& img, StageKind kind = StageKind::blur) const {
+    StageSpec spec;
+    spec.kind = kind;
+    store(img.view(), stage_storage(p_, spec), ctx_.rounding, ctx_.threads);
     if (h_.f16) store(img.view(), Storage::f16, ctx_.rounding, ctx_.threads);
     write_all(img);
   }

@@ -239,7 +239,7 @@ std::uint64_t beyond_rounding(const float* oracle, const float* bound, const flo
     return n;
   }
   for (std::size_t i = i0; i < i1; ++i)
-    if (i % kChannels != 3) n += double(bound[i]) - storage_term(oracle[i], storage, p) > 0;
+    if (i % kChannels != 3) n += double(bound[i]) - storage_term(oracle[i], storage, p, int(i % kChannels)) > 0;
   return n;
 }
 
@@ -324,7 +324,7 @@ void judge_row(const JudgeRules& rules, int y, const float* gl, const float* ora
         const double err = std::fabs(g - o);
         double gate = 0;
         if (rules.gates) {
-          const double r = allowance ? allowance[i] : storage_term(o, rules.storage, p);
+          const double r = allowance ? allowance[i] : storage_term(o, rules.storage, p, c);
           if (err == 0 ? b - r > 0 : gate_ratio(err, b, r, slack ? slack[i] : 0.0f, gate)) {
             t.excess += gate;
             t.base += 1;

@@ -119,7 +119,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
         }
         const double v = oracle.pixel(x, y)[c];
         return Values{coord, arith, thresh, kterm,
-                      storage_term(v, ctx.storage, *ctx.profile) + denormal_floor(*ctx.profile)};
+                      storage_term(v, ctx.storage, *ctx.profile, c) + denormal_floor(*ctx.profile)};
       },
       tw, ctx.threads);
 }
@@ -151,7 +151,7 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
         const double ecur = current_error ? current_error->pixel(x, y)[c] : 0.0;
         const double v = oracle.pixel(x, y)[c];
         return Values{coord, arith, ecur,
-                      storage_term(v, ctx.storage, *ctx.profile) + denormal_floor(*ctx.profile), 0};
+                      storage_term(v, ctx.storage, *ctx.profile, c) + denormal_floor(*ctx.profile), 0};
       },
       tw, ctx.threads);
 }

@@ -102,7 +102,7 @@ class PlantedRun {
       out = oracle_stage(plan_, spec, sanitized_.cview(), in, profile_.subtexel_bits, pool_);
     }
     if (&spec == bloom_) plant(out);
-    store(out.view(), p.storage, half_rounding_for(profile_), p.threads);
+    store(out.view(), stage_storage(p, spec), half_rounding_for(profile_), p.threads);
     held_[spec.name] = std::move(out);
     // Images no later stage reads are dropped once handed out (capture copies them).
     for (auto it = held_.begin(); it != held_.end();) {

@@ -36,15 +36,15 @@ float* sized(std::vector<float>& v, std::size_t n) {
 
 }  // namespace
 
-double storage_term(double v, Storage s, const DeviceProfile& p) {
+double storage_term(double v, Storage s, const DeviceProfile& p, int channel) {
   if (s == Storage::f32 || !std::isfinite(v)) return 0.0;
   if (s == Storage::r11g11b10) {
-    // One quantum of the coarser (blue, 5-bit) mantissa: nearest or toward zero, against an
-    // oracle that rounds either way. Denormals below 2^-14.
+    // One quantum: nearest or toward zero (the oracle's own rounding is added where it is
+    // judged). Denormals below 2^-14.
     if (!(v > 0)) return 0.0;
     int e = 0;
     std::frexp(v, &e);
-    return std::ldexp(1.0, std::max(e - 1, -14) - 5);
+    return std::ldexp(1.0, std::max(e - 1, -14) - (channel == 2 ? 5 : 6));
   }
   // Toward zero loses up to one ULP; nearest-even half of one.
   return (p.half_toward_zero ? 1.0 : 0.5) * ulp16(v);

@@ -21,7 +21,10 @@ constexpr double kU = 5.9604644775390625e-08;  // 2^-24, the f32 unit roundoff
 
 /// The storage term: what writing `v` to the stage's texture may change (f16: under one ULP
 /// for toward-zero, half for nearest-even; f32: nothing).
-double storage_term(double v, Storage s, const DeviceProfile& p);
+/// What storing `v` may change it by: up to one ULP of the format (half of one when the profile
+/// rounds to the nearest only). R11F_G11F_B10F: one quantum of channel `channel`'s mantissa (6
+/// bits for R and G, 5 for B; the coarser where the channel is not known).
+double storage_term(double v, Storage s, const DeviceProfile& p, int channel = 2);
 
 /// Denormal flush floor: results below 2^-126 may become 0 in shader arithmetic.
 double denormal_floor(const DeviceProfile& p);

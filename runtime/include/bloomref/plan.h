@@ -72,6 +72,12 @@ SceneFacts scan_scene(ConstImageView scene, const BloomParams& params, BlurIsa i
 /// leaves (10.1% on 46%, 25% on 25%: compact) ran faster tracked.
 bool dense_scene(const SceneFacts& facts);
 
+/// How a stage's output is stored: the mip chain's levels (down.k, up.k) as the chain stores
+/// them (BloomParams::level_storage), every other stage as `storage` says.
+inline Storage stage_storage(const BloomParams& p, const StageSpec& s) {
+  return s.kind == StageKind::down || s.kind == StageKind::up ? p.level_storage() : p.storage;
+}
+
 /// The stage whose image is the bloom the composite adds: `bloom` (mip), the last blur pass, or
 /// `bright` when there are no passes.
 std::string bloom_stage_name(const Plan& plan);

@@ -48,6 +48,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <optional>
 #include <string>
 #include <utility>
@@ -218,5 +219,65 @@ std::vector<ProgramInterface> check_learnopengl(GlContext& ctx, const LearnOpenG
 UserPipelineRun run_learnopengl(GlContext& ctx, ConstImageView scene,
                                 const LearnOpenGLShaders& shaders,
                                 const UserPipelineOptions& opt = {});
+
+// Preset `learnopengl-pbb` (JoeyDeVries/LearnOpenGL, src/8.guest/2022/6.physically_based_bloom/
+// physically_based_bloom.cpp, the host code the article's 6.new_downsample.fs, 6.new_upsample.fs
+// and 6.bloom_final.fs are written for; programChoice 3):
+//  * the scene and the bright image (luminance > threshold, as 6.bloom.fs writes BrightColor:
+//    the oracle's, stored as the scene format stores it) are uploaded to RGBA16F textures;
+//  * `levels` mips of (int)(size * 0.5^k) in `level_format` (GL_R11F_G11F_B10F), GL_LINEAR,
+//    GL_CLAMP_TO_EDGE; nothing clears them;
+//  * downsample: mip k drawn from mip k-1 (the bright image for k = 1) with the viewport at the
+//    mip's size; sampler `srcTexture` (unit 0); `srcResolution` (vec2) the float size of what it
+//    reads: the image's, then size * 0.5^(k-1), in float; `mipLevel` (int) 0 on the first pass
+//    when `karis`, then 1. Each mip is read back as `down.k`;
+//  * upsample: blending on, glBlendFunc(GL_ONE, GL_ONE), GL_FUNC_ADD; mip k-1 drawn from mip k
+//    for k = levels-1 .. 1, `filterRadius` (float) the radius; each read back as `up.k-1`
+//    (bloomref's level numbering: up.k = down.k + tent of up.k+1);
+//  * final: samplers `scene` (unit 0) and `bloomBlur` (unit 1: mip 0), `exposure` (float),
+//    `programChoice` (int, 3); `bloomStrength` is the shader's own (its initialiser, 0.04 in the
+//    article), which the host never sets. Read back as `output`.
+// Vertex shaders left out are bloomref's pass-through, writing the texture coordinate under the
+// name the fragment shader reads (`texCoord` in the article's downsample and upsample shaders,
+// `TexCoords` in its final shader).
+struct MipChainShaders {
+  ShaderSource downsample_fs, upsample_fs, final_fs;
+  std::optional<ShaderSource> downsample_vs, upsample_vs, final_vs;
+};
+
+struct MipChainOptions {
+  TargetFormat format = TargetFormat::rgba16f;              ///< the scene's and bright image's
+  TargetFormat level_format = TargetFormat::r11f_g11f_b10f; ///< the mips'
+  int levels = 6;               ///< the article's num_bloom_mips
+  bool karis = true;            ///< mipLevel 0 on the first downsample (mKarisAverageOnDownsample)
+  float filter_radius = 0.005f; ///< the article's bloomFilterRadius
+  float exposure = 1.0f;
+  int program_choice = 3;       ///< 6.bloom_final.fs: 3 = the mip-chain bloom
+  float threshold = 1.0f;       ///< the bright image: luminance > threshold
+  NonFinite nonfinite = NonFinite::zero;
+  HalfRounding half_rounding = HalfRounding::nearest_even_saturate;
+  RowOrder rows = RowOrder::same;
+  FinalTarget final_target = FinalTarget::same;
+  int threads = 0;
+};
+
+/// The options a bloomref run with `params` declares (method mip): levels, Karis, radius,
+/// exposure, threshold, policy, the levels' format from the chain storage. Throws ParamError for
+/// what the preset's host code cannot run (method gaussian).
+MipChainOptions mip_chain_options_for(const BloomParams& params);
+
+/// Compiles, links and checks the three programs against the preset without drawing.
+std::vector<ProgramInterface> check_mip_chain(GlContext& ctx, const MipChainShaders& shaders,
+                                              const MipChainOptions& opt);
+
+/// Runs the article's host code on `scene` with the user's shaders. The trace holds `input`,
+/// `bright`, `down.1` .. `down.K`, `up.K-1` .. `up.1` and `output`; `strength` is set to the
+/// final shader's bloomStrength (NaN when it has none). Throws as run_learnopengl does.
+struct MipChainRun {
+  UserPipelineRun run;
+  float strength = NAN;
+};
+MipChainRun run_mip_chain(GlContext& ctx, ConstImageView scene, const MipChainShaders& shaders,
+                          const MipChainOptions& opt = {});
 
 }  // namespace bloomref::gpu

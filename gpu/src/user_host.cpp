@@ -1,0 +1,51 @@
+#include "user_host.h"
+
+#include <algorithm>
+
+namespace bloomref::gpu::host {
+
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+GLenum gl_format(TargetFormat f) {
+  switch (f) {
+    case TargetFormat::rgba16f:
+      return GL_RGBA16F;
+    case TargetFormat::rgb16f:
+      return GL_RGB16F;
+    case TargetFormat::rgba32f:
+      return GL_RGBA32F;
+    case TargetFormat::r11f_g11f_b10f:
+      return GL_R11F_G11F_B10F;
+  }
+  return GL_RGBA32F;
+}
+
+GLenum gl_filter(TextureFilter f) {
+  return f == TextureFilter::nearest ? GL_NEAREST : GL_LINEAR;
+}
+
+GLenum gl_wrap(TextureWrap w) {
+  switch (w) {
+    case TextureWrap::clamp_to_edge:
+      return GL_CLAMP_TO_EDGE;
+    case TextureWrap::repeat:
+      return GL_REPEAT;
+    case TextureWrap::mirrored_repeat:
+      return GL_MIRRORED_REPEAT;
+    case TextureWrap::clamp_to_border:
+      return GL_CLAMP_TO_BORDER;  // the default border colour: (0, 0, 0, 0)
+  }
+  return GL_CLAMP_TO_EDGE;
+}
+
+Image flipped_rows(ConstImageView src) {
+  Image out = Image::uninitialised(src.width, src.height);
+  for (int y = 0; y < src.height; ++y)
+    std::copy(src.row(y), src.row(y) + std::size_t(src.width) * kChannels,
+              out.view().row(src.height - 1 - y));
+  return out;
+}
+
+}  // namespace bloomref::gpu::host
