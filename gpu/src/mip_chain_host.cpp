@@ -48,7 +48,8 @@ Programs build(GlContext& ctx, const MipChainShaders& s, const MipChainOptions& 
             "downsample", s.downsample_vs ? &*s.downsample_vs : nullptr, s.downsample_fs,
             {{"srcTexture", HostUniform::sampler, true,
               "texture unit 0: the bright image for mip 0, else the mip above"},
-             {"srcResolution", HostUniform::vector, true,
+             // Not required: a shader may take its step from textureSize (judged, not refused).
+             {"srcResolution", HostUniform::vector, false,
               "the float size of what it reads: the image's, then halved per mip", 2},
              {"mipLevel", HostUniform::integer, false,
               opt.karis ? "0 on the first pass (Karis average), then 1" : "1 (no Karis average)"}},
@@ -56,7 +57,7 @@ Programs build(GlContext& ctx, const MipChainShaders& s, const MipChainOptions& 
         build_user_program(
             "upsample", s.upsample_vs ? &*s.upsample_vs : nullptr, s.upsample_fs,
             {{"srcTexture", HostUniform::sampler, true, "texture unit 0: the smaller mip"},
-             {"filterRadius", HostUniform::number, true,
+             {"filterRadius", HostUniform::number, false,
               "filterRadius = " + number(opt.filter_radius)}},
             names(s.upsample_fs, "texCoord"), preset),
         build_user_program(

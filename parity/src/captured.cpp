@@ -545,7 +545,7 @@ void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Ima
       std::vector<float> q(variant.values().size());
       capture_codes(cap, variant.data(), q.data(), variant.pixel_count());
     }
-    return within_bound(cap.image, variant.cview(), bound, 32 * kU, p_.storage, profile_, threads_,
+    return within_bound(cap.image, variant.cview(), bound, 32 * kU, storage_at(spec), profile_, threads_,
                         absolute);
   };
   const double oracle_score = score(oracle, 0.0);

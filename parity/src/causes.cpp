@@ -15,10 +15,12 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <map>
 #include <optional>
 
 #include "bloomref/mip.h"
+#include "tolerance.h"
 #include "bloomref/parallel.h"
 #include "bloomref/parity/variants.h"
 #include "bloomref/stages.h"
@@ -47,6 +49,9 @@ struct Hypothesis {
   float spacing = 1.0f;       // the target pass's taps this many times as far apart (fitted)
   float target_gain = 1.0f;   // the target stage's output times this (fitted)
   float mix_amount = NAN;     // composite as mix(scene, bloom, a) (fitted); NaN: scene + s bloom
+  float add_amount = NAN;     // composite as scene + a bloom where mix is specified (fitted)
+  float tent_gain = 1.0f;     // up.k as down.k + g tent(up.k+1) (fitted)
+  bool other_texel_step = false;  // the downsample's step from the other size (TexelStep)
   int flip_input = -1;        // the composite reads one input flipped: 0 the scene, 1 the bloom
   bool rgba8 = false;         // every stage stored in an 8-bit unsigned normalised target
   bool r11g11b10 = false;     // every stage stored in R11F_G11F_B10F (packed unsigned floats)
@@ -68,6 +73,7 @@ struct Hypothesis {
            pass_delta == 0 && strength_scale == 1.0f && !ge && !clamp_bright && !f16 &&
            !no_exposure && !clamp_blur && std::isnan(threshold) && gamma_times == 1 &&
            !pow_negative && gamma == 0.0f && spacing == 1.0f && std::isnan(mix_amount) &&
+           std::isnan(add_amount) && tent_gain == 1.0f && !other_texel_step &&
            flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored &&
            !vertical_first;
   }
@@ -85,11 +91,12 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
       return h.sampled() || h.kernel || h.clamp_blur || h.vertical_first ||
              (is_target && (!h.weights.empty() || h.stale || h.along_x || h.spacing != 1.0f)) ||
              h.f16;
-    case StageKind::down: return h.sampled() || h.ge || h.f16;
+    case StageKind::down: return h.sampled() || h.ge || h.f16 || h.other_texel_step;
     case StageKind::up:
     case StageKind::bloom: return h.sampled() || h.f16;
     case StageKind::composite:
       return h.f16 || h.rgba8 || h.strength_scale != 1.0f || !std::isnan(h.mix_amount) ||
+             !std::isnan(h.add_amount) ||
              h.flip_input >= 0;
     case StageKind::tonemap: return h.no_exposure || h.f16;
     case StageKind::output: return h.gamma_times != 1 || h.pow_negative || h.gamma > 0 || h.f16;
@@ -118,6 +125,19 @@ class Evaluator {
     if (h_.target_gain != 1.0f)
       for (std::size_t i = 0; i < out.values().size(); ++i)
         if (i % kChannels != 3) out.data()[i] *= h_.target_gain;
+    if (h_.tent_gain != 1.0f) {  // current + g (oracle - current): the tent's sum scaled by g
+      const ConstImageView cur = value(stage_inputs(ctx_.plan, target_)[1]).view;
+      for (int y = 0; y < out.height(); ++y)
+        for (int x = 0; x < out.width(); ++x)
+          for (int c = 0; c < 3; ++c) {
+            float& v = out.pixel(x, y)[c];
+            const float d = cur.pixel(x, y)[c];
+            v = d + h_.tent_gain * (v - d);
+          }
+      // Stored as the level is: the bound's storage term is the oracle's value's, and this
+      // value may lie in another binade.
+      store_as_device(out, target_.kind);
+    }
     if (h_.f16) store(out.view(), Storage::f16, ctx_.rounding, ctx_.threads);
     if (h_.flip) flip_vertically(out);
     if (h_.swap_rb) swap_red_blue(out);
@@ -364,10 +384,16 @@ class Evaluator {
           downsample_variant(in[0], out.view(), first, p_.threshold, p_.karis && first, !h_.ge,
                              smp, threads);
         else
+        {
+          BloomParams q = p_;
+          if (h_.other_texel_step)
+            q.texel_step = q.texel_step == TexelStep::texture ? TexelStep::halved_float
+                                                              : TexelStep::texture;
           downsample(in[0], out.view(),
-                     downsample_options(p_, spec.pass, ctx_.sanitized.width,
+                     downsample_options(q, spec.pass, ctx_.sanitized.width,
                                         ctx_.sanitized.height, ctx_.profile.subtexel_bits),
                      threads);
+        }
         return out;
       }
       case StageKind::up:
@@ -405,7 +431,9 @@ class Evaluator {
             }
           return out;
         }
-        if (p_.composite_mode == CompositeMode::mix)
+        if (!std::isnan(h_.add_amount))
+          composite(in[0], in[1], out.view(), h_.add_amount, threads);
+        else if (p_.composite_mode == CompositeMode::mix)
           composite_mix(in[0], in[1], out.view(), p_.strength * h_.strength_scale, threads);
         else
           composite(in[0], in[1], out.view(), p_.strength * h_.strength_scale, threads);
@@ -563,22 +591,36 @@ CompositeFit fit_composite(const CauseContext& ctx, const StageSpec& target) {
   const ConstImageView user = ctx.view(target.name), base = ctx.view(in[0]), bloom = ctx.view(in[1]);
   if (!user.data || !base.data || !bloom.data) return {};
   double num = 0, den = 0, mnum = 0, mden = 0;
+  const bool mix = p.composite_mode == CompositeMode::mix;
   for (int y = 0; y < user.height; ++y)
     for (int x = 0; x < user.width; ++x)
       for (int c = 0; c < 3; ++c) {
-        double v = user.pixel(x, y)[c];
+        // The capture taken back through gamma and the tone map; `w` the square of the
+        // slope of those stages there, so that each value counts by what it shows (a
+        // saturated value taken back says little about the composite).
+        double v = user.pixel(x, y)[c], slope = 1;
         for (const StageSpec* t : chain) {
-          if (t->kind == StageKind::output) v = std::pow(std::max(v, 0.0), double(p.gamma));
-          else v = v < 1 - 1e-6 ? -std::log1p(-v) / p.exposure : NAN;
+          if (t->kind == StageKind::output) {
+            const double in = std::pow(std::max(v, 0.0), double(p.gamma));
+            slope *= in > 0 ? std::pow(in, 1.0 / p.gamma - 1) / p.gamma : 0.0;
+            v = in;
+          } else {
+            slope *= p.exposure * (1 - v);
+            v = v < 1 - 1e-6 ? -std::log1p(-v) / p.exposure : NAN;
+          }
         }
-        const double b = double(p.strength) * bloom.pixel(x, y)[c];
+        const double w = std::isfinite(slope) ? slope * slope : 0.0;
+        // The specified model's bloom term (b, scaled by `add`) and the other model's (d,
+        // whose amount is `mix`): scene + s bloom and mix, or the other way round.
+        const double bl = bloom.pixel(x, y)[c], diff = bl - base.pixel(x, y)[c];
+        const double b = double(p.strength) * (mix ? diff : bl);
         const double r = v - base.pixel(x, y)[c];
-        const double d = double(bloom.pixel(x, y)[c]) - base.pixel(x, y)[c];
+        const double d = mix ? bl : diff;
         if (!std::isfinite(r) || !std::isfinite(b) || !std::isfinite(d)) continue;
-        num += r * b;
-        den += b * b;
-        mnum += r * d;
-        mden += d * d;
+        num += w * r * b;
+        den += w * b * b;
+        mnum += w * r * d;
+        mden += w * d * d;
       }
   CompositeFit f;
   if (den > 0) f.add = num / den;
@@ -712,6 +754,30 @@ std::optional<float> fit_gain(ConstImageView user, ConstImageView oracle) {
         if (!std::isfinite(u) || !std::isfinite(o)) continue;
         num += u * o;
         den += o * o;
+      }
+  if (!(den > 0)) return std::nullopt;
+  const double g = num / den;
+  if (!std::isfinite(g) || g <= 0 || std::fabs(g - 1) < 1e-4) return std::nullopt;
+  return static_cast<float>(g);
+}
+
+// The gain g of (user - base) against `tent`: up.k = down.k + g tent(up.k+1).
+// `lift`: added to each user value (half a quantum of a storage that truncates, whose bias
+// would pull the slope down by up to a quantum).
+std::optional<float> fit_gain_over_tent(ConstImageView user, ConstImageView tent, ConstImageView base,
+                                        const std::function<double(double, int)>& lift = {}) {
+  if (!user.data || !tent.data || !base.data || user.width != tent.width ||
+      user.height != tent.height || base.width != user.width || base.height != user.height)
+    return std::nullopt;
+  double num = 0, den = 0;
+  for (int y = 0; y < user.height; ++y)
+    for (int x = 0; x < user.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double uv = user.pixel(x, y)[c];
+        const double u = uv + (lift ? lift(uv, c) : 0.0) - base.pixel(x, y)[c], t = tent.pixel(x, y)[c];
+        if (!std::isfinite(u) || !std::isfinite(t)) continue;
+        num += u * t;
+        den += t * t;
       }
   if (!(den > 0)) return std::nullopt;
   const double g = num / den;
@@ -1101,7 +1167,9 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
         true;
   // The scene's texture in the format matters only to a bright pass recomputed here.
   const bool bright_here = has(StageKind::bright);
-  const bool r11 = want("r11g11b10-storage") && stored_as(r11_holds);
+  // Not where the chain's levels are specified so (it is no change there).
+  const bool r11 = want("r11g11b10-storage") && p.level_storage() != Storage::r11g11b10 &&
+                   stored_as(r11_holds);
   for (bool scene : {false, true})
     for (bool toward_zero : {false, true}) {
       if ((scene && !bright_here) || !r11) continue;
@@ -1124,13 +1192,16 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     h->flip_input = 0;
     // The fitted amount, and the nearest number of two significant digits (a constant a
     // person wrote) when it is within 1%: the better of the two is kept.
+    const bool mix = p.composite_mode == CompositeMode::mix;
     for (const double a : nearby_round(composite_fit.mix))
-      if (std::isfinite(a) && a > 0 && a < 1) {
-        h = add("composite-mode", "composite by mix(scene, bloom, a) where scene + bloom was meant");
-        h->mix_amount = static_cast<float>(a);
+      if (std::isfinite(a) && a > 0 && (mix || a < 1)) {
+        h = mix ? add("composite-mode", "composite by scene + a bloom where mix(scene, bloom, s) was meant")
+                : add("composite-mode", "composite by mix(scene, bloom, a) where scene + bloom was meant");
+        (mix ? h->add_amount : h->mix_amount) = static_cast<float>(a);
         h->params = 1;
         char b[96];
-        std::snprintf(b, sizeof b, "the composite fits mix with a = %.4g", a);
+        std::snprintf(b, sizeof b, mix ? "the composite fits scene + a bloom with a = %.4g"
+                                       : "the composite fits mix with a = %.4g", a);
         h->detail = b;
       }
   }
@@ -1223,6 +1294,59 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       h->nonfinite = true;
       h->params = 20;
     }
+  }
+  if (target.kind == StageKind::down && p.method == Method::mip) {
+    // Where the host's halved float size is not the texture's (an odd level above): the step
+    // taken from the other one.
+    const int k = target.pass, w = ctx.sanitized.width, h = ctx.sanitized.height;
+    const int sw = k == 1 ? w : ctx.plan.levels[std::size_t(k - 2)].width;
+    const int sh = k == 1 ? h : ctx.plan.levels[std::size_t(k - 2)].height;
+    if (halved_size(w, k - 1) != float(sw) || halved_size(h, k - 1) != float(sh)) {
+      const bool halved = p.texel_step == TexelStep::halved_float;
+      Hypothesis* hy = add("level-size-rounding",
+                           halved ? "the downsample's step from the texture's integer size where "
+                                    "the host's halved float size is specified"
+                                  : "the downsample's step from the image size halved in float "
+                                    "where the texture's size is specified");
+      hy->other_texel_step = true;
+      char b[160];
+      std::snprintf(b, sizeof b, "level %d reads a %dx%d level whose halved float size is %gx%g", k,
+                    sw, sh, double(halved_size(w, k - 1)), double(halved_size(h, k - 1)));
+      hy->detail = b;
+    }
+  }
+  if (target.kind == StageKind::up && oracle.width()) {
+    // up.k = down.k + tent: the tent's part scaled (weights summing to g, or added g times).
+    // The tent computed afresh, unrounded: the stored level less down.k would hold the
+    // level's rounding, which biases a least-squares slope toward 0.
+    const std::vector<std::string> in = stage_inputs(ctx.plan, target);
+    const ConstImageView small = ctx.view(in[0]), cur = ctx.view(in[1]);
+    std::vector<std::optional<float>> candidates;
+    if (small.data && cur.data) {
+      Image tent(cur.width, cur.height);
+      upsample_tent(small, ConstImageView{}, tent.view(), ctx.profile.subtexel_bits, ctx.threads,
+                    nullptr, p.upsample_radius);
+      candidates.push_back(fit_gain_over_tent(ctx.view(target.name), tent.cview(), cur));
+      // A level stored by truncation: the slope of the values lifted by half a quantum too.
+      const Storage st = stage_storage(p, target);
+      if (st != Storage::f32 && ctx.profile.half_toward_zero)
+        candidates.push_back(fit_gain_over_tent(
+            ctx.view(target.name), tent.cview(), cur,
+            [&](double v, int c) { return 0.5 * storage_term(v, st, ctx.profile, c); }));
+    }
+    std::vector<double> tried;
+    for (const std::optional<float>& g : candidates)
+      for (const double v : g ? nearby_round(*g) : std::vector<double>{})
+        if (std::find(tried.begin(), tried.end(), v) == tried.end()) {
+          tried.push_back(v);
+          Hypothesis* h = add("upsample-gain", "an upsample whose tent does not sum to 1");
+          h->tent_gain = static_cast<float>(v);
+          h->params = 1;
+          char b[160];
+          std::snprintf(b, sizeof b, "the tent added to the level fits %.4g times the specified one",
+                        v);
+          h->detail = b;
+        }
   }
   if (target.kind == StageKind::blur || target.kind == StageKind::up) {
     if (const auto g = oracle.width() ? fit_gain(ctx.view(target.name), oracle.cview()) : std::nullopt) {

@@ -406,7 +406,11 @@ double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound
       std::uint64_t n = 0;
       for (int i = 0; i < gl.width * kChannels; ++i) {
         if (i % kChannels == 3) continue;
-        const float relaxed = b[i] + static_cast<float>(relative * std::fabs(o[i]) + absolute);
+        // A packed-float level's quantum is coarse (2^-6 of the value): one of the variant's
+        // own, which may lie a binade above the oracle's the bound holds.
+        const double packed =
+            storage == Storage::r11g11b10 ? storage_term(o[i], storage, p, i % kChannels) : 0.0;
+        const float relaxed = b[i] + static_cast<float>(relative * std::fabs(o[i]) + absolute + packed);
         if (!(relaxed < INFINITY)) continue;
         // Finite values in the storage's range are numbers (special_case's -1), told apart here
         // without the call.
