@@ -9,6 +9,7 @@
 #include "escape.h"
 #include "bloomref/executor.h"
 #include "bloomref/gpu/gl_executor.h"
+#include "bloomref/gpu/user_pipeline.h"
 #include "bloomref/io.h"
 #include "bloomref/output_files.h"
 #include "bloomref/parity/compare.h"
@@ -74,20 +75,32 @@ int compare_cmd(CompareArgs& a) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   };
   auto t0 = Clock::now();
-  const StageTrace gl = gpu::execute_gl(*ctx, plan, in.image.cview(), go);
+  // A mip-chain variant runs through the article's host code with bloomref's own shaders for
+  // it (gpu/shaders/pbb_*.frag), whose final pass reads with texture() and calls exp.
+  const bool variant = plan.params.mip_variant() || plan.params.composite_mode != CompositeMode::add;
+  if (variant && (a.fault != "none" || shaders != gpu::ShaderKind::fragment))
+    throw ParamError("--fault and --gl-shaders compute apply to bloomref's own pipeline shaders; "
+                     "a mip-chain variant runs the article's fragment passes");
+  const StageTrace gl = variant ? gpu::execute_gl_mip_chain(*ctx, plan.params, in.image.cview())
+                                : gpu::execute_gl(*ctx, plan, in.image.cview(), go);
   const double gl_ms = ms(t0);
   parity::CompareOptions co;
   co.keep_images = !a.report_dir.empty();
-  co.direct_exp_tonemap = false;  // bloomref's shaders compute the specification's series
-  co.interpolated_reads = false;  // and read the composite's inputs with texelFetch
+  co.direct_exp_tonemap = variant;  // bloomref's shaders compute the specification's series
+  co.interpolated_reads = variant;  // and read the composite's inputs with texelFetch
   t0 = Clock::now();
   double cpu_ms = 0;
+  // The article's final pass draws composite, tone map and gamma at once: only `output` of them.
+  parity::CapturedStages drawn;
+  for (const StageResult& st : gl.stages) drawn[st.name] = parity::CapturedStage{st.image.cview()};
   const parity::ParityResult r =
-      parity::compare_with_oracle(plan, in.image.cview(), gl, profile, co, &cpu_ms);
+      variant ? parity::check_with_oracle(plan, in.image.cview(), drawn, profile, co, &cpu_ms)
+              : parity::compare_with_oracle(plan, in.image.cview(), gl, profile, co, &cpu_ms);
   const double parity_ms = ms(t0);  // includes the oracle run
 
-  const std::string renderer = "gl (" + gpu::to_string(shaders) + " shaders): " +
-                               ctx->info().renderer + ", " + ctx->info().version;
+  const std::string host = variant ? std::string("the article's host, bloomref's pbb shaders")
+                                   : gpu::to_string(shaders) + " shaders";
+  const std::string renderer = "gl (" + host + "): " + ctx->info().renderer + ", " + ctx->info().version;
   if (!a.quiet) {
     std::printf("%s: %dx%d, %s, profile %s%s\n", source.c_str(), plan.facts.width,
                 plan.facts.height, renderer.c_str(), profile.name.c_str(),

@@ -452,6 +452,12 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
                       const GlOptions& opt) {
   if (plan.params.precision != Precision::f32)
     throw ParamError("--precision f64 is the CPU truth; the GL path computes in f32");
+  if (plan.params.mip_variant() || plan.params.composite_mode != CompositeMode::add)
+    throw ParamError(
+        "bloomref's GL shaders run seed 002's chain and the additive composite; a variant "
+        "(--preset learnopengl-pbb, --prefilter, --karis-form, --texel-step, --upsample-radius, "
+        "--bloom-upscale, --chain-storage, --composite-mode mix) is judged on a GPU through "
+        "check --shaders");
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
   if (scene.width > max_size || scene.height > max_size)

@@ -6,6 +6,7 @@
 #include "bloomref/gpu/user_pipeline.h"
 #include "bloomref/mip.h"
 #include "bloomref/stages.h"
+#include "shader_sources.h"
 #include "user_host.h"
 #include "user_program.h"
 
@@ -33,6 +34,18 @@ std::string number(float v) {
 struct Programs {
   UserProgram down, up, final;
 };
+
+std::vector<HostUniform> final_host(const MipChainOptions& opt) {
+  std::vector<HostUniform> host = {{"scene", HostUniform::sampler, true, "texture unit 0: the scene"},
+             {"bloomBlur", HostUniform::sampler, true, "texture unit 1: mip 0 after the upsamples"},
+             {"exposure", HostUniform::number, true, "exposure = " + number(opt.exposure)},
+             {"programChoice", HostUniform::integer, false,
+              "programChoice = " + std::to_string(opt.program_choice)}};
+  if (!std::isnan(opt.strength))
+    host.push_back({"bloomStrength", HostUniform::number, false,
+                    "bloomStrength = " + number(opt.strength)});
+  return host;
+}
 
 Programs build(GlContext& ctx, const MipChainShaders& s, const MipChainOptions& opt) {
   ctx.check("before building the user's programs");
@@ -62,11 +75,7 @@ Programs build(GlContext& ctx, const MipChainShaders& s, const MipChainOptions& 
             names(s.upsample_fs, "texCoord"), preset),
         build_user_program(
             "final", s.final_vs ? &*s.final_vs : nullptr, s.final_fs,
-            {{"scene", HostUniform::sampler, true, "texture unit 0: the scene"},
-             {"bloomBlur", HostUniform::sampler, true, "texture unit 1: mip 0 after the upsamples"},
-             {"exposure", HostUniform::number, true, "exposure = " + number(opt.exposure)},
-             {"programChoice", HostUniform::integer, false,
-              "programChoice = " + std::to_string(opt.program_choice)}},
+            final_host(opt),
             names(s.final_fs, "TexCoords"), preset)};
     p.down.set_sampler("srcTexture", 0);
     p.up.set_sampler("srcTexture", 0);
@@ -75,6 +84,7 @@ Programs build(GlContext& ctx, const MipChainShaders& s, const MipChainOptions& 
     p.final.set_sampler("bloomBlur", 1);
     p.final.set_number("exposure", opt.exposure);
     p.final.set_integer("programChoice", opt.program_choice);
+    if (!std::isnan(opt.strength)) p.final.set_number("bloomStrength", opt.strength);
     ctx.check("building the user's programs");
     return p;
   } catch (const UserShaderError&) {
@@ -103,7 +113,7 @@ class MipChainHost {
         prog_(build(ctx, shaders, opt)) {
     out_.run.programs = {prog_.down.interface, prog_.up.interface, prog_.final.interface};
     out_.run.bright_source = "oracle";
-    out_.strength = prog_.final.number("bloomStrength");
+    out_.strength = prog_.final.number("bloomStrength");  // after the host set it, if it did
   }
 
   MipChainRun run() {
@@ -251,6 +261,30 @@ MipChainRun run_mip_chain(GlContext& ctx, ConstImageView scene, const MipChainSh
                      " scene does not fit this GL's textures or has no mip to draw (GL_MAX_TEXTURE_SIZE " +
                      std::to_string(max_size) + ")");
   return MipChainHost(ctx, scene, shaders, opt).run();
+}
+
+StageTrace execute_gl_mip_chain(GlContext& ctx, const BloomParams& p, ConstImageView scene) {
+  const bool article = p.method == Method::mip && p.prefilter == Prefilter::bright &&
+                       (!p.karis || p.karis_form == KarisForm::group_srgb) &&
+                       p.texel_step == TexelStep::halved_float && p.upsample_radius > 0 &&
+                       p.bloom_upscale == BloomUpscale::bilinear &&
+                       p.composite_mode == CompositeMode::mix &&
+                       p.composite == CompositeOrder::before_tonemap && p.gamma == 2.2f;
+  if (!article)
+    throw ParamError(
+        "bloomref's GL shaders run seed 002's chain (--method mip) and the article's "
+        "(--preset learnopengl-pbb, whose shaders take gamma 2.2 and the other options as "
+        "they are); this combination of variant options has no GL shaders: judge yours with "
+        "check --shaders");
+  auto own = [](const char* name) {
+    return ShaderSource{std::string("bloomref's ") + name, shader_sources().at(name)};
+  };
+  const MipChainShaders shaders{own("pbb_downsample.frag"), own("pbb_upsample.frag"),
+                                own("pbb_final.frag"), std::nullopt, std::nullopt, std::nullopt};
+  MipChainOptions opt = mip_chain_options_for(p);
+  opt.strength = p.strength;
+  MipChainRun run = run_mip_chain(ctx, scene, shaders, opt);
+  return std::move(run.run.trace);
 }
 
 }  // namespace bloomref::gpu

@@ -259,6 +259,9 @@ struct MipChainOptions {
   RowOrder rows = RowOrder::same;
   FinalTarget final_target = FinalTarget::same;
   int threads = 0;
+  /// NaN: `bloomStrength` keeps the shader's initialiser, as the article's host leaves it;
+  /// else the host sets it (bloomref's own shaders, execute_gl_mip_chain).
+  float strength = NAN;
 };
 
 /// The options a bloomref run with `params` declares (method mip): levels, Karis, radius,
@@ -279,5 +282,11 @@ struct MipChainRun {
 };
 MipChainRun run_mip_chain(GlContext& ctx, ConstImageView scene, const MipChainShaders& shaders,
                           const MipChainOptions& opt = {});
+
+/// bloomref's own shaders for the article's chain (gpu/shaders/pbb_*.frag) run by the same host:
+/// the GL side of `compare` for a plan with the article's choices (prefilter bright, Karis
+/// group-srgb or none, halved-float texel step, a radius in texture coordinates, a bilinear
+/// bloom, mix). Throws ParamError for another combination.
+StageTrace execute_gl_mip_chain(GlContext& ctx, const BloomParams& params, ConstImageView scene);
 
 }  // namespace bloomref::gpu

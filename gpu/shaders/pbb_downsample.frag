@@ -1,9 +1,10 @@
 #version 330 core
 // One level of the mip chain's downsample with the interface of LearnOpenGL's "Physically Based
-// Bloom" host code (docs/check.md, "Mip-chain shaders"): 13 bilinear taps at 0, +-1 and +-2
+// Bloom" host code (docs/check.md, "A mip-chain bloom"): 13 bilinear taps at 0, +-1 and +-2
 // steps of 1 / srcResolution; on mipLevel 0 each group of four taps is weighted by
 // 1 / (1 + luma / 4), luma the Rec. 601 weights of the group encoded with gamma 1 / 2.2, and the
-// sum kept at least 0.0001 (docs/design.md, "Mip-chain variants"). Written for bloomref's tests.
+// sum kept at least 0.0001 (docs/design.md, "Mip-chain variants"). bloomref's own: `compare`
+// runs it for preset learnopengl-pbb, and the bug corpus (data/bugs/) changes it.
 in vec2 texCoord;
 layout(location = 0) out vec3 level;
 uniform sampler2D srcTexture;

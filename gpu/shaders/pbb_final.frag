@@ -1,7 +1,8 @@
 #version 330 core
 // The final pass with the interface of LearnOpenGL's "Physically Based Bloom" host code:
 // mix(scene, bloom, bloomStrength) for programChoice 3 (the scene alone otherwise), the
-// exponential tone map and gamma 2.2. Written for bloomref's tests.
+// exponential tone map and gamma 2.2. bloomref's own: `compare` runs it for preset
+// learnopengl-pbb, and the bug corpus (data/bugs/) changes it.
 in vec2 TexCoords;
 out vec4 FragColor;
 uniform sampler2D scene;
