@@ -1,0 +1,153 @@
+"""Presets and the mip-chain article's host code, through the bloomref command.
+
+- `--preset`: a built-in name or a JSON file sets the options; those given beside it override;
+  a bad preset is exit 2 naming it and the key.
+- `compare --preset learnopengl-pbb`: bloomref's own shaders for the article (gpu/shaders/pbb_*)
+  through the article's host code, judged stage by stage against the CPU reference.
+- `check --shaders learnopengl-pbb`: refusals name the file or option; bloomref's shaders pass;
+  with BLOOMREF_LEARNOPENGL_PBB_DIR (a folder holding the article's 6.new_downsample.fs,
+  6.new_upsample.fs, 6.bloom_final.fs and their .vs files, JoeyDeVries/LearnOpenGL
+  src/8.guest/2022/6.physically_based_bloom/), the article's own, unmodified shaders too: they
+  pass on corpus images without negative values and fail the output, with the pow cause, on one
+  with them. They are not in this repository (bloomref copies no code).
+The GL cases skip without GL (exit 3) unless BLOOMREF_REQUIRE_GL=1.
+"""
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+EXE = os.environ["BLOOMREF_EXE"]
+ROOT = Path(__file__).resolve().parent.parent
+OWN = ROOT / "gpu" / "shaders"
+CORPUS = os.environ.get("BLOOMREF_CORPUS", "")
+ARTICLE = os.environ.get("BLOOMREF_LEARNOPENGL_PBB_DIR", "")
+
+
+def run(args, cwd, timeout=300):
+    p = subprocess.run([EXE] + args, cwd=cwd, capture_output=True, text=True, timeout=timeout)
+    return p.returncode, p.stdout, p.stderr
+
+
+def gl_or_skip(code, err):
+    if code == 3:
+        if os.environ.get("BLOOMREF_REQUIRE_GL") == "1":
+            pytest.fail("no GL although BLOOMREF_REQUIRE_GL=1: " + err)
+        pytest.skip("no GL: " + err.strip())
+
+
+def params(tmp_path, *args):
+    code, out, err = run(["run", "--size", "40x30", "-q", "-o", "o.exr", "--json", "r.json", *args], tmp_path)
+    assert code == 0, err
+    return json.loads((tmp_path / "r.json").read_text())["params"]
+
+
+def test_preset_sets_the_articles_values_and_options_override_them(tmp_path):
+    p = params(tmp_path, "--preset", "learnopengl-pbb")
+    # The article's host code and shaders (data/presets/learnopengl-pbb.json cites them).
+    assert p["method"] == "mip" and p["prefilter"] == "bright" and p["karis"] is True
+    assert p["karis_form"] == "group-srgb" and p["texel_step"] == "halved-float"
+    assert p["upsample_radius"] == 0.005 and p["bloom_upscale"] == "bilinear"
+    assert p["composite_mode"] == "mix" and p["strength"] == 0.04
+    assert p["storage"] == "f16" and p["chain_storage"] == "r11g11b10"
+    # Given beside it, an option wins, whichever comes first on the line.
+    p = params(tmp_path, "--strength", "0.1", "--preset", "learnopengl-pbb", "--levels", "3")
+    assert p["strength"] == 0.1 and p["levels"] == 3 and p["composite_mode"] == "mix"
+    # cod-mip is --method mip as it was.
+    assert params(tmp_path, "--preset", "cod-mip")["prefilter"] == "per-lookup"
+
+
+def test_cod_mip_preset_gives_method_mips_bits(tmp_path):
+    for args, name in ((["--preset", "cod-mip"], "a.exr"), (["--method", "mip"], "b.exr")):
+        code, _, err = run(["run", "--size", "64x48", "-q", "-o", name, *args], tmp_path)
+        assert code == 0, err
+    assert (tmp_path / "a.exr").read_bytes() == (tmp_path / "b.exr").read_bytes()
+
+
+def test_a_preset_file_and_its_errors(tmp_path):
+    f = tmp_path / "mine.json"
+    f.write_text(json.dumps({"params": {"method": "mip", "levels": 2, "composite-mode": "mix",
+                                        "strength": 0.5}}))
+    p = params(tmp_path, "--preset", str(f))
+    assert p["levels"] == 2 and p["composite_mode"] == "mix" and p["strength"] == 0.5
+    (tmp_path / "o.exr").unlink()  # the refusals below must write nothing
+    f.write_text(json.dumps({"params": {"methd": "mip"}}))
+    code, _, err = run(["run", "--size", "8x8", "-q", "-o", "o.exr", "--preset", str(f)], tmp_path)
+    assert code == 2 and "unknown key 'methd'" in err and str(f) in err
+    f.write_text(json.dumps({"params": {"levels": "many"}}))
+    code, _, err = run(["run", "--size", "8x8", "-q", "-o", "o.exr", "--preset", str(f)], tmp_path)
+    assert code == 2 and "'levels' is not a number" in err
+    f.write_text("{ not json")
+    code, _, err = run(["run", "--size", "8x8", "-q", "-o", "o.exr", "--preset", str(f)], tmp_path)
+    assert code == 2 and "not valid JSON" in err
+    code, _, err = run(["run", "--size", "8x8", "-q", "-o", "o.exr", "--preset", "nope"], tmp_path)
+    assert code == 2 and "learnopengl-pbb" in err  # the known names are listed
+    code, _, err = run(["run", "--size", "8x8", "-q", "-o", "o.exr", "--preset", "gone.json"], tmp_path)
+    assert code == 2 and "gone.json" in err
+    assert not (tmp_path / "o.exr").exists()
+
+
+def test_compare_runs_bloomrefs_article_shaders_and_every_level_passes(tmp_path):
+    # An odd size, so that the host's halved float sizes are not the levels' (101 -> 50.5).
+    code, out, err = run(["compare", "--scene", "demo", "--size", "202x134", "--preset",
+                          "learnopengl-pbb", "--json", "c.json"], tmp_path)
+    gl_or_skip(code, err)
+    assert code == 0, out + err
+    r = json.loads((tmp_path / "c.json").read_text())
+    stages = {s["stage"]: s for s in r["stages"]}
+    assert set(stages) >= {"down.1", "down.6", "up.5", "up.1", "output"}
+    assert all(s["isolated"]["verdict"] == "PASS" for s in stages.values())
+
+
+def article_args(folder, own=False):
+    if own:
+        return ["--downsample-fs", str(OWN / "pbb_downsample.frag"), "--upsample-fs",
+                str(OWN / "pbb_upsample.frag"), "--final-fs", str(OWN / "pbb_final.frag")]
+    d = Path(folder)
+    return ["--downsample-fs", str(d / "6.new_downsample.fs"), "--downsample-vs", str(d / "6.new_downsample.vs"),
+            "--upsample-fs", str(d / "6.new_upsample.fs"), "--upsample-vs", str(d / "6.new_upsample.vs"),
+            "--final-fs", str(d / "6.bloom_final.fs"), "--final-vs", str(d / "6.bloom_final.vs")]
+
+
+def test_check_refuses_what_the_articles_host_cannot_run(tmp_path):
+    base = ["check", "--scene", "demo", "--size", "64x48", "--shaders", "learnopengl-pbb"]
+    code, _, err = run(base + ["--downsample-fs", str(OWN / "pbb_downsample.frag")], tmp_path)
+    assert code == 2 and "--upsample-fs" in err
+    code, _, err = run(base + article_args("", own=True) + ["--blur-fs", "x.fs"], tmp_path)
+    assert code == 2 and "--blur-fs" in err
+    # A sampler the host does not bind: refused before drawing, the file named.
+    bad = tmp_path / "down.fs"
+    bad.write_text((OWN / "pbb_downsample.frag").read_text().replace(
+        "uniform int mipLevel = 1;", "uniform int mipLevel = 1;\nuniform sampler2D lut;").replace(
+        "vec3 c = tap(vec2(0.0));", "vec3 c = tap(vec2(0.0)) + texture(lut, texCoord).rgb;"))
+    code, _, err = run(base + ["--downsample-fs", str(bad), "--upsample-fs", str(OWN / "pbb_upsample.frag"),
+                               "--final-fs", str(OWN / "pbb_final.frag")], tmp_path)
+    gl_or_skip(code, err)
+    assert code == 2 and str(bad) in err and "'lut'" in err and "learnopengl-pbb" in err
+
+
+def test_check_with_bloomrefs_article_shaders_passes(tmp_path):
+    code, out, err = run(["check", "--scene", "demo", "--size", "202x134", "--shaders",
+                          "learnopengl-pbb", *article_args("", own=True), "--json", "r.json"], tmp_path)
+    gl_or_skip(code, err)
+    assert code == 0, out + err
+    item = json.loads((tmp_path / "r.json").read_text())["items"][0]
+    judged = [s["stage"] for s in item["stages"]]
+    assert judged[:2] == ["down.1", "down.2"] and judged[-1] == "output" and "up.1" in judged
+    assert item["verdict"] == "PASS"
+
+
+@pytest.mark.skipif(not ARTICLE or not CORPUS, reason="BLOOMREF_LEARNOPENGL_PBB_DIR and BLOOMREF_CORPUS not both set")
+@pytest.mark.parametrize("image,verdict", [("StarField.exr", "PASS"), ("reference-crop.exr", "PASS"),
+                                           ("uffizi_probe-128.exr", "FAIL")])
+def test_the_articles_own_shaders_on_the_corpus(tmp_path, image, verdict):
+    code, out, err = run(["check", os.path.join(CORPUS, image), "--shaders", "learnopengl-pbb",
+                          *article_args(ARTICLE), "--json", "r.json"], tmp_path)
+    gl_or_skip(code, err)
+    item = json.loads((tmp_path / "r.json").read_text())["items"][0]
+    assert item["verdict"] == verdict, out
+    if verdict == "FAIL":  # negative values through the final pass's pow
+        out_stage = [s for s in item["stages"] if s["stage"] == "output"][0]
+        assert out_stage["cause"]["id"] == "pow-negative"
