@@ -52,6 +52,8 @@ struct Hypothesis {
   float add_amount = NAN;     // composite as scene + a bloom where mix is specified (fitted)
   float tent_gain = 1.0f;     // up.k as down.k + g tent(up.k+1) (fitted)
   bool other_texel_step = false;  // the downsample's step from the other size (TexelStep)
+  bool pow_negative_karis = false;  // the Karis average's pow of a negative channel: the
+                                    // oracle's NaN there is undefined in GLSL (the capture's)
   int flip_input = -1;        // the composite reads one input flipped: 0 the scene, 1 the bloom
   bool rgba8 = false;         // every stage stored in an 8-bit unsigned normalised target
   bool r11g11b10 = false;     // every stage stored in R11F_G11F_B10F (packed unsigned floats)
@@ -74,6 +76,7 @@ struct Hypothesis {
            !no_exposure && !clamp_blur && std::isnan(threshold) && gamma_times == 1 &&
            !pow_negative && gamma == 0.0f && spacing == 1.0f && std::isnan(mix_amount) &&
            std::isnan(add_amount) && tent_gain == 1.0f && !other_texel_step &&
+           !pow_negative_karis &&
            flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored &&
            !vertical_first;
   }
@@ -116,7 +119,7 @@ class Evaluator {
 
   Image target() {
     Image out = oracle_ && oracle_->width() && h_.after_oracle_only() ? *oracle_ : compute(target_, true);
-    if (h_.unwritten || h_.nonfinite) take_from_capture(out);
+    if (h_.unwritten || h_.nonfinite || h_.pow_negative_karis) take_from_capture(out);
     if ((h_.rgba8 || h_.r11g11b10) && ctx_.target_bound) {
       round_within_bound(out);
     } else {
@@ -199,6 +202,8 @@ class Evaluator {
         if (h_.nonfinite)
           for (int c = 0; c < 3; ++c)
             if (std::isfinite(o[c]) && !std::isfinite(g[c])) o[c] = g[c];
+        if (h_.pow_negative_karis && (std::isnan(o[0]) || std::isnan(o[1]) || std::isnan(o[2])))
+          std::copy(g, g + 3, o);
       }
   }
 
@@ -1030,9 +1035,11 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   auto has = [&](StageKind k) { return std::find(kinds.begin(), kinds.end(), k) != kinds.end(); };
   const bool sampled = has(StageKind::blur) || has(StageKind::down) || has(StageKind::up) ||
                        has(StageKind::bloom);
-  // The target's isolated oracle (blur passes and upsamples: the fitted gain's reference), and
-  // a blur pass's residual signature.
-  if (target.kind == StageKind::blur || target.kind == StageKind::up) try {
+  // The target's isolated oracle (blur passes and upsamples: the fitted gain's reference; the
+  // group Karis average: where it is NaN), and a blur pass's residual signature.
+  const bool group_karis = target.kind == StageKind::down && target.pass == 1 && p.karis &&
+                           p.karis_form == KarisForm::group_srgb;
+  if (target.kind == StageKind::blur || target.kind == StageKind::up || group_karis) try {
       oracle = Evaluator(ctx, Hypothesis{}, target).target();
     } catch (const NotApplicable&) {
     }
@@ -1293,6 +1300,22 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
                           "negative, an overflow), carried by every stage after it");
       h->nonfinite = true;
       h->params = 20;
+    }
+  }
+  if (group_karis && oracle.width()) {
+    // pow(group, 1 / 2.2) of a group with a negative channel (an out-of-gamut scene): NaN in
+    // the oracle, undefined in GLSL; a device that gives a number there (max(NaN, 0.0001) is
+    // 0.0001 on llvmpipe) shows the same bug as the oracle's NaN does.
+    const ConstImageView cap = ctx.view(target.name);
+    bool seen = false;
+    for (std::size_t i = 0; cap.data && i < oracle.values().size() && !seen; ++i)
+      seen = i % kChannels != 3 && std::isnan(oracle.data()[i]);
+    if (seen) {
+      Hypothesis* hy = add("pow-negative",
+                           "pow of a negative value: the Karis average encodes a group with a "
+                           "negative channel by pow(x, 1 / 2.2), undefined in GLSL (an "
+                           "out-of-gamut scene; clamp it, or take max(x, 0) before pow)");
+      hy->pow_negative_karis = true;
     }
   }
   if (target.kind == StageKind::down && p.method == Method::mip) {

@@ -397,7 +397,8 @@ bool uniform_rgb(ConstImageView img, bool clamped) {
 }
 
 double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound, double relative,
-                    Storage storage, const DeviceProfile& p, int threads, double absolute) {
+                    Storage storage, const DeviceProfile& p, int threads, double absolute,
+                    bool packed_slack) {
   if (gl.width != oracle.width || gl.height != oracle.height) return 0.0;
   std::vector<std::uint64_t> outside(std::size_t(gl.height), 0);
   parallel_rows(gl.height, threads, [&](int y0, int y1) {
@@ -408,9 +409,12 @@ double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound
         if (i % kChannels == 3) continue;
         // A packed-float level's quantum is coarse (2^-6 of the value): one of the variant's
         // own, which may lie a binade above the oracle's the bound holds.
-        const double packed =
-            storage == Storage::r11g11b10 ? storage_term(o[i], storage, p, i % kChannels) : 0.0;
-        const float relaxed = b[i] + static_cast<float>(relative * std::fabs(o[i]) + absolute + packed);
+        const double packed = packed_slack && storage == Storage::r11g11b10
+                                  ? storage_term(o[i], storage, p, i % kChannels)
+                                  : 0.0;
+        // A NaN or Inf value relaxes nothing (NaN would make the bound NaN: not judged).
+        const double mag = std::isfinite(o[i]) ? std::fabs(o[i]) : 0.0;
+        const float relaxed = b[i] + static_cast<float>(relative * mag + absolute + packed);
         if (!(relaxed < INFINITY)) continue;
         // Finite values in the storage's range are numbers (special_case's -1), told apart here
         // without the call.

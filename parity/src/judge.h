@@ -79,7 +79,10 @@ int judge_band(int window);
 /// The fraction of values of `gl` within their bound against `oracle` (what
 /// StageComparison::within gives of the whole comparison, without the rest), the bound of each value being `bound`'s plus
 /// `relative` x |oracle value| and `absolute` (rounded to float, then added in float).
+/// `packed_slack`: with R11F_G11F_B10F storage, one quantum of the `oracle` value's own too (a
+/// variant that lies a binade above the oracle the bound was made for).
 double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound, double relative,
-                    Storage storage, const DeviceProfile& p, int threads, double absolute = 0.0);
+                    Storage storage, const DeviceProfile& p, int threads, double absolute = 0.0,
+                    bool packed_slack = false);
 
 }  // namespace bloomref::parity::detail

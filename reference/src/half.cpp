@@ -51,6 +51,7 @@ float round_to_half(float x, HalfRounding mode) {
 double round_to_half(double x, HalfRounding mode) { return round_half_impl(x, mode); }
 
 double round_to_packed(double v, int mantissa_bits, bool toward_zero) {
+  if (std::isnan(v)) return v;
   if (!(v > 0)) return 0.0;
   const double top = std::ldexp(2.0 - std::ldexp(1.0, -mantissa_bits), 15);
   if (v >= top) return top;

@@ -24,8 +24,9 @@ float round_to_half(float x, HalfRounding mode = HalfRounding::nearest_even);
 double round_to_half(double x, HalfRounding mode = HalfRounding::nearest_even);
 
 /// One channel of an R11F_G11F_B10F write (GL 4.6, 2.3.4.3-4): an unsigned float with a 5-bit
-/// exponent and `mantissa_bits` (6 for R and G, 5 for B); negative values and NaN become 0,
-/// values above the largest finite one become it. Rounded to the nearest (ties away from zero)
+/// exponent and `mantissa_bits` (6 for R and G, 5 for B); negative values become 0, NaN stays
+/// NaN (the format has NaNs; llvmpipe keeps them, measured), values above the largest finite
+/// one become it. Rounded to the nearest (ties away from zero)
 /// or, `toward_zero`, truncated (llvmpipe, measured: 2.0234375 is stored as 2 in R).
 double round_to_packed(double v, int mantissa_bits, bool toward_zero);
 
