@@ -155,3 +155,63 @@ def test_the_articles_own_shaders_on_the_corpus(tmp_path, image, verdict):
         first = [s for s in item["stages"] if s["stage"] == item["first_divergent_stage"]][0]
         assert first["stage"] == ("down.1" if image == "WideColorGamut.exr" else "output")
         assert first["cause"]["id"] == "pow-negative" and first["cause"]["likely"]
+
+
+def test_random_mip_chain_bugs_are_named_right_or_not_at_all(tmp_path):
+    """One bug of random kind and size planted in bloomref's shaders for the article, on a
+    built-in scene of random size: the cause named at the first divergent stage must be the
+    planted one or none (a confident wrong cause never). BLOOMREF_FUZZ_CASES and
+    BLOOMREF_FUZZ_SEED run more, or others."""
+    import random
+    rng = random.Random(int(os.environ.get("BLOOMREF_FUZZ_SEED", "5")))
+    cases = int(os.environ.get("BLOOMREF_FUZZ_CASES", "10"))
+    kinds = {
+        # id: (file, find, replacement made from a random amount)
+        "upsample-gain": ("pbb_upsample.frag", "level = sum / 16.0;",
+                          lambda: "level = sum / 16.0 * %.3f;" % rng.uniform(1.15, 3.0)),
+        "bloom-scaled": ("pbb_final.frag", "uniform float bloomStrength = 0.04;",
+                         lambda: "uniform float bloomStrength = %.4f;" % rng.choice(
+                             [rng.uniform(0.005, 0.03), rng.uniform(0.06, 0.5)])),
+        "composite-mode": ("pbb_final.frag",
+                           "hdr = mix(hdr, texture(bloomBlur, TexCoords).rgb, bloomStrength);",
+                           lambda: "hdr += %.3f * texture(bloomBlur, TexCoords).rgb;" % rng.uniform(0.2, 2.0)),
+        "level-size-rounding": ("pbb_downsample.frag", "texCoord + steps / srcResolution",
+                                lambda: "texCoord + steps / vec2(textureSize(srcTexture, 0))"),
+    }
+    scenes = ["demo", "impulse", "hot-edge"]
+    tally = {}
+    for n in range(cases):
+        kind = rng.choice(sorted(kinds))
+        f, find, make = kinds[kind]
+        folder = tmp_path / str(n)
+        folder.mkdir()
+        for s in ("pbb_downsample.frag", "pbb_upsample.frag", "pbb_final.frag"):
+            text = (OWN / s).read_text()
+            if s == f:
+                assert text.count(find) == 1
+                text = text.replace(find, make())
+            (folder / s).write_text(text)
+        # Odd sizes, so that the halved float sizes are not the levels' somewhere.
+        size = "%dx%d" % (rng.randrange(97, 260, 2) + 1, rng.randrange(71, 200, 2) + 1)
+        scene = rng.choice(scenes)
+        code, out, err = run(["check", "--scene", scene, "--size", size, "--shaders", "learnopengl-pbb",
+                              "--downsample-fs", str(folder / "pbb_downsample.frag"),
+                              "--upsample-fs", str(folder / "pbb_upsample.frag"),
+                              "--final-fs", str(folder / "pbb_final.frag"), "--sensitivity", "none",
+                              "--json", str(folder / "r.json"), "-q"], tmp_path)
+        gl_or_skip(code, err)
+        assert code in (0, 1), err
+        item = json.loads((folder / "r.json").read_text())["items"][0]
+        # Right: the cause named first, or one the captures cannot tell from it ("as likely":
+        # on a black scene mix(scene, bloom, s) and scene + s bloom are the same image).
+        named = "none"
+        if item["verdict"] != "PASS" and item.get("first_divergent_stage"):
+            first = [s for s in item["stages"] if s["stage"] == item["first_divergent_stage"]][0]
+            c = first.get("cause")
+            if c and c.get("likely"):
+                alike = [o["id"] for o in first.get("causes", []) if o.get("as_likely")]
+                named = kind if kind in alike else c["id"]
+        tally.setdefault(kind, []).append(named)
+        assert named in (kind, "none"), "%s on %s %s: named %s (%s)" % (kind, scene, size, named,
+                                                                      json.dumps(first.get("causes")))
+    print({k: "%d right of %d" % (v.count(k), len(v)) for k, v in tally.items()})
