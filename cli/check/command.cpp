@@ -48,6 +48,7 @@ struct CheckArgs {
   ShaderArgs shaders;
   SequenceOptions sequence;  ///< --frames, --shard (batch/sequence.h)
   CLI::App* sub = nullptr;
+  const InMemoryItem* memory = nullptr;  ///< check_results' caller's images, in place of files
 };
 
 bool is_profile_file(const CheckArgs& a) {
@@ -89,7 +90,17 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
   r.id = item.id;
   const auto t0 = std::chrono::steady_clock::now();
   std::string source;
-  const LoadedImage scene = a.pipeline.load_input(item.scene, source);
+  LoadedImage scene;
+  if (item.scene_image) {  // in memory: the caller's array, under the caller's name
+    const ConstImageView& v = *item.scene_image;
+    a.pipeline.check_memory(item.scene, v.width, v.height, false);
+    scene.image = Image::uninitialised(v.width, v.height);
+    for (int y = 0; y < v.height; ++y)
+      std::copy(v.row(y), v.row(y) + std::size_t(v.width) * kChannels, scene.image.view().row(y));
+    source = item.scene;
+  } else {
+    scene = a.pipeline.load_input(item.scene, source);
+  }
   r.source = source;
   const Plan plan = parity::plan_for_device(a.pipeline.params, scene.image.cview(), profile, source);
   r.width = plan.facts.width;
@@ -477,8 +488,10 @@ CheckRun check_cmd(CheckArgs& a) {
   mallopt(M_MMAP_THRESHOLD, 1 << 20);
   if (a.artifacts != "fail" && a.artifacts != "all" && a.artifacts != "none")
     throw ParamError("--artifacts '" + a.artifacts + "' is not one of: fail, all, none");
-  if (int(!a.stages_dir.empty()) + int(!a.manifest.empty()) + int(a.shaders.any()) != 1)
-    throw ParamError("give one of --stages DIR, --manifest FILE or --shaders PRESET");
+  if (int(!a.stages_dir.empty()) + int(!a.manifest.empty()) + int(a.shaders.any()) +
+          int(a.memory != nullptr) != 1)
+    throw ParamError(a.memory ? "stages are given in memory: no --stages, --manifest or --shaders"
+                              : "give one of --stages DIR, --manifest FILE or --shaders PRESET");
   if (!a.shaders.layout.empty() && !a.shaders.any())
     throw ParamError("--layout names what --shaders learnopengl binds: give --shaders too");
   if (!a.manifest.empty() && !a.scene.empty())
@@ -503,6 +516,14 @@ CheckRun check_cmd(CheckArgs& a) {
   } else if (a.shaders.any()) {
     scratch = std::make_unique<ScratchDir>();
     items.push_back(shaders_item(a, run, *scratch));
+  } else if (a.memory) {
+    CheckItem item;
+    item.scene = a.memory->scene ? a.memory->scene_name : a.scene;
+    item.scene_image = a.memory->scene;
+    item.files = a.memory->stages;
+    item.stages_dir = a.memory->stages_dir;
+    item.id = a.memory->stages_dir.empty() ? "stages" : folder_item_id(a.memory->stages_dir);
+    items.push_back(std::move(item));
   } else if (frames) {
     items = sequence_items(a);
   } else {
@@ -669,10 +690,12 @@ std::function<int()> add_check(CLI::App& app) {
   };
 }
 
-nlohmann::ordered_json check_results(const std::vector<std::string>& args) {
+nlohmann::ordered_json check_results(const std::vector<std::string>& args,
+                                     const InMemoryItem* memory) {
   CLI::App app{"bloomref"};
   app.require_subcommand(1);
   auto a = std::make_shared<CheckArgs>();
+  a->memory = memory;
   add_check_options(app, a);
   std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11's order
   reversed.push_back("check");

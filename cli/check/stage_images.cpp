@@ -128,6 +128,20 @@ std::string to_string(ChannelOrder c) {
 
 LoadedStage load_stage(const StageFile& f, int width, int height) {
   LoadedStage out;
+  if (f.image) {  // in memory: copied, alpha 1 (R, G and B are judged)
+    const ConstImageView& v = *f.image;
+    if (v.width != width || v.height != height)
+      throw InputError(f.path, "is " + std::to_string(v.width) + "x" + std::to_string(v.height) +
+                                   ", but stage '" + f.stage + "' of this scene is " +
+                                   std::to_string(width) + "x" + std::to_string(height));
+    out.image = Image::uninitialised(width, height);
+    for (int y = 0; y < height; ++y) {
+      const float* r = v.row(y);
+      float* d = out.image.view().row(y);
+      for (int i = 0; i < width * kChannels; ++i) d[i] = i % kChannels == 3 ? 1.0f : r[i];
+    }
+    return out;
+  }
   const Encoding enc = resolve(f);
   if (enc == Encoding::raw) {
     out.image = read_raw(f, width, height);

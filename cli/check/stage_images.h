@@ -40,6 +40,8 @@ struct StageFile {
   ChannelOrder channels = ChannelOrder::rgba;
   RawFormat format = RawFormat::f32;  ///< raw only
   int width = 0, height = 0;          ///< raw only; 0: the stage's size in the plan
+  /// In memory (the Python module's arrays): the image itself, `path` the caller's name for it.
+  const ConstImageView* image = nullptr;
 };
 
 struct LoadedStage {

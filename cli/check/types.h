@@ -30,6 +30,17 @@ struct CheckItem {
   StageFile defaults;      ///< encoding, origin, channels for a folder's files
   std::map<std::string, std::string> aliases;  ///< a folder's file names -> stage names
   bool scratch = false;  ///< the files are bloomref's, in a temporary folder (--shaders)
+  /// In memory (the Python module): the scene itself, `scene` the caller's name for it.
+  const ConstImageView* scene_image = nullptr;
+};
+
+/// What a caller in this process hands check without files (check_results): the scene and stage
+/// images in memory, or paths, each under the caller's name for it.
+struct InMemoryItem {
+  const ConstImageView* scene = nullptr;  ///< null: `scene_name` is a path (or the built-in scene)
+  std::string scene_name;
+  std::vector<StageFile> stages;          ///< image set: in memory; else a file
+  std::string stages_dir;                 ///< or a folder of stage files
 };
 
 /// A known deviation (--expectations): stages matching `stage` in items matching `item`

@@ -86,3 +86,20 @@ def test_a_pass_count_without_that_stage(dumped):
     scene, folder = dumped
     with pytest.raises(ValueError, match="has no such stage"):
         bloomref.check(scene, folder, passes=4)
+
+
+def test_arrays_are_judged_without_writing_a_file(dumped, monkeypatch, tmp_path):
+    # TMPDIR names a file: no temporary folder can be made there, so a check that wrote its
+    # arrays to one (as bloomref.check once did) fails; judged in memory, it passes.
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("")
+    monkeypatch.setenv("TMPDIR", str(blocker))
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    scene, _ = dumped
+    stages = bloomref.run(scene, keep_stages=True, plan="full")
+    given = {"blur.1": stages["blur.1"], "output": stages["output"]}
+    result = bloomref.check(stages["input"], given, sensitivity="none")
+    assert result["verdict"] == "PASS"
+    assert [s["stage"] for s in result["items"][0]["stages"]] == ["blur.1", "output"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
