@@ -746,43 +746,28 @@ std::optional<float> fit_spacing(const CauseContext& ctx, const StageSpec& targe
   return static_cast<float>(f);
 }
 
-// The gain g of the target stage's output against the isolated oracle's (least squares over
-// finite RGB values): a blur whose weights sum to g, an upsample that adds g times a level.
-std::optional<float> fit_gain(ConstImageView user, ConstImageView oracle) {
-  if (!user.data || !oracle.data || user.width != oracle.width || user.height != oracle.height)
-    return std::nullopt;
-  double num = 0, den = 0;
-  for (int y = 0; y < user.height; ++y)
-    for (int x = 0; x < user.width; ++x)
-      for (int c = 0; c < 3; ++c) {
-        const double u = user.pixel(x, y)[c], o = oracle.pixel(x, y)[c];
-        if (!std::isfinite(u) || !std::isfinite(o)) continue;
-        num += u * o;
-        den += o * o;
-      }
-  if (!(den > 0)) return std::nullopt;
-  const double g = num / den;
-  if (!std::isfinite(g) || g <= 0 || std::fabs(g - 1) < 1e-4) return std::nullopt;
-  return static_cast<float>(g);
-}
-
-// The gain g of (user - base) against `tent`: up.k = down.k + g tent(up.k+1).
-// `lift`: added to each user value (half a quantum of a storage that truncates, whose bias
-// would pull the slope down by up to a quantum).
-std::optional<float> fit_gain_over_tent(ConstImageView user, ConstImageView tent, ConstImageView base,
-                                        const std::function<double(double, int)>& lift = {}) {
-  if (!user.data || !tent.data || !base.data || user.width != tent.width ||
-      user.height != tent.height || base.width != user.width || base.height != user.height)
+// The gain g that best explains `user` as g times `reference` (least squares over finite RGB
+// values): a blur whose weights sum to g against the isolated oracle; with `base`, up.k less
+// down.k against the tent (up.k = down.k + g tent(up.k+1)). `lift` is added to each user value
+// (half a quantum of a storage that truncates, whose bias would pull the slope down by up to a
+// quantum). Nothing when g is 1 within 1e-4, or not positive.
+std::optional<float> fit_gain(ConstImageView user, ConstImageView reference,
+                              ConstImageView base = {},
+                              const std::function<double(double, int)>& lift = {}) {
+  if (!user.data || !reference.data || user.width != reference.width ||
+      user.height != reference.height ||
+      (base.data && (base.width != user.width || base.height != user.height)))
     return std::nullopt;
   double num = 0, den = 0;
   for (int y = 0; y < user.height; ++y)
     for (int x = 0; x < user.width; ++x)
       for (int c = 0; c < 3; ++c) {
         const double uv = user.pixel(x, y)[c];
-        const double u = uv + (lift ? lift(uv, c) : 0.0) - base.pixel(x, y)[c], t = tent.pixel(x, y)[c];
-        if (!std::isfinite(u) || !std::isfinite(t)) continue;
-        num += u * t;
-        den += t * t;
+        const double u = uv + (lift ? lift(uv, c) : 0.0) - (base.data ? base.pixel(x, y)[c] : 0.0);
+        const double r = reference.pixel(x, y)[c];
+        if (!std::isfinite(u) || !std::isfinite(r)) continue;
+        num += u * r;
+        den += r * r;
       }
   if (!(den > 0)) return std::nullopt;
   const double g = num / den;
@@ -1349,11 +1334,11 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       Image tent(cur.width, cur.height);
       upsample_tent(small, ConstImageView{}, tent.view(), ctx.profile.subtexel_bits, ctx.threads,
                     nullptr, p.upsample_radius);
-      candidates.push_back(fit_gain_over_tent(ctx.view(target.name), tent.cview(), cur));
+      candidates.push_back(fit_gain(ctx.view(target.name), tent.cview(), cur));
       // A level stored by truncation: the slope of the values lifted by half a quantum too.
       const Storage st = stage_storage(p, target);
       if (st != Storage::f32 && ctx.profile.half_toward_zero)
-        candidates.push_back(fit_gain_over_tent(
+        candidates.push_back(fit_gain(
             ctx.view(target.name), tent.cview(), cur,
             [&](double v, int c) { return 0.5 * storage_term(v, st, ctx.profile, c); }));
     }
