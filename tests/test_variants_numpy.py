@@ -23,7 +23,6 @@ the stage's maximum (and 1e-12 absolute).
 import os
 import subprocess
 import tempfile
-import time
 
 import numpy as np
 import OpenImageIO as oiio
@@ -54,11 +53,7 @@ F32_REL = 1e-5
 
 
 def bloomref_exe():
-    exe = os.environ.get("BLOOMREF_EXE", "/work/main/build/cli/bloomref")
-    # The binary may be briefly absent while it is being relinked: wait for it a little.
-    deadline = time.monotonic() + 120
-    while not os.path.isfile(exe) and time.monotonic() < deadline:
-        time.sleep(1)
+    exe = os.environ["BLOOMREF_EXE"]  # set by ctest (tests/CMakeLists.txt)
     assert os.path.isfile(exe), f"bloomref executable not found: {exe}"
     return exe
 
