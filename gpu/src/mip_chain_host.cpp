@@ -19,7 +19,9 @@ using host::ms_since;
 // The texture coordinate a fragment shader reads (`in vec2 NAME;`), for bloomref's pass-through
 // vertex shader to write: the first such declaration, else `fallback`.
 std::string varying_of(const ShaderSource& fs, const std::string& fallback) {
-  static const std::regex in_vec2(R"((?:^|[;\s])in\s+(?:(?:highp|mediump|lowp|smooth|noperspective)\s+)*vec2\s+([A-Za-z_]\w*)\s*;)");
+  static const std::regex in_vec2(
+      R"((?:^|[;\s])in\s+(?:(?:highp|mediump|lowp|smooth|noperspective)\s+)*)"
+      R"(vec2\s+([A-Za-z_]\w*)\s*;)");
   std::smatch m;
   return std::regex_search(fs.text, m, in_vec2) ? m[1].str() : fallback;
 }
