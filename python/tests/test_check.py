@@ -103,3 +103,12 @@ def test_arrays_are_judged_without_writing_a_file(dumped, monkeypatch, tmp_path)
     assert result["verdict"] == "PASS"
     assert [s["stage"] for s in result["items"][0]["stages"]] == ["blur.1", "output"]
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_an_empty_dict_says_nothing_was_compared_and_prints_nothing(dumped, capfd):
+    scene, _ = dumped
+    with pytest.raises(ValueError) as e:
+        bloomref.check(scene, {})
+    assert "nothing compared" in str(e.value)
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
