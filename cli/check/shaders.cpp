@@ -101,14 +101,19 @@ std::string run_mip_chain_shaders(const ShaderArgs& s, const std::string& scene_
 
 }  // namespace
 
-std::string ShaderArgs::files() const {
-  std::vector<std::string> given;
+std::vector<std::string> ShaderArgs::given() const {
+  std::vector<std::string> out;
   for (const std::string* f : {&bright_fs, &blur_vs, &blur_fs, &downsample_vs, &downsample_fs,
                                &upsample_vs, &upsample_fs, &final_vs, &final_fs})
-    if (!f->empty()) given.push_back(*f);
+    if (!f->empty()) out.push_back(*f);
+  return out;
+}
+
+std::string ShaderArgs::files() const {
+  const std::vector<std::string> g = given();
   std::string out;
-  for (std::size_t i = 0; i < given.size(); ++i)
-    out += (i == 0 ? "" : i + 1 == given.size() ? " and " : ", ") + given[i];
+  for (std::size_t i = 0; i < g.size(); ++i)
+    out += (i == 0 ? "" : i + 1 == g.size() ? " and " : ", ") + g[i];
   return out;
 }
 
@@ -206,12 +211,10 @@ std::uint64_t resident_bytes(pid_t pid) {
   return resident * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
 }
 
+// The shader files, comma-separated: the `file` of an InputError about them.
 std::string shader_names(const ShaderArgs& s) {
   std::string out;
-  for (const std::string* f : {&s.bright_fs, &s.blur_vs, &s.blur_fs, &s.downsample_vs,
-                               &s.downsample_fs, &s.upsample_vs, &s.upsample_fs, &s.final_vs,
-                               &s.final_fs})
-    if (!f->empty()) out += (out.empty() ? "" : ", ") + *f;
+  for (const std::string& f : s.given()) out += (out.empty() ? "" : ", ") + f;
   return out;
 }
 

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "bloomref/output_files.h"
 #include "options.h"
@@ -23,7 +24,9 @@ struct ShaderArgs {
   double timeout_s = 0;
   std::string max_memory;
   bool any() const { return !preset.empty(); }
-  /// The user's shader files, comma-separated (for messages).
+  /// The user's shader files given, in pipeline order.
+  std::vector<std::string> given() const;
+  /// The same as "a, b and c" (what the results say the stages came from).
   std::string files() const;
 };
 

@@ -15,6 +15,7 @@ namespace {
 
 using host::Clock;
 using host::ms_since;
+using host::number;
 
 // The texture coordinate a fragment shader reads (`in vec2 NAME;`), for bloomref's pass-through
 // vertex shader to write: the first such declaration, else `fallback`.
@@ -24,13 +25,6 @@ std::string varying_of(const ShaderSource& fs, const std::string& fallback) {
       R"(vec2\s+([A-Za-z_]\w*)\s*;)");
   std::smatch m;
   return std::regex_search(fs.text, m, in_vec2) ? m[1].str() : fallback;
-}
-
-std::string number(float v) {
-  std::string s = std::to_string(v);
-  s.erase(s.find_last_not_of('0') + 1);
-  if (!s.empty() && s.back() == '.') s.pop_back();
-  return s;
 }
 
 struct Programs {

@@ -1,8 +1,15 @@
 #include "user_host.h"
 
 #include <algorithm>
+#include <sstream>
 
 namespace bloomref::gpu::host {
+
+std::string number(float v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
 
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();

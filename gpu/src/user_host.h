@@ -24,6 +24,9 @@ GLenum gl_format(TargetFormat f);
 GLenum gl_filter(TextureFilter f);
 GLenum gl_wrap(TextureWrap w);
 
+/// A uniform's value as the interface report and messages print it ("0.005").
+std::string number(float v);
+
 /// The image upside down (RowOrder::flipped uploads and readbacks).
 Image flipped_rows(ConstImageView src);
 

@@ -24,6 +24,7 @@ using host::gl_wrap;
 using host::flipped_rows;
 using host::ms_since;
 using host::QuadState;
+using host::number;
 
 template <class E>
 struct Named {
@@ -71,12 +72,6 @@ E parse(const Named<E> (&table)[N], const char* what, const std::string& s) {
     names += (names.empty() ? "" : ", ") + std::string(n.name);
   }
   throw ParamError(std::string(what) + " '" + s + "' is not one of: " + names);
-}
-
-std::string number(float v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
 }
 
 std::string numbers(const std::vector<float>& v) {

@@ -245,9 +245,7 @@ class Evaluator {
 
   // `kind`: the stage the image is of (the mip chain's levels may be stored otherwise).
   void store_as_device(Image& img, StageKind kind = StageKind::blur) const {
-    StageSpec spec;
-    spec.kind = kind;
-    store(img.view(), stage_storage(p_, spec), ctx_.rounding, ctx_.threads);
+    store(img.view(), stage_storage(p_, kind), ctx_.rounding, ctx_.threads);
     if (h_.f16) store(img.view(), Storage::f16, ctx_.rounding, ctx_.threads);
     write_all(img);
   }

@@ -654,11 +654,11 @@ class Executor {
     dst = BasicImage<T>(plan_.levels[k - 1].width, plan_.levels[k - 1].height);
     DownsampleOptions o = downsample_options(k);
     // The first level reads the whole scene; the others only where the level above has
-    // anything (adaptive plan; seed 002's chain only).
-    if (p_.mip_variant()) {
-    } else if (k > 1) {
+    // anything (adaptive plan; seed 002's chain only: a variant's chain is computed whole).
+    const bool tracked = !p_.mip_variant();
+    if (tracked && k > 1) {
       o.active = mip_mask(stage.name, src, dst, 2, BasicImage<T>());
-    } else if (sched_.track_support &&
+    } else if (tracked && sched_.track_support &&
                mip_nothing_bright(src.cview(), double(p_.threshold), threads_)) {
       mip_active_.assign(dst.pixel_count(), 0);  // every tap thresholded to zero
       o.active = mip_active_.data();

@@ -74,8 +74,11 @@ bool dense_scene(const SceneFacts& facts);
 
 /// How a stage's output is stored: the mip chain's levels (down.k, up.k) as the chain stores
 /// them (BloomParams::level_storage), every other stage as `storage` says.
+inline Storage stage_storage(const BloomParams& p, StageKind kind) {
+  return kind == StageKind::down || kind == StageKind::up ? p.level_storage() : p.storage;
+}
 inline Storage stage_storage(const BloomParams& p, const StageSpec& s) {
-  return s.kind == StageKind::down || s.kind == StageKind::up ? p.level_storage() : p.storage;
+  return stage_storage(p, s.kind);
 }
 
 /// The stage whose image is the bloom the composite adds: `bloom` (mip), the last blur pass, or
