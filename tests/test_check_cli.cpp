@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "bloomref/io.h"
@@ -311,6 +312,72 @@ TEST_CASE("a verdict says what it could see, a weak one is WARN, a brighter bloo
   const json& v10 = j["items"][0]["stages"][0]["isolated"];
   CHECK(v10["gain_gate"].get<double>() > 1);
   CHECK(r.out.find("gain gate") != std::string::npos);
+}
+
+TEST_CASE("each stage's stated sensitivity (--sensitivity stages) holds for errors planted there",
+          "[check-cli][gain]") {
+  TempDir dir;
+  const std::string size = "--size 160x96";
+  dump(dir, "d", "", size);
+  fs::create_directory(dir / "two");
+  for (const std::string f : {"blur.10.exr", "output.exr"}) fs::copy_file(dir / ("d/" + f), dir / ("two/" + f));
+  CliResult r = run_cli(dir, "check " + size + " --stages two --profile vulkan --sensitivity stages "
+                             "--json s.json --junit s.xml --markdown s.md");
+  INFO(r.out << r.err);
+  REQUIRE(r.code == 0);
+  CHECK(r.out.find("could see, of an error entering at:") != std::string::npos);
+  const json j = read_json(dir / "s.json");
+  std::map<std::string, double> gain;
+  for (const json& s : j["items"][0]["stages"]) {
+    const json& seen = s["sensitivity"];
+    REQUIRE(seen.is_object());
+    CHECK(seen["shift_texels"].is_object());
+    CHECK(seen["spread"].is_object() == (s["stage"] == "blur.10"));
+    if (!seen["gain"]["smallest_failed"].is_null()) gain[s["stage"]] = seen["gain"]["smallest_failed"];
+  }
+  REQUIRE(gain.count("blur.10"));
+  REQUIRE(gain.count("output"));
+  const std::string xml = bloomref::test::read_bytes(dir / "s.xml");
+  CHECK(xml.find("name=\"sensitivity.blur.10\"") != std::string::npos);
+  CHECK(xml.find("name=\"sensitivity.output\"") != std::string::npos);
+  CHECK(bloomref::test::read_bytes(dir / "s.md").find("| error entering at |") != std::string::npos);
+  // What each stated figure says, planted in the files here: the output times its stated gain
+  // fails; blur.10 times its stated gain, with the output made from it in double, fails.
+  const bloomref::Image input = bloomref::load_image(dir / "d/input.exr").image;
+  const bloomref::Image bloom0 = bloomref::load_image(dir / "d/blur.10.exr").image;
+  const bloomref::Image out0 = bloomref::load_image(dir / "d/output.exr").image;
+  for (const std::string stage : {"output", "blur.10"}) {
+    bloomref::Image bloom = bloom0, out = out0;
+    const double g = gain.at(stage);
+    for (int y = 0; y < bloom.height(); ++y)
+      for (int x = 0; x < bloom.width(); ++x)
+        for (int c = 0; c < 3; ++c) {
+          if (stage == "output") {
+            out.pixel(x, y)[c] = static_cast<float>(out0.pixel(x, y)[c] * g);
+            continue;
+          }
+          float& b = bloom.pixel(x, y)[c];
+          b = static_cast<float>(b * g);
+          const double h = double(input.pixel(x, y)[c]) + b;
+          out.pixel(x, y)[c] = static_cast<float>(std::pow(-std::expm1(-h), 1 / 2.2));
+        }
+    bloomref::save_exr(dir / "two/blur.10.exr", bloom.cview());
+    bloomref::save_exr(dir / "two/output.exr", out.cview());
+    r = run_cli(dir, "check " + size + " --stages two --profile vulkan -q");
+    INFO(stage << " times " << g);
+    CHECK(r.code == 1);
+  }
+  // The mip method: no blur pass to widen, so no spread; a gain and a shift per stage.
+  dump(dir, "m", "--method mip", size);
+  r = run_cli(dir, "check " + size + " --method mip --stages m --sensitivity stages --json m.json -q");
+  REQUIRE(r.code == 0);
+  const json m = read_json(dir / "m.json");
+  REQUIRE(m["items"][0]["stages"].size() > 5);
+  for (const json& s : m["items"][0]["stages"]) {
+    INFO(s["stage"]);
+    CHECK(s["sensitivity"]["spread"].is_null());
+    CHECK(s["sensitivity"]["gain"]["smallest_failed"].is_number());
+  }
 }
 
 TEST_CASE("nothing compared is exit 5", "[check-cli]") {

@@ -157,6 +157,66 @@ std::map<std::string, Image> planted(const BloomParams& p, const std::map<std::s
   return out;
 }
 
+// composite's tone map and gamma in double, as finish() makes them, from a given composite.
+void finish_from_composite(const BloomParams& p, std::map<std::string, Image>& out) {
+  const Image& comp = out.at("composite");
+  Image tm(comp.width(), comp.height()), o(comp.width(), comp.height());
+  for (int y = 0; y < comp.height(); ++y)
+    for (int x = 0; x < comp.width(); ++x)
+      for (int c = 0; c < 4; ++c) {
+        const double m = -std::expm1(-double(comp.pixel(x, y)[c]) * p.exposure);
+        tm.pixel(x, y)[c] = c == 3 ? 1.0f : static_cast<float>(m);
+        o.pixel(x, y)[c] = c == 3 ? 1.0f : static_cast<float>(std::pow(std::max(m, 0.0), 1 / p.gamma));
+      }
+  out["tonemap"] = std::move(tm);
+  out["output"] = std::move(o);
+}
+
+// The captures of a bloom with one change entering at `stage`, made here: that stage's image
+// times g and moved `shift` texels right, or (a blur pass, `wide` given) that pass blurred with
+// `wide` instead of discrete9; the stages after it made again from it in double: the later
+// passes with discrete9's weights on texel centres (pass9), then the finishing stages. The
+// bright pass reads the scene, not the input stage, so a change of the input reaches only the
+// composite.
+std::map<std::string, Image> planted_at(const BloomParams& p, const std::map<std::string, Image>& ref,
+                                        const std::string& stage, double g, int shift,
+                                        const std::vector<double>& wide = {}) {
+  std::map<std::string, Image> out = ref;
+  const std::vector<double> d9(kD9, kD9 + 5);
+  int k = 0;  // the first pass made again
+  if (stage == "input") {
+    out[stage] = shifted(scaled(ref.at(stage), g), shift);
+    k = p.passes + 1;
+  } else if (stage == "bright") {
+    out[stage] = shifted(scaled(ref.at(stage), g), shift);
+    k = 1;
+  } else if (stage.rfind("blur.", 0) == 0) {
+    const int at = std::stoi(stage.substr(5));
+    out[stage] = wide.empty() ? shifted(scaled(ref.at(stage), g), shift)
+                              : pass9(at == 1 ? ref.at("bright") : ref.at("blur." + std::to_string(at - 1)),
+                                      wide, at % 2 == 0);
+    k = at + 1;
+  }
+  if (k > 0) {
+    for (; k <= p.passes; ++k)
+      out["blur." + std::to_string(k)] =
+          pass9(k == 1 ? out.at("bright") : out.at("blur." + std::to_string(k - 1)), d9, k % 2 == 0);
+    finish(p, out.at("input"), out.at("blur." + std::to_string(p.passes)), out);
+    return out;
+  }
+  out[stage] = shifted(scaled(ref.at(stage), g), shift);
+  if (stage == "composite") finish_from_composite(p, out);
+  if (stage == "tonemap") {
+    Image& o = out["output"];
+    const Image& tm = out.at("tonemap");
+    for (int y = 0; y < o.height(); ++y)
+      for (int x = 0; x < o.width(); ++x)
+        for (int c = 0; c < 3; ++c)
+          o.pixel(x, y)[c] = static_cast<float>(std::pow(std::max(double(tm.pixel(x, y)[c]), 0.0), 1 / p.gamma));
+  }
+  return out;
+}
+
 std::vector<double> gaussian9(double sigma) {
   std::vector<double> w;
   double total = 0;
@@ -435,4 +495,81 @@ TEST_CASE("planted wrong blooms fail wherever the stated sensitivity says they a
   // Both kinds of statement occur: verdicts that see 5% and weak ones.
   CHECK(seen_small > 0);
   CHECK(weak > 0);
+}
+
+TEST_CASE("an error entering at one stage fails wherever that stage's stated sensitivity says",
+          "[gain][sensitivity]") {
+  std::vector<std::pair<std::string, Image>> scenes = {{"lights", lights_scene(64, 48)}};
+  Image crop = corpus_crop("GoldenGate.exr", 96, 64);
+  if (!crop.empty()) scenes.emplace_back("GoldenGate.exr", std::move(crop));
+  const BloomParams p = params(6);
+  const std::vector<std::vector<std::string>> sets = {
+      {"input", "bright", "blur.1", "blur.2", "blur.3", "blur.4", "blur.5", "blur.6", "composite",
+       "tonemap", "output"},
+      {"blur.6", "output"},
+      {"blur.2", "blur.4", "blur.6", "output"},
+      {"output"}};
+  // discrete9's sigma: sqrt(2 (w1 + 4 w2 + 9 w3 + 16 w4)).
+  const double sigma = std::sqrt(2 * (kD9[1] + 4 * kD9[2] + 9 * kD9[3] + 16 * kD9[4]));
+  int seen_small = 0, weak = 0, checked = 0;
+  for (const auto& [scene_name, scene] : scenes)
+    for (const char* prof : {"nvidia", "vulkan", "mediump", "ldr8"}) {
+      const parity::DeviceProfile profile = parity::profile_named(prof);
+      const std::map<std::string, Image> ref = reference_trace(p, scene, profile);
+      for (const auto& names : sets) {
+        if (profile.capture_code_bits && names != std::vector<std::string>{"output"}) continue;
+        std::string set;
+        for (const std::string& n : names) set += n + " ";
+        INFO(scene_name << ", profile " << prof << ", captures " << set);
+        REQUIRE_FALSE(fails(judge(p, scene, ref, names, profile)));
+        std::map<std::string, int> codes;
+        for (const std::string& n : names) codes[n] = profile.capture_code_bits;
+        const Plan plan = parity::plan_for_device(p, scene.cview(), profile);
+        const parity::Sensitivity s =
+            parity::sensitivity(plan, scene.cview(), names, codes, profile, {}, 1.05, true, true);
+        REQUIRE(s.stages.size() == names.size());
+        for (const parity::StageSensitivity& st : s.stages) {
+          INFO("entering at " << st.stage << ": gain " << st.gain << " (" << st.gain_stage
+                              << "), shift " << st.shift << ", spread " << st.spread);
+          std::printf("%-16s %-8s %-60s %-10s gain %-5g (%s) shift %g spread %g\n", scene_name.c_str(),
+                      prof, set.c_str(), st.stage.c_str(), st.gain, st.gain_stage.c_str(), st.shift,
+                      st.spread);
+          seen_small += st.gain > 0 && st.gain <= 1.05;
+          weak += st.gain == 0 || st.gain > 1.05;
+          for (double g : {1.02, 1.05, 1.1, 1.5, 2.0})
+            if (st.gain > 0 && g >= st.gain * (1 - 1e-9)) {
+              const parity::ParityResult r = judge(p, scene, planted_at(p, ref, st.stage, g, 0), names, profile);
+              INFO("gain " << g << ": " << describe(r));
+              CHECK(fails(r));
+              ++checked;
+            }
+          const auto& ladder = parity::Sensitivity::gain_ladder();
+          const auto at = std::find(ladder.begin(), ladder.end(), st.gain);
+          if (st.gain > 0 && at != ladder.begin()) {
+            const parity::ParityResult below =
+                judge(p, scene, planted_at(p, ref, st.stage, *(at - 1), 0), names, profile);
+            INFO("gain below " << *(at - 1) << ": " << describe(below));
+            CHECK_FALSE(fails(below));
+          }
+          if (st.shift == 1) {
+            const parity::ParityResult r = judge(p, scene, planted_at(p, ref, st.stage, 1.0, 1), names, profile);
+            INFO("shift 1: " << describe(r));
+            CHECK(fails(r));
+            ++checked;
+          }
+          CHECK(st.spread_measured == (st.stage.rfind("blur.", 0) == 0));
+          if (st.spread > 0 && st.spread <= 1.1) {
+            const parity::ParityResult r =
+                judge(p, scene, planted_at(p, ref, st.stage, 1.0, 0, gaussian9(sigma * 1.1)), names, profile);
+            INFO("spread 1.1: " << describe(r));
+            CHECK(fails(r));
+            ++checked;
+          }
+        }
+      }
+    }
+  // Both kinds of statement occur, and the planted errors were judged.
+  CHECK(seen_small > 0);
+  CHECK(weak > 0);
+  CHECK(checked > 50);
 }

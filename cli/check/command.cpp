@@ -160,7 +160,8 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
       r.parity.verdict != parity::Verdict::fail) {
     const auto t2 = std::chrono::steady_clock::now();
     r.sensitivity = parity::sensitivity(plan, scene.image.cview(), names, codes, profile, co,
-                                        a.require_sensitivity, a.sensitivity == "full");
+                                        a.require_sensitivity, a.sensitivity != "gain",
+                                        a.sensitivity == "stages");
     r.required_gain = a.require_sensitivity;
     r.strengthen = strengthening_captures(plan, names);
     if (!r.strengthen.empty()) r.strengthen = "capture " + r.strengthen;
@@ -237,7 +238,12 @@ void print_item(const ItemResult& r, const parity::DeviceProfile& profile) {
         std::printf("  NaN/Inf first stand against finite values at %s (%llu values): the stages "
                     "after it inherit them\n",
                     nf.c_str(), static_cast<unsigned long long>(s.nonfinite_mismatch));
-  if (r.sensitivity) std::printf("  could see: %s\n", sensitivity_line(r).c_str());
+  if (r.sensitivity) {
+    std::printf("  could see: %s\n", sensitivity_line(r).c_str());
+    if (!r.sensitivity->stages.empty()) std::printf("  could see, of an error entering at:\n");
+    for (const parity::StageSensitivity& st : r.sensitivity->stages)
+      std::printf("    %-10s %s\n", st.stage.c_str(), stage_sensitivity_line(st).c_str());
+  }
   std::printf("  verdict %s%s; first divergent stage: %s\n", r.verdict.c_str(),
               r.weak() ? (": weak verdict: " + weak_line(r)).c_str() : "",
               r.parity.first_divergent_stage ? r.parity.first_divergent_stage->c_str() : "none");
@@ -662,8 +668,9 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
       ->check(CLI::Range(0.0, 4.0));
   sub->add_option("--sensitivity", args->sensitivity,
                   "what a verdict that does not fail measures it could have seen: gain (the "
-                  "default), full (also a shift and a wider spread), none")
-      ->check(CLI::IsMember({"gain", "full", "none"}));
+                  "default), full (also a shift and a wider spread), stages (full, and each "
+                  "of them entering at each captured stage: about 7 checks a stage), none")
+      ->check(CLI::IsMember({"gain", "full", "stages", "none"}));
   sub->add_flag("-q,--quiet", args->quiet, "print nothing");
   args->pipeline.add_to(*sub);
   args->sequence.add_to(*sub, false);

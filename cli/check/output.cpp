@@ -25,13 +25,15 @@ ordered_json finite_or_string(const std::array<double, 3>& v) {
   return {finite_or_string(v[0]), finite_or_string(v[1]), finite_or_string(v[2])};
 }
 
+// The smallest amount of a ladder that failed, and the first stage that failed it.
+ordered_json seen(double v, const std::string& stage) {
+  return v > 0 ? ordered_json{{"smallest_failed", v}, {"first_failing_stage", stage}}
+               : ordered_json{{"smallest_failed", nullptr}, {"first_failing_stage", nullptr}};
+}
+
 ordered_json sensitivity_json(const ItemResult& r) {
   if (!r.sensitivity) return nullptr;
   const parity::Sensitivity& s = *r.sensitivity;
-  auto seen = [](double v, const std::string& stage) {
-    return v > 0 ? ordered_json{{"smallest_failed", v}, {"first_failing_stage", stage}}
-                 : ordered_json{{"smallest_failed", nullptr}, {"first_failing_stage", nullptr}};
-  };
   ordered_json gain = seen(s.gain, s.gain_stage);
   gain["at_most"] = s.gain_at_most;
   return {{"gain", gain},
@@ -43,6 +45,17 @@ ordered_json sensitivity_json(const ItemResult& r) {
           {"required_gain", r.required_gain},
           {"weak", r.weak()},
           {"strengthen_with", r.strengthen.empty() ? ordered_json(nullptr) : ordered_json(r.strengthen)}};
+}
+
+// What an error entering at `stage` would have shown (--sensitivity full), or null.
+ordered_json stage_sensitivity_json(const ItemResult& r, const std::string& stage) {
+  if (!r.sensitivity) return nullptr;
+  for (const parity::StageSensitivity& s : r.sensitivity->stages)
+    if (s.stage == stage)
+      return {{"gain", seen(s.gain, s.gain_stage)},
+              {"shift_texels", seen(s.shift, s.shift_stage)},
+              {"spread", s.spread_measured ? seen(s.spread, s.spread_stage) : ordered_json(nullptr)}};
+  return nullptr;
 }
 
 ordered_json stage_json(const parity::StageComparison& s) {
@@ -141,7 +154,8 @@ ordered_json check_json(const CheckRun& run) {
            {"end_to_end", stage_json(r.parity.end_to_end[i])},
            {"cause", s.causes.empty() ? ordered_json(nullptr) : cause_json(s.causes.front())},
            {"causes", causes},
-           {"residual", s.residual.empty() ? ordered_json(nullptr) : ordered_json(s.residual)}});
+           {"residual", s.residual.empty() ? ordered_json(nullptr) : ordered_json(s.residual)},
+           {"sensitivity", stage_sensitivity_json(r, s.stage)}});
     }
     const parity::StageComparison* first = first_divergent(r);
     items.push_back(
@@ -235,6 +249,9 @@ std::string junit_xml(const CheckRun& run) {
       out += "      <property name=\"sensitivity\" value=\"" + xml(sensitivity_line(r)) + "\"/>\n";
       if (r.weak())
         out += "      <property name=\"weak-verdict\" value=\"" + xml(weak_line(r)) + "\"/>\n";
+      for (const parity::StageSensitivity& st : r.sensitivity->stages)
+        out += "      <property name=\"sensitivity." + xml(st.stage) + "\" value=\"" +
+               xml(stage_sensitivity_line(st)) + "\"/>\n";
     }
     out += "    </properties>\n";
     if (r.outcomes.empty()) {
@@ -283,23 +300,41 @@ std::string junit_xml(const CheckRun& run) {
   return out + "</testsuites>\n";
 }
 
+namespace {
+
+// One figure of a sensitivity ladder in words: `fmt` with the amount and the stage that failed
+// it, or `none` when nothing of the ladder failed.
+std::string seen_part(double v, const char* fmt, const char* none, const std::string& stage) {
+  if (v <= 0) return none;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, fmt, v);
+  return std::string(buf) + " (at " + stage + ")";
+}
+
+std::string shape_parts(double shift, const std::string& shift_stage, bool spread_measured,
+                        double spread, const std::string& spread_stage) {
+  std::string out =
+      ", " + seen_part(shift, "a shift of %g texel(s)", "no shift up to 8 texels", shift_stage);
+  if (spread_measured)
+    out += ", " + seen_part(spread > 0 ? 100 * (spread - 1) : 0, "a spread %.3g%% wider",
+                            "no wider spread up to 50%", spread_stage);
+  return out;
+}
+
+}  // namespace
+
 std::string sensitivity_line(const ItemResult& r) {
   if (!r.sensitivity) return "not measured";
   const parity::Sensitivity& s = *r.sensitivity;
-  char buf[160];
-  auto part = [&buf](double v, const char* fmt, const char* none, const std::string& stage) {
-    if (v <= 0) return std::string(none);
-    std::snprintf(buf, sizeof buf, fmt, v);
-    return std::string(buf) + " (at " + stage + ")";
-  };
-  std::string out = part(s.gain, s.gain_at_most ? "a bloom gain of %.3gx or less" : "a bloom gain of %.3gx",
-                         "no bloom gain up to 4x", s.gain_stage);
+  std::string out = seen_part(s.gain, s.gain_at_most ? "a bloom gain of %.3gx or less" : "a bloom gain of %.3gx",
+                              "no bloom gain up to 4x", s.gain_stage);
   if (!s.shape) return out;
-  out += ", " + part(s.shift, "a shift of %g texel(s)", "no shift up to 8 texels", s.shift_stage);
-  if (s.spread_measured)
-    out += ", " + part(100 * (s.spread - 1), "a spread %.3g%% wider", "no wider spread up to 50%",
-                       s.spread_stage);
-  return out;
+  return out + shape_parts(s.shift, s.shift_stage, s.spread_measured, s.spread, s.spread_stage);
+}
+
+std::string stage_sensitivity_line(const parity::StageSensitivity& s) {
+  return seen_part(s.gain, "a gain of %.3gx", "no gain up to 4x", s.gain_stage) +
+         shape_parts(s.shift, s.shift_stage, s.spread_measured, s.spread, s.spread_stage);
 }
 
 std::string weak_line(const ItemResult& r) {
@@ -333,6 +368,17 @@ std::string markdown_summary(const CheckRun& run) {
     out += "| " + markdown_cell(r.id) + " | " + markdown_cell(r.verdict) + (r.weak() ? " (weak verdict: " + markdown_cell(weak_line(r)) + ")" : "") + " | " +
            (r.parity.first_divergent_stage ? escape::markdown_code(*r.parity.first_divergent_stage) : "-") +
            " | " + (first ? markdown_cell(action_line(*first)) : !r.error.empty() ? markdown_cell(r.error) : "-") + " |\n";
+  }
+  // What each verdict could have seen: the bloom's, then an error entering at each stage.
+  bool heading = false;
+  for (const ItemResult& r : run.items) {
+    if (!r.sensitivity) continue;
+    if (!heading) out += "\n| item | error entering at | could see |\n|---|---|---|\n";
+    heading = true;
+    out += "| " + markdown_cell(r.id) + " | the bloom | " + markdown_cell(sensitivity_line(r)) + " |\n";
+    for (const parity::StageSensitivity& st : r.sensitivity->stages)
+      out += "| " + markdown_cell(r.id) + " | " + escape::markdown_code(st.stage) + " | " +
+             markdown_cell(stage_sensitivity_line(st)) + " |\n";
   }
   return out;
 }

@@ -18,5 +18,7 @@ std::string markdown_summary(const CheckRun& run);
 /// 1 texel (at blur.10), a spread 5% wider (at blur.10)"), and why a weak one is weak.
 std::string sensitivity_line(const ItemResult& r);
 std::string weak_line(const ItemResult& r);
+/// What an error entering at one stage would have shown, in the same words.
+std::string stage_sensitivity_line(const parity::StageSensitivity& s);
 
 }  // namespace bloomref::cli

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "bloomref/engine/fast_stages.h"
+#include "bloomref/error.h"
 #include "bloomref/parity/compare.h"
 #include "chain.h"
 #include "stage_terms.h"
@@ -22,6 +23,12 @@ const StageSpec* first_bloom_stage(const Plan& plan) {
   for (const StageSpec& s : plan.stages)
     if (s.kind == StageKind::blur || s.kind == StageKind::down) return &s;
   return nullptr;
+}
+
+const StageSpec* stage_named(const Plan& plan, const std::string& name) {
+  for (const StageSpec& s : plan.stages)
+    if (s.name == name) return &s;
+  throw ParamError("no stage '" + name + "' to plant a change in");
 }
 
 // A discrete kernel on texel offsets 0..4 (taps on centres, as discrete9's), Gaussian with
@@ -66,7 +73,7 @@ class PlantedRun {
   PlantedRun(const Plan& plan, ConstImageView scene, const DeviceProfile& profile,
              const PlantedChange& change, const std::map<std::string, int>& codes)
       : plan_(plan), profile_(profile), change_(change), codes_(codes),
-        bloom_(first_bloom_stage(plan)) {
+        at_(change.stage.empty() ? first_bloom_stage(plan) : stage_named(plan, change.stage)) {
     const BloomParams& p = plan.params;
     sanitized_ = Image::uninitialised(scene.width, scene.height);
     sanitize(scene, sanitized_.view(), p.nonfinite, p.storage, p.threads);
@@ -95,13 +102,14 @@ class PlantedRun {
     std::vector<ConstImageView> in;
     for (const std::string& n : stage_inputs(plan_, spec)) in.push_back(held_.at(n).cview());
     Image out;
-    if (change_.kind == PlantedChange::spread && spec.kind == StageKind::blur) {
+    const bool widened = change_.stage.empty() ? spec.kind == StageKind::blur : &spec == at_;
+    if (change_.kind == PlantedChange::spread && widened) {
       out = Image::uninitialised(in[0].width, in[0].height);
       blur_pass_fast(in[0], out.view(), {spec.axis, &wider_, profile_.subtexel_bits}, p.threads);
     } else {
       out = oracle_stage(plan_, spec, sanitized_.cview(), in, profile_.subtexel_bits, pool_);
     }
-    if (&spec == bloom_) plant(out);
+    if (&spec == at_) plant(out);
     store(out.view(), stage_storage(p, spec), half_rounding_for(profile_), p.threads);
     held_[spec.name] = std::move(out);
     // Images no later stage reads are dropped once handed out (capture copies them).
@@ -147,7 +155,7 @@ class PlantedRun {
   const DeviceProfile& profile_;
   PlantedChange change_;
   const std::map<std::string, int>& codes_;
-  const StageSpec* bloom_;
+  const StageSpec* at_;  // where the change enters
   Image sanitized_;
   Kernel wider_;
   ImagePool pool_;
@@ -187,7 +195,7 @@ double smallest_failing(const std::vector<double>& ladder, std::size_t start, Pl
   std::size_t mid = std::min(start, ladder.size() - 1);
   while (lo < hi) {
     std::string s;
-    if (fails({kind, ladder[mid]}, s)) {
+    if (fails({kind, ladder[mid], {}}, s)) {
       hi = mid;
       at = s;
     } else {
@@ -204,7 +212,8 @@ double smallest_failing(const std::vector<double>& ladder, std::size_t start, Pl
 Sensitivity sensitivity(const Plan& plan, ConstImageView scene,
                         const std::vector<std::string>& captured,
                         const std::map<std::string, int>& codes, const DeviceProfile& profile,
-                        const CompareOptions& opt, double required_gain, bool shape) {
+                        const CompareOptions& opt, double required_gain, bool shape,
+                        bool per_stage) {
   Sensitivity s;
   if (!first_bloom_stage(plan)) return s;
   auto fails = [&](const PlantedChange& c, std::string& stage) {
@@ -224,6 +233,25 @@ Sensitivity sensitivity(const Plan& plan, ConstImageView scene,
     s.spread_measured = true;
   }
   s.shape = true;
+  if (!per_stage) return s;
+  const std::size_t gain_start = std::min(start, gains.size() - 1);
+  for (const std::string& name : captured) {
+    StageSensitivity st;
+    st.stage = name;
+    auto at = [&](const PlantedChange& c, std::string& stage) {
+      PlantedChange here = c;
+      here.stage = name;
+      return fails(here, stage);
+    };
+    st.gain = smallest_failing(gains, gain_start, PlantedChange::gain, at, st.gain_stage);
+    st.shift = smallest_failing(Sensitivity::shift_ladder(), 0, PlantedChange::shift, at, st.shift_stage);
+    if (plan.params.method == Method::gaussian && stage_named(plan, name)->kind == StageKind::blur) {
+      st.spread = smallest_failing(Sensitivity::spread_ladder(), 2, PlantedChange::spread, at,
+                                   st.spread_stage);
+      st.spread_measured = true;
+    }
+    s.stages.push_back(std::move(st));
+  }
   return s;
 }
 

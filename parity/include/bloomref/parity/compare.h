@@ -192,6 +192,19 @@ ParityResult compare_streamed(const Plan& plan, ConstImageView scene,
 struct PlantedChange {
   enum Kind { gain, shift, spread } kind = gain;
   double amount = 1;
+  /// Where the change enters: empty for the bloom's first stage (and, for spread, every blur
+  /// pass); a stage's name for that stage alone (spread: that blur pass).
+  std::string stage;
+};
+
+/// What a check could have seen of an error entering at one captured stage: the smallest amount
+/// of each ladder planted there (PlantedChange::stage) whose run fails, and the first stage that
+/// fails it (0 and "": none of the ladder). Spread only for a blur pass of the gaussian method.
+struct StageSensitivity {
+  std::string stage;
+  double gain = 0, shift = 0, spread = 0;
+  bool spread_measured = false;
+  std::string gain_stage, shift_stage, spread_stage;
 };
 
 /// What a check could have seen (sensitivity): for each kind of PlantedChange, the smallest
@@ -204,6 +217,8 @@ struct Sensitivity {
   bool shape = false;   ///< shift measured (and spread, for the gaussian method)
   bool spread_measured = false;
   std::string gain_stage, shift_stage, spread_stage;
+  /// With `per_stage`: each captured stage's, in plan order.
+  std::vector<StageSensitivity> stages;
   static const std::vector<double>& gain_ladder();    ///< 1.01 ... 4
   static const std::vector<double>& shift_ladder();   ///< 1, 2, 4, 8 texels
   static const std::vector<double>& spread_ladder();  ///< 1.02 ... 1.5
@@ -215,11 +230,13 @@ struct Sensitivity {
 /// (without `shape`, a failure there ends it: gain_at_most), and with `shape`, the gains below
 /// it and the shift and spread ladders too. `codes`: per stage, the capture's
 /// 8-bit codes (8: linear, -8: sRGB; absent or 0: float), which the planted image is rounded
-/// to. Each planted run costs up to one comparison.
+/// to. With `per_stage` (and `shape`), each ladder is also planted at each captured stage
+/// alone (Sensitivity::stages). Each planted run costs up to one comparison.
 Sensitivity sensitivity(const Plan& plan, ConstImageView scene,
                         const std::vector<std::string>& captured,
                         const std::map<std::string, int>& codes, const DeviceProfile& profile,
-                        const CompareOptions& opt, double required_gain, bool shape);
+                        const CompareOptions& opt, double required_gain, bool shape,
+                        bool per_stage = false);
 
 /// The oracle's f16 rounding for a device: the mode it measured (toward zero where it allows
 /// it, else nearest-even, saturating where it saturates).
