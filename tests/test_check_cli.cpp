@@ -249,8 +249,9 @@ TEST_CASE("a verdict says what it could see, a weak one is WARN, a brighter bloo
   const json& all = j["items"][0]["sensitivity"];
   CHECK(all["weak"] == false);
   CHECK(all["gain"]["smallest_failed"].get<double>() <= 1.05);
-  // blur.10 and the output under vulkan (4-bit weights): too weak to see 5%, so WARN.
-  r = run_cli(dir, "check " + size + " --stages two --profile vulkan --json w.json --junit w.xml "
+  // blur.10 and the output under mediump (coordinates off by up to a texel here): too weak to
+  // see 5%, so WARN.
+  r = run_cli(dir, "check " + size + " --stages two --profile mediump --json w.json --junit w.xml "
                    "--markdown w.md");
   INFO(r.out << r.err);
   CHECK(r.code == 0);
@@ -263,7 +264,7 @@ TEST_CASE("a verdict says what it could see, a weak one is WARN, a brighter bloo
   for (const json& s : j["items"][0]["stages"]) CHECK(s["isolated"]["verdict"] == "PASS");
   CHECK(bloomref::test::read_bytes(dir / "w.xml").find("name=\"weak-verdict\"") != std::string::npos);
   CHECK(bloomref::test::read_bytes(dir / "w.md").find("weak verdict") != std::string::npos);
-  CHECK(run_cli(dir, "check " + size + " --stages two --profile vulkan --warn-as-error -q").code == 1);
+  CHECK(run_cli(dir, "check " + size + " --stages two --profile mediump --warn-as-error -q").code == 1);
   // Under nvidia the same two captures see 10%: a bloom 1.1x too strong (its output made from
   // it here, in double) fails at blur.10.
   r = run_cli(dir, "check " + size + " --stages two --json n.json -q");
@@ -293,25 +294,27 @@ TEST_CASE("a verdict says what it could see, a weak one is WARN, a brighter bloo
   CHECK(blur10["verdict"] == "FAIL");
   CHECK(blur10["gain_gate"].get<double>() > 1);
   CHECK(blur10["gain"][1].get<double>() == Approx(1.1).epsilon(0.01));
-  // Under vulkan the same two captures see 2x: a bloom twice too strong fails by its gain gate.
-  for (int y = 0; y < bloom.height(); ++y)
-    for (int x = 0; x < bloom.width(); ++x)
-      for (int c = 0; c < 3; ++c) {
-        float& b = bloom.pixel(x, y)[c];
-        b = static_cast<float>(b / 1.1 * 2.0);
-        const double h = double(input.pixel(x, y)[c]) + b;
-        out.pixel(x, y)[c] = static_cast<float>(std::pow(-std::expm1(-h), 1 / 2.2));
-      }
-  bloomref::save_exr(dir / "two/blur.10.exr", bloom.cview());
-  bloomref::save_exr(dir / "two/output.exr", out.cview());
+  // Under vulkan (4-bit weights) the same two captures see it too: blur.9 is not captured,
+  // and 1.1x lies beyond what any 4-bit device could make from the bright pass in nine passes
+  // (the envelope gate).
   r = run_cli(dir, "check " + size + " --stages two --profile vulkan --json v.json");
   INFO(r.out << r.err);
   CHECK(r.code == 1);
   j = read_json(dir / "v.json");
   CHECK(j["items"][0]["first_divergent_stage"] == "blur.10");
   const json& v10 = j["items"][0]["stages"][0]["isolated"];
-  CHECK(v10["gain_gate"].get<double>() > 1);
-  CHECK(r.out.find("gain gate") != std::string::npos);
+  CHECK(v10["verdict"] == "FAIL");
+  CHECK(v10["envelope_gate"].is_number());
+  CHECK((v10["envelope_gate"].get<double>() > 1 || v10["envelope_outside_fraction"].get<double>() > 0.01));
+  // The clean blur.10 and output lie within their envelope.
+  fs::create_directory(dir / "clean");
+  for (const std::string f : {"blur.10.exr", "output.exr"}) fs::copy_file(dir / ("d/" + f), dir / ("clean/" + f));
+  r = run_cli(dir, "check " + size + " --stages clean --profile vulkan --json c.json -q");
+  CHECK(r.code == 0);
+  const json clean = read_json(dir / "c.json");
+  const json& c10 = clean["items"][0]["stages"][0]["isolated"];
+  CHECK(c10["envelope_gate"].get<double>() <= 1);
+  CHECK(c10["envelope_outside_fraction"].get<double>() == 0);
 }
 
 TEST_CASE("each stage's stated sensitivity (--sensitivity stages) holds for errors planted there",

@@ -81,6 +81,8 @@ ordered_json stage_json(const parity::StageComparison& s) {
           {"gain_gate", finite_or_string(s.gain_ratio)},
           {"tile_gain_gate", finite_or_string(s.tile_gain_ratio)},
           {"tile_gain_at", {s.tile_x, s.tile_y}},
+          {"envelope_gate", s.envelope_ratio < 0 ? ordered_json(nullptr) : finite_or_string(s.envelope_ratio)},
+          {"envelope_outside_fraction", s.envelope_outside < 0 ? ordered_json(nullptr) : ordered_json(s.envelope_outside)},
           {"ulp_histogram_minus8_to_plus8", s.ulp_histogram}, {"worst", worst}};
 }
 

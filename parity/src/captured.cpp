@@ -75,6 +75,12 @@ struct EnergySums {
   Sum storage{};  // a stage without capture: the oracle's value's own storage rounding
   double tile_ratio = 0;
   int tile_x = -1, tile_y = -1;
+  // The envelope gate's: the capture's error, and the envelope's distance from the oracle
+  // either way (plus the rounding terms), over the values where all are finite; how many
+  // values lie beyond it, and the worst tile's total error over its envelope's.
+  Sum env_err{}, env_up{}, env_down{};
+  std::size_t env_values = 0, env_outside = 0;
+  double env_tile_ratio = 0;
   void merge(const EnergySums& b) {
     for (int c = 0; c < 3; ++c) {
       err[c] += b.err[c], err_e2e[c] += b.err_e2e[c], oracle[c] += b.oracle[c];
@@ -83,6 +89,11 @@ struct EnergySums {
       storage[c] += b.storage[c];
     }
     if (b.tile_ratio > tile_ratio) tile_ratio = b.tile_ratio, tile_x = b.tile_x, tile_y = b.tile_y;
+    for (int c = 0; c < 3; ++c)
+      env_err[c] += b.env_err[c], env_up[c] += b.env_up[c], env_down[c] += b.env_down[c];
+    env_values += b.env_values;
+    env_outside += b.env_outside;
+    env_tile_ratio = std::max(env_tile_ratio, b.env_tile_ratio);
   }
 };
 
@@ -150,6 +161,16 @@ class Comparison {
   void test_causes_of(const StageSpec& spec, StageComparison& iso, Image& oracle,
                       const Image& bound);
   void keep_uncaptured(std::size_t index, StageTerms& t);
+  // A blur pass's envelope: below and above every value a device the profile allows could
+  // write there, given only what it read (docs/design.md, "Envelopes").
+  struct Envelope {
+    Image lo, hi;
+    bool empty() const { return hi.empty(); }
+  };
+  void make_envelope(const StageSpec& spec);
+  void envelope_band(int y0, int y1, ConstImageView cap, const float* oracle,
+                     const float* rounding, EnergySums& es) const;
+  void envelope_gate(StageComparison& iso, const EnergySums& es) const;
   ParityResult finish();
 
   ConstImageView V(const std::string& n) const {  // a stage as the isolated oracle reads it
@@ -209,6 +230,8 @@ class Comparison {
   std::map<std::string, Image> e2e_;       // end-to-end bound of each stage, on the full run
   std::map<std::string, Energy> energy_;   // each stage's, for the stages that read it
   std::unique_ptr<BlurDeviation> deviation_;  // of the blur pass being judged (when usable)
+  std::map<std::string, Envelope> envelope_;  // of a blur pass without capture, for the next
+  Envelope env_;                           // of the blur pass being judged or kept (or none)
   int stage_width_ = 0;                    // its width
   const StageSpec* spec_ = nullptr;        // the stage being judged
   std::string name_;
@@ -392,6 +415,7 @@ void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally&
   if (codes) add_rows(rounding, q, n);
   const float* slack = p_.storage == Storage::f16 ? inherited : nullptr;
   energy_band(y0, y1, true, oracle, full, bound, rounding, inherited, e, es);
+  if (!env_.empty() && !codes) envelope_band(y0, y1, cap.image, oracle, rounding, es);
   const std::size_t row = std::size_t(t.oracle.width()) * kChannels;
   for (int y = y0; y < y1; ++y) {
     const std::size_t at = std::size_t(y - y0) * row;
@@ -408,6 +432,152 @@ void over_bands(int height, int rows, int threads, Band band) {
   parallel_rows(bands, threads, [&](int b0, int b1) {
     for (int b = b0; b < b1; ++b) band(b * rows, std::min(height, (b + 1) * rows), b);
   });
+}
+
+// The envelope of a blur pass (env_), from what it reads: a capture exactly, the envelope of a
+// pass without capture before it, or another stage without capture give or take the error it
+// carries. Weights and the bilinear interpolant are non-negative, so a device's pass is
+// monotone in its input: its value lies between the lowest and the highest its lookups could
+// take (BlurDeviation: exact over the profile's shifts) on the envelope's low and high images,
+// widened by the pass's arithmetic (32 f32 ULPs of the profile's unit roundoff, above the
+// (3 + 2 taps) a 9-tap pass rounds) and its storage. None where a shift reaches a texel.
+void Comparison::make_envelope(const StageSpec& spec) {
+  env_ = Envelope{};
+  if (spec.kind != StageKind::blur) return;
+  const std::string in = stage_inputs(plan_, spec)[0];
+  ConstImageView lo, hi;
+  Image lo_own, hi_own;
+  const auto prev = envelope_.find(in);
+  if (streams_.captured(in)) {
+    lo = hi = V(in);
+  } else if (prev != envelope_.end()) {
+    lo = prev->second.lo.cview();
+    hi = prev->second.hi.cview();
+  } else if (const Image* e = E(in)) {
+    const ConstImageView v = V(in);
+    lo_own = Image::uninitialised(v.width, v.height);
+    hi_own = Image::uninitialised(v.width, v.height);
+    for (int y = 0; y < v.height; ++y) {
+      const float *a = v.row(y), *b = e->cview().row(y);
+      float *l = lo_own.pixel(0, y), *h = hi_own.pixel(0, y);
+      for (std::size_t i = 0; i < std::size_t(v.width) * kChannels; ++i) {
+        const bool alpha = i % kChannels == 3;
+        l[i] = alpha ? a[i] : std::nextafter(a[i] - b[i], -INFINITY);
+        h[i] = alpha ? a[i] : std::nextafter(a[i] + b[i], INFINITY);
+      }
+    }
+    lo = lo_own.cview();
+    hi = hi_own.cview();
+  } else {
+    return;
+  }
+  if (!lo.data || !hi.data) return;
+  const BlurDeviation dl(lo, spec.axis, kernel_, profile_), dh(hi, spec.axis, kernel_, profile_);
+  if (!dl.usable() || !dh.usable()) return;
+  Envelope env{oracle_stage(plan_, spec, sanitized_, {lo}, profile_.subtexel_bits, pool_),
+               oracle_stage(plan_, spec, sanitized_, {hi}, profile_.subtexel_bits, pool_)};
+  const Storage st = storage_at(spec);
+  const double arithmetic = 32 * profile_.unit_roundoff, floor = denormal_floor(profile_);
+  const int w = env.hi.width();
+  over_bands(env.hi.height(), judge_band(0), threads_, [&](int y0, int y1, int) {
+    const std::size_t values = std::size_t(y1 - y0) * w * kChannels;
+    std::vector<float> up(values), down(values), up_lo(values), down_lo(values);
+    dh.rows(y0, y1, up.data(), down.data());
+    dl.rows(y0, y1, up_lo.data(), down_lo.data());
+    float *H = env.hi.pixel(0, y0), *L = env.lo.pixel(0, y0);
+    for (std::size_t i = 0; i < values; ++i) {
+      const int c = static_cast<int>(i % kChannels);
+      if (c == 3) continue;
+      const double a = double(H[i]) + up[i], b = double(L[i]) - down_lo[i];
+      H[i] = std::nextafter(static_cast<float>(a + std::fabs(a) * arithmetic + floor +
+                                               storage_term(a, st, profile_, c)), INFINITY);
+      L[i] = std::nextafter(static_cast<float>(b - std::fabs(b) * arithmetic - floor -
+                                               storage_term(b, st, profile_, c)), -INFINITY);
+    }
+  });
+  if (prev != envelope_.end()) envelope_.erase(prev);
+  env_ = std::move(env);
+}
+
+// A band's envelope sums (EnergySums::env_*), of the captured blur pass being judged: each
+// value's error against the envelope's distance from the oracle on its side, plus the stage's
+// rounding terms (the oracle's own, which the envelope's arithmetic term may not cover for a
+// value near 0), whole and per tile.
+void Comparison::envelope_band(int y0, int y1, ConstImageView cap, const float* oracle,
+                               const float* rounding, EnergySums& es) const {
+  const int w = env_.hi.width(), tiles = (w + kTile - 1) / kTile;
+  for (int y = y0; y < y1; ++y) {
+    const std::size_t at0 = std::size_t(y - y0) * w * kChannels;
+    const float *H = env_.hi.cview().row(y), *L = env_.lo.cview().row(y), *g = cap.row(y);
+    for (int t = 0; t < tiles; ++t) {
+      EnergySums::Sum te{}, tu{}, td{};
+      for (int x = t * kTile; x < std::min(w, (t + 1) * kTile); ++x)
+        for (int c = 0; c < 3; ++c) {
+          const std::size_t i = std::size_t(x) * kChannels + c;
+          const double o = oracle[at0 + i], v = g[i], hi = H[i], lo = L[i];
+          if (!std::isfinite(o) || !std::isfinite(v) || !std::isfinite(hi) || !std::isfinite(lo))
+            continue;
+          const double r = rounding ? rounding[at0 + i] : 0.0;
+          const double up = std::max(hi - o, 0.0) + r, down = std::max(o - lo, 0.0) + r;
+          te[c] += v - o, tu[c] += up, td[c] += down;
+          ++es.env_values;
+          es.env_outside += v > hi + r || v < lo - r;
+        }
+      for (int c = 0; c < 3; ++c) {
+        es.env_err[c] += te[c], es.env_up[c] += tu[c], es.env_down[c] += td[c];
+        es.env_tile_ratio = std::max(es.env_tile_ratio, budget_ratio(te[c], tu[c], td[c]));
+      }
+    }
+  }
+}
+
+// The envelope gate of a captured blur pass that read a stage without capture: no device the
+// profile allows could write a value beyond the envelope, nor a total beyond the envelope's
+// (over the image and over each tile). More than the profile's over_fraction of the values
+// beyond it, or a total beyond it, fails.
+void Comparison::envelope_gate(StageComparison& s, const EnergySums& es) const {
+  if (es.env_values == 0) return;
+  const StageOverride* over = stage_override(profile_, name_);
+  if (over && (over->scale != 1.0 || over->absolute != 0.0)) return;  // widened on purpose
+  const ImageGates& gates = over && over->has_gates ? over->gates : profile_.gates;
+  s.envelope_outside = double(es.env_outside) / double(es.env_values);
+  int worst = 0;
+  double whole = 0;
+  for (int c = 0; c < 3; ++c) {
+    const double r = budget_ratio(es.env_err[c], es.env_up[c], es.env_down[c]);
+    if (r > whole) whole = r, worst = c;
+  }
+  s.envelope_ratio = std::max(whole, es.env_tile_ratio);
+  const bool by_values = gates.over_fraction > 0 && s.envelope_outside > gates.over_fraction;
+  const bool by_total = gates.gain > 0 && s.envelope_ratio > gates.gain;
+  if (!by_values && !by_total) return;
+  char buf[240];
+  if (by_total && whole > gates.gain) {
+    const double total = es.oracle[worst];
+    const double reach = total != 0 ? 1 + es.env_up[worst] / std::fabs(total) : INFINITY;
+    std::snprintf(buf, sizeof buf,
+                  "the total of %s is %.4gx the oracle's; from what this pass read, a device the "
+                  "profile allows reaches %.4gx at most (envelope gate: %.3gx its budget)",
+                  worst == 0 ? "R" : worst == 1 ? "G" : "B", s.gain[worst], reach, whole);
+  } else if (by_values) {
+    std::snprintf(buf, sizeof buf,
+                  "%.3g%% of the values lie beyond what any device the profile allows could "
+                  "write from what this pass read (envelope gate: %.3g%% allowed)",
+                  100 * s.envelope_outside, 100 * gates.over_fraction);
+  } else {
+    std::snprintf(buf, sizeof buf,
+                  "a tile's total error is %.3gx what any device the profile allows could make "
+                  "from what this pass read (envelope gate)",
+                  es.env_tile_ratio);
+  }
+  if (s.gate.empty()) {
+    s.gate_id = "envelope";
+    s.gate = buf;
+  }
+  if (s.nonfinite_mismatch == 0 && s.beyond_tier == 0) {
+    s.verdict = Verdict::fail;
+    s.reason = "image gate: " + s.gate;
+  }
 }
 
 // A captured stage: both comparisons, band by band; then, when it is not PASS, its causes, and
@@ -441,6 +611,7 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
     deviation_ = std::make_unique<BlurDeviation>(V(stage_inputs(plan_, *spec_)[0]), spec_->axis,
                                                  kernel_, profile_);
     if (!deviation_->usable()) deviation_.reset();
+    if (!streams_.captured(stage_inputs(plan_, *spec_)[0])) make_envelope(*spec_);
   }
   std::vector<EnergySums> energy(iso.size());
   over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
@@ -462,7 +633,9 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   EnergySums es;
   for (const EnergySums& b : energy) es.merge(b);
   gain_gates(s, s_e2e, es, stage_inputs(plan_, *spec_));
+  if (!env_.empty()) envelope_gate(s, es);
   deviation_.reset();
+  env_ = Envelope{};
   result_.end_to_end.push_back(std::move(s_e2e));
   const bool keep = opt_.keep_images && !(opt_.keep_failing_only && s.verdict == Verdict::pass);
   if ((opt_.causes && s.verdict != Verdict::pass) || keep) {
@@ -573,6 +746,7 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
     deviation_ = std::make_unique<BlurDeviation>(V(stage_inputs(plan_, *spec_)[0]), spec_->axis,
                                                  kernel_, profile_);
     if (!deviation_->usable()) deviation_.reset();
+    make_envelope(*spec_);
   }
   const int rows = judge_band(0);
   std::vector<EnergySums> energy(std::size_t((h + rows - 1) / rows));
@@ -625,6 +799,8 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
     }
   }
   deviation_.reset();
+  if (!env_.empty() && read_later) envelope_[name_] = std::move(env_);
+  env_ = Envelope{};
   computed_[name_] = std::move(t.oracle);
   if (!e_kept.empty()) e2e_[name_] = std::move(e_kept);
   if (read_later) carried_[name_] = std::move(carried);

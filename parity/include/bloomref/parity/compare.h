@@ -89,7 +89,8 @@ struct StageComparison {
   double mean_excess = 0, worst_window = 0;
   int worst_window_x = 0, worst_window_y = 0;
   std::string gate;
-  std::string gate_id;  ///< the gate that failed: "mean", "window", "over-fraction", "gain", "tile-gain"
+  std::string gate_id;  ///< the gate that failed: "mean", "window", "over-fraction", "gain",
+                        ///< "tile-gain", "envelope"
   /// The gain gates (docs/check.md, "Gain gates"), per channel R, G, B: the stage's total over
   /// the oracle's (`gain`) and the most the profile lets that total differ from the oracle's, as
   /// a fraction of it (`gain_allowed`: the smaller of the two signs' budgets); `gain_ratio` is
@@ -99,6 +100,12 @@ struct StageComparison {
   std::array<double, 3> gain{1, 1, 1}, gain_allowed{0, 0, 0};
   double gain_ratio = 0, tile_gain_ratio = 0;
   int tile_x = -1, tile_y = -1;
+  /// The envelope gate (docs/check.md, "Envelopes"), isolated blur passes that read a stage
+  /// without capture: the fraction of values beyond what any device the profile allows could
+  /// write from what the pass read (`envelope_outside`), and the largest total error over the
+  /// envelope's total, over the whole image and over every tile (`envelope_ratio`). -1: no
+  /// envelope was made. A fraction above the profile's over_fraction, or a ratio above 1, fails.
+  double envelope_outside = -1, envelope_ratio = -1;
   Image oracle, bound;                   ///< isolated comparisons, with CompareOptions::keep_images
   /// Fraction of the values within their bound (1 for PASS).
   double within() const {
