@@ -168,6 +168,7 @@ class Comparison {
     bool empty() const { return hi.empty(); }
   };
   void make_envelope(const StageSpec& spec);
+  void widen(const float* base, float* H, float* L, std::size_t values) const;
   void envelope_band(int y0, int y1, ConstImageView cap, const float* oracle,
                      const float* rounding, EnergySums& es) const;
   void envelope_gate(StageComparison& iso, const EnergySums& es) const;
@@ -232,6 +233,7 @@ class Comparison {
   std::unique_ptr<BlurDeviation> deviation_;  // of the blur pass being judged (when usable)
   std::map<std::string, Envelope> envelope_;  // of a blur pass without capture, for the next
   Envelope env_;                           // of the blur pass being judged or kept (or none)
+  bool env_from_deviation_ = false;        // its envelope is the oracle +- deviation_
   int stage_width_ = 0;                    // its width
   const StageSpec* spec_ = nullptr;        // the stage being judged
   std::string name_;
@@ -415,7 +417,8 @@ void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally&
   if (codes) add_rows(rounding, q, n);
   const float* slack = p_.storage == Storage::f16 ? inherited : nullptr;
   energy_band(y0, y1, true, oracle, full, bound, rounding, inherited, e, es);
-  if (!env_.empty() && !codes) envelope_band(y0, y1, cap.image, oracle, rounding, es);
+  if ((!env_.empty() || env_from_deviation_) && !codes)
+    envelope_band(y0, y1, cap.image, oracle, rounding, es);
   const std::size_t row = std::size_t(t.oracle.width()) * kChannels;
   for (int y = y0; y < y1; ++y) {
     const std::size_t at = std::size_t(y - y0) * row;
@@ -439,8 +442,7 @@ void over_bands(int height, int rows, int threads, Band band) {
 // carries. Weights and the bilinear interpolant are non-negative, so a device's pass is
 // monotone in its input: its value lies between the lowest and the highest its lookups could
 // take (BlurDeviation: exact over the profile's shifts) on the envelope's low and high images,
-// widened by the pass's arithmetic (32 f32 ULPs of the profile's unit roundoff, above the
-// (3 + 2 taps) a 9-tap pass rounds) and its storage. None where a shift reaches a texel.
+// widened (widen). None where a shift reaches a texel.
 void Comparison::make_envelope(const StageSpec& spec) {
   env_ = Envelope{};
   if (spec.kind != StageKind::blur) return;
@@ -476,8 +478,6 @@ void Comparison::make_envelope(const StageSpec& spec) {
   if (!dl.usable() || !dh.usable()) return;
   Envelope env{oracle_stage(plan_, spec, sanitized_, {lo}, profile_.subtexel_bits, pool_),
                oracle_stage(plan_, spec, sanitized_, {hi}, profile_.subtexel_bits, pool_)};
-  const Storage st = storage_at(spec);
-  const double arithmetic = 32 * profile_.unit_roundoff, floor = denormal_floor(profile_);
   const int w = env.hi.width();
   over_bands(env.hi.height(), judge_band(0), threads_, [&](int y0, int y1, int) {
     const std::size_t values = std::size_t(y1 - y0) * w * kChannels;
@@ -485,18 +485,32 @@ void Comparison::make_envelope(const StageSpec& spec) {
     dh.rows(y0, y1, up.data(), down.data());
     dl.rows(y0, y1, up_lo.data(), down_lo.data());
     float *H = env.hi.pixel(0, y0), *L = env.lo.pixel(0, y0);
-    for (std::size_t i = 0; i < values; ++i) {
-      const int c = static_cast<int>(i % kChannels);
-      if (c == 3) continue;
-      const double a = double(H[i]) + up[i], b = double(L[i]) - down_lo[i];
-      H[i] = std::nextafter(static_cast<float>(a + std::fabs(a) * arithmetic + floor +
-                                               storage_term(a, st, profile_, c)), INFINITY);
-      L[i] = std::nextafter(static_cast<float>(b - std::fabs(b) * arithmetic - floor -
-                                               storage_term(b, st, profile_, c)), -INFINITY);
-    }
+    for (std::size_t i = 0; i < values; ++i) up[i] += H[i], down_lo[i] = L[i] - down_lo[i];
+    widen(nullptr, up.data(), down_lo.data(), values);
+    std::copy(up.begin(), up.end(), H);
+    std::copy(down_lo.begin(), down_lo.end(), L);
   });
   if (prev != envelope_.end()) envelope_.erase(prev);
   env_ = std::move(env);
+}
+
+// The envelope's ends from a pass's highest and lowest sums (H and L; with `base`, base + H and
+// base - L), widened by the pass's arithmetic (32 f32 ULPs of the profile's unit roundoff,
+// above the (3 + 2 taps) roundings of a 9-tap pass), the denormal floor and its storage, and
+// rounded outward to float.
+void Comparison::widen(const float* base, float* H, float* L, std::size_t values) const {
+  const Storage st = storage_at(*spec_);
+  const double arithmetic = 32 * profile_.unit_roundoff, floor = denormal_floor(profile_);
+  for (std::size_t i = 0; i < values; ++i) {
+    const int c = static_cast<int>(i % kChannels);
+    if (c == 3) continue;
+    const double a = base ? double(base[i]) + H[i] : double(H[i]);
+    const double b = base ? double(base[i]) - L[i] : double(L[i]);
+    H[i] = std::nextafter(static_cast<float>(a + std::fabs(a) * arithmetic + floor +
+                                             storage_term(a, st, profile_, c)), INFINITY);
+    L[i] = std::nextafter(static_cast<float>(b - std::fabs(b) * arithmetic - floor -
+                                             storage_term(b, st, profile_, c)), -INFINITY);
+  }
 }
 
 // A band's envelope sums (EnergySums::env_*), of the captured blur pass being judged: each
@@ -505,10 +519,21 @@ void Comparison::make_envelope(const StageSpec& spec) {
 // value near 0), whole and per tile.
 void Comparison::envelope_band(int y0, int y1, ConstImageView cap, const float* oracle,
                                const float* rounding, EnergySums& es) const {
-  const int w = env_.hi.width(), tiles = (w + kTile - 1) / kTile;
+  const int w = stage_width_, tiles = (w + kTile - 1) / kTile;
+  std::vector<float> made;
+  if (env_.empty()) {
+    // The oracle's pass on the captured input, moved by its lookups' deviation either way.
+    const std::size_t values = std::size_t(y1 - y0) * w * kChannels;
+    made.resize(2 * values);
+    float *H = made.data(), *L = H + values;
+    deviation_->rows(y0, y1, H, L);
+    widen(oracle, H, L, values);
+  }
   for (int y = y0; y < y1; ++y) {
     const std::size_t at0 = std::size_t(y - y0) * w * kChannels;
-    const float *H = env_.hi.cview().row(y), *L = env_.lo.cview().row(y), *g = cap.row(y);
+    const float *H = env_.empty() ? made.data() + at0 : env_.hi.cview().row(y);
+    const float *L = env_.empty() ? made.data() + made.size() / 2 + at0 : env_.lo.cview().row(y);
+    const float *g = cap.row(y);
     for (int t = 0; t < tiles; ++t) {
       EnergySums::Sum te{}, tu{}, td{};
       for (int x = t * kTile; x < std::min(w, (t + 1) * kTile); ++x)
@@ -611,7 +636,10 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
     deviation_ = std::make_unique<BlurDeviation>(V(stage_inputs(plan_, *spec_)[0]), spec_->axis,
                                                  kernel_, profile_);
     if (!deviation_->usable()) deviation_.reset();
+    // From a captured input the envelope is the oracle's pass and its lookups' deviation
+    // (envelope_band makes it band by band); otherwise it is carried (make_envelope).
     if (!streams_.captured(stage_inputs(plan_, *spec_)[0])) make_envelope(*spec_);
+    else env_from_deviation_ = deviation_ != nullptr;
   }
   std::vector<EnergySums> energy(iso.size());
   over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
@@ -633,9 +661,10 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   EnergySums es;
   for (const EnergySums& b : energy) es.merge(b);
   gain_gates(s, s_e2e, es, stage_inputs(plan_, *spec_));
-  if (!env_.empty()) envelope_gate(s, es);
+  if (!env_.empty() || env_from_deviation_) envelope_gate(s, es);
   deviation_.reset();
   env_ = Envelope{};
+  env_from_deviation_ = false;
   result_.end_to_end.push_back(std::move(s_e2e));
   const bool keep = opt_.keep_images && !(opt_.keep_failing_only && s.verdict == Verdict::pass);
   if ((opt_.causes && s.verdict != Verdict::pass) || keep) {
