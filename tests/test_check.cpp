@@ -754,7 +754,10 @@ TEST_CASE("image gates catch an error each value's bound lets through", "[check]
   const auto cpu = trace_of(p, scene);
   const parity::DeviceProfile gated = kProfile;
   parity::DeviceProfile ungated = kProfile;
-  ungated.gates = parity::ImageGates{0, 0, 8, 0};
+  ungated.gates = parity::ImageGates{0, 0, 8, 0, 0};
+  // The gain and envelope gates alone (gates.gain).
+  parity::DeviceProfile totals_only = ungated;
+  totals_only.gates.gain = 1;
   const auto honest = check_with(gated, p, scene, {{"output", cpu.at("output")}}, true);
   REQUIRE(honest.verdict == Verdict::pass);
   const parity::StageComparison& s = honest.isolated.front();
@@ -769,6 +772,12 @@ TEST_CASE("image gates catch an error each value's bound lets through", "[check]
   CHECK(r.isolated.front().reason.find("mean error") != std::string::npos);
   CHECK(r.isolated.front().mean_excess == Approx(0.6).epsilon(0.05));
   CHECK(check_with(ungated, p, scene, {{"output", offset}}).verdict == Verdict::pass);
+  // No device could raise every output value by that much from this bright image: the output's
+  // envelope (through the blur passes, the composite, tone map and gamma without capture) fails
+  // it by its total.
+  r = check_with(totals_only, p, scene, {{"output", offset}});
+  CHECK(r.verdict == Verdict::fail);
+  CHECK(r.isolated.front().gate_id == "envelope");
 
   // 0.9 of the bound in the 8x8 window at (16, 8) only: the window gate (0.5) fails there.
   Image region = output_plus_bound(s, cpu.at("output"), 0.9,

@@ -168,6 +168,7 @@ class Comparison {
     bool empty() const { return hi.empty(); }
   };
   void make_envelope(const StageSpec& spec);
+  void make_finish_envelope(const StageSpec& spec);
   void widen(const float* base, float* H, float* L, std::size_t values) const;
   void envelope_band(int y0, int y1, ConstImageView cap, const float* oracle,
                      const float* rounding, EnergySums& es) const;
@@ -494,6 +495,119 @@ void Comparison::make_envelope(const StageSpec& spec) {
   env_ = std::move(env);
 }
 
+// The envelope of a finishing stage (the composite, the tone map, the output; env_) whose
+// inputs include a stage without capture that has one. Each is monotone in every input (the
+// composite for a strength in [0, 1] under mix, or not negative under add; the tone map for a
+// positive exposure; the output for a positive gamma), so the envelope is the stage's value at
+// its inputs' low and high ends: captures exactly, stages without capture their envelope or
+// the error they carry. The composite's reads at interpolated coordinates may blend in up to
+// 2d of the neighbours' difference (d: coordinate_error; bilinear weights off their texel sum
+// to at most 2d); then each end is widened by the stage's arithmetic (the composite's two
+// roundings twice over; exp's (3 + 2|x|) ULP, absolute, and the series', at most 64 ULPs of 1;
+// pow's exp2 and log2 ULPs relative, (8 + 6|y log2 x|) ULP, and log2's 2^-21 absolute as 2^-20
+// relative), the denormal floor and one storage rounding. None where d reaches a texel.
+void Comparison::make_finish_envelope(const StageSpec& spec) {
+  const StageKind k = spec.kind;
+  if (k != StageKind::composite && k != StageKind::tonemap && k != StageKind::output) return;
+  env_ = Envelope{};
+  const std::vector<std::string> in = stage_inputs(plan_, spec);
+  bool any = false;
+  for (const std::string& n : in) any = any || envelope_.count(n);
+  if (!any) return;
+  const double s = p_.strength;
+  if (k == StageKind::composite &&
+      (p_.composite_mode == CompositeMode::mix ? !(s >= 0 && s <= 1) : !(s >= 0)))
+    return;
+  if ((k == StageKind::tonemap && !(p_.exposure > 0)) || (k == StageKind::output && !(p_.gamma > 0)))
+    return;
+  std::vector<ConstImageView> lo, hi;
+  std::vector<Image> own;
+  own.reserve(2 * in.size());
+  for (const std::string& n : in) {
+    const auto e = envelope_.find(n);
+    if (streams_.captured(n)) {
+      lo.push_back(V(n));
+      hi.push_back(V(n));
+    } else if (e != envelope_.end()) {
+      lo.push_back(e->second.lo.cview());
+      hi.push_back(e->second.hi.cview());
+    } else if (const Image* err = E(n)) {
+      const ConstImageView v = V(n);
+      Image& l = own.emplace_back(Image::uninitialised(v.width, v.height));
+      Image& u = own.emplace_back(Image::uninitialised(v.width, v.height));
+      for (int y = 0; y < v.height; ++y)
+        for (std::size_t i = 0; i < std::size_t(v.width) * kChannels; ++i) {
+          const float a = v.row(y)[i], b = err->cview().row(y)[i];
+          l.pixel(0, y)[i] = std::nextafter(a - b, -INFINITY);
+          u.pixel(0, y)[i] = std::nextafter(a + b, INFINITY);
+        }
+      lo.push_back(l.cview());
+      hi.push_back(u.cview());
+    } else {
+      return;
+    }
+    if (!lo.back().data || lo.back().width != lo[0].width || lo.back().height != lo[0].height) return;
+  }
+  const int w = lo[0].width, h = lo[0].height;
+  const double d = k == StageKind::composite && opt_.interpolated_reads
+                       ? std::max(coordinate_error(w, profile_), coordinate_error(h, profile_))
+                       : 0.0;
+  if (d >= 1) return;
+  const double U = profile_.unit_roundoff, floor = denormal_floor(profile_);
+  const Storage st = storage_at(spec);
+  // A read at interpolated coordinates: the texel's value moved toward its 3x3 neighbours'
+  // extreme by up to 2d of the difference.
+  auto read = [d](ConstImageView v, int x, int y, int c, bool up) {
+    const double at = v.pixel(x, y)[c];
+    if (d == 0) return at;
+    double ext = at;
+    for (int j = std::max(0, y - 1); j <= std::min(v.height - 1, y + 1); ++j)
+      for (int i = std::max(0, x - 1); i <= std::min(v.width - 1, x + 1); ++i)
+        ext = up ? std::max(ext, double(v.pixel(i, j)[c])) : std::min(ext, double(v.pixel(i, j)[c]));
+    return at + 2 * d * (ext - at);
+  };
+  Envelope env{Image::uninitialised(w, h), Image::uninitialised(w, h)};
+  const double y_exp = 1.0 / p_.gamma;
+  over_bands(h, judge_band(0), threads_, [&](int y0, int y1, int) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < w; ++x) {
+        float *H = env.hi.pixel(x, y), *L = env.lo.pixel(x, y);
+        H[3] = L[3] = 1.0f;
+        for (int c = 0; c < 3; ++c) {
+          double top = 0, bottom = 0, margin_top = 0, margin_bottom = 0;
+          if (k == StageKind::composite) {
+            const double ah = read(hi[0], x, y, c, true), al = read(lo[0], x, y, c, false);
+            const double bh = read(hi[1], x, y, c, true), bl = read(lo[1], x, y, c, false);
+            const double a = p_.composite_mode == CompositeMode::mix ? 1 - s : 1.0;
+            top = a * ah + s * bh;
+            bottom = a * al + s * bl;
+            margin_top = 4 * U * (std::fabs(ah) + std::fabs(s * bh) + std::fabs(top));
+            margin_bottom = 4 * U * (std::fabs(al) + std::fabs(s * bl) + std::fabs(bottom));
+          } else if (k == StageKind::tonemap) {
+            top = -std::expm1(-double(hi[0].pixel(x, y)[c]) * p_.exposure);
+            bottom = -std::expm1(-double(lo[0].pixel(x, y)[c]) * p_.exposure);
+            margin_top = margin_bottom = 64 * U;
+          } else {
+            const double th = std::max(double(hi[0].pixel(x, y)[c]), 0.0);
+            const double tl = std::max(double(lo[0].pixel(x, y)[c]), 0.0);
+            top = std::pow(th, y_exp);
+            bottom = std::pow(tl, y_exp);
+            auto rel = [&](double t) {
+              return (8 + 6 * std::fabs(y_exp * std::log2(std::max(t, 0x1p-126)))) * U + 0x1p-20;
+            };
+            margin_top = top * rel(th) + std::pow(0x1p-126, y_exp);
+            margin_bottom = bottom * rel(tl) + std::pow(0x1p-126, y_exp);
+          }
+          const double t = top + margin_top + floor, b = bottom - margin_bottom - floor;
+          H[c] = std::nextafter(static_cast<float>(t + storage_term(t, st, profile_, c)), INFINITY);
+          L[c] = std::nextafter(static_cast<float>(b - storage_term(b, st, profile_, c)), -INFINITY);
+        }
+      }
+  });
+  for (const std::string& n : in) envelope_.erase(n);
+  env_ = std::move(env);
+}
+
 // The envelope's ends from a pass's highest and lowest sums (H and L; with `base`, base + H and
 // base - L), widened by the pass's arithmetic (32 f32 ULPs of the profile's unit roundoff,
 // above the (3 + 2 taps) roundings of a 9-tap pass), the denormal floor and its storage, and
@@ -641,6 +755,7 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
     if (!streams_.captured(stage_inputs(plan_, *spec_)[0])) make_envelope(*spec_);
     else env_from_deviation_ = deviation_ != nullptr;
   }
+  if (!codes && fits) make_finish_envelope(*spec_);
   std::vector<EnergySums> energy(iso.size());
   over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
     band_captured(y0, y1, t, iso[b], e2e[b], kept, fits, energy[b]);
@@ -777,6 +892,7 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
     if (!deviation_->usable()) deviation_.reset();
     make_envelope(*spec_);
   }
+  if (read_later) make_finish_envelope(*spec_);
   const int rows = judge_band(0);
   std::vector<EnergySums> energy(std::size_t((h + rows - 1) / rows));
   over_bands(h, rows, threads_, [&](int y0, int y1, int b) {
