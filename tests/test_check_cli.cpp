@@ -306,6 +306,11 @@ TEST_CASE("a verdict says what it could see, a weak one is WARN, a brighter bloo
   CHECK(v10["verdict"] == "FAIL");
   CHECK(v10["envelope_gate"].is_number());
   CHECK((v10["envelope_gate"].get<double>() > 1 || v10["envelope_outside_fraction"].get<double>() > 0.01));
+  // Its cause is scored within the envelope (every value is within its bound): a gain, fitted.
+  const json& v10_stage = j["items"][0]["stages"][0];
+  REQUIRE(v10_stage["cause"].is_object());
+  CHECK(v10_stage["cause"]["id"] == "weight-sum");
+  CHECK(v10_stage["cause"]["likely"] == true);
   // The clean blur.10 and output lie within their envelope.
   fs::create_directory(dir / "clean");
   for (const std::string f : {"blur.10.exr", "output.exr"}) fs::copy_file(dir / ("d/" + f), dir / ("clean/" + f));

@@ -170,6 +170,8 @@ class Comparison {
   void make_envelope(const StageSpec& spec);
   void make_finish_envelope(const StageSpec& spec);
   void widen(const float* base, float* H, float* L, std::size_t values) const;
+  void envelope_rows(int y0, int y1, const float* oracle, float* H, float* L) const;
+  void narrow_to_envelope(const Image& oracle, ConstImageView cap, Image& bound) const;
   void envelope_band(int y0, int y1, ConstImageView cap, const float* oracle,
                      const float* rounding, EnergySums& es) const;
   void envelope_gate(StageComparison& iso, const EnergySums& es) const;
@@ -627,6 +629,39 @@ void Comparison::widen(const float* base, float* H, float* L, std::size_t values
   }
 }
 
+// The envelope's rows [y0, y1) of the stage being judged into H and L: env_'s, or (a blur pass
+// that read a capture) the oracle's rows moved by its lookups' deviation either way.
+void Comparison::envelope_rows(int y0, int y1, const float* oracle, float* H, float* L) const {
+  const std::size_t n = std::size_t(y1 - y0) * stage_width_ * kChannels;
+  if (!env_.empty()) {
+    std::copy(env_.hi.cview().row(y0), env_.hi.cview().row(y0) + n, H);
+    std::copy(env_.lo.cview().row(y0), env_.lo.cview().row(y0) + n, L);
+    return;
+  }
+  deviation_->rows(y0, y1, H, L);
+  widen(oracle, H, L, n);
+}
+
+// The bound causes are scored with when the stage has an envelope: each value's bound narrowed
+// to the envelope's distance from the oracle on the side the capture lies. A stage that fails
+// by a gate has its values within their bounds, and every hypothesis would score as the oracle
+// does; within the envelope, the one that makes the capture's values explains them.
+void Comparison::narrow_to_envelope(const Image& oracle, ConstImageView cap, Image& bound) const {
+  const int w = oracle.width();
+  over_bands(oracle.height(), judge_band(0), threads_, [&](int y0, int y1, int) {
+    const std::size_t n = std::size_t(y1 - y0) * w * kChannels;
+    std::vector<float> rows(2 * n);
+    envelope_rows(y0, y1, oracle.cview().row(y0), rows.data(), rows.data() + n);
+    const float *o = oracle.cview().row(y0), *g = cap.row(y0);
+    float* b = bound.pixel(0, y0);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i % kChannels == 3) continue;
+      const double d = std::max(g[i] >= o[i] ? double(rows[i]) - o[i] : o[i] - double(rows[n + i]), 0.0);
+      if (d < b[i]) b[i] = static_cast<float>(d);
+    }
+  });
+}
+
 // A band's envelope sums (EnergySums::env_*), of the captured blur pass being judged: each
 // value's error against the envelope's distance from the oracle on its side, plus the stage's
 // rounding terms (the oracle's own, which the envelope's arithmetic term may not cover for a
@@ -634,20 +669,12 @@ void Comparison::widen(const float* base, float* H, float* L, std::size_t values
 void Comparison::envelope_band(int y0, int y1, ConstImageView cap, const float* oracle,
                                const float* rounding, EnergySums& es) const {
   const int w = stage_width_, tiles = (w + kTile - 1) / kTile;
-  std::vector<float> made;
-  if (env_.empty()) {
-    // The oracle's pass on the captured input, moved by its lookups' deviation either way.
-    const std::size_t values = std::size_t(y1 - y0) * w * kChannels;
-    made.resize(2 * values);
-    float *H = made.data(), *L = H + values;
-    deviation_->rows(y0, y1, H, L);
-    widen(oracle, H, L, values);
-  }
+  const std::size_t values = std::size_t(y1 - y0) * w * kChannels;
+  std::vector<float> rows(2 * values);
+  envelope_rows(y0, y1, oracle, rows.data(), rows.data() + values);
   for (int y = y0; y < y1; ++y) {
     const std::size_t at0 = std::size_t(y - y0) * w * kChannels;
-    const float *H = env_.empty() ? made.data() + at0 : env_.hi.cview().row(y);
-    const float *L = env_.empty() ? made.data() + made.size() / 2 + at0 : env_.lo.cview().row(y);
-    const float *g = cap.row(y);
+    const float *H = rows.data() + at0, *L = rows.data() + values + at0, *g = cap.row(y);
     for (int t = 0; t < tiles; ++t) {
       EnergySums::Sum te{}, tu{}, td{};
       for (int x = t * kTile; x < std::min(w, (t + 1) * kTile); ++x)
@@ -776,20 +803,31 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   EnergySums es;
   for (const EnergySums& b : energy) es.merge(b);
   gain_gates(s, s_e2e, es, stage_inputs(plan_, *spec_));
-  if (!env_.empty() || env_from_deviation_) envelope_gate(s, es);
-  deviation_.reset();
-  env_ = Envelope{};
-  env_from_deviation_ = false;
+  const bool enveloped = !env_.empty() || env_from_deviation_;
+  if (enveloped) envelope_gate(s, es);
   result_.end_to_end.push_back(std::move(s_e2e));
   const bool keep = opt_.keep_images && !(opt_.keep_failing_only && s.verdict == Verdict::pass);
   if ((opt_.causes && s.verdict != Verdict::pass) || keep) {
     Image bound = bound_kept.empty() ? final_bound(t) : std::move(bound_kept);
-    if (opt_.causes && s.verdict != Verdict::pass) test_causes_of(*spec_, s, t.oracle, bound);
+    if (opt_.causes && s.verdict != Verdict::pass) {
+      // Only a failure by a gate, every value within its bound: a value's bound already
+      // separates the hypotheses of a failure by values, each with its own sampling.
+      if (enveloped && !codes && s.over_bound == 0 && s.nonfinite_mismatch == 0) {
+        Image narrowed = bound;
+        narrow_to_envelope(t.oracle, cap.image, narrowed);
+        test_causes_of(*spec_, s, t.oracle, narrowed);
+      } else {
+        test_causes_of(*spec_, s, t.oracle, bound);
+      }
+    }
     if (keep) {
       s.oracle = std::move(t.oracle);
       s.bound = std::move(bound);
     }
   }
+  deviation_.reset();
+  env_ = Envelope{};
+  env_from_deviation_ = false;
   result_.isolated.push_back(std::move(s));
 }
 
