@@ -27,6 +27,7 @@ struct RunArgs {
   std::vector<std::string> outputs;
   std::string backend = "cpu";
   std::string gl_shaders = "fragment";
+  std::string fault = "none";  // --inject-fault (GL backend)
   std::string dump_dir;
   std::string dump_compression = "zip";
   std::string json_path;
@@ -76,6 +77,8 @@ void check_run_args(const RunArgs& a, bool records) {
   if (a.backend != "cpu" && a.backend != "gl")
     throw ParamError("--backend '" + a.backend + "' is not one of: cpu, gl");
   if (a.repeat < 1) throw ParamError("--repeat must be >= 1");
+  if (a.fault != "none" && a.backend != "gl") throw ParamError("--inject-fault needs --backend gl");
+  if (a.fault != "none") gpu::parse_fault(a.fault);  // an unknown name before any work
   // Every run's timings are kept for the medians and listed in the JSON: bounded memory.
   if (a.repeat > kMaxRepeat)
     throw ParamError("--repeat must be at most " + std::to_string(kMaxRepeat) +
@@ -143,6 +146,7 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
     gpu::GlOptions go;
     go.shaders = gpu::parse_shader_kind(a.gl_shaders);
     go.keep_all = !a.dump_dir.empty();
+    go.fault = a.fault == "none" ? gpu::Fault::none : gpu::parse_fault(a.fault);
     trace = gpu::execute_gl(*ctx, plan, in.image.cview(), go);
     renderer = "gl (" + gpu::to_string(go.shaders) + " shaders): " + ctx->info().renderer +
                ", " + ctx->info().version;
@@ -192,6 +196,9 @@ std::function<int()> add_run(CLI::App& app) {
   sub->add_option("-o,--output", args->outputs, "output .exr (float, display-referred) or .png; repeatable");
   sub->add_option("--backend", args->backend, "cpu | gl")->capture_default_str();
   sub->add_option("--gl-shaders", args->gl_shaders, "fragment | compute (GL backend)")
+      ->capture_default_str();
+  sub->add_option("--inject-fault", args->fault,
+                  "GL backend: a deliberate bug, as compare's (to see that a check catches it)")
       ->capture_default_str();
   sub->add_option("--dump-stages", args->dump_dir, "write DIR/<stage>.exr for every stage");
   sub->add_option("--dump-compression", args->dump_compression,

@@ -1178,3 +1178,35 @@ TEST_CASE("fuzz: a random bug in a random scene is named right or not at all", "
   CHECK(wrong == 0);
   CHECK(right >= 0.8 * detected);
 }
+
+TEST_CASE("a mip level read from the wrong level is named with the levels", "[check][causes]") {
+  // 40x32: levels 20x16, 10x8, 5x4, 2x2, 1x1. down.3 made from down.1 (the level one further
+  // up the chain) where down.2 is specified, at level 3's size with its own pass's options;
+  // every other stage as the reference makes it. (bloomref's GL host reading up.4 for up.2
+  // is tests/test_gl_faults.cpp's.)
+  const Image scene = test_scene();
+  BloomParams p = test_params();
+  p.method = Method::mip;
+  const auto t = trace_of(p, scene);
+  const Plan plan = parity::plan_for_device(p, scene.cview(), kProfile);
+  REQUIRE(plan.levels.size() >= 4);
+  std::map<std::string, Image> user = t;
+  Image wrong(plan.levels[2].width, plan.levels[2].height);
+  downsample(t.at("down.1").cview(), wrong.view(),
+             downsample_options(plan.params, 3, kW, kH, kProfile.subtexel_bits), 1);
+  user["down.3"] = wrong;
+  const auto r = check(p, scene, {{"down.1", t.at("down.1")}, {"down.2", t.at("down.2")},
+                                  {"down.3", user.at("down.3")}});
+  REQUIRE(r.first_divergent_stage);
+  CHECK(*r.first_divergent_stage == "down.3");
+  const auto& s = stage(r, "down.3");
+  INFO(s.reason);
+  CHECK(best_cause(s) == "mip-level-offset");
+  REQUIRE_FALSE(s.causes.empty());
+  CHECK(s.causes.front().likely());
+  CHECK(s.causes.front().detail == "down.3 reads down.1 where down.2 is specified");
+  // The right level, captured as the reference makes it, names nothing.
+  const auto clean = check(p, scene, {{"down.1", t.at("down.1")}, {"down.2", t.at("down.2")},
+                                      {"down.3", t.at("down.3")}});
+  CHECK(clean.verdict == Verdict::pass);
+}

@@ -112,6 +112,18 @@ void check_fault_matrix(Method method, const std::vector<std::string>& corpus_na
       } else {
         CHECK(charged == expected);
       }
+      if (fault.fault == gpu::Fault::level_offset) {
+        // A host-code bug no shader edit makes: named, with the levels it read.
+        co.causes = true;
+        const parity::ParityResult named = parity::compare_with_oracle(plan, image.cview(), gl, profile, co);
+        for (const parity::StageComparison& s : named.isolated)
+          if (s.stage == expected) {
+            REQUIRE_FALSE(s.causes.empty());
+            CHECK(s.causes.front().id == "mip-level-offset");
+            CHECK(s.causes.front().likely());
+            CHECK(s.causes.front().detail == "up.2 reads up.4 where up.3 is specified");
+          }
+      }
     }
   }
 }

@@ -82,6 +82,9 @@ const std::vector<FaultInfo>& fault_list() {
        "mip: Karis weights not normalised within their group (with --karis)"},
       {Fault::level_size, "level-size", "down.2",
        "mip: level 2 one texel wider than max(1, floor(n / 2))"},
+      {Fault::level_offset, "mip-level-offset", "up.2",
+       "mip: the upsample of level 2 reads level 4 where level 3 is specified (an index off by "
+       "one; needs 4 levels)"},
   };
   return list;
 }
@@ -97,7 +100,7 @@ Fault parse_fault(const std::string& name) {
 
 bool fault_applies(Fault f, Method m) {
   const bool mip_fault = f == Fault::tap_offset || f == Fault::karis_unnormalised ||
-                         f == Fault::level_size;
+                         f == Fault::level_size || f == Fault::level_offset;
   const bool gaussian_fault = f == Fault::vertical_offsets_x || f == Fault::half_texel_shift ||
                               f == Fault::repeat_wrap || f == Fault::threshold_ge ||
                               f == Fault::weight_1pct || f == Fault::weight_0_1pct ||

@@ -390,7 +390,10 @@ class GlExecutor {
 
   void up(const StageSpec& s, Clock::time_point t0) {
     const int k = s.pass, top = static_cast<int>(plan_.levels.size());
-    const Texture& small = k + 1 == top ? tex_.down[top - 1] : tex_.up[k];
+    // Level k + 1's result (the deepest level's downsample); with the fault, level 2 reads the
+    // one after it.
+    const int read = opt_.fault == Fault::level_offset && k == 2 && top >= 4 ? k + 1 : k;
+    const Texture& small = read + 1 == top ? tex_.down[top - 1] : tex_.up[read];
     if (!cleared_dark(s.name, tex_.up[k - 1])) {
       progs_.up.set("has_current", 1);
       runner_.run(progs_.up, {&small, &tex_.down[k - 1]}, tex_.up[k - 1]);

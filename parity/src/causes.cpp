@@ -66,6 +66,7 @@ struct Hypothesis {
   bool nonfinite = false;     // NaN/Inf made at the target stage (the capture's, where the
                               // oracle's value is finite)
   bool vertical_first = false;  // the blur starts with a vertical pass: every pass's axis swapped
+  std::string source;         // a mip stage reads this level where its first input is specified
   int params = 0;             // how many numbers were fitted to the capture
   bool sampled() const { return !sampling.is_default(); }
   /// Changes only the target's own output after the oracle computed it (a gain, the capture's
@@ -78,7 +79,7 @@ struct Hypothesis {
            std::isnan(add_amount) && tent_gain == 1.0f && !other_texel_step &&
            !pow_negative_karis &&
            flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored &&
-           !vertical_first;
+           !vertical_first && source.empty();
   }
 };
 
@@ -94,8 +95,9 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
       return h.sampled() || h.kernel || h.clamp_blur || h.vertical_first ||
              (is_target && (!h.weights.empty() || h.stale || h.along_x || h.spacing != 1.0f)) ||
              h.f16;
-    case StageKind::down: return h.sampled() || h.ge || h.f16 || h.other_texel_step;
-    case StageKind::up:
+    case StageKind::down:
+      return h.sampled() || h.ge || h.f16 || h.other_texel_step || (is_target && !h.source.empty());
+    case StageKind::up: return h.sampled() || h.f16 || (is_target && !h.source.empty());
     case StageKind::bloom: return h.sampled() || h.f16;
     case StageKind::composite:
       return h.f16 || h.rgba8 || h.strength_scale != 1.0f || !std::isnan(h.mix_amount) ||
@@ -305,6 +307,10 @@ class Evaluator {
     const std::vector<std::string> names = stage_inputs(ctx_.plan, spec);
     std::vector<ConstImageView> in;
     for (const std::string& n : names) in.push_back(value(n).view);
+    if (is_target && !h_.source.empty()) {
+      in[0] = value(h_.source).view;
+      if (!in[0].data) throw NotApplicable{};
+    }
     const int threads = ctx_.threads;
     Sampling smp = h_.sampling;
     smp.subtexel_bits = ctx_.profile.subtexel_bits;
@@ -1319,6 +1325,23 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       std::snprintf(b, sizeof b, "level %d reads a %dx%d level whose halved float size is %gx%g", k,
                     sw, sh, double(halved_size(w, k - 1)), double(halved_size(h, k - 1)));
       hy->detail = b;
+    }
+  }
+  if ((target.kind == StageKind::down || target.kind == StageKind::up) && target.pass >= 1) {
+    // A level read from the wrong place in the chain (an index off by one): the level one
+    // further along it (the source's own source), or, for an upsample, its own level's
+    // downsample where the next level's result is specified.
+    const std::vector<std::string> in = stage_inputs(ctx.plan, target);
+    std::vector<std::string> others;
+    if (const StageSpec* src = find_stage(ctx.plan, in[0]))
+      if (src->kind == target.kind && !stage_inputs(ctx.plan, *src).empty())
+        others.push_back(stage_inputs(ctx.plan, *src)[0]);
+    if (target.kind == StageKind::up && in.size() > 1) others.push_back(in[1]);
+    for (const std::string& o : others) {
+      if (!ctx.view(o).data) continue;
+      Hypothesis* h = add("mip-level-offset", "a mip level read from the wrong level (an index off by one)");
+      h->source = o;
+      h->detail = target.name + " reads " + o + " where " + in[0] + " is specified";
     }
   }
   if (target.kind == StageKind::up && oracle.width()) {

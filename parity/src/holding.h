@@ -69,11 +69,21 @@ class Streams {
         chain_[in] = std::max(get(chain_, in), until);
       }
     if (causes)
-      for (const StageSpec& s : st)
+      for (const StageSpec& s : st) {
         if (s.kind == StageKind::blur && s.pass >= 3) {
           const std::string back = "blur." + std::to_string(s.pass - 2);
           chain_[back] = std::max(get(chain_, back), index_[s.name]);
         }
+        // A mip stage's source's own source: the level one further along the chain, which
+        // mip-level-offset reads instead.
+        if (s.kind == StageKind::down || s.kind == StageKind::up) {
+          const StageSpec* src = find_stage(plan, stage_inputs(plan, s)[0]);
+          if (src && !stage_inputs(plan, *src).empty()) {
+            const std::string back = stage_inputs(plan, *src)[0];
+            chain_[back] = std::max(get(chain_, back), index_[s.name]);
+          }
+        }
+      }
   }
   bool captured(const std::string& n) const { return captured_.count(n) > 0; }
   /// Whether a stage after `index` reads `n`.

@@ -39,6 +39,7 @@ enum class Fault {
   tap_offset,          ///< downsample tap 5 at 1.5x its offset
   karis_unnormalised,  ///< Karis weights not divided by their group's sum (needs --karis)
   level_size,          ///< level 2 allocated one texel wider than max(1, floor(n / 2))
+  level_offset,        ///< the upsample of level 2 reads level 4 where level 3 is specified
 };
 
 struct FaultInfo {
