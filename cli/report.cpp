@@ -351,6 +351,11 @@ std::string cause_line(const parity::StageComparison& s) {
                      c.description + " (brings " + percent(c.within) +
                      " of values within bound; as specified " + percent(c.oracle_within) + ")";
   if (!c.detail.empty()) line += "; " + c.detail;
+  if (std::isfinite(c.low) && std::isfinite(c.high)) {
+    char b[120];
+    std::snprintf(b, sizeof b, " (fitted %.5g; explains from %.5g to %.5g)", c.value, c.low, c.high);
+    line += b;
+  }
   // Other causes that explain as much are said too: the captures cannot tell them apart.
   for (std::size_t i = 1; i < s.causes.size(); ++i) {
     const parity::CauseFit& o = s.causes[i];

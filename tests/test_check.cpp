@@ -285,6 +285,20 @@ TEST_CASE("tap spacing and a weight sum are fitted and named before fitted weigh
     CHECK(s.causes.front().likely());
     CHECK(s.causes.front().params == 1);
     CHECK(s.causes.front().detail.find(c.detail) != std::string::npos);
+    // The fitted number's interval holds the planted one, and is narrower than the planted
+    // change (the spacing of an anisotropic blur is the texel-size ratio, fitted as 1/k).
+    const parity::CauseFit& f = s.causes.front();
+    REQUIRE(std::isfinite(f.low));
+    REQUIRE(std::isfinite(f.high));
+    INFO("fitted " << f.value << " in [" << f.low << ", " << f.high << "]");
+    CHECK(f.low <= f.value);
+    CHECK(f.value <= f.high);
+    const double planted = c.gain != 1 ? c.gain : c.spacing;
+    if (c.cause != std::string("anisotropic-blur")) {
+      CHECK(f.low <= planted);
+      CHECK(planted <= f.high);
+      CHECK(f.high - f.low < 0.5 * std::fabs(planted - 1));
+    }
     for (std::size_t i = 1; i < s.causes.size(); ++i)
       if (s.causes[i].id == "wrong-weights")
         CHECK(s.causes[i].description.find("description") != std::string::npos);

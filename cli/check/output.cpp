@@ -89,7 +89,10 @@ ordered_json stage_json(const parity::StageComparison& s) {
 ordered_json cause_json(const parity::CauseFit& c) {
   return {{"id", c.id}, {"description", c.description}, {"detail", c.detail},
           {"within_fraction", c.within}, {"oracle_within_fraction", c.oracle_within},
-          {"likely", c.likely()}, {"as_likely", c.as_likely}, {"params", c.params}};
+          {"likely", c.likely()}, {"as_likely", c.as_likely}, {"params", c.params},
+          {"fitted", std::isfinite(c.low) && std::isfinite(c.high)
+                         ? ordered_json{{"value", c.value}, {"low", c.low}, {"high", c.high}}
+                         : ordered_json(nullptr)}};
 }
 
 ordered_json device_json(const DeviceKeys& d) {

@@ -237,6 +237,7 @@ class Comparison {
   std::map<std::string, Envelope> envelope_;  // of a blur pass without capture, for the next
   Envelope env_;                           // of the blur pass being judged or kept (or none)
   bool env_from_deviation_ = false;        // its envelope is the oracle +- deviation_
+  bool intervals_done_ = false;            // a fitted cause's interval found (the first stage)
   int stage_width_ = 0;                    // its width
   const StageSpec* spec_ = nullptr;        // the stage being judged
   std::string name_;
@@ -892,7 +893,9 @@ void Comparison::test_causes_of(const StageSpec& spec, StageComparison& iso, Ima
   const CapturedStage cap = capture(name_);
   CauseContext cc{plan_, sanitized_, profile_, rounding_, threads_,
                   [this](const std::string& n) { return V(n); },
-                  [this](const std::string& n) { return streams_.captured(n); }, &bound, "", ""};
+                  [this](const std::string& n) { return streams_.captured(n); }, &bound, "", "",
+                  !intervals_done_};
+  intervals_done_ = true;  // the first stage whose causes are searched only
   const auto prior = last_cause_.find(spec.kind);
   if (prior != last_cause_.end()) cc.prior = prior->second.first, cc.prior_stage = prior->second.second;
   auto score = [&](Image& variant, double absolute) {

@@ -1497,12 +1497,72 @@ bool indistinguishable(const CauseContext& ctx, const StageSpec& target, Image& 
   return true;
 }
 
+// A hypothesis sampling other positions than the oracle's carries its own coordinates' float
+// error where the oracle's bound (made for the oracle's neighbourhood) may be all but 0: a
+// lookup on a texel centre whose fraction comes out a few ULPs off it blends that much of a
+// neighbour (measured: 5.4e-8 of a light across GL_REPEAT's wrap on a 192-texel row). Allowed:
+// 64 f32 ULPs of the largest value, far below any error a cause is named for.
+double sampling_allowance(const Hypothesis& h, const Image& img) {
+  if (!(h.sampled() || h.spacing != 1.0f || h.along_x || h.kernel || !h.weights.empty())) return 0;
+  double most = 0;
+  for (std::size_t i = 0; i < img.values().size(); ++i)
+    if (i % kChannels != 3 && std::isfinite(img.data()[i]))
+      most = std::max(most, double(std::fabs(img.data()[i])));
+  return 64 * 0x1p-24 * most;  // the hypothesis is computed in f32
+}
+
+// The one fitted number of a hypothesis with one (Hypothesis::params 1), or null.
+float* fitted_value(Hypothesis& h) {
+  if (h.params != 1) return nullptr;
+  if (h.target_gain != 1.0f) return &h.target_gain;
+  if (h.tent_gain != 1.0f) return &h.tent_gain;
+  if (h.spacing != 1.0f) return &h.spacing;
+  if (h.sampling.shift != 0.0f) return &h.sampling.shift;
+  if (!std::isnan(h.threshold)) return &h.threshold;
+  if (h.gamma > 0.0f) return &h.gamma;
+  if (!std::isnan(h.mix_amount)) return &h.mix_amount;
+  if (!std::isnan(h.add_amount)) return &h.add_amount;
+  if (h.strength_scale != 1.0f) return &h.strength_scale;
+  return nullptr;
+}
+
+// The range of a likely cause's fitted number that still explains the failure: outward from
+// the value by 0.1%, 1%, 10% and 100% of it until a step does not, then four halvings of that
+// step. `explains(h)` scores one variant.
+void fit_interval(Hypothesis h, CauseFit& fit, const std::function<bool(const Hypothesis&)>& explains) {
+  float* x = fitted_value(h);
+  if (!x) return;
+  const double v = *x, scale = std::max(std::fabs(v), 1e-3);
+  auto end = [&](double sign) {
+    double good = 0, bad = NAN;
+    for (double step : {1e-3, 1e-2, 1e-1, 1.0}) {
+      *x = static_cast<float>(v + sign * step * scale);
+      if (!explains(h)) {
+        bad = step;
+        break;
+      }
+      good = step;
+    }
+    if (std::isnan(bad)) return v + sign * good * scale;  // explains a doubling and more
+    for (int i = 0; i < 4; ++i) {
+      const double mid = 0.5 * (good + bad);
+      *x = static_cast<float>(v + sign * mid * scale);
+      (explains(h) ? good : bad) = mid;
+    }
+    return v + sign * good * scale;
+  };
+  fit.value = v;
+  fit.low = end(-1);
+  fit.high = end(+1);
+}
+
 // Every hypothesis of `only` (all when empty), scored, best first.
 std::vector<CauseFit> try_causes(const CauseContext& ctx, const StageSpec& target,
                                  double oracle_within,
                                  const std::function<double(Image&, double)>& within,
                                  const std::string& only) {
   std::vector<CauseFit> fits;
+  std::vector<Hypothesis> made;  // each fit's hypothesis
   Image oracle;
   for (const Hypothesis& h : hypotheses(ctx, target, only, oracle)) {
     Image img;
@@ -1511,20 +1571,7 @@ std::vector<CauseFit> try_causes(const CauseContext& ctx, const StageSpec& targe
     } catch (const NotApplicable&) {
       continue;
     }
-    // A hypothesis sampling other positions than the oracle's carries its own coordinates'
-    // float error where the oracle's bound (made for the oracle's neighbourhood) may be all but
-    // 0: a lookup on a texel centre whose fraction comes out a few ULPs off it blends that much
-    // of a neighbour (measured: 5.4e-8 of a light across GL_REPEAT's wrap on a 192-texel row).
-    // Allowed: 64 f32 ULPs of the largest value, far below any error a cause is named for.
-    double absolute = 0;
-    if (h.sampled() || h.spacing != 1.0f || h.along_x || h.kernel || !h.weights.empty()) {
-      double most = 0;
-      for (std::size_t i = 0; i < img.values().size(); ++i)
-        if (i % kChannels != 3 && std::isfinite(img.data()[i]))
-          most = std::max(most, double(std::fabs(img.data()[i])));
-      absolute = 64 * 0x1p-24 * most;  // the hypothesis is computed in f32
-    }
-    const double f = within(img, absolute);
+    const double f = within(img, sampling_allowance(h, img));
     if (f > oracle_within && ctx.target_bound && indistinguishable(ctx, target, oracle, img))
       continue;
     // It must bring within bound a tenth of what the oracle as specified leaves out: a change
@@ -1533,17 +1580,39 @@ std::vector<CauseFit> try_causes(const CauseContext& ctx, const StageSpec& targe
     // Two hypotheses of one id (the half-texel shift's two signs): keep the better.
     auto same = std::find_if(fits.begin(), fits.end(), [&](const CauseFit& c) { return c.id == h.id; });
     if (same != fits.end()) {
-      if (f > same->within) *same = {h.id, h.description, h.detail, f, oracle_within, h.params};
+      if (f > same->within) {
+        *same = {h.id, h.description, h.detail, f, oracle_within, h.params};
+        made[std::size_t(same - fits.begin())] = h;
+      }
       continue;
     }
     fits.push_back({h.id, h.description, h.detail, f, oracle_within, h.params});
+    made.push_back(h);
   }
   // Ranked by what they explain less 0.2% of the values per fitted parameter: five fitted
   // weights absorb any symmetric change of kernel, so a one-parameter cause (a tap spacing, a
   // gain) that explains about as much is named before them.
   auto score = [](const CauseFit& c) { return c.within - 0.002 * c.params; };
-  std::stable_sort(fits.begin(), fits.end(),
-                   [&](const CauseFit& a, const CauseFit& b) { return score(a) > score(b); });
+  std::vector<std::size_t> order(fits.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return score(fits[a]) > score(fits[b]); });
+  std::vector<CauseFit> sorted;
+  for (std::size_t i : order) sorted.push_back(fits[i]);
+  if (ctx.interval && !sorted.empty() && sorted.front().likely()) {
+    // The variant scored as above (its own coordinates' allowance kept from the fit).
+    const Hypothesis& best = made[order.front()];
+    fit_interval(best, sorted.front(), [&](const Hypothesis& h) {
+      try {
+        Image img = Evaluator(ctx, h, target, &oracle).target();
+        CauseFit c{h.id, "", "", within(img, sampling_allowance(h, img)), oracle_within, h.params};
+        return c.likely();
+      } catch (const NotApplicable&) {
+        return false;
+      }
+    });
+  }
+  fits = std::move(sorted);
   // A flexible fit behind a simpler cause describes the capture rather than explaining it.
   for (std::size_t i = 1; i < fits.size(); ++i)
     if (fits[i].id == "wrong-weights")

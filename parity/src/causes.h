@@ -26,6 +26,8 @@ struct CauseContext {
   /// The likely cause named at the last failing stage of the target's kind before it, and
   /// that stage: tried alone first (the same bug at every pass costs one hypothesis a pass).
   std::string prior, prior_stage;
+  /// Find the fitted parameter's interval of the likely cause (CauseFit::low, high).
+  bool interval = false;
 };
 
 /// A failing stage's residual (capture - isolated oracle) in words, for a failure no cause

@@ -67,6 +67,10 @@ struct CauseFit {
   /// id, within 0.05% of the values of what the first explains, and no more than one fitted
   /// parameter more flexible (five fitted weights describe any kernel: they never are).
   bool as_likely = false;
+  /// A likely cause with one fitted parameter, at the first stage where causes are searched:
+  /// the fitted value and the range of it that still explains the failure (likely), each end
+  /// found to a sixteenth of the first step out that did not; NaN otherwise.
+  double value = NAN, low = NAN, high = NAN;
 };
 
 struct StageComparison {
