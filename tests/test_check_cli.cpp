@@ -62,6 +62,13 @@ void swap_rb(bloomref::Image& img) {
   for (std::size_t i = 0; i < img.pixel_count(); ++i) std::swap(img.data()[4 * i], img.data()[4 * i + 2]);
 }
 
+// Every stage of the demo at `size` in dir/d, and blur.10 and the output alone in dir/two.
+void dump_with_two(const TempDir& dir, const std::string& size) {
+  dump(dir, "d", "", size);
+  fs::create_directory(dir / "two");
+  for (const std::string f : {"blur.10.exr", "output.exr"}) fs::copy_file(dir / ("d/" + f), dir / ("two/" + f));
+}
+
 json read_json(const std::string& path) { return json::parse(bloomref::test::read_bytes(path)); }
 
 std::size_t count(const std::string& s, const std::string& what) {
@@ -236,9 +243,7 @@ TEST_CASE("a verdict says what it could see, a weak one is WARN, a brighter bloo
           "[check-cli][gain]") {
   TempDir dir;
   const std::string size = "--size 160x96";
-  dump(dir, "d", "", size);
-  fs::create_directory(dir / "two");
-  for (const std::string f : {"blur.10.exr", "output.exr"}) fs::copy_file(dir / ("d/" + f), dir / ("two/" + f));
+  dump_with_two(dir, size);
   // Every stage under nvidia: strong.
   CliResult r = run_cli(dir, "check " + size + " --stages d --json all.json");
   INFO(r.out << r.err);
@@ -326,9 +331,7 @@ TEST_CASE("each stage's stated sensitivity (--sensitivity stages) holds for erro
           "[check-cli][gain]") {
   TempDir dir;
   const std::string size = "--size 160x96";
-  dump(dir, "d", "", size);
-  fs::create_directory(dir / "two");
-  for (const std::string f : {"blur.10.exr", "output.exr"}) fs::copy_file(dir / ("d/" + f), dir / ("two/" + f));
+  dump_with_two(dir, size);
   CliResult r = run_cli(dir, "check " + size + " --stages two --profile vulkan --sensitivity stages "
                              "--json s.json --junit s.xml --markdown s.md");
   INFO(r.out << r.err);

@@ -263,6 +263,27 @@ std::string describe(const parity::ParityResult& r) {
   return s;
 }
 
+// Calls f(scene name, scene, profile name, profile, the reference trace, capture set, its
+// names in words) for every scene, profile and capture set. ldr8 judges every capture as 8-bit
+// codes of [0, 1]: an HDR stage so captured is clamped, and the next stage recomputed from it is
+// not the device's, so under it only the output alone (a display stage) is a capture of a
+// float device.
+template <class F>
+void each_capture_set(const std::vector<std::pair<std::string, Image>>& scenes, const BloomParams& p,
+                      const std::vector<std::vector<std::string>>& sets, F f) {
+  for (const auto& [scene_name, scene] : scenes)
+    for (const char* prof : {"nvidia", "vulkan", "mediump", "ldr8"}) {
+      const parity::DeviceProfile profile = parity::profile_named(prof);
+      const std::map<std::string, Image> ref = reference_trace(p, scene, profile);
+      for (const auto& names : sets) {
+        if (profile.capture_code_bits && names != std::vector<std::string>{"output"}) continue;
+        std::string set;
+        for (const std::string& n : names) set += n + " ";
+        f(scene_name, scene, prof, profile, ref, names, set);
+      }
+    }
+}
+
 }  // namespace
 
 TEST_CASE("a lookup's shift: one quantum below on a centre, none above, off the grid both ways",
@@ -453,62 +474,54 @@ TEST_CASE("planted wrong blooms fail wherever the stated sensitivity says they a
       {"bright", "output"},
       {"blur.2", "blur.4", "blur.6", "output"}};
   int seen_small = 0, weak = 0;
-  for (const auto& [scene_name, scene] : scenes)
-    for (const char* prof : {"nvidia", "vulkan", "mediump", "ldr8"}) {
-      const parity::DeviceProfile profile = parity::profile_named(prof);
-      const std::map<std::string, Image> ref = reference_trace(p, scene, profile);
-      for (const auto& names : sets) {
-        // ldr8 judges every capture as 8-bit codes of [0, 1]: an HDR stage so captured is
-        // clamped, and the next stage recomputed from it is not the device's. Only the display
-        // stages are 8-bit captures of a float device.
-        if (profile.capture_code_bits && names != std::vector<std::string>{"output"}) continue;
-        std::string set;
-        for (const std::string& n : names) set += n + " ";
-        INFO(scene_name << ", profile " << prof << ", captures " << set);
-        // Clean captures pass.
-        const parity::ParityResult clean = judge(p, scene, ref, names, profile);
-        INFO("clean: " << describe(clean));
-        REQUIRE_FALSE(fails(clean));
-        std::map<std::string, int> codes;
-        for (const std::string& n : names) codes[n] = profile.capture_code_bits;
-        const Plan plan = parity::plan_for_device(p, scene.cview(), profile);
-        const parity::Sensitivity s =
-            parity::sensitivity(plan, scene.cview(), names, codes, profile, {}, 1.05, true);
-        INFO("sensitivity: gain " << s.gain << " (" << s.gain_stage << "), shift " << s.shift
-                                  << ", spread " << s.spread);
-        std::printf("%-20s %-8s %-70s gain %-5g (%s) shift %g spread %g\n", scene_name.c_str(), prof,
-                    set.c_str(), s.gain, s.gain_stage.c_str(), s.shift, s.spread);
-        seen_small += s.gain > 0 && s.gain <= 1.05;
-        weak += s.gain == 0 || s.gain > 1.05;
-        for (double g : {1.02, 1.05, 1.1, 1.5, 2.0}) {
-          const parity::ParityResult r = judge(p, scene, planted(p, ref, g, 0, {}), names, profile);
-          INFO("gain " << g << ": " << describe(r));
-          if (s.gain > 0 && g >= s.gain * (1 - 1e-9)) CHECK(fails(r));
-        }
-        // The ladder's step below the stated gain does not fail the planted run (the
-        // statement is the smallest), checked with this file's planting.
-        const auto& ladder = parity::Sensitivity::gain_ladder();
-        const auto at = std::find(ladder.begin(), ladder.end(), s.gain);
-        if (s.gain > 0 && at != ladder.begin()) {
-          const parity::ParityResult below = judge(p, scene, planted(p, ref, *(at - 1), 0, {}), names, profile);
-          INFO("gain below " << *(at - 1) << ": " << describe(below));
-          CHECK_FALSE(fails(below));
-        }
-        if (s.shift == 1) {
-          const parity::ParityResult r = judge(p, scene, planted(p, ref, 1.0, 1, {}), names, profile);
-          INFO("shift 1: " << describe(r));
-          CHECK(fails(r));
-        }
-        if (s.spread > 0 && s.spread <= 1.1) {
-          // discrete9's sigma: sqrt(2 (w1 + 4 w2 + 9 w3 + 16 w4)).
-          const double sigma = std::sqrt(2 * (kD9[1] + 4 * kD9[2] + 9 * kD9[3] + 16 * kD9[4]));
-          const parity::ParityResult r =
-              judge(p, scene, planted(p, ref, 1.0, 0, gaussian9(sigma * 1.1)), names, profile);
-          INFO("spread 1.1: " << describe(r));
-          CHECK(fails(r));
-        }
-      }
+  each_capture_set(scenes, p, sets, [&](const std::string& scene_name, const Image& scene,
+                                        const char* prof, const parity::DeviceProfile& profile,
+                                        const std::map<std::string, Image>& ref,
+                                        const std::vector<std::string>& names, const std::string& set) {
+    INFO(scene_name << ", profile " << prof << ", captures " << set);
+    // Clean captures pass.
+    const parity::ParityResult clean = judge(p, scene, ref, names, profile);
+    INFO("clean: " << describe(clean));
+    REQUIRE_FALSE(fails(clean));
+    std::map<std::string, int> codes;
+    for (const std::string& n : names) codes[n] = profile.capture_code_bits;
+    const Plan plan = parity::plan_for_device(p, scene.cview(), profile);
+    const parity::Sensitivity s =
+        parity::sensitivity(plan, scene.cview(), names, codes, profile, {}, 1.05, true);
+    INFO("sensitivity: gain " << s.gain << " (" << s.gain_stage << "), shift " << s.shift
+                              << ", spread " << s.spread);
+    std::printf("%-20s %-8s %-70s gain %-5g (%s) shift %g spread %g\n", scene_name.c_str(), prof,
+                set.c_str(), s.gain, s.gain_stage.c_str(), s.shift, s.spread);
+    seen_small += s.gain > 0 && s.gain <= 1.05;
+    weak += s.gain == 0 || s.gain > 1.05;
+    for (double g : {1.02, 1.05, 1.1, 1.5, 2.0}) {
+      const parity::ParityResult r = judge(p, scene, planted(p, ref, g, 0, {}), names, profile);
+      INFO("gain " << g << ": " << describe(r));
+      if (s.gain > 0 && g >= s.gain * (1 - 1e-9)) CHECK(fails(r));
     }
+    // The ladder's step below the stated gain does not fail the planted run (the
+    // statement is the smallest), checked with this file's planting.
+    const auto& ladder = parity::Sensitivity::gain_ladder();
+    const auto at = std::find(ladder.begin(), ladder.end(), s.gain);
+    if (s.gain > 0 && at != ladder.begin()) {
+      const parity::ParityResult below = judge(p, scene, planted(p, ref, *(at - 1), 0, {}), names, profile);
+      INFO("gain below " << *(at - 1) << ": " << describe(below));
+      CHECK_FALSE(fails(below));
+    }
+    if (s.shift == 1) {
+      const parity::ParityResult r = judge(p, scene, planted(p, ref, 1.0, 1, {}), names, profile);
+      INFO("shift 1: " << describe(r));
+      CHECK(fails(r));
+    }
+    if (s.spread > 0 && s.spread <= 1.1) {
+      // discrete9's sigma: sqrt(2 (w1 + 4 w2 + 9 w3 + 16 w4)).
+      const double sigma = std::sqrt(2 * (kD9[1] + 4 * kD9[2] + 9 * kD9[3] + 16 * kD9[4]));
+      const parity::ParityResult r =
+          judge(p, scene, planted(p, ref, 1.0, 0, gaussian9(sigma * 1.1)), names, profile);
+      INFO("spread 1.1: " << describe(r));
+      CHECK(fails(r));
+    }
+  });
   // Both kinds of statement occur: verdicts that see 5% and weak ones.
   CHECK(seen_small > 0);
   CHECK(weak > 0);
@@ -529,62 +542,57 @@ TEST_CASE("an error entering at one stage fails wherever that stage's stated sen
   // discrete9's sigma: sqrt(2 (w1 + 4 w2 + 9 w3 + 16 w4)).
   const double sigma = std::sqrt(2 * (kD9[1] + 4 * kD9[2] + 9 * kD9[3] + 16 * kD9[4]));
   int seen_small = 0, weak = 0, checked = 0;
-  for (const auto& [scene_name, scene] : scenes)
-    for (const char* prof : {"nvidia", "vulkan", "mediump", "ldr8"}) {
-      const parity::DeviceProfile profile = parity::profile_named(prof);
-      const std::map<std::string, Image> ref = reference_trace(p, scene, profile);
-      for (const auto& names : sets) {
-        if (profile.capture_code_bits && names != std::vector<std::string>{"output"}) continue;
-        std::string set;
-        for (const std::string& n : names) set += n + " ";
-        INFO(scene_name << ", profile " << prof << ", captures " << set);
-        REQUIRE_FALSE(fails(judge(p, scene, ref, names, profile)));
-        std::map<std::string, int> codes;
-        for (const std::string& n : names) codes[n] = profile.capture_code_bits;
-        const Plan plan = parity::plan_for_device(p, scene.cview(), profile);
-        const parity::Sensitivity s =
-            parity::sensitivity(plan, scene.cview(), names, codes, profile, {}, 1.05, true, true);
-        REQUIRE(s.stages.size() == names.size());
-        for (const parity::StageSensitivity& st : s.stages) {
-          INFO("entering at " << st.stage << ": gain " << st.gain << " (" << st.gain_stage
-                              << "), shift " << st.shift << ", spread " << st.spread);
-          std::printf("%-16s %-8s %-60s %-10s gain %-5g (%s) shift %g spread %g\n", scene_name.c_str(),
-                      prof, set.c_str(), st.stage.c_str(), st.gain, st.gain_stage.c_str(), st.shift,
-                      st.spread);
-          seen_small += st.gain > 0 && st.gain <= 1.05;
-          weak += st.gain == 0 || st.gain > 1.05;
-          for (double g : {1.02, 1.05, 1.1, 1.5, 2.0})
-            if (st.gain > 0 && g >= st.gain * (1 - 1e-9)) {
-              const parity::ParityResult r = judge(p, scene, planted_at(p, ref, st.stage, g, 0), names, profile);
-              INFO("gain " << g << ": " << describe(r));
-              CHECK(fails(r));
-              ++checked;
-            }
-          const auto& ladder = parity::Sensitivity::gain_ladder();
-          const auto at = std::find(ladder.begin(), ladder.end(), st.gain);
-          if (st.gain > 0 && at != ladder.begin()) {
-            const parity::ParityResult below =
-                judge(p, scene, planted_at(p, ref, st.stage, *(at - 1), 0), names, profile);
-            INFO("gain below " << *(at - 1) << ": " << describe(below));
-            CHECK_FALSE(fails(below));
-          }
-          if (st.shift == 1) {
-            const parity::ParityResult r = judge(p, scene, planted_at(p, ref, st.stage, 1.0, 1), names, profile);
-            INFO("shift 1: " << describe(r));
-            CHECK(fails(r));
-            ++checked;
-          }
-          CHECK(st.spread_measured == (st.stage.rfind("blur.", 0) == 0));
-          if (st.spread > 0 && st.spread <= 1.1) {
-            const parity::ParityResult r =
-                judge(p, scene, planted_at(p, ref, st.stage, 1.0, 0, gaussian9(sigma * 1.1)), names, profile);
-            INFO("spread 1.1: " << describe(r));
-            CHECK(fails(r));
-            ++checked;
-          }
+  each_capture_set(scenes, p, sets, [&](const std::string& scene_name, const Image& scene,
+                                        const char* prof, const parity::DeviceProfile& profile,
+                                        const std::map<std::string, Image>& ref,
+                                        const std::vector<std::string>& names, const std::string& set) {
+    INFO(scene_name << ", profile " << prof << ", captures " << set);
+    REQUIRE_FALSE(fails(judge(p, scene, ref, names, profile)));
+    std::map<std::string, int> codes;
+    for (const std::string& n : names) codes[n] = profile.capture_code_bits;
+    const Plan plan = parity::plan_for_device(p, scene.cview(), profile);
+    const parity::Sensitivity s =
+        parity::sensitivity(plan, scene.cview(), names, codes, profile, {}, 1.05, true, true);
+    REQUIRE(s.stages.size() == names.size());
+    for (const parity::StageSensitivity& st : s.stages) {
+      INFO("entering at " << st.stage << ": gain " << st.gain << " (" << st.gain_stage
+                          << "), shift " << st.shift << ", spread " << st.spread);
+      std::printf("%-16s %-8s %-60s %-10s gain %-5g (%s) shift %g spread %g\n", scene_name.c_str(),
+                  prof, set.c_str(), st.stage.c_str(), st.gain, st.gain_stage.c_str(), st.shift,
+                  st.spread);
+      seen_small += st.gain > 0 && st.gain <= 1.05;
+      weak += st.gain == 0 || st.gain > 1.05;
+      for (double g : {1.02, 1.05, 1.1, 1.5, 2.0})
+        if (st.gain > 0 && g >= st.gain * (1 - 1e-9)) {
+          const parity::ParityResult r = judge(p, scene, planted_at(p, ref, st.stage, g, 0), names, profile);
+          INFO("gain " << g << ": " << describe(r));
+          CHECK(fails(r));
+          ++checked;
         }
+      const auto& ladder = parity::Sensitivity::gain_ladder();
+      const auto at = std::find(ladder.begin(), ladder.end(), st.gain);
+      if (st.gain > 0 && at != ladder.begin()) {
+        const parity::ParityResult below =
+            judge(p, scene, planted_at(p, ref, st.stage, *(at - 1), 0), names, profile);
+        INFO("gain below " << *(at - 1) << ": " << describe(below));
+        CHECK_FALSE(fails(below));
+      }
+      if (st.shift == 1) {
+        const parity::ParityResult r = judge(p, scene, planted_at(p, ref, st.stage, 1.0, 1), names, profile);
+        INFO("shift 1: " << describe(r));
+        CHECK(fails(r));
+        ++checked;
+      }
+      CHECK(st.spread_measured == (st.stage.rfind("blur.", 0) == 0));
+      if (st.spread > 0 && st.spread <= 1.1) {
+        const parity::ParityResult r =
+            judge(p, scene, planted_at(p, ref, st.stage, 1.0, 0, gaussian9(sigma * 1.1)), names, profile);
+        INFO("spread 1.1: " << describe(r));
+        CHECK(fails(r));
+        ++checked;
       }
     }
+  });
   // Both kinds of statement occur, and the planted errors were judged.
   CHECK(seen_small > 0);
   CHECK(weak > 0);
