@@ -161,12 +161,13 @@ class Comparison {
   void test_causes_of(const StageSpec& spec, StageComparison& iso, Image& oracle,
                       const Image& bound);
   void keep_uncaptured(std::size_t index, StageTerms& t);
-  // A blur pass's envelope: below and above every value a device the profile allows could
-  // write there, given only what it read (docs/design.md, "Envelopes").
+  // A stage's envelope: below and above every value a device the profile allows could write
+  // there, given only what it read (docs/design.md, "Envelopes").
   struct Envelope {
     Image lo, hi;
     bool empty() const { return hi.empty(); }
   };
+  Envelope carried_range(const std::string& n) const;
   void make_envelope(const StageSpec& spec);
   void make_finish_envelope(const StageSpec& spec);
   void widen(const float* base, float* H, float* L, std::size_t values) const;
@@ -234,8 +235,8 @@ class Comparison {
   std::map<std::string, Image> e2e_;       // end-to-end bound of each stage, on the full run
   std::map<std::string, Energy> energy_;   // each stage's, for the stages that read it
   std::unique_ptr<BlurDeviation> deviation_;  // of the blur pass being judged (when usable)
-  std::map<std::string, Envelope> envelope_;  // of a blur pass without capture, for the next
-  Envelope env_;                           // of the blur pass being judged or kept (or none)
+  std::map<std::string, Envelope> envelope_;  // of stages without capture, for their readers
+  Envelope env_;                           // of the stage being judged or kept (or none)
   bool env_from_deviation_ = false;        // its envelope is the oracle +- deviation_
   bool intervals_done_ = false;            // a fitted cause's interval found (the first stage)
   int stage_width_ = 0;                    // its width
@@ -441,6 +442,24 @@ void over_bands(int height, int rows, int threads, Band band) {
   });
 }
 
+// A stage without capture give or take the error it carries (E), rounded outward: the range
+// a device's image of it lies in, for the envelopes of the stages that read it.
+Comparison::Envelope Comparison::carried_range(const std::string& n) const {
+  const ConstImageView v = V(n);
+  const ConstImageView e = E(n)->cview();
+  Envelope r{Image::uninitialised(v.width, v.height), Image::uninitialised(v.width, v.height)};
+  for (int y = 0; y < v.height; ++y) {
+    const float *a = v.row(y), *b = e.row(y);
+    float *l = r.lo.pixel(0, y), *h = r.hi.pixel(0, y);
+    for (std::size_t i = 0; i < std::size_t(v.width) * kChannels; ++i) {
+      const bool alpha = i % kChannels == 3;
+      l[i] = alpha ? a[i] : std::nextafter(a[i] - b[i], -INFINITY);
+      h[i] = alpha ? a[i] : std::nextafter(a[i] + b[i], INFINITY);
+    }
+  }
+  return r;
+}
+
 // The envelope of a blur pass (env_), from what it reads: a capture exactly, the envelope of a
 // pass without capture before it, or another stage without capture give or take the error it
 // carries. Weights and the bilinear interpolant are non-negative, so a device's pass is
@@ -452,28 +471,17 @@ void Comparison::make_envelope(const StageSpec& spec) {
   if (spec.kind != StageKind::blur) return;
   const std::string in = stage_inputs(plan_, spec)[0];
   ConstImageView lo, hi;
-  Image lo_own, hi_own;
+  Envelope own;
   const auto prev = envelope_.find(in);
   if (streams_.captured(in)) {
     lo = hi = V(in);
   } else if (prev != envelope_.end()) {
     lo = prev->second.lo.cview();
     hi = prev->second.hi.cview();
-  } else if (const Image* e = E(in)) {
-    const ConstImageView v = V(in);
-    lo_own = Image::uninitialised(v.width, v.height);
-    hi_own = Image::uninitialised(v.width, v.height);
-    for (int y = 0; y < v.height; ++y) {
-      const float *a = v.row(y), *b = e->cview().row(y);
-      float *l = lo_own.pixel(0, y), *h = hi_own.pixel(0, y);
-      for (std::size_t i = 0; i < std::size_t(v.width) * kChannels; ++i) {
-        const bool alpha = i % kChannels == 3;
-        l[i] = alpha ? a[i] : std::nextafter(a[i] - b[i], -INFINITY);
-        h[i] = alpha ? a[i] : std::nextafter(a[i] + b[i], INFINITY);
-      }
-    }
-    lo = lo_own.cview();
-    hi = hi_own.cview();
+  } else if (E(in)) {
+    own = carried_range(in);
+    lo = own.lo.cview();
+    hi = own.hi.cview();
   } else {
     return;
   }
@@ -524,8 +532,8 @@ void Comparison::make_finish_envelope(const StageSpec& spec) {
   if ((k == StageKind::tonemap && !(p_.exposure > 0)) || (k == StageKind::output && !(p_.gamma > 0)))
     return;
   std::vector<ConstImageView> lo, hi;
-  std::vector<Image> own;
-  own.reserve(2 * in.size());
+  std::vector<Envelope> own;
+  own.reserve(in.size());
   for (const std::string& n : in) {
     const auto e = envelope_.find(n);
     if (streams_.captured(n)) {
@@ -534,18 +542,10 @@ void Comparison::make_finish_envelope(const StageSpec& spec) {
     } else if (e != envelope_.end()) {
       lo.push_back(e->second.lo.cview());
       hi.push_back(e->second.hi.cview());
-    } else if (const Image* err = E(n)) {
-      const ConstImageView v = V(n);
-      Image& l = own.emplace_back(Image::uninitialised(v.width, v.height));
-      Image& u = own.emplace_back(Image::uninitialised(v.width, v.height));
-      for (int y = 0; y < v.height; ++y)
-        for (std::size_t i = 0; i < std::size_t(v.width) * kChannels; ++i) {
-          const float a = v.row(y)[i], b = err->cview().row(y)[i];
-          l.pixel(0, y)[i] = std::nextafter(a - b, -INFINITY);
-          u.pixel(0, y)[i] = std::nextafter(a + b, INFINITY);
-        }
-      lo.push_back(l.cview());
-      hi.push_back(u.cview());
+    } else if (E(n)) {
+      const Envelope& c = own.emplace_back(carried_range(n));
+      lo.push_back(c.lo.cview());
+      hi.push_back(c.hi.cview());
     } else {
       return;
     }
