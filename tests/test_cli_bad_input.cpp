@@ -293,6 +293,11 @@ TEST_CASE("bloomref run --repeat times later runs in the same process, same bits
   expect_bad_input(dir, "run in.exr -o x.exr --repeat 100001", {"--repeat", "100000"}, {"in.exr"});
   expect_bad_input(dir, "run in.exr -o x.exr --repeat 2 --dump-stages d", {"--repeat", "--dump-stages"},
                    {"in.exr"});
+  // A deliberate GL bug needs the GL backend and a known name, said before any work (no GL).
+  expect_bad_input(dir, "run in.exr -o x.exr --inject-fault mip-level-offset",
+                   {"--inject-fault", "--backend gl"}, {"in.exr"});
+  expect_bad_input(dir, "run in.exr -o x.exr --backend gl --inject-fault nope",
+                   {"--inject-fault", "nope", "mip-level-offset"}, {"in.exr"});
 }
 
 /// A 4x2 Radiance .hdr written through OIIO (this test links it; bloomref does not).
