@@ -104,10 +104,10 @@ struct StageComparison {
   std::array<double, 3> gain{1, 1, 1}, gain_allowed{0, 0, 0};
   double gain_ratio = 0, tile_gain_ratio = 0;
   int tile_x = -1, tile_y = -1;
-  /// The envelope gate (docs/check.md, "Envelopes"), isolated blur passes that read a stage
-  /// without capture: the fraction of values beyond what any device the profile allows could
-  /// write from what the pass read (`envelope_outside`), and the largest total error over the
-  /// envelope's total, over the whole image and over every tile (`envelope_ratio`). -1: no
+  /// The envelope gate (docs/check.md, "Envelopes"), isolated blur passes and finishing stages
+  /// that have an envelope: the fraction of values beyond what any device the profile allows
+  /// could write from what the stage read (`envelope_outside`), and the largest total error over
+  /// the envelope's total, over the whole image and over every tile (`envelope_ratio`). -1: no
   /// envelope was made. A fraction above the profile's over_fraction, or a ratio above 1, fails.
   double envelope_outside = -1, envelope_ratio = -1;
   Image oracle, bound;                   ///< isolated comparisons, with CompareOptions::keep_images
