@@ -143,9 +143,11 @@ class Comparison {
   void judge_captured(std::size_t index, StageTerms& t);
   void band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally& e2e, Kept kept, bool judge,
                      EnergySums& es);
+  void deviation_band(int y0, int y1, float*& up, float*& down) const;
   void energy_band(int y0, int y1, bool gl, const float* oracle, const float* full,
                    const float* bound, const float* rounding, const float* inherited,
-                   const float* e, EnergySums& es) const;
+                   const float* e, const float* up,
+                   const float* down, EnergySums& es) const;
   struct Budgets {
     SignedBudget iso, e2e;
     std::optional<std::array<double, 3>> tv, mass;
@@ -171,10 +173,12 @@ class Comparison {
   void make_envelope(const StageSpec& spec);
   void make_finish_envelope(const StageSpec& spec);
   void widen(const float* base, float* H, float* L, std::size_t values) const;
-  void envelope_rows(int y0, int y1, const float* oracle, float* H, float* L) const;
+  void envelope_rows(int y0, int y1, const float* oracle, const float* up, const float* down,
+                     float* H, float* L) const;
   void narrow_to_envelope(const Image& oracle, ConstImageView cap, Image& bound) const;
   void envelope_band(int y0, int y1, ConstImageView cap, const float* oracle,
-                     const float* rounding, EnergySums& es) const;
+                     const float* rounding, const float* up, const float* down,
+                     EnergySums& es) const;
   void envelope_gate(StageComparison& iso, const EnergySums& es) const;
   ParityResult finish();
 
@@ -421,9 +425,11 @@ void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally&
     for (std::size_t i = 0; i < values; ++i) rounding[i] = static_cast<float>(rounding[i] * over->scale);
   if (codes) add_rows(rounding, q, n);
   const float* slack = p_.storage == Storage::f16 ? inherited : nullptr;
-  energy_band(y0, y1, true, oracle, full, bound, rounding, inherited, e, es);
+  float *up, *down;
+  deviation_band(y0, y1, up, down);
+  energy_band(y0, y1, true, oracle, full, bound, rounding, inherited, e, up, down, es);
   if ((!env_.empty() || env_from_deviation_) && !codes)
-    envelope_band(y0, y1, cap.image, oracle, rounding, es);
+    envelope_band(y0, y1, cap.image, oracle, rounding, up, down, es);
   const std::size_t row = std::size_t(t.oracle.width()) * kChannels;
   for (int y = y0; y < y1; ++y) {
     const std::size_t at = std::size_t(y - y0) * row;
@@ -632,14 +638,16 @@ void Comparison::widen(const float* base, float* H, float* L, std::size_t values
 
 // The envelope's rows [y0, y1) of the stage being judged into H and L: env_'s, or (a blur pass
 // that read a capture) the oracle's rows moved by its lookups' deviation either way.
-void Comparison::envelope_rows(int y0, int y1, const float* oracle, float* H, float* L) const {
+void Comparison::envelope_rows(int y0, int y1, const float* oracle, const float* up,
+                               const float* down, float* H, float* L) const {
   const std::size_t n = std::size_t(y1 - y0) * stage_width_ * kChannels;
   if (!env_.empty()) {
     std::copy(env_.hi.cview().row(y0), env_.hi.cview().row(y0) + n, H);
     std::copy(env_.lo.cview().row(y0), env_.lo.cview().row(y0) + n, L);
     return;
   }
-  deviation_->rows(y0, y1, H, L);
+  std::copy(up, up + n, H);
+  std::copy(down, down + n, L);
   widen(oracle, H, L, n);
 }
 
@@ -652,7 +660,9 @@ void Comparison::narrow_to_envelope(const Image& oracle, ConstImageView cap, Ima
   over_bands(oracle.height(), judge_band(0), threads_, [&](int y0, int y1, int) {
     const std::size_t n = std::size_t(y1 - y0) * w * kChannels;
     std::vector<float> rows(2 * n);
-    envelope_rows(y0, y1, oracle.cview().row(y0), rows.data(), rows.data() + n);
+    float *up = nullptr, *down = nullptr;
+    if (env_.empty()) deviation_band(y0, y1, up, down);
+    envelope_rows(y0, y1, oracle.cview().row(y0), up, down, rows.data(), rows.data() + n);
     const float *o = oracle.cview().row(y0), *g = cap.row(y0);
     float* b = bound.pixel(0, y0);
     for (std::size_t i = 0; i < n; ++i) {
@@ -668,11 +678,12 @@ void Comparison::narrow_to_envelope(const Image& oracle, ConstImageView cap, Ima
 // rounding terms (the oracle's own, which the envelope's arithmetic term may not cover for a
 // value near 0), whole and per tile.
 void Comparison::envelope_band(int y0, int y1, ConstImageView cap, const float* oracle,
-                               const float* rounding, EnergySums& es) const {
+                               const float* rounding, const float* up, const float* down,
+                               EnergySums& es) const {
   const int w = stage_width_, tiles = (w + kTile - 1) / kTile;
   const std::size_t values = std::size_t(y1 - y0) * w * kChannels;
   std::vector<float> rows(2 * values);
-  envelope_rows(y0, y1, oracle, rows.data(), rows.data() + values);
+  envelope_rows(y0, y1, oracle, up, down, rows.data(), rows.data() + values);
   for (int y = y0; y < y1; ++y) {
     const std::size_t at0 = std::size_t(y - y0) * w * kChannels;
     const float *H = rows.data() + at0, *L = rows.data() + values + at0, *g = cap.row(y);
@@ -960,8 +971,11 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
       bound[i] += r;
       if (i % kChannels != 3) es.storage[i % kChannels] += r;
     }
-    if (read_later)
-      energy_band(y0, y1, false, nullptr, nullptr, bound, rounding, inherited, e, es);
+    if (read_later) {
+      float *up, *down;
+      deviation_band(y0, y1, up, down);
+      energy_band(y0, y1, false, nullptr, nullptr, bound, rounding, inherited, e, up, down, es);
+    }
     if (!e_kept.empty()) put_rows(e_kept, y0, e, n);
     if (read_later) put_rows(carried, y0, bound, n);
   });
@@ -994,18 +1008,23 @@ void Comparison::keep_uncaptured(std::size_t index, StageTerms& t) {
 
 // A band's sums for the gain gates (EnergySums), of the captured stage being judged (`gl`:
 // its errors and budgets) or of a stage without capture (its budgets only).
+// The deviation rows of the blur pass being judged or kept (deviation_), made once a band into
+// its scratch for the gain gates and the envelope; null when it has none.
+void Comparison::deviation_band(int y0, int y1, float*& up, float*& down) const {
+  up = down = nullptr;
+  if (!deviation_) return;
+  const std::size_t values = std::size_t(y1 - y0) * stage_width_ * kChannels;
+  up = BandScratch::rows(band_scratch().judged, 2 * values);
+  down = up + values;
+  deviation_->rows(y0, y1, up, down);
+}
+
 void Comparison::energy_band(int y0, int y1, bool gl, const float* oracle,
                              const float* full, const float* bound, const float* rounding,
-                             const float* inherited, const float* e, EnergySums& es) const {
+                             const float* inherited, const float* e, const float* up,
+                             const float* down, EnergySums& es) const {
   const int width = stage_width_;
-  const std::size_t row = std::size_t(width) * kChannels, values = std::size_t(y1 - y0) * row;
-  BandScratch& s = band_scratch();
-  float *up = nullptr, *down = nullptr;
-  if (deviation_) {
-    up = BandScratch::rows(s.judged, 2 * values);
-    down = up + values;
-    deviation_->rows(y0, y1, up, down);
-  }
+  const std::size_t row = std::size_t(width) * kChannels;
   const int tiles = (width + kTile - 1) / kTile;
   const ConstImageView cap = gl ? capture(name_).image : ConstImageView{};
   const float limit = p_.storage == Storage::f16 ? 65504.0f : FLT_MAX;
