@@ -32,7 +32,10 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
           {"prefilter", to_string(p.prefilter)}, {"karis_form", to_string(p.karis_form)},
           {"texel_step", to_string(p.texel_step)}, {"upsample_radius", shortest(p.upsample_radius)},
           {"bloom_upscale", to_string(p.bloom_upscale)},
-          {"chain_storage", to_string(p.level_storage())}};
+          {"chain_storage", to_string(p.level_storage())},
+          {"first_level_height", p.first_level_height},
+          {"level_combine", to_string(p.level_combine)},
+          {"level_weights", to_string(p.level_weights)}};
 }
 
 std::string cpu_renderer(const BloomParams& p) {

@@ -62,11 +62,13 @@ void PipelineOptions::add_to(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--prefilter", prefilter,
                  "mip: per-lookup (the first downsample thresholds each tap) | bright (a bright "
-                 "stage, luminance > threshold, before the chain)")
+                 "stage, luminance > threshold, before the chain) | none (the chain reads the "
+                 "scene)")
       ->capture_default_str();
   app.add_option("--karis-form", karis_form,
                  "mip, with --karis: per-tap (1 / (1 + L) per tap, normalised per group) | "
-                 "group-srgb (per group on pow(group, 1/2.2), Rec. 601, as LearnOpenGL's PBB)")
+                 "group-srgb (per group on pow(group, 1/2.2), Rec. 601, as LearnOpenGL's PBB) | "
+                 "group-linear (per group, Rec. 709 on linear colour, clamped, as Bevy)")
       ->capture_default_str();
   app.add_option("--texel-step", texel_step,
                  "mip: the downsample's texel step from the source texture's size (texture) or "
@@ -77,6 +79,26 @@ void PipelineOptions::add_to(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--bloom-upscale", bloom_upscale,
                  "mip: the full-resolution bloom from up.1 by the tent | one bilinear lookup")
+      ->capture_default_str();
+  app.add_option("--first-level-height", p.first_level_height,
+                 "mip: the first level's height, its width in proportion (Bevy's "
+                 "max_mip_dimension); 0 = half the image")
+      ->capture_default_str();
+  app.add_option("--level-combine", level_combine,
+                 "mip: up.k = down.k + C tent (add) | C tent + (1 - C) down.k (mix)")
+      ->capture_default_str();
+  app.add_option("--level-weights", level_weights,
+                 "mip: the constants C per level: one | bevy (Bevy's compute_blend_factor, "
+                 "intensity = --strength)")
+      ->capture_default_str();
+  app.add_option("--low-frequency-boost", p.low_frequency_boost,
+                 "mip, --level-weights bevy: low_frequency_boost")
+      ->capture_default_str();
+  app.add_option("--low-frequency-boost-curvature", p.low_frequency_boost_curvature,
+                 "mip, --level-weights bevy: low_frequency_boost_curvature, in [0, 1)")
+      ->capture_default_str();
+  app.add_option("--high-pass-frequency", p.high_pass_frequency,
+                 "mip, --level-weights bevy: high_pass_frequency, in (0, 1]")
       ->capture_default_str();
   app.add_option("--chain-storage", chain_storage,
                  "mip: how the levels are stored: f32 | f16 | r11g11b10 (default: --storage)");
@@ -102,6 +124,8 @@ void PipelineOptions::finish() {
   params.karis_form = parse_karis_form(karis_form);
   params.texel_step = parse_texel_step(texel_step);
   params.bloom_upscale = parse_bloom_upscale(bloom_upscale);
+  params.level_combine = parse_level_combine(level_combine);
+  params.level_weights = parse_level_weights(level_weights);
   params.chain_storage_set = !chain_storage.empty();
   if (params.chain_storage_set) params.chain_storage = parse_chain_storage(chain_storage);
   validate(params);

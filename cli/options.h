@@ -15,7 +15,8 @@ struct PipelineOptions {
   std::string method = "gaussian", kernel = "discrete9", storage = "f32", precision = "f32",
               nonfinite = "zero", plan = "adaptive", blur = "fast",
               composite = "before-tonemap", composite_mode = "add", prefilter = "per-lookup",
-              karis_form = "per-tap", texel_step = "texture", bloom_upscale = "tent";
+              karis_form = "per-tap", texel_step = "texture", bloom_upscale = "tent",
+              level_combine = "add", level_weights = "one";
   std::string chain_storage;  ///< empty: the levels are stored as --storage says
   std::string preset;         ///< the preset applied, if any
   std::string scene = "demo";

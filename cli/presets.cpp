@@ -81,6 +81,26 @@ const std::map<std::string, Setter>& setters() {
        [](PipelineOptions& o, const nlohmann::json& v) { o.bloom_upscale = text_of(v); }},
       {"chain-storage",
        [](PipelineOptions& o, const nlohmann::json& v) { o.chain_storage = text_of(v); }},
+      {"level-combine",
+       [](PipelineOptions& o, const nlohmann::json& v) { o.level_combine = text_of(v); }},
+      {"level-weights",
+       [](PipelineOptions& o, const nlohmann::json& v) { o.level_weights = text_of(v); }},
+      {"first-level-height",
+       [](PipelineOptions& o, const nlohmann::json& v) {
+         o.params.first_level_height = number_of<int>(v);
+       }},
+      {"low-frequency-boost",
+       [](PipelineOptions& o, const nlohmann::json& v) {
+         o.params.low_frequency_boost = number_of<float>(v);
+       }},
+      {"low-frequency-boost-curvature",
+       [](PipelineOptions& o, const nlohmann::json& v) {
+         o.params.low_frequency_boost_curvature = number_of<float>(v);
+       }},
+      {"high-pass-frequency",
+       [](PipelineOptions& o, const nlohmann::json& v) {
+         o.params.high_pass_frequency = number_of<float>(v);
+       }},
       {"threshold",
        [](PipelineOptions& o, const nlohmann::json& v) { o.params.threshold = number_of<float>(v); }},
       {"exposure",

@@ -119,6 +119,12 @@ class Evaluator {
             const Image* oracle = nullptr)
       : ctx_(ctx), p_(ctx.plan.params), h_(h), target_(target), oracle_(oracle) {}
 
+  // The part of down.k that up.k keeps (1, or 1 - C_k when the levels mix).
+  float kept_of_current() const {
+    const LevelBlend b = level_blend(p_, target_.pass, int(ctx_.plan.levels.size()));
+    return b.combine == LevelCombine::mix ? 1.0f - b.weight : 1.0f;
+  }
+
   Image target() {
     Image out = oracle_ && oracle_->width() && h_.after_oracle_only() ? *oracle_ : compute(target_, true);
     if (h_.unwritten || h_.nonfinite || h_.pow_negative_karis) take_from_capture(out);
@@ -132,11 +138,12 @@ class Evaluator {
         if (i % kChannels != 3) out.data()[i] *= h_.target_gain;
     if (h_.tent_gain != 1.0f) {  // current + g (oracle - current): the tent's sum scaled by g
       const ConstImageView cur = value(stage_inputs(ctx_.plan, target_)[1]).view;
+      const float keep = kept_of_current();  // what the blend keeps of the current level
       for (int y = 0; y < out.height(); ++y)
         for (int x = 0; x < out.width(); ++x)
           for (int c = 0; c < 3; ++c) {
             float& v = out.pixel(x, y)[c];
-            const float d = cur.pixel(x, y)[c];
+            const float d = keep * cur.pixel(x, y)[c];
             v = d + h_.tent_gain * (v - d);
           }
       // Stored as the level is: the bound's storage term is the oracle's value's, and this
@@ -418,7 +425,9 @@ class Evaluator {
           upscale_bilinear(in[0], out.view(), ctx_.profile.subtexel_bits, threads);
         else
           upsample_tent(in[0], cur, out.view(), ctx_.profile.subtexel_bits, threads, nullptr,
-                        p_.upsample_radius);
+                        p_.upsample_radius,
+                        up ? level_blend(p_, spec.pass, int(ctx_.plan.levels.size()))
+                           : LevelBlend{});
         return out;
       }
       case StageKind::composite: {
@@ -1355,12 +1364,27 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       Image tent(cur.width, cur.height);
       upsample_tent(small, ConstImageView{}, tent.view(), ctx.profile.subtexel_bits, ctx.threads,
                     nullptr, p.upsample_radius);
-      candidates.push_back(fit_gain(ctx.view(target.name), tent.cview(), cur));
+      // A blended level: up.k = C tent + keep down.k; the fit is of the tent's part.
+      const LevelBlend blend = level_blend(p, target.pass, int(ctx.plan.levels.size()));
+      Image kept;
+      ConstImageView base = cur;
+      if (!blend.plain()) {
+        const float keep = blend.combine == LevelCombine::mix ? 1.0f - blend.weight : 1.0f;
+        kept = Image(cur.width, cur.height);
+        for (int y = 0; y < cur.height; ++y)
+          for (int x = 0; x < cur.width; ++x)
+            for (int c = 0; c < 3; ++c) {
+              kept.pixel(x, y)[c] = cur.pixel(x, y)[c] * keep;
+              tent.pixel(x, y)[c] *= blend.weight;
+            }
+        base = kept.cview();
+      }
+      candidates.push_back(fit_gain(ctx.view(target.name), tent.cview(), base));
       // A level stored by truncation: the slope of the values lifted by half a quantum too.
       const Storage st = stage_storage(p, target);
       if (st != Storage::f32 && ctx.profile.half_toward_zero)
         candidates.push_back(fit_gain(
-            ctx.view(target.name), tent.cview(), cur,
+            ctx.view(target.name), tent.cview(), base,
             [&](double v, int c) { return 0.5 * storage_term(v, st, ctx.profile, c); }));
     }
     std::vector<double> tried;

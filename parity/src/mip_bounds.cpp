@@ -58,15 +58,19 @@ int base_texel(int x, int tw, int sw, int o) {
 }  // namespace
 
 std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView oracle,
-                                         const Image* error, bool first, float threshold,
-                                         bool karis, BoundContext ctx) {
+                                         const Image* error, const DownsampleOptions& opt,
+                                         BoundContext ctx) {
+  const bool first = opt.first && opt.threshold_taps;  // the taps are thresholded
+  const float threshold = opt.threshold;
+  const bool karis = opt.first && opt.karis;
+  const bool group_linear = karis && opt.karis_form == KarisForm::group_linear;
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   auto win = std::make_shared<Window2D>(window4x4(src, ctx.threads));
   auto ewin = error ? std::make_shared<Window2D>(window4x4(error->cview(), ctx.threads)) : nullptr;
   const double delta = coordinate_error(src.width, *ctx.profile) +
                        coordinate_error(src.height, *ctx.profile);
   const int tw = oracle.width, th = oracle.height;
-  const bool use_karis = first && karis;
+  const bool use_karis = karis;
   return make_bounds(
       {"coordinate rounding (x local range)", "filter and sum rounding",
        "threshold within the tap's error (kept or dropped)",
@@ -74,7 +78,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
       [=](int x, int y, int c) {
         const auto& taps = downsample_taps();
         double coord = 0, arith = 0, thresh = 0;
-        double dq[13], lum_err[13], qmax[13], lum[13];
+        double dq[13], lum_err[13], qmax[13], lum[13], qs[13][3];
         for (std::size_t i = 0; i < taps.size(); ++i) {
           const int bx = base_texel(x, tw, src.width, taps[i].ox);
           const int by = base_texel(y, th, src.height, taps[i].oy);
@@ -92,6 +96,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
             const double ek = ewin ? ewin->magnitude.pixel(bx, by)[k] : 0.0;
             dmax = std::max(dmax, delta * rk + ek + 3 * U * win->magnitude.pixel(bx, by)[k]);
             qmax[i] = std::max(qmax[i], std::fabs(double(q[k])));
+            qs[i][k] = q[k];
           }
           dq[i] = dmax;
           lum[i] = luminance(q[0], q[1], q[2]);
@@ -100,7 +105,32 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
             thresh += taps[i].weight * qmax[i];
         }
         double kterm = 0;
-        if (use_karis) {
+        if (group_linear) {
+          // Bevy's form: G = s_g (sum of the group's taps), times w = 1 / (1 + L(G) / 4). G moves
+          // by dG <= s_g (sum of its taps' errors), L(G) by dL <= dG plus its rounding; w by at
+          // most (dL / 4) w_max^2 (the slope's largest, at the low end of L), and G w by
+          // dG w_max + (|G| + dG) dw. No bound where 1 + L / 4 may reach 0 (negative input).
+          const auto& groups = karis_groups();
+          const auto& gw = karis_group_weights();
+          for (std::size_t g = 0; g < groups.size(); ++g) {
+            const double scale = gw[g] / 4.0;
+            double dG = 0, G[3] = {0, 0, 0};
+            for (int i : groups[g]) {
+              dG += scale * dq[i];
+              for (int k = 0; k < 3; ++k) G[k] += scale * qs[i][k];
+            }
+            const double L = 0.2126 * G[0] + 0.7152 * G[1] + 0.0722 * G[2];
+            const double dL = dG + 4 * U * (std::fabs(G[0]) + std::fabs(G[1]) + std::fabs(G[2]));
+            const double low = 1 + (L - dL) / 4;
+            if (!(low > 0)) {
+              kterm = INFINITY;
+              break;
+            }
+            const double w_max = 1 / low;
+            kterm += dG * w_max + (std::fabs(G[c]) + dG) * (dL / 4) * w_max * w_max * (1 + 4 * U);
+          }
+          coord = 0;  // the Karis term carries the taps' own errors (dG)
+        } else if (use_karis) {
           const auto& groups = karis_groups();
           const auto& gw = karis_group_weights();
           for (std::size_t g = 0; g < groups.size(); ++g) {
@@ -126,7 +156,15 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
 
 std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView current,
                                        ConstImageView oracle, const Image* small_error,
-                                       const Image* current_error, BoundContext ctx) {
+                                       const Image* current_error, LevelBlend blend,
+                                       BoundContext ctx) {
+  // A blended level (level_blend): the tent's terms scaled by C, the current level's by what
+  // the blend keeps of it, and the blend's two products and sum rounded.
+  const bool plain = current.empty() || blend.plain();
+  const double tent_w = plain ? 1.0 : std::fabs(double(blend.weight));
+  const double keep = plain || blend.combine == LevelCombine::add
+                          ? 1.0
+                          : std::fabs(1.0 - double(blend.weight));
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   auto win = std::make_shared<Window2D>(window4x4(small, ctx.threads));
   auto ewin = small_error ? std::make_shared<Window2D>(window4x4(small_error->cview(), ctx.threads))
@@ -147,8 +185,10 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
           arith += t.weight * (3 + 2 * 9) * U * win->magnitude.pixel(bx, by)[c];
         }
         const double cur = current.empty() ? 0.0 : std::fabs(current.pixel(x, y)[c]);
-        arith += 9 * U * cur;
-        const double ecur = current_error ? current_error->pixel(x, y)[c] : 0.0;
+        coord *= tent_w;
+        arith = arith * tent_w + 9 * U * cur;
+        if (!plain) arith += 4 * U * (std::fabs(oracle.pixel(x, y)[c]) + keep * cur);
+        const double ecur = keep * (current_error ? current_error->pixel(x, y)[c] : 0.0);
         const double v = oracle.pixel(x, y)[c];
         return Values{coord, arith, ecur,
                       storage_term(v, ctx.storage, *ctx.profile, c) + denormal_floor(*ctx.profile), 0};

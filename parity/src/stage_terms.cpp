@@ -146,7 +146,8 @@ Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanit
         upscale_bilinear(in[0], out.view(), subtexel_bits, threads);
       else
         upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads,
-                      nullptr, p.upsample_radius);
+                      nullptr, p.upsample_radius,
+                      up ? level_blend(p, spec.pass, int(plan.levels.size())) : LevelBlend{});
       break;
     }
     case StageKind::composite:
@@ -292,8 +293,14 @@ StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in,
   const ConstImageView o = t.oracle.cview(), none{};
   auto bounds = [&](ConstImageView a, ConstImageView b, ConstImageView out, const Image* ea,
                     const Image* eb) -> std::unique_ptr<StageBounds> {
-    if (down) return down_bounds(a, out, ea, spec.pass == 1, p.threshold, p.karis, at.ctx);
-    return up_bounds(a, up ? b : none, out, ea, up ? eb : nullptr, at.ctx);
+    if (down)
+      return down_bounds(a, out, ea,
+                         downsample_options(p, spec.pass, at.sanitized.width, at.sanitized.height,
+                                            at.profile.subtexel_bits),
+                         at.ctx);
+    return up_bounds(a, up ? b : none, out, ea, up ? eb : nullptr,
+                     up ? level_blend(p, spec.pass, int(at.plan.levels.size())) : LevelBlend{},
+                     at.ctx);
   };
   t.bound = bounds(cin[0], up ? cin[1] : none, o, nullptr, nullptr);
   const Image* es = at.carried(in[0]);

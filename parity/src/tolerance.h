@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "bloomref/kernel.h"
+#include "bloomref/mip.h"
 #include "bloomref/parity/compare.h"
 #include "bloomref/parallel.h"
 #include "bloomref/stages.h"
@@ -139,12 +140,15 @@ std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView
                                            float gamma, BoundContext ctx);
 
 /// Mip chain (mip_bounds.cpp). `error` images (end to end) may be null (isolated).
+/// `opt`: the stage's own options (downsample_options): its threshold and Karis form.
 std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView oracle,
-                                         const Image* error, bool first, float threshold,
-                                         bool karis, BoundContext ctx);
+                                         const Image* error, const DownsampleOptions& opt,
+                                         BoundContext ctx);
+/// `blend`: how up.k adds the tent to the current level (plain for the bloom stage).
 std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView current,
                                        ConstImageView oracle, const Image* small_error,
-                                       const Image* current_error, BoundContext ctx);
+                                       const Image* current_error, LevelBlend blend,
+                                       BoundContext ctx);
 
 /// The blur of an error image with the kernel's weights over each tap's window (end-to-end
 /// propagation through one pass): sum_k w_k * (largest magnitude in tap k's window).

@@ -147,7 +147,7 @@ DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int
   o.threshold = p.threshold;
   o.karis = p.karis && k == 1;
   o.subtexel_bits = subtexel_bits;
-  o.threshold_taps = p.prefilter == Prefilter::per_lookup;
+  o.threshold_taps = p.prefilter == Prefilter::per_lookup;  // bright and none: no threshold
   o.karis_form = p.karis_form;
   if (p.texel_step == TexelStep::halved_float) {
     o.step_width = halved_size(width, k - 1);
@@ -172,6 +172,61 @@ std::vector<LevelSize> mip_levels(int width, int height, int levels) {
     out.push_back({w, h});
   }
   return out;
+}
+
+std::vector<LevelSize> chain_levels(const BloomParams& p, int width, int height) {
+  if (p.first_level_height == 0) return mip_levels(width, height, p.levels);
+  // Bevy: mip_height_ratio = max_mip_dimension as f32 / viewport.y as f32, then
+  // (viewport.as_vec2() * ratio).round() (half away from zero), at least 1.
+  const float ratio = static_cast<float>(p.first_level_height) / static_cast<float>(height);
+  const int w0 = std::max(1, static_cast<int>(std::round(static_cast<float>(width) * ratio)));
+  const int h0 = std::max(1, static_cast<int>(std::round(static_cast<float>(height) * ratio)));
+  std::vector<LevelSize> out;
+  for (int k = 0; k < p.levels; ++k) {
+    const LevelSize l{std::max(1, w0 >> k), std::max(1, h0 >> k)};
+    if (!out.empty() && out.back().width == 1 && out.back().height == 1) break;
+    out.push_back(l);
+  }
+  return out;
+}
+
+LevelBlend level_blend(const BloomParams& p, int k, int levels) {
+  LevelBlend b;
+  b.combine = p.level_combine;
+  if (p.level_weights == LevelWeights::one) return b;
+  // bevyengine/bevy crates/bevy_post_process/src/bloom/mod.rs, compute_blend_factor, in f32:
+  // up.k reads level k + 1, Bevy's mip k (its mip 0 is down.1); max_mip the last level's index.
+  const float mip = static_cast<float>(k), max_mip = static_cast<float>(levels - 1);
+  const float x = max_mip > 0.0f ? mip / max_mip : 0.0f;
+  float boost = (1.0f - std::pow(1.0f - x, 1.0f / (1.0f - p.low_frequency_boost_curvature))) *
+                p.low_frequency_boost;
+  const float high_pass =
+      1.0f - std::clamp((x - p.high_pass_frequency) / p.high_pass_frequency, 0.0f, 1.0f);
+  if (p.level_combine == LevelCombine::mix) boost *= 1.0f - p.strength;
+  b.weight = (p.strength + boost) * high_pass;
+  return b;
+}
+
+// Bevy's Karis average (bloom.wesl, downsample_first), in its order: the groups as the
+// article's (below), each scaled by its weight first, then by 1 / (1 + dot(G, Rec. 709) / 4);
+// the sum clamped to [0.0001, 3.40282347e37].
+template <class T>
+void karis_group_linear(const T q[13][3], T r[3]) {
+  constexpr int kGroup[5][4] = {{11, 10, 12, 0}, {10, 9, 0, 8}, {12, 0, 5, 6}, {0, 8, 6, 7},
+                                {4, 3, 1, 2}};
+  const T scale[5] = {T(0.125f / 4.0f), T(0.125f / 4.0f), T(0.125f / 4.0f), T(0.125f / 4.0f),
+                      T(0.5f / 4.0f)};
+  for (int g = 0; g < 5; ++g) {
+    T v[3];
+    for (int c = 0; c < 3; ++c) {
+      const int* t = kGroup[g];
+      v[c] = (((q[t[0]][c] + q[t[1]][c]) + q[t[2]][c]) + q[t[3]][c]) * scale[g];
+    }
+    const T luma = (v[0] * T(0.2126f) + v[1] * T(0.7152f) + v[2] * T(0.0722f)) / T(4);
+    const T w = T(1) / (T(1) + luma);
+    for (int c = 0; c < 3; ++c) r[c] = r[c] + v[c] * w;
+  }
+  for (int c = 0; c < 3; ++c) r[c] = std::clamp(r[c], T(0.0001f), T(3.40282347e37f));
 }
 
 // The article's Karis average (6.new_downsample.fs, case 0), in its order. Its groups in tap
@@ -227,6 +282,8 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
         T r[3] = {0, 0, 0};
         if (karis && opt.karis_form == KarisForm::group_srgb) {
           karis_group_srgb(q, r);
+        } else if (karis && opt.karis_form == KarisForm::group_linear) {
+          karis_group_linear(q, r);
         } else if (karis) {
           T w[kDownTaps];
           // Karis weight 1 / (1 + L): negative L (out-of-gamut input) would make it grow
@@ -253,7 +310,10 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
 
 template <class T>
 void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
-                   int subtexel_bits, int threads, const std::uint8_t* active, float radius) {
+                   int subtexel_bits, int threads, const std::uint8_t* active, float radius,
+                   LevelBlend blend) {
+  const bool plain = current.empty() || blend.plain();
+  const T weight = static_cast<T>(blend.weight), keep = static_cast<T>(1.0f - blend.weight);
   const Lookups<T> lookups =
       radius > 0.0f ? Lookups<T>(small, dst.width, dst.height, 1, subtexel_bits, {0.0f, radius},
                                  {0.0f, radius})
@@ -266,12 +326,18 @@ void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicVi
           continue;
         }
         T r[3] = {0, 0, 0};
-        if (!current.empty())
+        if (!current.empty() && plain)
           for (int c = 0; c < 3; ++c) r[c] = current.pixel(x, y)[c];
         for (int i = 0; i < kTentTaps; ++i) {
           T s[3] = {};  // sample_rgb writes all three; the init only quiets -Wuninitialized
           lookups.sample(small, x, y, kTentOffset[i][0], kTentOffset[i][1], s);
           for (int c = 0; c < 3; ++c) r[c] = r[c] + s[c] * static_cast<T>(kTentWeight[i]);
+        }
+        if (!plain) {
+          const T* d = current.pixel(x, y);
+          for (int c = 0; c < 3; ++c)
+            r[c] = blend.combine == LevelCombine::mix ? r[c] * weight + d[c] * keep
+                                                      : r[c] * weight + d[c];
         }
         write_rgb1(dst.pixel(x, y), r);
       }
@@ -363,9 +429,11 @@ template void downsample<float>(BasicView<const float>, BasicView<float>,
 template void downsample<double>(BasicView<const double>, BasicView<double>,
                                  const DownsampleOptions&, int);
 template void upsample_tent<float>(BasicView<const float>, BasicView<const float>,
-                                   BasicView<float>, int, int, const std::uint8_t*, float);
+                                   BasicView<float>, int, int, const std::uint8_t*, float,
+                                   LevelBlend);
 template void upsample_tent<double>(BasicView<const double>, BasicView<const double>,
-                                    BasicView<double>, int, int, const std::uint8_t*, float);
+                                    BasicView<double>, int, int, const std::uint8_t*, float,
+                                    LevelBlend);
 template void upscale_bilinear<float>(BasicView<const float>, BasicView<float>, int, int);
 template void upscale_bilinear<double>(BasicView<const double>, BasicView<double>, int, int);
 template bool mip_nothing_bright<float>(BasicView<const float>, double, int);

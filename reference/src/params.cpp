@@ -43,13 +43,19 @@ constexpr std::pair<const char*, CompositeOrder> kOrders[] = {
 constexpr std::pair<const char*, CompositeMode> kModes[] = {{"add", CompositeMode::add},
                                                             {"mix", CompositeMode::mix}};
 constexpr std::pair<const char*, Prefilter> kPrefilters[] = {
-    {"per-lookup", Prefilter::per_lookup}, {"bright", Prefilter::bright}};
+    {"per-lookup", Prefilter::per_lookup}, {"bright", Prefilter::bright}, {"none", Prefilter::none}};
 constexpr std::pair<const char*, KarisForm> kKarisForms[] = {
-    {"per-tap", KarisForm::per_tap}, {"group-srgb", KarisForm::group_srgb}};
+    {"per-tap", KarisForm::per_tap},
+    {"group-srgb", KarisForm::group_srgb},
+    {"group-linear", KarisForm::group_linear}};
 constexpr std::pair<const char*, TexelStep> kTexelSteps[] = {
     {"texture", TexelStep::texture}, {"halved-float", TexelStep::halved_float}};
 constexpr std::pair<const char*, BloomUpscale> kUpscales[] = {
     {"tent", BloomUpscale::tent}, {"bilinear", BloomUpscale::bilinear}};
+constexpr std::pair<const char*, LevelCombine> kCombines[] = {{"add", LevelCombine::add},
+                                                               {"mix", LevelCombine::mix}};
+constexpr std::pair<const char*, LevelWeights> kWeights[] = {{"one", LevelWeights::one},
+                                                              {"bevy", LevelWeights::bevy}};
 constexpr std::pair<const char*, Storage> kChainStorages[] = {
     {"f32", Storage::f32}, {"f16", Storage::f16}, {"r11g11b10", Storage::r11g11b10}};
 constexpr std::pair<const char*, PlanMode> kPlans[] = {{"adaptive", PlanMode::adaptive},
@@ -78,8 +84,21 @@ void validate(const BloomParams& p) {
   require(p.storage != Storage::r11g11b10,
           "--storage r11g11b10 is for the mip chain's levels only (--chain-storage)");
   require(p.method == Method::mip || !p.mip_variant(),
-          "--prefilter, --karis-form, --texel-step, --upsample-radius, --bloom-upscale and "
-          "--chain-storage apply to --method mip only");
+          "--prefilter, --karis-form, --texel-step, --upsample-radius, --bloom-upscale, "
+          "--chain-storage, --first-level-height, --level-combine and --level-weights apply to "
+          "--method mip only");
+  require(p.first_level_height >= 0 && p.first_level_height <= 16384,
+          "--first-level-height must be in [0, 16384] (0 = half the image), got " +
+              std::to_string(p.first_level_height));
+  require(std::isfinite(p.low_frequency_boost) && p.low_frequency_boost >= 0,
+          "--low-frequency-boost must be finite and >= 0, got " + str(p.low_frequency_boost));
+  require(p.low_frequency_boost_curvature >= 0 && p.low_frequency_boost_curvature < 1,
+          "--low-frequency-boost-curvature must be in [0, 1), got " +
+              str(p.low_frequency_boost_curvature));
+  require(p.high_pass_frequency > 0 && p.high_pass_frequency <= 1,
+          "--high-pass-frequency must be in (0, 1], got " + str(p.high_pass_frequency));
+  require(p.level_combine == LevelCombine::add || p.strength <= 1,
+          "--level-combine mix needs --strength in [0, 1], got " + str(p.strength));
   require(std::isfinite(p.upsample_radius) && p.upsample_radius >= 0 && p.upsample_radius < 1,
           "--upsample-radius must be in [0, 1) (texture coordinates; 0 = one texel), got " +
               str(p.upsample_radius));
@@ -114,6 +133,14 @@ std::string to_string(Prefilter v) { return name_of(v, kPrefilters); }
 std::string to_string(KarisForm v) { return name_of(v, kKarisForms); }
 std::string to_string(TexelStep v) { return name_of(v, kTexelSteps); }
 std::string to_string(BloomUpscale v) { return name_of(v, kUpscales); }
+std::string to_string(LevelCombine v) { return name_of(v, kCombines); }
+std::string to_string(LevelWeights v) { return name_of(v, kWeights); }
+LevelCombine parse_level_combine(const std::string& s) {
+  return parse_enum("--level-combine", s, kCombines);
+}
+LevelWeights parse_level_weights(const std::string& s) {
+  return parse_enum("--level-weights", s, kWeights);
+}
 CompositeMode parse_composite_mode(const std::string& s) {
   return parse_enum("--composite-mode", s, kModes);
 }

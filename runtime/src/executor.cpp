@@ -673,7 +673,8 @@ class Executor {
     return bloomref::downsample_options(p_, k, w_, h_, p_.subtexel_bits);
   }
 
-  // Stage up.k = down.k + tent3x3(up.k+1) (the smallest level: down.K itself).
+  // Stage up.k = down.k + tent3x3(up.k+1) (the smallest level: down.K itself), or as the
+  // variant blends them (level_blend).
   void up(const StageSpec& stage, Clock::time_point t0) {
     const int k = stage.pass, top = static_cast<int>(plan_.levels.size());
     const BasicImage<T>& small = k + 1 == top ? down_[top] : up_[k + 1];
@@ -681,7 +682,7 @@ class Executor {
     dst = BasicImage<T>(down_[k].width(), down_[k].height());
     upsample_tent(small.cview(), down_[k].cview(), dst.view(), p_.subtexel_bits, threads_,
                   p_.mip_variant() ? nullptr : mip_mask(stage.name, small, dst, 1, down_[k]),
-                  p_.upsample_radius);
+                  p_.upsample_radius, level_blend(p_, k, top));
     store_level(dst);
     record(stage.name, dst, ms_since(t0), false);
   }

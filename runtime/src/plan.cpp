@@ -99,7 +99,7 @@ std::vector<StageSpec> mip_stages(const BloomParams& p, std::size_t k) {
 std::vector<std::string> stage_names(const BloomParams& p, int width, int height) {
   std::vector<std::string> names;
   if (p.method == Method::mip) {
-    for (const StageSpec& s : mip_stages(p, mip_levels(width, height, p.levels).size()))
+    for (const StageSpec& s : mip_stages(p, chain_levels(p, width, height).size()))
       names.push_back(s.name);
     return names;
   }
@@ -150,7 +150,7 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
   const bool adaptive = params.plan == PlanMode::adaptive;
   if (params.method == Method::mip) {
     plan.sanitize = !adaptive || plan.facts.nonfinite.any();
-    plan.levels = mip_levels(scene.width, scene.height, params.levels);
+    plan.levels = chain_levels(params, scene.width, scene.height);
     plan.stages = mip_stages(params, plan.levels.size());
     return plan;
   }

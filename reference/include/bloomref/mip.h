@@ -25,6 +25,23 @@ struct LevelSize {
 /// chain reaches 1x1 (no level repeats 1x1; a 1x1 image has one 1x1 level).
 std::vector<LevelSize> mip_levels(int width, int height, int levels);
 
+/// The chain's level sizes under `p`: mip_levels, or with p.first_level_height set, level 1
+/// (round(width x r), round(height x r)) at least 1, r = first_level_height / height in f32 (Bevy's
+/// prepare_bloom_textures), and each next level its size >> 1 (at least 1), at most p.levels, no
+/// 1x1 repeated.
+std::vector<LevelSize> chain_levels(const BloomParams& p, int width, int height);
+
+/// How up.k adds the tent of the level below to down.k (LevelCombine), with its constant.
+struct LevelBlend {
+  LevelCombine combine = LevelCombine::add;
+  float weight = 1.0f;
+  /// add with weight 1: seed 002's order (down.k first, each tap added in turn).
+  bool plain() const { return combine == LevelCombine::add && weight == 1.0f; }
+};
+
+/// The blend of stage up.k of a chain of `levels` levels under `p` (LevelWeights).
+LevelBlend level_blend(const BloomParams& p, int k, int levels);
+
 /// One lookup of a chain stage: offset (ox, oy) in source texels, weight.
 struct MipTap {
   int ox, oy;
@@ -55,6 +72,7 @@ struct DownsampleOptions {
   /// Prefilter::bright: the first level reads a thresholded image and thresholds nothing.
   bool threshold_taps = true;
   KarisForm karis_form = KarisForm::per_tap;
+  /// Prefilter::none: the first level reads the scene and thresholds nothing.
   /// The size whose reciprocal is the texel step (TexelStep::halved_float: the host's float
   /// size); 0: the source texture's.
   float step_width = 0.0f, step_height = 0.0f;
@@ -75,7 +93,9 @@ float halved_size(int n, int k);
 /// sum_j ((g * w_j) / s) * q_j, w_j = 1 / (1 + L(q_j)), s = w_a + w_b + w_c + w_d. Alpha 1.
 /// KarisForm::group_srgb (6.new_downsample.fs, mipLevel 0): G = (q_a + q_b + q_c + q_d) * (g / 4)
 /// per group in the shader's order, G * (1 / (1 + dot(pow(G, 1 / 2.2), (0.299, 0.587, 0.114))
-/// * 0.25)), r = G_0 + ... + G_4, then max(r, 0.0001).
+/// * 0.25)), r = G_0 + ... + G_4, then max(r, 0.0001). KarisForm::group_linear (Bevy's
+/// downsample_first): G as for group_srgb, G * (1 / (1 + dot(G, Rec. 709) / 4)), r = G_0 + ... +
+/// G_4, then clamp(r, 0.0001, 3.40282347e37).
 template <class T>
 void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
                 int threads);
@@ -85,10 +105,13 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
 /// 003's order. Alpha 1.
 /// `radius` > 0: the taps are `radius` apart in texture coordinates on both axes (the article's
 /// filterRadius) instead of one texel of `small`.
+/// A `blend` other than plain: t = the tent's sum in tap order, then r = t * C + current
+/// (LevelCombine::add) or r = t * C + current * (1 - C) (mix), as the GPU's blend unit combines
+/// the pass's output with the level it draws into.
 template <class T>
 void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
                    int subtexel_bits, int threads, const std::uint8_t* active = nullptr,
-                   float radius = 0.0f);
+                   float radius = 0.0f, LevelBlend blend = {});
 
 /// Stage `bloom` under BloomUpscale::bilinear: one GL_LINEAR lookup of `small` at each texel's
 /// centre of `dst` (the article's final pass reads the half-resolution level so). Alpha 1.

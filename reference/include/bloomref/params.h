@@ -38,13 +38,17 @@ enum class CompositeMode { add, mix };
 // chain; preset learnopengl-pbb sets the article's (src/8.guest/2022/6.physically_based_bloom).
 /// Where the threshold is: on each lookup of the first downsample (seed 002), or in a `bright`
 /// stage before the chain (luminance > threshold, as the article's scene shader 6.bloom.fs
-/// writes its second output), the chain then reading that image without a threshold.
-enum class Prefilter { per_lookup, bright };
+/// writes its second output), the chain then reading that image without a threshold; or none:
+/// the chain reads the scene and thresholds nothing (Bevy's bloom with its default threshold 0,
+/// bevyengine/bevy crates/bevy_post_process/src/bloom/bloom.wesl).
+enum class Prefilter { per_lookup, bright, none };
 /// The first downsample's Karis average: `per_tap` (seed 002: each tap weighted 1 / (1 + L),
 /// normalised within its group) or `group_srgb` (the article's 6.new_downsample.fs: each group
 /// of four scaled by 1 / (1 + luma / 4), luma = Rec. 601 weights of pow(group, 1 / 2.2), not
-/// normalised; the sum then max(., 0.0001)).
-enum class KarisForm { per_tap, group_srgb };
+/// normalised; the sum then max(., 0.0001)); or `group_linear` (Bevy's bloom.wesl,
+/// downsample_first: each group of four scaled by its weight, then by 1 / (1 + L / 4) with L its
+/// Rec. 709 luminance in linear colour, not normalised; the sum clamped to [0.0001, 3.40282347e37]).
+enum class KarisForm { per_tap, group_srgb, group_linear };
 /// The downsample's texel step: 1 / the source texture's size, or 1 / the size the host passes
 /// as a float that it halves per level (the article's srcResolution: 400.5 where the texture is
 /// 400 wide), so that odd levels are sampled off their texel grid.
@@ -52,6 +56,15 @@ enum class TexelStep { texture, halved_float };
 /// The bloom at full resolution: the 3x3 tent of up.1 (seed 002), or one bilinear lookup of it
 /// (the article's final pass samples the half-resolution level directly).
 enum class BloomUpscale { tent, bilinear };
+/// How up.k combines down.k with the tent of the level below it: `add` (down.k + C_k tent, the
+/// blend GL_ONE / GL_ONE when C_k is 1) or `mix` (tent C_k + down.k (1 - C_k): the blend
+/// constant / one-minus-constant, Bevy's energy-conserving mode).
+enum class LevelCombine { add, mix };
+/// The per-level constants C_k: `one` (every C_k 1), or `bevy` (bloom/mod.rs,
+/// compute_blend_factor, in f32: (strength + boost) x high-pass, boost = (1 - (1 - k / K)^(1 / (1 -
+/// curvature))) x low_frequency_boost, times 1 - strength under LevelCombine::mix; K the last
+/// level's index, counted from 0 at down.1).
+enum class LevelWeights { one, bevy };
 
 struct BloomParams {
   Method method = Method::gaussian;
@@ -85,13 +98,22 @@ struct BloomParams {
   /// How down.k and up.k are stored; f32 and f16 are `storage` itself.
   Storage chain_storage = Storage::f32;
   bool chain_storage_set = false;  ///< false: chain_storage follows `storage`
+  /// The first level's height, its width in proportion (round(width x height' / height)), as
+  /// Bevy sizes its bloom texture (max_mip_dimension); 0: half the image (floor(n / 2)).
+  int first_level_height = 0;
+  LevelCombine level_combine = LevelCombine::add;
+  LevelWeights level_weights = LevelWeights::one;
+  float low_frequency_boost = 0.7f;            ///< LevelWeights::bevy (Bevy's defaults)
+  float low_frequency_boost_curvature = 0.95f;  ///< in [0, 1)
+  float high_pass_frequency = 1.0f;            ///< in (0, 1]
   /// The storage of the chain's levels (chain_storage when set, else storage).
   Storage level_storage() const { return chain_storage_set ? chain_storage : storage; }
   /// Whether any mip-chain choice differs from seed 002's chain.
   bool mip_variant() const {
     return prefilter != Prefilter::per_lookup || karis_form != KarisForm::per_tap ||
            texel_step != TexelStep::texture || upsample_radius != 0.0f ||
-           bloom_upscale != BloomUpscale::tent || chain_storage_set;
+           bloom_upscale != BloomUpscale::tent || chain_storage_set || first_level_height != 0 ||
+           level_combine != LevelCombine::add || level_weights != LevelWeights::one;
   }
 };
 
@@ -112,6 +134,8 @@ std::string to_string(Prefilter p);
 std::string to_string(KarisForm k);
 std::string to_string(TexelStep t);
 std::string to_string(BloomUpscale b);
+std::string to_string(LevelCombine c);
+std::string to_string(LevelWeights w);
 Method parse_method(const std::string& s);
 KernelName parse_kernel(const std::string& s);
 Storage parse_storage(const std::string& s);
@@ -125,6 +149,8 @@ Prefilter parse_prefilter(const std::string& s);
 KarisForm parse_karis_form(const std::string& s);
 TexelStep parse_texel_step(const std::string& s);
 BloomUpscale parse_bloom_upscale(const std::string& s);
+LevelCombine parse_level_combine(const std::string& s);
+LevelWeights parse_level_weights(const std::string& s);
 /// --chain-storage: f32, f16 or r11g11b10.
 Storage parse_chain_storage(const std::string& s);
 

@@ -1,0 +1,244 @@
+"""bloomref's CPU reference of Bevy's bloom (preset bevy) against an independent numpy computation
+written from Bevy's sources (bevyengine/bevy at 4805ca7, crates/bevy_post_process/src/bloom/:
+bloom.wesl for the passes, mod.rs for the texture sizes, the pass order and compute_blend_factor,
+settings.rs for Bloom::NATURAL, upsampling_pipeline.rs for the blend state).
+
+Nothing here is derived from bloomref's output: every expected image is computed by numpy from the
+input image alone. Bevy computes the texture size and the blend constants on the CPU in f32; numpy
+does so in float32 too. The shader literals (Rec. 709 weights, 0.0001, 3.40282347e37) are f32, so
+the f64 truth uses their float32 values. Levels and the view are kept in f32 here (--storage f32
+--chain-storage f32): the comparison is of the arithmetic, not of Rg11b10Ufloat's rounding.
+"""
+
+import numpy as np
+import pytest
+
+from test_variants_numpy import (F32, F32_REL, F64_ABS, F64_REL, centres, read_rgb, write_exr,
+                                 bloomref_exe)
+
+import os
+import subprocess
+import tempfile
+
+INTENSITY = F32(0.15)
+LF_BOOST, LF_CURVATURE, HIGH_PASS = F32(0.7), F32(0.95), F32(1.0)
+MAX_MIP_DIMENSION = 512
+MIP_COUNT = 8  # ilog2(512).max(2) - 1
+LUMA709 = np.array([F32(0.2126), F32(0.7152), F32(0.0722)], dtype=np.float64)
+EXPOSURE, GAMMA = float(F32(1.0)), float(F32(2.2))
+
+BEVY = ["--preset", "bevy", "--storage", "f32", "--chain-storage", "f32"]
+
+
+def run_bloomref(rgb, extra=()):
+    """Runs bloomref on rgb (float32 HxWx3) and returns {stage: HxWx3 float64}."""
+    with tempfile.TemporaryDirectory(prefix="bevy_numpy_") as tmp:
+        src = os.path.join(tmp, "in.exr")
+        write_exr(src, rgb)
+        dump = os.path.join(tmp, "stages")
+        cmd = [bloomref_exe(), "run", src, *BEVY, *extra, "--dump-stages", dump, "-q"]
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+        assert res.returncode == 0, f"{' '.join(cmd)} failed ({res.returncode}): {res.stderr}"
+        return {f[:-4]: read_rgb(os.path.join(dump, f)) for f in os.listdir(dump)
+                if f.endswith(".exr")}
+
+
+def axis(coords, n):
+    """GL_LINEAR with clamp-to-edge along one axis: the two texels and their weights."""
+    u = np.asarray(coords, dtype=np.float64) * n - 0.5
+    i = np.floor(u)
+    a = u - i
+    i = i.astype(np.int64)
+    return np.clip(i, 0, n - 1), np.clip(i + 1, 0, n - 1), a
+
+
+def lookup(img, s, t):
+    """Bilinear lookups of img (h x w x 3) at every (s[x], t[y]) -> len(t) x len(s) x 3."""
+    x0, x1, ax = axis(s, img.shape[1])
+    y0, y1, ay = axis(t, img.shape[0])
+    rows = img[y0] * (1.0 - ay)[:, None, None] + img[y1] * ay[:, None, None]
+    return rows[:, x0] * (1.0 - ax)[None, :, None] + rows[:, x1] * ax[None, :, None]
+
+
+def rust_round(v):
+    """f32::round: half away from zero."""
+    return int(np.floor(abs(v) + 0.5)) * (1 if v >= 0 else -1)
+
+
+def texture_sizes(w, h):
+    """prepare_bloom_textures: (viewport * (512 / viewport.y)).round().max(1), then >> mip."""
+    ratio = F32(MAX_MIP_DIMENSION) / F32(h)
+    w0 = max(1, rust_round(F32(w) * ratio))
+    h0 = max(1, rust_round(F32(h) * ratio))
+    return [(max(1, w0 >> k), max(1, h0 >> k)) for k in range(MIP_COUNT)]
+
+
+def blend_factor(mip, max_mip, energy_conserving=True, intensity=INTENSITY):
+    """compute_blend_factor, in float32 as Bevy's host code computes it."""
+    x = F32(mip) / F32(max_mip)
+    lf = (F32(1.0) - np.power(F32(1.0) - x, F32(1.0) / (F32(1.0) - LF_CURVATURE))) * LF_BOOST
+    hp = F32(1.0) - np.clip((x - HIGH_PASS) / HIGH_PASS, F32(0.0), F32(1.0))
+    if energy_conserving:
+        lf = lf * (F32(1.0) - intensity)
+    return float((intensity + lf) * hp)
+
+
+def taps13(src, tw, th):
+    """The 13 lookups of sample_input_13_tap, offsets in texels of src (UNIFORM_SCALE path)."""
+    s, t = centres(tw), centres(th)
+    dx, dy = 1.0 / src.shape[1], 1.0 / src.shape[0]
+
+    def tap(i, j):
+        return lookup(src, s + i * dx, t + j * dy)
+
+    return dict(a=tap(-2, 2), b=tap(0, 2), c=tap(2, 2), d=tap(-2, 0), e=tap(0, 0),
+                f=tap(2, 0), g=tap(-2, -2), h=tap(0, -2), i=tap(2, -2), j=tap(-1, 1),
+                k=tap(1, 1), l=tap(-1, -1), m=tap(1, -1))
+
+
+def downsample_first(src, tw, th):
+    q = taps13(src, tw, th)
+    groups = [(q["a"] + q["b"] + q["d"] + q["e"]) * (0.125 / 4),
+              (q["b"] + q["c"] + q["e"] + q["f"]) * (0.125 / 4),
+              (q["d"] + q["e"] + q["g"] + q["h"]) * (0.125 / 4),
+              (q["e"] + q["f"] + q["h"] + q["i"]) * (0.125 / 4),
+              (q["j"] + q["k"] + q["l"] + q["m"]) * (0.5 / 4)]
+    total = sum(g * (1.0 / (1.0 + (g @ LUMA709) / 4.0))[..., None] for g in groups)
+    return np.clip(total, float(F32(0.0001)), float(F32(3.40282347e37)))
+
+
+def downsample(src, tw, th):
+    q = taps13(src, tw, th)
+    return ((q["a"] + q["c"] + q["g"] + q["i"]) * 0.03125
+            + (q["b"] + q["d"] + q["f"] + q["h"]) * 0.0625
+            + (q["e"] + q["j"] + q["k"] + q["l"] + q["m"]) * 0.125)
+
+
+def tent(small, tw, th):
+    """sample_input_3x3_tent: taps one texel of `small` apart."""
+    s, t = centres(tw), centres(th)
+    dx, dy = 1.0 / small.shape[1], 1.0 / small.shape[0]
+    out = np.zeros((th, tw, 3))
+    for i in (-1, 0, 1):
+        for j in (-1, 0, 1):
+            out += (4 >> (abs(i) + abs(j))) / 16.0 * lookup(small, s + i * dx, t + j * dy)
+    return out
+
+
+def pipeline(img):
+    """Every stage of Bevy's bloom, float64, in bloomref's stage names: down.k is Bevy's mip k-1
+    after the downsamples, up.k that mip after the upsample blended into it."""
+    hgt, wid, _ = img.shape
+    sizes = texture_sizes(wid, hgt)
+    st = {"input": img}
+    src = img
+    for k, (tw, th) in enumerate(sizes, start=1):
+        src = downsample_first(src, tw, th) if k == 1 else downsample(src, tw, th)
+        st[f"down.{k}"] = src
+    # for mip in (1..mip_count).rev(): draw mip into mip - 1, blend constant C(mip), dst (1 - C)
+    up = st[f"down.{MIP_COUNT}"]
+    for mip in range(MIP_COUNT - 1, 0, -1):
+        tw, th = sizes[mip - 1]
+        c = blend_factor(mip, MIP_COUNT - 1)
+        up = tent(up, tw, th) * c + st[f"down.{mip}"] * (1.0 - c)
+        st[f"up.{mip}"] = up
+    st["bloom"] = tent(up, wid, hgt)
+    c0 = blend_factor(0, MIP_COUNT - 1)
+    st["composite"] = st["bloom"] * c0 + img * (1.0 - c0)
+    st["tonemap"] = 1.0 - np.exp(-st["composite"] * EXPOSURE)
+    st["output"] = np.power(np.maximum(st["tonemap"], 0.0), 1.0 / GAMMA)
+    return st
+
+
+def random_hdr(w, h, seed):
+    rng = np.random.default_rng(seed)
+    img = rng.uniform(0.0, 1.6, size=(h, w, 3))
+    n = max(3, w * h // 100)
+    ys, xs = rng.integers(0, h, n), rng.integers(0, w, n)
+    img[ys, xs] = rng.uniform(5.0, 50.0, size=(n, 3))
+    return img.astype(np.float32)
+
+
+def check_stages(got, want, f64, label):
+    names = sorted(want)
+    assert sorted(got) == names, f"{label}: dumped stages {sorted(got)}, expected {names}"
+    for name in names:
+        g, w = got[name], want[name]
+        assert g.shape == w.shape, f"{label}: stage {name}: shape {g.shape}, expected {w.shape}"
+        scale = float(np.max(np.abs(w)))
+        if f64:
+            half_ulp = 0.5 * np.spacing(np.abs(w).astype(np.float32)).astype(np.float64)
+            tol = half_ulp * (1 + 1e-6) + F64_REL * scale + F64_ABS
+        else:
+            tol = F32_REL * scale + F64_ABS
+        err = np.abs(g - w) - tol
+        if np.any(err > 0):
+            y, x, c = np.unravel_index(np.argmax(err), err.shape)
+            pytest.fail(f"{label}: stage {name}: texel (col {x}, row {y}) channel {'RGB'[c]}: "
+                        f"bloomref {g[y, x, c]!r}, numpy {w[y, x, c]!r} (stage max {scale:.6g}); "
+                        f"{int(np.sum(err > 0))} texel channels over")
+
+
+# Wider and narrower than the 512-high first level, and one taller than it (a true downsample).
+CASES = {
+    "random37x29": lambda: random_hdr(37, 29, 20261129),
+    "random61x23": lambda: random_hdr(61, 23, 5),
+    "impulse40x30": lambda: np.pad(np.full((1, 1, 3), (9.0, 3.0, 1.0), dtype=np.float32),
+                                   ((12, 17), (25, 14), (0, 0))),
+    "random33x600": lambda: random_hdr(33, 600, 77),
+}
+
+
+@pytest.mark.parametrize("precision", ["f64", "f32"])
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_bevy_equals_numpy(case, precision):
+    img = CASES[case]()
+    got = run_bloomref(img, ["--precision", precision])
+    check_stages(got, pipeline(img.astype(np.float64)), precision == "f64", f"{case} {precision}")
+
+
+def test_sizes_and_constants_by_hand():
+    """The texture sizes and blend constants, by hand: 37x29 gives round(37 x 512 / 29) = 653
+    wide; the constants at mip 0 and the last mip are closed forms of compute_blend_factor."""
+    assert texture_sizes(37, 29)[0] == (653, 512)
+    assert texture_sizes(1920, 1080)[:2] == [(910, 512), (455, 256)]
+    # mip 0: (1 - 1^20) = 0, so C = intensity; the last mip: (1 - 0^20) = 1, C = 0.15 + 0.7 x 0.85
+    assert blend_factor(0, 7) == pytest.approx(0.15, abs=1e-7)
+    assert blend_factor(7, 7) == pytest.approx(0.15 + 0.7 * 0.85, abs=1e-6)
+
+
+@pytest.mark.parametrize("precision", ["f64", "f32"])
+def test_constant_image_closed_form(precision):
+    """A constant v: each group is v g (g its weight), times 1 / (1 + g L / 4); the later levels
+    and the tent keep a constant, and each blend C x + (1 - C) x keeps it, so every level and the
+    bloom equal down.1 and the composite is 0.85 v + 0.15 down.1."""
+    v = np.array([3.0, 2.0, 1.5])
+    img = np.broadcast_to(v.astype(np.float32), (29, 37, 3)).copy()
+    got = run_bloomref(img, ["--precision", precision])
+    lum = float(v @ LUMA709)
+    d1 = 4 * (v * 0.125) / (1 + 0.125 * lum / 4) + (v * 0.5) / (1 + 0.5 * lum / 4)
+    want = {f"down.{k}": d1 for k in range(1, MIP_COUNT + 1)}
+    want.update({f"up.{k}": d1 for k in range(1, MIP_COUNT)})
+    want["bloom"] = d1
+    want["composite"] = 0.85 * v + 0.15 * d1
+    rel = 1e-7 if precision == "f64" else 2e-6
+    for name, value in want.items():
+        err = np.max(np.abs(got[name] - value), axis=(0, 1))
+        assert np.all(err <= rel * np.abs(value) + 1e-12), (
+            f"constant {precision}: stage {name}: expected {value}, got "
+            f"{got[name].reshape(-1, 3).min(axis=0)}..{got[name].reshape(-1, 3).max(axis=0)}")
+
+
+def test_blend_constants_are_what_is_tested():
+    """Bevy's additive mode's constants (lf boost not scaled by 1 - intensity) give up levels the
+    comparison rejects: the test tells the constants apart."""
+    img = CASES["random37x29"]()
+    got = run_bloomref(img, ["--precision", "f32"])
+    want = pipeline(img.astype(np.float64))
+    hgt, wid, _ = img.shape
+    sizes = texture_sizes(wid, hgt)
+    c = blend_factor(3, MIP_COUNT - 1, energy_conserving=False)
+    other = tent(want["up.4"], *sizes[2]) * c + want["down.3"] * (1.0 - c)
+    scale = float(np.max(np.abs(want["up.3"])))
+    diff = float(np.max(np.abs(got["up.3"] - other)))
+    assert diff > 100 * F32_REL * scale, f"up.3 differs from the other constants by only {diff:.3e}"
