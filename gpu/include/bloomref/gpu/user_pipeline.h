@@ -287,6 +287,18 @@ MipChainRun run_mip_chain(GlContext& ctx, ConstImageView scene, const MipChainSh
 /// the GL side of `compare` for a plan with the article's choices (prefilter bright, Karis
 /// group-srgb or none, halved-float texel step, a radius in texture coordinates, a bilinear
 /// bloom, mix). Throws ParamError for another combination.
+/// Bevy's layout (bevy_layout) goes to execute_gl_bevy.
 StageTrace execute_gl_mip_chain(GlContext& ctx, const BloomParams& params, ConstImageView scene);
+
+/// Whether `params` is a chain Bevy's render graph draws (preset bevy and its overrides):
+/// prefilter none, the texture's texel step, a tent of one texel, the composite before the tone
+/// map, Karis group-linear or none.
+bool bevy_layout(const BloomParams& params);
+
+/// bloomref's own shaders for Bevy's bloom (gpu/shaders/bevy_*.frag) in its render graph's order
+/// (gpu/src/bevy_host.cpp): the trace holds `input`, `down.1` .. `down.K`, `up.K-1` .. `up.1`,
+/// `composite` (the last upsample blended into the scene) and `output`. Throws ParamError
+/// unless bevy_layout(params).
+StageTrace execute_gl_bevy(GlContext& ctx, const BloomParams& params, ConstImageView scene);
 
 }  // namespace bloomref::gpu
