@@ -130,12 +130,12 @@ PLANTED = [
     # Bevy's Additive constants (lf boost not scaled by 1 - intensity) on the energy-conserving
     # blend: the first blend, up.7, is off.
     (("--level-combine", "add"), "up.7", {"none"}),
-    # intensity 0.3: every blend constant and the composite.
-    (("--strength", "0.3"), "up.7", {"none"}),
+    # intensity 0.3: every blend constant and the composite; up.7's is 0.79 for 0.745.
+    (("--strength", "0.3"), "up.7", {"level-blend-constant"}),
     # no Karis average on the first level.
     (("--karis-form", "per-tap"), "down.1", {"none"}),
-    # no low-frequency boost: every level's constant the intensity alone.
-    (("--low-frequency-boost", "0"), "up.7", {"none"}),
+    # no low-frequency boost: every level's constant the intensity alone, 0.15 for 0.745.
+    (("--low-frequency-boost", "0"), "up.7", {"level-blend-constant"}),
 ]
 
 
@@ -146,6 +146,10 @@ def test_a_changed_choice_fails_where_it_enters(tmp_path, planted, stage, causes
     first, named, cause = first_cause(item)
     assert first == stage, (first, json.dumps(cause))
     assert named in causes, json.dumps(cause)
+    if named == "level-blend-constant":  # the fitted constant's interval holds the planted one
+        planted_c = {"--strength": 0.3 + 0.7 * 0.7, "--low-frequency-boost": 0.15}[planted[0]]
+        fitted = cause["fitted"]
+        assert fitted["low"] <= planted_c <= fitted["high"], json.dumps(cause)
 
 
 def test_a_stronger_bloom_never_passes_with_only_the_composite(tmp_path):

@@ -51,6 +51,7 @@ struct Hypothesis {
   float mix_amount = NAN;     // composite as mix(scene, bloom, a) (fitted); NaN: scene + s bloom
   float add_amount = NAN;     // composite as scene + a bloom where mix is specified (fitted)
   float tent_gain = 1.0f;     // up.k as down.k + g tent(up.k+1) (fitted)
+  float level_weight = NAN;   // a blended up.k's constant C (fitted); NaN: level_blend's
   bool other_texel_step = false;  // the downsample's step from the other size (TexelStep)
   bool pow_negative_karis = false;  // the Karis average's pow of a negative channel: the
                                     // oracle's NaN there is undefined in GLSL (the capture's)
@@ -76,7 +77,8 @@ struct Hypothesis {
            pass_delta == 0 && strength_scale == 1.0f && !ge && !clamp_bright && !f16 &&
            !no_exposure && !clamp_blur && std::isnan(threshold) && gamma_times == 1 &&
            !pow_negative && gamma == 0.0f && spacing == 1.0f && std::isnan(mix_amount) &&
-           std::isnan(add_amount) && tent_gain == 1.0f && !other_texel_step &&
+           std::isnan(add_amount) && tent_gain == 1.0f && std::isnan(level_weight) &&
+           !other_texel_step &&
            !pow_negative_karis &&
            flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored &&
            !vertical_first && source.empty();
@@ -97,7 +99,9 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
              h.f16;
     case StageKind::down:
       return h.sampled() || h.ge || h.f16 || h.other_texel_step || (is_target && !h.source.empty());
-    case StageKind::up: return h.sampled() || h.f16 || (is_target && !h.source.empty());
+    case StageKind::up:
+      return h.sampled() || h.f16 ||
+             (is_target && (!h.source.empty() || !std::isnan(h.level_weight)));
     case StageKind::bloom: return h.sampled() || h.f16;
     case StageKind::composite:
       return h.f16 || h.rgba8 || h.strength_scale != 1.0f || !std::isnan(h.mix_amount) ||
@@ -424,10 +428,13 @@ class Evaluator {
         else if (!up && p_.bloom_upscale == BloomUpscale::bilinear)
           upscale_bilinear(in[0], out.view(), ctx_.profile.subtexel_bits, threads);
         else
+        {
+          LevelBlend blend;
+          if (up) blend = level_blend(p_, spec.pass, int(ctx_.plan.levels.size()));
+          if (up && is_target && !std::isnan(h_.level_weight)) blend.weight = h_.level_weight;
           upsample_tent(in[0], cur, out.view(), ctx_.profile.subtexel_bits, threads, nullptr,
-                        p_.upsample_radius,
-                        up ? level_blend(p_, spec.pass, int(ctx_.plan.levels.size()))
-                           : LevelBlend{});
+                        p_.upsample_radius, blend);
+        }
         return out;
       }
       case StageKind::composite: {
@@ -1366,6 +1373,34 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
                     nullptr, p.upsample_radius);
       // A blended level: up.k = C tent + keep down.k; the fit is of the tent's part.
       const LevelBlend blend = level_blend(p, target.pass, int(ctx.plan.levels.size()));
+      // Another constant W: up.k - down.k = W (tent - down.k) under mix, W tent under add; W
+      // by least squares over the finite values, and its two-digit neighbour.
+      if (!blend.plain()) {
+        const ConstImageView user = ctx.view(target.name);
+        const bool mix = blend.combine == LevelCombine::mix;
+        double num = 0, den = 0;
+        for (int y = 0; y < cur.height; ++y)
+          for (int x = 0; x < cur.width; ++x)
+            for (int c = 0; c < 3; ++c) {
+              const double d = cur.pixel(x, y)[c], t = tent.pixel(x, y)[c];
+              const double u = double(user.pixel(x, y)[c]) - d, r = mix ? t - d : t;
+              if (!std::isfinite(u) || !std::isfinite(r)) continue;
+              num += u * r;
+              den += r * r;
+            }
+        const double w = den > 0 ? num / den : NAN;
+        if (std::isfinite(w) && w > 0 && std::fabs(w - blend.weight) > 1e-4 * blend.weight)
+          for (const double v : nearby_round(w)) {
+            Hypothesis* h = add("level-blend-constant",
+                                "a level blended with another constant than the specified one");
+            h->level_weight = static_cast<float>(v);
+            h->params = 1;
+            char b[200];
+            std::snprintf(b, sizeof b, "%s blends the tent with constant %.4g where %.4g is specified",
+                          target.name.c_str(), v, double(blend.weight));
+            h->detail = b;
+          }
+      }
       Image kept;
       ConstImageView base = cur;
       if (!blend.plain()) {
@@ -1540,6 +1575,7 @@ float* fitted_value(Hypothesis& h) {
   if (h.params != 1) return nullptr;
   if (h.target_gain != 1.0f) return &h.target_gain;
   if (h.tent_gain != 1.0f) return &h.tent_gain;
+  if (!std::isnan(h.level_weight)) return &h.level_weight;
   if (h.spacing != 1.0f) return &h.spacing;
   if (h.sampling.shift != 0.0f) return &h.sampling.shift;
   if (!std::isnan(h.threshold)) return &h.threshold;
