@@ -34,6 +34,7 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
           {"bloom_upscale", to_string(p.bloom_upscale)},
           {"chain_storage", to_string(p.level_storage())},
           {"first_level_height", p.first_level_height},
+          {"knee", shortest(p.knee)},
           {"level_combine", to_string(p.level_combine)},
           {"level_weights", to_string(p.level_weights)}};
 }

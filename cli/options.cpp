@@ -63,7 +63,8 @@ void PipelineOptions::add_to(CLI::App& app) {
   app.add_option("--prefilter", prefilter,
                  "mip: per-lookup (the first downsample thresholds each tap) | bright (a bright "
                  "stage, luminance > threshold, before the chain) | none (the chain reads the "
-                 "scene)")
+                 "scene) | soft-knee (the first level scaled by Bevy's and Unity's soft "
+                 "threshold)")
       ->capture_default_str();
   app.add_option("--karis-form", karis_form,
                  "mip, with --karis: per-tap (1 / (1 + L) per tap, normalised per group) | "
@@ -83,6 +84,10 @@ void PipelineOptions::add_to(CLI::App& app) {
   app.add_option("--first-level-height", p.first_level_height,
                  "mip: the first level's height, its width in proportion (Bevy's "
                  "max_mip_dimension); 0 = half the image")
+      ->capture_default_str();
+  app.add_option("--knee", p.knee,
+                 "mip, --prefilter soft-knee: the knee as a fraction of the threshold, in [0, 1] "
+                 "(Bevy's threshold_softness)")
       ->capture_default_str();
   app.add_option("--level-combine", level_combine,
                  "mip: up.k = down.k + C tent (add) | C tent + (1 - C) down.k (mix)")

@@ -89,6 +89,7 @@ const std::map<std::string, Setter>& setters() {
        [](PipelineOptions& o, const nlohmann::json& v) {
          o.params.first_level_height = number_of<int>(v);
        }},
+      {"knee", [](PipelineOptions& o, const nlohmann::json& v) { o.params.knee = number_of<float>(v); }},
       {"low-frequency-boost",
        [](PipelineOptions& o, const nlohmann::json& v) {
          o.params.low_frequency_boost = number_of<float>(v);

@@ -2,7 +2,7 @@
 
 - `--preset bevy` sets Bevy's values (bevyengine/bevy crates/bevy_post_process/src/bloom/,
   Bloom::NATURAL); options given beside it override them.
-- `compare --preset bevy`: bloomref's GLSL of Bevy's passes (gpu/shaders/bevy_*.frag) in Bevy's
+- `compare --preset bevy` (and bevy-old-school): bloomref's GLSL of Bevy's passes (gpu/shaders/bevy_*.frag) in Bevy's
   render-graph order (gpu/src/bevy_host.cpp), judged stage by stage against the CPU reference.
 - `check --preset bevy --stages`: clean dumps pass, also with only some stages; dumps made with
   one of Bevy's choices changed fail, at the stage the change enters, and never with a wrong
@@ -64,8 +64,9 @@ def test_bad_values_of_bevys_options_are_refused(tmp_path):
     assert not (tmp_path / "o.exr").exists()
 
 
-def test_compare_runs_bloomrefs_bevy_shaders_and_every_stage_passes(tmp_path):
-    code, out, err = run(["compare", "--scene", "demo", "--size", SIZE, "--preset", "bevy",
+@pytest.mark.parametrize("preset", ["bevy", "bevy-old-school"])
+def test_compare_runs_bloomrefs_bevy_shaders_and_every_stage_passes(tmp_path, preset):
+    code, out, err = run(["compare", "--scene", "demo", "--size", SIZE, "--preset", preset,
                           "--json", "c.json"], tmp_path)
     gl_or_skip(code, err)
     assert code == 0, out + err
@@ -150,6 +151,25 @@ def test_a_changed_choice_fails_where_it_enters(tmp_path, planted, stage, causes
         planted_c = {"--strength": 0.3 + 0.7 * 0.7, "--low-frequency-boost": 0.15}[planted[0]]
         fitted = cause["fitted"]
         assert fitted["low"] <= planted_c <= fitted["high"], json.dumps(cause)
+
+
+def test_old_school_soft_threshold_is_judged(tmp_path):
+    """bevy-old-school's soft threshold at 0.6: dumps made with it at 0.3 fail at down.1, where
+    it enters; clean ones pass."""
+    def item(name, *options):
+        d = tmp_path / name
+        code, _, err = run(["run", "--scene", "demo", "--size", SIZE, "--preset", "bevy-old-school",
+                            "-q", "-o", str(tmp_path / (name + ".exr")), "--dump-stages", str(d),
+                            *options], tmp_path)
+        assert code == 0, err
+        code, _, err = run(["check", "--scene", "demo", "--size", SIZE, "--preset",
+                            "bevy-old-school", "--stages", str(d), "--json", str(d / "r.json"), "-q"],
+                           tmp_path)
+        assert code in (0, 1), err
+        return json.loads((d / "r.json").read_text())["items"][0]
+    assert item("clean")["verdict"] == "PASS"
+    low = item("low", "--threshold", "0.3")
+    assert low["verdict"] == "FAIL" and low["first_divergent_stage"] == "down.1"
 
 
 def test_a_stronger_bloom_never_passes_with_only_the_composite(tmp_path):

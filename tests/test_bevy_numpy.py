@@ -27,16 +27,19 @@ MIP_COUNT = 8  # ilog2(512).max(2) - 1
 LUMA709 = np.array([F32(0.2126), F32(0.7152), F32(0.0722)], dtype=np.float64)
 EXPOSURE, GAMMA = float(F32(1.0)), float(F32(2.2))
 
-BEVY = ["--preset", "bevy", "--storage", "f32", "--chain-storage", "f32"]
+# Bloom::OLD_SCHOOL (settings.rs): intensity 0.05, threshold 0.6, threshold_softness 0.2,
+# BloomCompositeMode::Additive.
+OLD_INTENSITY, OLD_THRESHOLD, OLD_SOFTNESS = F32(0.05), F32(0.6), F32(0.2)
 
 
-def run_bloomref(rgb, extra=()):
+def run_bloomref(rgb, extra=(), preset="bevy"):
     """Runs bloomref on rgb (float32 HxWx3) and returns {stage: HxWx3 float64}."""
     with tempfile.TemporaryDirectory(prefix="bevy_numpy_") as tmp:
         src = os.path.join(tmp, "in.exr")
         write_exr(src, rgb)
         dump = os.path.join(tmp, "stages")
-        cmd = [bloomref_exe(), "run", src, *BEVY, *extra, "--dump-stages", dump, "-q"]
+        cmd = [bloomref_exe(), "run", src, "--preset", preset, "--storage", "f32",
+               "--chain-storage", "f32", *extra, "--dump-stages", dump, "-q"]
         res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
         assert res.returncode == 0, f"{' '.join(cmd)} failed ({res.returncode}): {res.stderr}"
         return {f[:-4]: read_rgb(os.path.join(dump, f)) for f in os.listdir(dump)
@@ -107,6 +110,19 @@ def downsample_first(src, tw, th):
     return np.clip(total, float(F32(0.0001)), float(F32(3.40282347e37)))
 
 
+def soft_threshold(color):
+    """bloom.wesl soft_threshold with OLD_SCHOOL's precomputations (settings.rs,
+    extract_component: knee = threshold x softness, in f32)."""
+    knee = OLD_THRESHOLD * OLD_SOFTNESS
+    x, y = float(OLD_THRESHOLD), float(OLD_THRESHOLD - knee)
+    z, w = float(F32(2.0) * knee), float(F32(0.25) / (knee + F32(0.00001)))
+    brightness = color.max(axis=-1)
+    softness = np.clip(brightness - y, 0.0, z)
+    softness = softness * softness * w
+    contribution = np.maximum(brightness - x, softness) / np.maximum(brightness, float(F32(0.00001)))
+    return color * contribution[..., None]
+
+
 def downsample(src, tw, th):
     q = taps13(src, tw, th)
     return ((q["a"] + q["c"] + q["g"] + q["i"]) * 0.03125
@@ -125,26 +141,32 @@ def tent(small, tw, th):
     return out
 
 
-def pipeline(img):
+def pipeline(img, old_school=False):
     """Every stage of Bevy's bloom, float64, in bloomref's stage names: down.k is Bevy's mip k-1
-    after the downsamples, up.k that mip after the upsample blended into it."""
+    after the downsamples, up.k that mip after the upsample blended into it. old_school: the
+    OLD_SCHOOL settings (the soft threshold, additive blending)."""
     hgt, wid, _ = img.shape
     sizes = texture_sizes(wid, hgt)
     st = {"input": img}
     src = img
     for k, (tw, th) in enumerate(sizes, start=1):
         src = downsample_first(src, tw, th) if k == 1 else downsample(src, tw, th)
+        if k == 1 and old_school:
+            src = soft_threshold(src)
         st[f"down.{k}"] = src
     # for mip in (1..mip_count).rev(): draw mip into mip - 1, blend constant C(mip), dst (1 - C)
+    # (EnergyConserving) or dst (Additive)
+    intensity = OLD_INTENSITY if old_school else INTENSITY
+    keep = (lambda c: 1.0) if old_school else (lambda c: 1.0 - c)
     up = st[f"down.{MIP_COUNT}"]
     for mip in range(MIP_COUNT - 1, 0, -1):
         tw, th = sizes[mip - 1]
-        c = blend_factor(mip, MIP_COUNT - 1)
-        up = tent(up, tw, th) * c + st[f"down.{mip}"] * (1.0 - c)
+        c = blend_factor(mip, MIP_COUNT - 1, not old_school, intensity)
+        up = tent(up, tw, th) * c + st[f"down.{mip}"] * keep(c)
         st[f"up.{mip}"] = up
     st["bloom"] = tent(up, wid, hgt)
-    c0 = blend_factor(0, MIP_COUNT - 1)
-    st["composite"] = st["bloom"] * c0 + img * (1.0 - c0)
+    c0 = blend_factor(0, MIP_COUNT - 1, not old_school, intensity)
+    st["composite"] = st["bloom"] * c0 + img * keep(c0)
     st["tonemap"] = 1.0 - np.exp(-st["composite"] * EXPOSURE)
     st["output"] = np.power(np.maximum(st["tonemap"], 0.0), 1.0 / GAMMA)
     return st
@@ -195,6 +217,23 @@ def test_bevy_equals_numpy(case, precision):
     img = CASES[case]()
     got = run_bloomref(img, ["--precision", precision])
     check_stages(got, pipeline(img.astype(np.float64)), precision == "f64", f"{case} {precision}")
+
+
+@pytest.mark.parametrize("precision", ["f64", "f32"])
+@pytest.mark.parametrize("case", ["random37x29", "random33x600"])
+def test_old_school_equals_numpy(case, precision):
+    img = CASES[case]()
+    got = run_bloomref(img, ["--precision", precision], preset="bevy-old-school")
+    check_stages(got, pipeline(img.astype(np.float64), old_school=True), precision == "f64",
+                 f"{case} old-school {precision}")
+
+
+def test_soft_threshold_by_hand():
+    """threshold 0.6, knee 0.12: below 0.48 nothing passes; at 0.54 (mid-knee) the quadratic
+    (0.06^2 / 0.48 = 0.0075, over 0.54); above 0.72 the hard part (b - 0.6) / b."""
+    for b, want in ((0.3, 0.0), (0.54, 0.06 ** 2 / 0.48 / 0.54), (2.0, 1.4 / 2.0)):
+        got = soft_threshold(np.array([[b, b / 2, 0.0]]))[0, 0] / b
+        assert got == pytest.approx(want, rel=1e-4), (b, got, want)
 
 
 def test_sizes_and_constants_by_hand():

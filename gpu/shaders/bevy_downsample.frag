@@ -3,15 +3,30 @@
 // crates/bevy_post_process/src/bloom/bloom.wesl, sample_input_13_tap and downsample_first;
 // docs/design.md, "Mip-chain variants"): 13 bilinear taps at 0, +-1 and +-2 texels of what it
 // reads; on the first level each group of four is scaled by its weight, then by
-// 1 / (1 + L / 4), L its Rec. 709 luminance, and the sum clamped to [0.0001, 3.40282347e37].
+// 1 / (1 + L / 4), L its Rec. 709 luminance, the sum clamped to [0.0001, 3.40282347e37], then
+// the soft threshold when the host asks for it.
 // bloomref's own: `compare` runs it for preset bevy.
 in vec2 texCoord;
 layout(location = 0) out vec3 level;
 uniform sampler2D srcTexture;
 uniform int firstDownsample;
+// The soft threshold on the first level (softThreshold 1): the host's precomputed threshold,
+// threshold - knee, 2 knee and 0.25 / (knee + 0.00001), as Bevy's BloomUniforms.
+uniform int softThreshold;
+uniform vec4 thresholdPrecomputations;
 
 vec3 tap(vec2 steps) {
   return texture(srcTexture, texCoord + steps / vec2(textureSize(srcTexture, 0))).rgb;
+}
+
+vec3 soft_threshold(vec3 color) {
+  vec4 t = thresholdPrecomputations;
+  float brightness = max(color.r, max(color.g, color.b));
+  float softness = clamp(brightness - t.y, 0.0, t.z);
+  softness = softness * softness * t.w;
+  float contribution = max(brightness - t.x, softness);
+  contribution /= max(brightness, 0.00001);
+  return color * contribution;
 }
 
 vec3 weighted(vec3 group) {
@@ -32,4 +47,5 @@ void main() {
   } else {
     level = (a + c + g + i) * 0.03125 + (b + d + f + h) * 0.0625 + (e + j + k + l + m) * 0.125;
   }
+  if (softThreshold == 1) level = soft_threshold(level);
 }

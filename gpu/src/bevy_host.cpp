@@ -5,6 +5,8 @@
 // blends into the scene itself. bloomref's tone map and gamma follow as one more pass.
 #include <epoxy/gl.h>
 
+#include <algorithm>
+
 #include "bloomref/gpu/user_pipeline.h"
 #include "bloomref/mip.h"
 #include "bloomref/stages.h"
@@ -35,7 +37,10 @@ class BevyHost {
       : ctx_(ctx), p_(p), scene_(scene), w_(scene.width), h_(scene.height),
         down_(own_program("downsample", "bevy_downsample.frag",
                           {{"srcTexture", HostUniform::sampler, true, "texture unit 0"},
-                           {"firstDownsample", HostUniform::integer, true, "1 on the first level"}})),
+                           {"firstDownsample", HostUniform::integer, true, "1 on the first level"},
+                           {"softThreshold", HostUniform::integer, true, "1: the soft threshold"},
+                           {"thresholdPrecomputations", HostUniform::vector, true,
+                            "Bevy's threshold_precomputations", 4}})),
         up_(own_program("upsample", "bevy_upsample.frag",
                         {{"srcTexture", HostUniform::sampler, true, "texture unit 0"}})),
         finish_(own_program("finish", "bevy_finish.frag",
@@ -43,6 +48,10 @@ class BevyHost {
                              {"exposure", HostUniform::number, true, "exposure"},
                              {"gamma", HostUniform::number, true, "gamma"}})) {
     down_.set_sampler("srcTexture", 0);
+    // settings.rs, extract_component: knee = threshold x softness, in f32.
+    const float knee = p.threshold * std::clamp(p.knee, 0.0f, 1.0f);
+    down_.set_vector("thresholdPrecomputations",
+                     {p.threshold, p.threshold - knee, 2.0f * knee, 0.25f / (knee + 0.00001f)});
     up_.set_sampler("srcTexture", 0);
     finish_.set_sampler("srcTexture", 0);
     finish_.set_number("exposure", p.exposure);
@@ -91,6 +100,7 @@ class BevyHost {
     }
     for (std::size_t k = 0; k < mips_.size(); ++k) {
       down_.set_integer("firstDownsample", k == 0 && p_.karis ? 1 : 0);
+      down_.set_integer("softThreshold", k == 0 && p_.prefilter == Prefilter::soft_knee ? 1 : 0);
       const std::string name = "down." + std::to_string(k + 1);
       const double ms = quad_.draw(ctx_, down_, {k == 0 ? &view_ : &mips_[k - 1]}, mips_[k],
                                    nullptr, nullptr, "the downsample pass " + name);
@@ -151,7 +161,8 @@ class BevyHost {
 }  // namespace
 
 bool bevy_layout(const BloomParams& p) {
-  return p.method == Method::mip && p.prefilter == Prefilter::none &&
+  return p.method == Method::mip &&
+         (p.prefilter == Prefilter::none || p.prefilter == Prefilter::soft_knee) &&
          p.texel_step == TexelStep::texture && p.upsample_radius == 0.0f &&
          p.bloom_upscale == BloomUpscale::tent && p.composite == CompositeOrder::before_tonemap &&
          (!p.karis || p.karis_form == KarisForm::group_linear);
@@ -159,8 +170,8 @@ bool bevy_layout(const BloomParams& p) {
 
 StageTrace execute_gl_bevy(GlContext& ctx, const BloomParams& p, ConstImageView scene) {
   if (!bevy_layout(p))
-    throw ParamError("bloomref's GL shaders for Bevy's layout need --prefilter none, "
-                     "--texel-step texture, --upsample-radius 0, --bloom-upscale tent, "
+    throw ParamError("bloomref's GL shaders for Bevy's layout need --prefilter none or "
+                     "soft-knee, --texel-step texture, --upsample-radius 0, --bloom-upscale tent, "
                      "--composite before-tonemap and --karis-form group-linear");
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);

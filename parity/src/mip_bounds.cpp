@@ -71,11 +71,16 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
                        coordinate_error(src.height, *ctx.profile);
   const int tw = oracle.width, th = oracle.height;
   const bool use_karis = karis;
-  return make_bounds(
-      {"coordinate rounding (x local range)", "filter and sum rounding",
-       "threshold within the tap's error (kept or dropped)",
-       "Karis weights (dL / (1 + L) x group range)", "storage and denormals"},
-      [=](int x, int y, int c) {
+  // The value before the soft threshold (Prefilter::soft_knee): the stage without it.
+  std::shared_ptr<Image> before;
+  if (opt.soft_knee) {
+    DownsampleOptions o = opt;
+    o.soft_knee = false;
+    before = std::make_shared<Image>(tw, th);
+    downsample(src, before->view(), o, ctx.threads);
+  }
+  // Every term but storage, of one channel, before any soft threshold.
+  auto pre = [=](int x, int y, int c) {
         const auto& taps = downsample_taps();
         double coord = 0, arith = 0, thresh = 0;
         double dq[13], lum_err[13], qmax[13], lum[13], qs[13][3];
@@ -147,9 +152,40 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
           }
           coord = 0;  // the Karis term carries the taps' own errors (dmax)
         }
-        const double v = oracle.pixel(x, y)[c];
-        return Values{coord, arith, thresh, kterm,
-                      storage_term(v, ctx.storage, *ctx.profile, c) + denormal_floor(*ctx.profile)};
+        return Values{coord, arith, thresh, kterm, 0.0};
+  };
+  return make_bounds(
+      {"coordinate rounding (x local range)", "filter and sum rounding",
+       opt.soft_knee ? "soft threshold: the brightness's error through its slope"
+                     : "threshold within the tap's error (kept or dropped)",
+       "Karis weights (dL / (1 + L) x group range)", "storage and denormals"},
+      [=](int x, int y, int c) {
+        const double storage =
+            storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile, c) +
+            denormal_floor(*ctx.profile);
+        if (!opt.soft_knee) {
+          Values v = pre(x, y, c);
+          v[4] = storage;
+          return v;
+        }
+        // out_c = r_c h(b), b the largest channel, h = g(b) / max(b, 1e-5) in [0, 1] with g
+        // 1-Lipschitz and g <= b: |dh| <= min(1, 2 Eb / max(b - Eb, 1e-5)). So out_c moves by
+        // at most E_c (its own error, times h <= 1) + |r_c| |dh|, plus the product's and the
+        // factor's rounding.
+        double e[3];
+        Values own{};
+        for (int k = 0; k < 3; ++k) {
+          const Values v = pre(x, y, k);
+          e[k] = v[0] + v[1] + v[2] + v[3];
+          if (k == c) own = v;
+        }
+        const float* r = before->pixel(x, y);
+        const double b = std::max({double(r[0]), double(r[1]), double(r[2])});
+        const double eb = std::max({e[0], e[1], e[2]});
+        const double low = std::max(b - eb, 1e-5);
+        const double dh = std::isfinite(eb) ? std::min(1.0, 2 * eb / low) : 1.0;
+        const double rc = std::fabs(double(r[c]));
+        return Values{own[0], own[1] + 12 * U * rc, own[2] + rc * dh, own[3], storage};
       },
       tw, ctx.threads);
 }

@@ -147,7 +147,9 @@ DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int
   o.threshold = p.threshold;
   o.karis = p.karis && k == 1;
   o.subtexel_bits = subtexel_bits;
-  o.threshold_taps = p.prefilter == Prefilter::per_lookup;  // bright and none: no threshold
+  o.threshold_taps = p.prefilter == Prefilter::per_lookup;  // the others: no tap threshold
+  o.soft_knee = p.prefilter == Prefilter::soft_knee && k == 1;
+  o.knee = p.threshold * std::clamp(p.knee, 0.0f, 1.0f);  // Bevy's extract_component
   o.karis_form = p.karis_form;
   if (p.texel_step == TexelStep::halved_float) {
     o.step_width = halved_size(width, k - 1);
@@ -206,6 +208,21 @@ LevelBlend level_blend(const BloomParams& p, int k, int levels) {
   b.weight = (p.strength + boost) * high_pass;
   return b;
 }
+
+template <class T>
+T soft_knee_factor(const T rgb[3], float threshold, float knee) {
+  // The host's threshold_precomputations (bevy settings.rs, extract_component), in f32.
+  const T x = T(threshold), y = T(threshold - knee), z = T(2.0f * knee),
+          w = T(0.25f / (knee + 0.00001f));
+  const T brightness = std::max(rgb[0], std::max(rgb[1], rgb[2]));
+  T softness = std::clamp(brightness - y, T(0), z);
+  softness = softness * softness * w;
+  const T contribution = std::max(brightness - x, softness);
+  return contribution / std::max(brightness, T(0.00001f));
+}
+
+template float soft_knee_factor<float>(const float[3], float, float);
+template double soft_knee_factor<double>(const double[3], float, float);
 
 // Bevy's Karis average (bloom.wesl, downsample_first), in its order: the groups as the
 // article's (below), each scaled by its weight first, then by 1 / (1 + dot(G, Rec. 709) / 4);
@@ -302,6 +319,10 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
         } else {
           for (int i = 0; i < kDownTaps; ++i)
             for (int c = 0; c < 3; ++c) r[c] = r[c] + q[i][c] * static_cast<T>(kDownWeight[i]);
+        }
+        if (opt.soft_knee) {
+          const T f = soft_knee_factor(r, opt.threshold, opt.knee);
+          for (int c = 0; c < 3; ++c) r[c] = r[c] * f;
         }
         write_rgb1(dst.pixel(x, y), r);
       }

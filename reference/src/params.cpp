@@ -43,7 +43,8 @@ constexpr std::pair<const char*, CompositeOrder> kOrders[] = {
 constexpr std::pair<const char*, CompositeMode> kModes[] = {{"add", CompositeMode::add},
                                                             {"mix", CompositeMode::mix}};
 constexpr std::pair<const char*, Prefilter> kPrefilters[] = {
-    {"per-lookup", Prefilter::per_lookup}, {"bright", Prefilter::bright}, {"none", Prefilter::none}};
+    {"per-lookup", Prefilter::per_lookup}, {"bright", Prefilter::bright}, {"none", Prefilter::none},
+    {"soft-knee", Prefilter::soft_knee}};
 constexpr std::pair<const char*, KarisForm> kKarisForms[] = {
     {"per-tap", KarisForm::per_tap},
     {"group-srgb", KarisForm::group_srgb},
@@ -90,6 +91,9 @@ void validate(const BloomParams& p) {
   require(p.first_level_height >= 0 && p.first_level_height <= 16384,
           "--first-level-height must be in [0, 16384] (0 = half the image), got " +
               std::to_string(p.first_level_height));
+  require(p.knee >= 0 && p.knee <= 1, "--knee must be in [0, 1], got " + str(p.knee));
+  require(p.prefilter != Prefilter::soft_knee || p.threshold >= 0,
+          "--prefilter soft-knee needs --threshold >= 0, got " + str(p.threshold));
   require(std::isfinite(p.low_frequency_boost) && p.low_frequency_boost >= 0,
           "--low-frequency-boost must be finite and >= 0, got " + str(p.low_frequency_boost));
   require(p.low_frequency_boost_curvature >= 0 && p.low_frequency_boost_curvature < 1,

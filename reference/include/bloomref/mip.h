@@ -31,6 +31,12 @@ std::vector<LevelSize> mip_levels(int width, int height, int levels);
 /// 1x1 repeated.
 std::vector<LevelSize> chain_levels(const BloomParams& p, int width, int height);
 
+/// Bevy's soft_threshold (bloom.wesl) of one texel, in f32 as the shader computes it with the
+/// host's precomputed (threshold, threshold - knee, 2 knee, 0.25 / (knee + 0.00001)): the factor
+/// each channel is multiplied by. In [0, 1] for a threshold >= 0.
+template <class T>
+T soft_knee_factor(const T rgb[3], float threshold, float knee);
+
 /// How up.k adds the tent of the level below to down.k (LevelCombine), with its constant.
 struct LevelBlend {
   LevelCombine combine = LevelCombine::add;
@@ -72,6 +78,10 @@ struct DownsampleOptions {
   /// Prefilter::bright: the first level reads a thresholded image and thresholds nothing.
   bool threshold_taps = true;
   KarisForm karis_form = KarisForm::per_tap;
+  /// Prefilter::soft_knee: the first level's result scaled by the soft threshold
+  /// (soft_threshold), with this knee (threshold x softness).
+  bool soft_knee = false;
+  float knee = 0.0f;
   /// Prefilter::none: the first level reads the scene and thresholds nothing.
   /// The size whose reciprocal is the texel step (TexelStep::halved_float: the host's float
   /// size); 0: the source texture's.

@@ -40,8 +40,12 @@ enum class CompositeMode { add, mix };
 /// stage before the chain (luminance > threshold, as the article's scene shader 6.bloom.fs
 /// writes its second output), the chain then reading that image without a threshold; or none:
 /// the chain reads the scene and thresholds nothing (Bevy's bloom with its default threshold 0,
-/// bevyengine/bevy crates/bevy_post_process/src/bloom/bloom.wesl).
-enum class Prefilter { per_lookup, bright, none };
+/// bevyengine/bevy crates/bevy_post_process/src/bloom/bloom.wesl); or soft_knee: the chain reads
+/// the scene and the first downsample's result is scaled by Bevy's soft_threshold (Unity's form,
+/// catlikecoding.com/unity/tutorials/advanced-rendering/bloom, 3.4): with knee = threshold x
+/// softness, contribution max(b - threshold, clamp(b - threshold + knee, 0, 2 knee)^2 / (4 knee +
+/// 0.00004)) / max(b, 0.00001), b the largest channel.
+enum class Prefilter { per_lookup, bright, none, soft_knee };
 /// The first downsample's Karis average: `per_tap` (seed 002: each tap weighted 1 / (1 + L),
 /// normalised within its group) or `group_srgb` (the article's 6.new_downsample.fs: each group
 /// of four scaled by 1 / (1 + luma / 4), luma = Rec. 601 weights of pow(group, 1 / 2.2), not
@@ -101,6 +105,9 @@ struct BloomParams {
   /// The first level's height, its width in proportion (round(width x height' / height)), as
   /// Bevy sizes its bloom texture (max_mip_dimension); 0: half the image (floor(n / 2)).
   int first_level_height = 0;
+  /// Prefilter::soft_knee: the knee's width as a fraction of the threshold (Bevy's
+  /// threshold_softness), in [0, 1].
+  float knee = 0.0f;
   LevelCombine level_combine = LevelCombine::add;
   LevelWeights level_weights = LevelWeights::one;
   float low_frequency_boost = 0.7f;            ///< LevelWeights::bevy (Bevy's defaults)
