@@ -600,7 +600,10 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
         }
       },
       "run your own GLSL headless the way a preset's host code does: learnopengl | "
-      "learnopengl-pbb");
+      "learnopengl-pbb | pipeline (any host code, described in a --pipeline file)");
+  sub->add_option("--pipeline", args->shaders.pipeline,
+                  "--shaders pipeline: the JSON description of your host code: textures, "
+                  "programs, passes (docs/check.md)");
   sub->add_option("--downsample-fs", args->shaders.downsample_fs,
                   "--shaders learnopengl-pbb: the downsample fragment shader");
   sub->add_option("--upsample-fs", args->shaders.upsample_fs,

@@ -8,36 +8,16 @@
 #include <sstream>
 
 #include "bloomref/error.h"
+#include "check/json_fields.h"
 
 using nlohmann::json;
 
 namespace bloomref::cli {
 namespace {
 
-[[noreturn]] void bad(const std::string& file, const std::string& field, const std::string& why) {
-  throw InputError(file, field + ": " + why);
-}
-
-// The keys an object may hold; any other is refused (a misspelt role would silently keep the
-// tutorial's name).
-void only_keys(const std::string& file, const std::string& field, const json& obj,
-               const std::set<std::string>& keys) {
-  if (!obj.is_object()) bad(file, field, "must be a JSON object");
-  for (const auto& [key, value] : obj.items())
-    if (!keys.count(key)) {
-      std::string known;
-      for (const std::string& k : keys) known += (known.empty() ? "" : ", ") + k;
-      bad(file, (field == "(top level)" ? "" : field + ".") + key,
-          "is not a key of the layout (known here: " + known + ")");
-    }
-}
-
-// A GLSL identifier the shaders can declare: letters, digits and _, not a digit first, not gl_.
-bool identifier(const std::string& s) {
-  bool ok = !s.empty() && !std::isdigit(static_cast<unsigned char>(s[0])) && s.rfind("gl_", 0) != 0;
-  for (char c : s) ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '_');
-  return ok;
-}
+using json_fields::bad;
+using json_fields::identifier;
+using json_fields::only_keys;
 
 // obj[key], when there, as the name the user's shaders give that role.
 void name(const std::string& file, const json& obj, const std::string& field,

@@ -18,10 +18,13 @@
 
 #include "bloomref/error.h"
 #include "bloomref/gpu/context.h"
+#include "bloomref/gpu/described_pipeline.h"
 #include "bloomref/gpu/user_pipeline.h"
 #include "bloomref/io.h"
 #include "bloomref/memory_budget.h"
+#include "bloomref/plan.h"
 #include "check/layout.h"
+#include "check/pipeline.h"
 
 namespace bloomref::cli {
 
@@ -37,7 +40,7 @@ std::optional<gpu::ShaderSource> optional_shader(const std::string& path) {
 gpu::LearnOpenGLShaders load_shaders(const ShaderArgs& s) {
   if (s.preset != "learnopengl")
     throw ParamError("--shaders '" + s.preset +
-                     "' is not a known preset (known: learnopengl, learnopengl-pbb)");
+                     "' is not a known preset (known: learnopengl, learnopengl-pbb, pipeline)");
   if (s.blur_fs.empty() || s.final_fs.empty())
     throw ParamError("--shaders learnopengl needs --blur-fs FILE and --final-fs FILE");
   gpu::LearnOpenGLShaders sh;
@@ -99,6 +102,38 @@ std::string run_mip_chain_shaders(const ShaderArgs& s, const std::string& scene_
   return d.renderer + " (" + d.version + ")";
 }
 
+// A pipeline description's passes around the user's shaders; every pass that names a stage is
+// written to `dir`.
+std::string run_pipeline_shaders(const ShaderArgs& s, const std::string& scene_path,
+                                 const PipelineOptions& pipeline, const fs::path& dir,
+                                 bool& software, const std::function<void(int, int)>& on_scene) {
+  if (s.pipeline.empty())
+    throw ParamError("--shaders pipeline needs --pipeline FILE (docs/check.md, \"Any host code\")");
+  if (!s.given().empty() || !s.layout.empty() || !s.target_format.empty() ||
+      s.filter != "linear" || s.wrap != "clamp-to-edge" || s.final_target != "same")
+    throw ParamError("--shaders pipeline takes its shaders, formats and sampling from the "
+                     "--pipeline file: no --*-fs, --*-vs, --layout, --target-format, --filter, "
+                     "--wrap or --final-target");
+  const gpu::PipelineDescription d = read_pipeline(s.pipeline);
+  std::string source;
+  const LoadedImage scene = pipeline.load_input(scene_path, source);
+  if (on_scene) on_scene(scene.image.width(), scene.image.height());
+  const std::vector<std::string> names =
+      stage_names(pipeline.params, scene.image.width(), scene.image.height());
+  for (const gpu::DescribedPass& p : d.passes)
+    if (!p.stage.empty() && std::find(names.begin(), names.end(), p.stage) == names.end())
+      throw InputError(s.pipeline, "a pass reads back stage '" + p.stage +
+                                       "', which the pipeline judged against (--preset and the "
+                                       "options) does not have on this scene");
+  auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3
+  const gpu::DescribedRun run = gpu::run_described(*ctx, scene.image.cview(), d, pipeline.params);
+  for (const auto& st : run.trace.stages)
+    save_exr((dir / (st.name + ".exr")).string(), st.image.cview(), nullptr, ExrCompression::none);
+  const gpu::ContextInfo& info = ctx->info();
+  software = info.software;
+  return info.renderer + " (" + info.version + ")";
+}
+
 }  // namespace
 
 std::vector<std::string> ShaderArgs::given() const {
@@ -110,6 +145,7 @@ std::vector<std::string> ShaderArgs::given() const {
 }
 
 std::string ShaderArgs::files() const {
+  if (preset == "pipeline") return "the shaders of " + pipeline;
   const std::vector<std::string> g = given();
   std::string out;
   for (std::size_t i = 0; i < g.size(); ++i)
@@ -122,6 +158,8 @@ std::string run_user_shaders(const ShaderArgs& s, const std::string& scene_path,
                              const std::function<void(int, int)>& on_scene) {
   if (s.preset == "learnopengl-pbb")
     return run_mip_chain_shaders(s, scene_path, pipeline, dir, software, on_scene);
+  if (s.preset == "pipeline")
+    return run_pipeline_shaders(s, scene_path, pipeline, dir, software, on_scene);
   const gpu::LearnOpenGLShaders shaders = load_shaders(s);
   gpu::UserPipelineOptions opt = gpu::options_for(pipeline.params);
   if (!s.target_format.empty()) opt.format = gpu::parse_target_format(s.target_format);

@@ -14,11 +14,12 @@
 namespace bloomref::cli {
 
 struct ShaderArgs {
-  std::string preset;  ///< "learnopengl" or "learnopengl-pbb"
+  std::string preset;  ///< "learnopengl", "learnopengl-pbb" or "pipeline"
   std::string blur_fs, final_fs, blur_vs, final_vs, bright_fs;
   std::string downsample_fs, upsample_fs, downsample_vs, upsample_vs;  ///< learnopengl-pbb
   std::string target_format, filter = "linear", wrap = "clamp-to-edge", final_target = "same";
   std::string layout;  ///< a layout file: the names the shaders use (check/layout.h)
+  std::string pipeline;  ///< --shaders pipeline: the description file (check/pipeline.h)
   /// What running them may cost: seconds of wall time (0: shader_timeout's default) and bytes
   /// of resident memory (0: shader_memory's default), compiling and linking included.
   double timeout_s = 0;

@@ -1,8 +1,6 @@
 // Preset learnopengl-pbb: the guest article's host code (physically_based_bloom.cpp,
 // bloomFBO::Init, BloomRenderer::RenderDownsamples / RenderUpsamples, the final pass) around
 // the user's unmodified shaders (user_pipeline.h says what it binds and sets).
-#include <regex>
-
 #include "bloomref/gpu/user_pipeline.h"
 #include "bloomref/mip.h"
 #include "bloomref/stages.h"
@@ -16,16 +14,7 @@ namespace {
 using host::Clock;
 using host::ms_since;
 using host::number;
-
-// The texture coordinate a fragment shader reads (`in vec2 NAME;`), for bloomref's pass-through
-// vertex shader to write: the first such declaration, else `fallback`.
-std::string varying_of(const ShaderSource& fs, const std::string& fallback) {
-  static const std::regex in_vec2(
-      R"((?:^|[;\s])in\s+(?:(?:highp|mediump|lowp|smooth|noperspective)\s+)*)"
-      R"(vec2\s+([A-Za-z_]\w*)\s*;)");
-  std::smatch m;
-  return std::regex_search(fs.text, m, in_vec2) ? m[1].str() : fallback;
-}
+using host::varying_of;
 
 struct Programs {
   UserProgram down, up, final;

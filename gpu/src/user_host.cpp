@@ -1,6 +1,7 @@
 #include "user_host.h"
 
 #include <algorithm>
+#include <regex>
 #include <sstream>
 
 namespace bloomref::gpu::host {
@@ -13,6 +14,14 @@ std::string number(float v) {
 
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+std::string varying_of(const ShaderSource& fs, const std::string& fallback) {
+  static const std::regex in_vec2(
+      R"((?:^|[;\s])in\s+(?:(?:highp|mediump|lowp|smooth|noperspective)\s+)*)"
+      R"(vec2\s+([A-Za-z_]\w*)\s*;)");
+  std::smatch m;
+  return std::regex_search(fs.text, m, in_vec2) ? m[1].str() : fallback;
 }
 
 GLenum gl_format(TargetFormat f) {

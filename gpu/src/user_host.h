@@ -27,6 +27,10 @@ GLenum gl_wrap(TextureWrap w);
 /// A uniform's value as the interface report and messages print it ("0.005").
 std::string number(float v);
 
+/// The texture coordinate a fragment shader reads (`in vec2 NAME;`), for bloomref's pass-through
+/// vertex shader to write: the first such declaration, else `fallback`.
+std::string varying_of(const ShaderSource& fs, const std::string& fallback);
+
 /// The image upside down (RowOrder::flipped uploads and readbacks).
 Image flipped_rows(ConstImageView src);
 

@@ -1,0 +1,246 @@
+// A pipeline description's passes around the user's shaders (described_pipeline.h): the
+// textures made in order, each program built with the uniforms the passes set, each pass drawn
+// with its inputs on texture units in order, its uniforms, its blending, and read back when it
+// names a stage.
+#include <epoxy/gl.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "bloomref/error.h"
+#include "bloomref/gpu/described_pipeline.h"
+#include "bloomref/mip.h"
+#include "bloomref/stages.h"
+#include "user_host.h"
+#include "user_program.h"
+
+namespace bloomref::gpu {
+namespace {
+
+using host::Clock;
+using host::ms_since;
+
+struct Factor {
+  const char* gl;
+  const char* name;
+  GLenum value;
+};
+constexpr Factor kFactors[] = {
+    {"GL_ZERO", "zero", GL_ZERO},
+    {"GL_ONE", "one", GL_ONE},
+    {"GL_SRC_COLOR", "src_color", GL_SRC_COLOR},
+    {"GL_ONE_MINUS_SRC_COLOR", "one_minus_src_color", GL_ONE_MINUS_SRC_COLOR},
+    {"GL_DST_COLOR", "dst_color", GL_DST_COLOR},
+    {"GL_ONE_MINUS_DST_COLOR", "one_minus_dst_color", GL_ONE_MINUS_DST_COLOR},
+    {"GL_SRC_ALPHA", "src_alpha", GL_SRC_ALPHA},
+    {"GL_ONE_MINUS_SRC_ALPHA", "one_minus_src_alpha", GL_ONE_MINUS_SRC_ALPHA},
+    {"GL_DST_ALPHA", "dst_alpha", GL_DST_ALPHA},
+    {"GL_ONE_MINUS_DST_ALPHA", "one_minus_dst_alpha", GL_ONE_MINUS_DST_ALPHA},
+    {"GL_CONSTANT_COLOR", "constant_color", GL_CONSTANT_COLOR},
+    {"GL_ONE_MINUS_CONSTANT_COLOR", "one_minus_constant_color", GL_ONE_MINUS_CONSTANT_COLOR},
+};
+
+int rounded(double v, SizeRule::Rounding r) {
+  const double x = r == SizeRule::floor ? std::floor(v) : r == SizeRule::ceil ? std::ceil(v)
+                                                                             : std::floor(v + 0.5);
+  return std::max(1, static_cast<int>(x));
+}
+
+// The uniforms one program is given over all the passes that use it (their union), its
+// samplers those the passes bind.
+std::vector<HostUniform> host_uniforms(const PipelineDescription& d, const std::string& program) {
+  std::vector<HostUniform> out;
+  auto have = [&](const std::string& n) {
+    return std::any_of(out.begin(), out.end(), [&](const HostUniform& h) { return h.name == n; });
+  };
+  for (const DescribedPass& p : d.passes) {
+    if (p.program != program) continue;
+    for (const auto& [sampler, texture] : p.inputs)
+      if (!have(sampler))
+        out.push_back({sampler, HostUniform::sampler, true, "a texture of the description"});
+    for (const auto& [name, u] : p.uniforms) {
+      if (have(name)) continue;
+      HostUniform h{name, HostUniform::number, true, "set by the description"};
+      switch (u.kind) {
+        case DescribedUniform::integer: h.kind = HostUniform::integer; break;
+        case DescribedUniform::flag: h.kind = HostUniform::flag; break;
+        case DescribedUniform::number:
+          if (u.values.size() > 1) h.kind = HostUniform::vector, h.components = int(u.values.size());
+          break;
+        default: h.kind = HostUniform::vector, h.components = 2; break;
+      }
+      out.push_back(h);
+    }
+  }
+  return out;
+}
+
+class DescribedHost {
+ public:
+  DescribedHost(GlContext& ctx, ConstImageView scene, const PipelineDescription& d,
+                const BloomParams& p)
+      : ctx_(ctx), scene_(scene), d_(d), p_(p) {}
+
+  DescribedRun run() {
+    const auto t_start = Clock::now();
+    build_programs();
+    make_textures();
+    for (std::size_t i = 0; i < d_.passes.size(); ++i) draw(i);
+    out_.trace.total_ms = ms_since(t_start);
+    return std::move(out_);
+  }
+
+ private:
+  std::string where(std::size_t pass) const {
+    return d_.file + ": pass " + std::to_string(pass + 1);
+  }
+
+  void build_programs() {
+    ctx_.check("before building the user's programs");
+    for (const auto& [name, prog] : d_.programs) {
+      const ShaderSource fs = load_shader(prog.fragment);
+      std::optional<ShaderSource> vs;
+      if (!prog.vertex.empty()) vs = load_shader(prog.vertex);
+      VertexNames names;
+      names.varying = host::varying_of(fs, "TexCoords");
+      programs_.emplace(name, build_user_program(name, vs ? &*vs : nullptr, fs,
+                                                 host_uniforms(d_, name), names,
+                                                 "pipeline description's"));
+      out_.programs.push_back(programs_.at(name).interface);
+    }
+    ctx_.check("building the user's programs");
+  }
+
+  void make_textures() {
+    const int w = scene_.width, h = scene_.height;
+    Image sanitized(w, h);
+    out_.trace.nonfinite = sanitize(scene_, sanitized.view(), p_.nonfinite, Storage::f32, p_.threads);
+    if (p_.nonfinite == NonFinite::error && out_.trace.nonfinite.total() > 0)
+      throw ParamError("the scene holds " + std::to_string(out_.trace.nonfinite.total()) +
+                       " NaN or infinite values, refused under --nonfinite error");
+    for (const DescribedTexture& t : d_.textures) {
+      int tw = w, th = h;
+      if (t.size.of != "scene") {
+        const Texture& of = textures_.at(t.size.of);  // the parser checked it is declared before
+        tw = of.width, th = of.height;
+      }
+      for (int k = 0; k < t.size.halvings; ++k) {
+        tw = rounded(tw * 0.5, t.size.rounding);
+        th = rounded(th * 0.5, t.size.rounding);
+      }
+      if (t.size.scale != 1.0) {
+        tw = rounded(tw * t.size.scale, t.size.rounding);
+        th = rounded(th * t.size.scale, t.size.rounding);
+      }
+      const GLenum format = host::gl_format(t.format);
+      if (t.content == DescribedTexture::clear) {
+        textures_.emplace(t.name, Texture(tw, th, format));
+        clear(textures_.at(t.name));
+      } else {
+        if (tw != w || th != h)
+          throw ParamError(d_.file + ": texture '" + t.name + "' holds the " +
+                           (t.content == DescribedTexture::scene ? "scene" : "bright image") +
+                           " and must be the scene's size");
+        Image img(w, h);
+        if (t.content == DescribedTexture::scene)
+          std::copy(sanitized.data(), sanitized.data() + sanitized.values().size(), img.data());
+        else
+          extract_bright(sanitized.cview(), img.view(), p_.threshold, p_.threads);
+        store(img.view(), storage_of(t.format), HalfRounding::nearest_even_saturate, p_.threads);
+        textures_.emplace(t.name, Texture(w, h, format, img.data()));
+      }
+      textures_.at(t.name).set_sampling(host::gl_filter(t.filter), host::gl_wrap(t.wrap));
+    }
+    ctx_.check("making the description's textures");
+  }
+
+  static void clear(const Texture& t) {
+    Framebuffer fb(t);
+    glViewport(0, 0, t.width, t.height);
+    glClearColor(0, 0, 0, 0);
+    glClear(GL_COLOR_BUFFER_BIT);
+  }
+
+  void set_uniform(const UserProgram& prog, const std::string& name, const DescribedUniform& u) {
+    switch (u.kind) {
+      case DescribedUniform::number:
+        if (u.values.size() == 1) prog.set_number(name, u.values[0]);
+        else prog.set_vector(name, u.values);
+        return;
+      case DescribedUniform::integer: prog.set_integer(name, u.integer_value); return;
+      case DescribedUniform::flag: prog.set_flag(name, u.integer_value != 0); return;
+      case DescribedUniform::size:
+      case DescribedUniform::texel: {
+        const Texture& t = textures_.at(u.texture);
+        const float sx = static_cast<float>(t.width), sy = static_cast<float>(t.height);
+        if (u.kind == DescribedUniform::size) prog.set_vector(name, {sx, sy});
+        else prog.set_vector(name, {1.0f / sx, 1.0f / sy});
+        return;
+      }
+      case DescribedUniform::halved: {
+        const Texture& t = textures_.at(u.texture);
+        float sx = static_cast<float>(t.width), sy = static_cast<float>(t.height);
+        for (int i = 0; i < u.times; ++i) sx *= 0.5f, sy *= 0.5f;
+        prog.set_vector(name, {sx, sy});
+        return;
+      }
+    }
+  }
+
+  void draw(std::size_t i) {
+    const DescribedPass& pass = d_.passes[i];
+    const UserProgram& prog = programs_.at(pass.program);
+    std::vector<const Texture*> units;
+    for (std::size_t u = 0; u < pass.inputs.size(); ++u) {
+      if (pass.inputs[u].second == pass.target)
+        throw ParamError(where(i) + " reads '" + pass.target + "', the texture it draws into");
+      units.push_back(&textures_.at(pass.inputs[u].second));
+      prog.set_sampler(pass.inputs[u].first, static_cast<int>(u));
+    }
+    for (const auto& [name, u] : pass.uniforms) set_uniform(prog, name, u);
+    const Texture& target = textures_.at(pass.target);
+    if (pass.blend.enabled) {
+      glEnable(GL_BLEND);
+      glBlendEquation(GL_FUNC_ADD);
+      glBlendFunc(blend_factor(pass.blend.src), blend_factor(pass.blend.dst));
+      const float c = pass.blend.constant;
+      glBlendColor(c, c, c, c);
+    }
+    const std::array<float, 4> black = {0.0f, 0.0f, 0.0f, 0.0f};
+    const double ms = quad_.draw(ctx_, prog, units, target, nullptr, pass.clear ? &black : nullptr,
+                                 where(i) + " (" + pass.program + " into " + pass.target + ")");
+    glDisable(GL_BLEND);
+    if (pass.stage.empty()) return;
+    Image img = Image::uninitialised(target.width, target.height);
+    target.read(img.data());
+    out_.trace.stages.push_back({pass.stage, std::move(img), ms, false});
+    out_.trace.timings.emplace_back(pass.stage, ms);
+  }
+
+  GlContext& ctx_;
+  ConstImageView scene_;
+  const PipelineDescription& d_;
+  const BloomParams& p_;
+  host::QuadState quad_;
+  std::map<std::string, UserProgram> programs_;
+  std::map<std::string, Texture> textures_;
+  DescribedRun out_;
+};
+
+}  // namespace
+
+unsigned blend_factor(const std::string& name) {
+  std::string known;
+  for (const Factor& f : kFactors) {
+    if (name == f.gl || name == f.name) return f.value;
+    known += std::string(known.empty() ? "" : ", ") + f.name;
+  }
+  throw ParamError("blend factor '" + name + "' is not one of: " + known);
+}
+
+DescribedRun run_described(GlContext& ctx, ConstImageView scene, const PipelineDescription& d,
+                           const BloomParams& params) {
+  return DescribedHost(ctx, scene, d, params).run();
+}
+
+}  // namespace bloomref::gpu
