@@ -52,7 +52,7 @@ struct Hypothesis {
   float add_amount = NAN;     // composite as scene + a bloom where mix is specified (fitted)
   float tent_gain = 1.0f;     // up.k as down.k + g tent(up.k+1) (fitted)
   float level_weight = NAN;   // a blended up.k's constant C (fitted); NaN: level_blend's
-  bool other_texel_step = false;  // the downsample's step from the other size (TexelStep)
+  std::optional<TexelStep> texel_step;  // the downsample's step from another size
   bool pow_negative_karis = false;  // the Karis average's pow of a negative channel: the
                                     // oracle's NaN there is undefined in GLSL (the capture's)
   int flip_input = -1;        // the composite reads one input flipped: 0 the scene, 1 the bloom
@@ -78,7 +78,7 @@ struct Hypothesis {
            !no_exposure && !clamp_blur && std::isnan(threshold) && gamma_times == 1 &&
            !pow_negative && gamma == 0.0f && spacing == 1.0f && std::isnan(mix_amount) &&
            std::isnan(add_amount) && tent_gain == 1.0f && std::isnan(level_weight) &&
-           !other_texel_step &&
+           !texel_step &&
            !pow_negative_karis &&
            flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored &&
            !vertical_first && source.empty();
@@ -98,7 +98,7 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
              (is_target && (!h.weights.empty() || h.stale || h.along_x || h.spacing != 1.0f)) ||
              h.f16;
     case StageKind::down:
-      return h.sampled() || h.ge || h.f16 || h.other_texel_step || (is_target && !h.source.empty());
+      return h.sampled() || h.ge || h.f16 || h.texel_step || (is_target && !h.source.empty());
     case StageKind::up:
       return h.sampled() || h.f16 ||
              (is_target && (!h.source.empty() || !std::isnan(h.level_weight)));
@@ -406,9 +406,7 @@ class Evaluator {
         else
         {
           BloomParams q = p_;
-          if (h_.other_texel_step)
-            q.texel_step = q.texel_step == TexelStep::texture ? TexelStep::halved_float
-                                                              : TexelStep::texture;
+          if (h_.texel_step) q.texel_step = *h_.texel_step;
           downsample(in[0], out.view(),
                      downsample_options(q, spec.pass, ctx_.sanitized.width,
                                         ctx_.sanitized.height, ctx_.profile.subtexel_bits),
@@ -433,7 +431,7 @@ class Evaluator {
           if (up) blend = level_blend(p_, spec.pass, int(ctx_.plan.levels.size()));
           if (up && is_target && !std::isnan(h_.level_weight)) blend.weight = h_.level_weight;
           upsample_tent(in[0], cur, out.view(), ctx_.profile.subtexel_bits, threads, nullptr,
-                        p_.upsample_radius, blend);
+                        p_.upsample_radius, blend, p_.texel_step == TexelStep::target);
         }
         return out;
       }
@@ -1324,22 +1322,33 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     }
   }
   if (target.kind == StageKind::down && p.method == Method::mip) {
-    // Where the host's halved float size is not the texture's (an odd level above): the step
-    // taken from the other one.
+    // The step taken from another size than the one specified, where the two differ on this
+    // level: the texture's, the host's halved float size (an odd level above), or the target's
+    // (0.5 / size: a source not exactly twice the target).
     const int k = target.pass, w = ctx.sanitized.width, h = ctx.sanitized.height;
+    const DownsampleOptions spec_opt = downsample_options(p, k, w, h, ctx.profile.subtexel_bits);
     const int sw = k == 1 ? w : ctx.plan.levels[std::size_t(k - 2)].width;
     const int sh = k == 1 ? h : ctx.plan.levels[std::size_t(k - 2)].height;
-    if (halved_size(w, k - 1) != float(sw) || halved_size(h, k - 1) != float(sh)) {
-      const bool halved = p.texel_step == TexelStep::halved_float;
+    auto step_of = [&](const DownsampleOptions& o) {
+      return std::pair<float, float>(o.step_width > 0 ? o.step_width : float(sw),
+                                     o.step_height > 0 ? o.step_height : float(sh));
+    };
+    const LevelSize& l = ctx.plan.levels[std::size_t(k - 1)];
+    for (const TexelStep other : {TexelStep::texture, TexelStep::halved_float, TexelStep::target}) {
+      if (other == p.texel_step) continue;
+      BloomParams q = p;
+      q.texel_step = other;
+      const auto s = step_of(downsample_options(q, k, w, h, ctx.profile.subtexel_bits));
+      if (s == step_of(spec_opt)) continue;
+      static const char* const kWhat[] = {"the texture's integer size", "the host's halved float size",
+                                          "the target's size (0.5 / size)"};
       Hypothesis* hy = add("level-size-rounding",
-                           halved ? "the downsample's step from the texture's integer size where "
-                                    "the host's halved float size is specified"
-                                  : "the downsample's step from the image size halved in float "
-                                    "where the texture's size is specified");
-      hy->other_texel_step = true;
-      char b[160];
-      std::snprintf(b, sizeof b, "level %d reads a %dx%d level whose halved float size is %gx%g", k,
-                    sw, sh, double(halved_size(w, k - 1)), double(halved_size(h, k - 1)));
+                           std::string("the downsample's step from ") + kWhat[int(other)] +
+                               " where " + kWhat[int(p.texel_step)] + " is specified");
+      hy->texel_step = other;
+      char b[200];
+      std::snprintf(b, sizeof b, "level %d (%dx%d) reads a %dx%d level with the step 1 / %gx%g", k,
+                    l.width, l.height, sw, sh, double(s.first), double(s.second));
       hy->detail = b;
     }
   }
@@ -1370,7 +1379,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     if (small.data && cur.data) {
       Image tent(cur.width, cur.height);
       upsample_tent(small, ConstImageView{}, tent.view(), ctx.profile.subtexel_bits, ctx.threads,
-                    nullptr, p.upsample_radius);
+                    nullptr, p.upsample_radius, LevelBlend{}, p.texel_step == TexelStep::target);
       // A blended level: up.k = C tent + keep down.k; the fit is of the tent's part.
       const LevelBlend blend = level_blend(p, target.pass, int(ctx.plan.levels.size()));
       // Another constant W: up.k - down.k = W (tent - down.k) under mix, W tent under add; W

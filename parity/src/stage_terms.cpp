@@ -147,7 +147,8 @@ Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanit
       else
         upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads,
                       nullptr, p.upsample_radius,
-                      up ? level_blend(p, spec.pass, int(plan.levels.size())) : LevelBlend{});
+                      up ? level_blend(p, spec.pass, int(plan.levels.size())) : LevelBlend{},
+                      p.texel_step == TexelStep::target);
       break;
     }
     case StageKind::composite:

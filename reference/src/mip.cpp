@@ -154,6 +154,11 @@ DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int
   if (p.texel_step == TexelStep::halved_float) {
     o.step_width = halved_size(width, k - 1);
     o.step_height = halved_size(height, k - 1);
+  } else if (p.texel_step == TexelStep::target) {
+    // 0.5 / size: the step of a source twice the target's size (exactly, in float).
+    const LevelSize l = chain_levels(p, width, height)[std::size_t(k - 1)];
+    o.step_width = 2.0f * static_cast<float>(l.width);
+    o.step_height = 2.0f * static_cast<float>(l.height);
   }
   return o;
 }
@@ -332,12 +337,16 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
 template <class T>
 void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
                    int subtexel_bits, int threads, const std::uint8_t* active, float radius,
-                   LevelBlend blend) {
+                   LevelBlend blend, bool target_step) {
   const bool plain = current.empty() || blend.plain();
   const T weight = static_cast<T>(blend.weight), keep = static_cast<T>(1.0f - blend.weight);
+  // 2 / size is 1 / (size / 2), one rounding of the same number.
   const Lookups<T> lookups =
       radius > 0.0f ? Lookups<T>(small, dst.width, dst.height, 1, subtexel_bits, {0.0f, radius},
                                  {0.0f, radius})
+      : target_step ? Lookups<T>(small, dst.width, dst.height, 1, subtexel_bits,
+                                 {0.5f * static_cast<float>(dst.width), 0.0f},
+                                 {0.5f * static_cast<float>(dst.height), 0.0f})
                     : Lookups<T>(small, dst.width, dst.height, 1, subtexel_bits);
   parallel_rows(dst.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y)
@@ -451,10 +460,10 @@ template void downsample<double>(BasicView<const double>, BasicView<double>,
                                  const DownsampleOptions&, int);
 template void upsample_tent<float>(BasicView<const float>, BasicView<const float>,
                                    BasicView<float>, int, int, const std::uint8_t*, float,
-                                   LevelBlend);
+                                   LevelBlend, bool);
 template void upsample_tent<double>(BasicView<const double>, BasicView<const double>,
                                     BasicView<double>, int, int, const std::uint8_t*, float,
-                                    LevelBlend);
+                                    LevelBlend, bool);
 template void upscale_bilinear<float>(BasicView<const float>, BasicView<float>, int, int);
 template void upscale_bilinear<double>(BasicView<const double>, BasicView<double>, int, int);
 template bool mip_nothing_bright<float>(BasicView<const float>, double, int);

@@ -50,7 +50,8 @@ constexpr std::pair<const char*, KarisForm> kKarisForms[] = {
     {"group-srgb", KarisForm::group_srgb},
     {"group-linear", KarisForm::group_linear}};
 constexpr std::pair<const char*, TexelStep> kTexelSteps[] = {
-    {"texture", TexelStep::texture}, {"halved-float", TexelStep::halved_float}};
+    {"texture", TexelStep::texture}, {"halved-float", TexelStep::halved_float},
+    {"target", TexelStep::target}};
 constexpr std::pair<const char*, BloomUpscale> kUpscales[] = {
     {"tent", BloomUpscale::tent}, {"bilinear", BloomUpscale::bilinear}};
 constexpr std::pair<const char*, LevelCombine> kCombines[] = {{"add", LevelCombine::add},

@@ -682,7 +682,8 @@ class Executor {
     dst = BasicImage<T>(down_[k].width(), down_[k].height());
     upsample_tent(small.cview(), down_[k].cview(), dst.view(), p_.subtexel_bits, threads_,
                   p_.mip_variant() ? nullptr : mip_mask(stage.name, small, dst, 1, down_[k]),
-                  p_.upsample_radius, level_blend(p_, k, top));
+                  p_.upsample_radius, level_blend(p_, k, top),
+                  p_.texel_step == TexelStep::target);
     store_level(dst);
     record(stage.name, dst, ms_since(t0), false);
   }
@@ -699,7 +700,7 @@ class Executor {
                     threads_,
                     p_.mip_variant() ? nullptr
                                      : mip_mask(stage.name, small, mip_bloom_, 1, BasicImage<T>()),
-                    p_.upsample_radius);
+                    p_.upsample_radius, LevelBlend{}, p_.texel_step == TexelStep::target);
     store_image(mip_bloom_);
     record(stage.name, mip_bloom_, ms_since(t0), false);
   }

@@ -118,10 +118,12 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
 /// A `blend` other than plain: t = the tent's sum in tap order, then r = t * C + current
 /// (LevelCombine::add) or r = t * C + current * (1 - C) (mix), as the GPU's blend unit combines
 /// the pass's output with the level it draws into.
+/// `target_step` (TexelStep::target): the taps 2 / the target's size apart (one texel of a source
+/// half its size) instead of one texel of `small`.
 template <class T>
 void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
                    int subtexel_bits, int threads, const std::uint8_t* active = nullptr,
-                   float radius = 0.0f, LevelBlend blend = {});
+                   float radius = 0.0f, LevelBlend blend = {}, bool target_step = false);
 
 /// Stage `bloom` under BloomUpscale::bilinear: one GL_LINEAR lookup of `small` at each texel's
 /// centre of `dst` (the article's final pass reads the half-resolution level so). Alpha 1.

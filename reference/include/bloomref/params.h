@@ -55,8 +55,10 @@ enum class Prefilter { per_lookup, bright, none, soft_knee };
 enum class KarisForm { per_tap, group_srgb, group_linear };
 /// The downsample's texel step: 1 / the source texture's size, or 1 / the size the host passes
 /// as a float that it halves per level (the article's srcResolution: 400.5 where the texture is
-/// 400 wide), so that odd levels are sampled off their texel grid.
-enum class TexelStep { texture, halved_float };
+/// 400 wide), so that odd levels are sampled off their texel grid; or `target`: from the size of
+/// the level drawn (seed 002's shader: 0.5 / size downsampling, 2 / size upsampling, size the
+/// target's), one texel of its source only where that source is exactly twice (half) its size.
+enum class TexelStep { texture, halved_float, target };
 /// The bloom at full resolution: the 3x3 tent of up.1 (seed 002), or one bilinear lookup of it
 /// (the article's final pass samples the half-resolution level directly).
 enum class BloomUpscale { tent, bilinear };
