@@ -12,25 +12,14 @@ checked against numpy in tests/test_bevy_numpy.py.
 """
 import json
 import os
-import subprocess
 
 import pytest
 
-EXE = os.environ["BLOOMREF_EXE"]
+import cli_support
+from cli_support import first_cause, gl_or_skip, run
+
 CORPUS = os.environ.get("BLOOMREF_CORPUS", "")
 SIZE = "203x131"  # odd: the first level is round(203 x 512 / 131) = 793 wide, its halves odd
-
-
-def run(args, cwd, timeout=300):
-    p = subprocess.run([EXE] + args, cwd=cwd, capture_output=True, text=True, timeout=timeout)
-    return p.returncode, p.stdout, p.stderr
-
-
-def gl_or_skip(code, err):
-    if code == 3:
-        if os.environ.get("BLOOMREF_REQUIRE_GL") == "1":
-            pytest.fail("no GL although BLOOMREF_REQUIRE_GL=1: " + err)
-        pytest.skip("no GL: " + err.strip())
 
 
 def test_preset_sets_bevys_values_and_options_override_them(tmp_path):
@@ -88,31 +77,12 @@ def test_compare_bevy_on_the_corpus(tmp_path, image):
 
 def dump(tmp_path, name, *options):
     """The stages of preset bevy on the demo scene, `options` planted."""
-    d = tmp_path / name
-    code, _, err = run(["run", "--scene", "demo", "--size", SIZE, "--preset", "bevy", "-q",
-                        "-o", str(tmp_path / (name + ".exr")), "--dump-stages", str(d), *options],
-                       tmp_path)
-    assert code == 0, err
-    return d
+    return cli_support.dump(tmp_path, name, "bevy", SIZE, *options)
 
 
 def judged(tmp_path, folder, keep, name):
     """check of `folder`'s stages in `keep` (all when None) against preset bevy: the item."""
-    sub = tmp_path / name
-    sub.mkdir()
-    for f in folder.iterdir():
-        if keep is None or f.stem in keep:
-            (sub / f.name).write_bytes(f.read_bytes())
-    code, out, err = run(["check", "--scene", "demo", "--size", SIZE, "--preset", "bevy",
-                          "--stages", str(sub), "--json", str(sub / "r.json"), "-q"], tmp_path)
-    assert code in (0, 1), err
-    return json.loads((sub / "r.json").read_text())["items"][0]
-
-
-def first_cause(item):
-    first = [s for s in item["stages"] if s["stage"] == item["first_divergent_stage"]][0]
-    c = first.get("cause")
-    return first["stage"], c["id"] if c and c.get("likely") else "none", c
+    return cli_support.judged(tmp_path, folder, keep, name, "bevy", SIZE)
 
 
 def test_clean_dumps_pass_whole_and_in_part(tmp_path):
@@ -157,16 +127,8 @@ def test_old_school_soft_threshold_is_judged(tmp_path):
     """bevy-old-school's soft threshold at 0.6: dumps made with it at 0.3 fail at down.1, where
     it enters; clean ones pass."""
     def item(name, *options):
-        d = tmp_path / name
-        code, _, err = run(["run", "--scene", "demo", "--size", SIZE, "--preset", "bevy-old-school",
-                            "-q", "-o", str(tmp_path / (name + ".exr")), "--dump-stages", str(d),
-                            *options], tmp_path)
-        assert code == 0, err
-        code, _, err = run(["check", "--scene", "demo", "--size", SIZE, "--preset",
-                            "bevy-old-school", "--stages", str(d), "--json", str(d / "r.json"), "-q"],
-                           tmp_path)
-        assert code in (0, 1), err
-        return json.loads((d / "r.json").read_text())["items"][0]
+        folder = cli_support.dump(tmp_path, name, "bevy-old-school", SIZE, *options)
+        return cli_support.judged(tmp_path, folder, None, name + "-judged", "bevy-old-school", SIZE)
     assert item("clean")["verdict"] == "PASS"
     low = item("low", "--threshold", "0.3")
     assert low["verdict"] == "FAIL" and low["first_divergent_stage"] == "down.1"

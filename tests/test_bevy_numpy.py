@@ -13,7 +13,7 @@ the f64 truth uses their float32 values. Levels and the view are kept in f32 her
 import numpy as np
 import pytest
 
-from test_variants_numpy import (F32, F32_REL, F64_ABS, F64_REL, centres, read_rgb, write_exr,
+from test_variants_numpy import (F32, F32_REL, centres, check_images, read_rgb, write_exr,
                                  bloomref_exe)
 
 import os
@@ -182,23 +182,7 @@ def random_hdr(w, h, seed):
 
 
 def check_stages(got, want, f64, label):
-    names = sorted(want)
-    assert sorted(got) == names, f"{label}: dumped stages {sorted(got)}, expected {names}"
-    for name in names:
-        g, w = got[name], want[name]
-        assert g.shape == w.shape, f"{label}: stage {name}: shape {g.shape}, expected {w.shape}"
-        scale = float(np.max(np.abs(w)))
-        if f64:
-            half_ulp = 0.5 * np.spacing(np.abs(w).astype(np.float32)).astype(np.float64)
-            tol = half_ulp * (1 + 1e-6) + F64_REL * scale + F64_ABS
-        else:
-            tol = F32_REL * scale + F64_ABS
-        err = np.abs(g - w) - tol
-        if np.any(err > 0):
-            y, x, c = np.unravel_index(np.argmax(err), err.shape)
-            pytest.fail(f"{label}: stage {name}: texel (col {x}, row {y}) channel {'RGB'[c]}: "
-                        f"bloomref {g[y, x, c]!r}, numpy {w[y, x, c]!r} (stage max {scale:.6g}); "
-                        f"{int(np.sum(err > 0))} texel channels over")
+    check_images(got, want, sorted(want), f64, label)
 
 
 # Wider and narrower than the 512-high first level, and one taller than it (a true downsample).

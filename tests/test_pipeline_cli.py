@@ -10,31 +10,18 @@ host code: a pipeline description").
 The GL cases skip without GL (exit 3) unless BLOOMREF_REQUIRE_GL=1.
 """
 import json
-import os
 import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
 
-EXE = os.environ["BLOOMREF_EXE"]
+from cli_support import first_cause, gl_or_skip, run
+
 ROOT = Path(__file__).resolve().parent.parent
 PIPELINES = ROOT / "data" / "pipelines"
 SHADERS = ROOT / "gpu" / "shaders"
 SEED002 = ["--preset", "cod-mip", "--composite", "after-tonemap", "--exposure", "0.5",
            "--strength", "0.02"]
-
-
-def run(args, cwd, timeout=300):
-    p = subprocess.run([EXE] + args, cwd=cwd, capture_output=True, text=True, timeout=timeout)
-    return p.returncode, p.stdout, p.stderr
-
-
-def gl_or_skip(code, err):
-    if code == 3:
-        if os.environ.get("BLOOMREF_REQUIRE_GL") == "1":
-            pytest.fail("no GL although BLOOMREF_REQUIRE_GL=1: " + err)
-        pytest.skip("no GL: " + err.strip())
 
 
 def checked(tmp_path, name, size, *args):
@@ -44,12 +31,6 @@ def checked(tmp_path, name, size, *args):
     gl_or_skip(code, err)
     assert code in (0, 1), err
     return json.loads(out.read_text())["items"][0]
-
-
-def first_cause(item):
-    first = [s for s in item["stages"] if s["stage"] == item["first_divergent_stage"]][0]
-    c = first.get("cause")
-    return first["stage"], c["id"] if c and c.get("likely") else "none"
 
 
 def test_the_articles_host_as_a_description_gives_the_dedicated_hosts_images(tmp_path):
@@ -75,7 +56,7 @@ def test_seed_002s_layout_passes_and_its_step_is_named_at_odd_sizes(tmp_path):
     assert {s["stage"] for s in even["stages"]} >= {"down.1", "down.6", "up.5", "up.1", "output"}
     # 203 wide: level 1 is 101, and 0.5 / 101 is not 1 / 203.
     odd = checked(tmp_path, "odd", "203x131", *SEED002, "--shaders", "pipeline", "--pipeline", seed)
-    assert odd["verdict"] == "FAIL" and first_cause(odd) == ("down.1", "level-size-rounding")
+    assert odd["verdict"] == "FAIL" and first_cause(odd)[:2] == ("down.1", "level-size-rounding")
     declared = checked(tmp_path, "declared", "203x131", *SEED002, "--texel-step", "target",
                        "--shaders", "pipeline", "--pipeline", seed)
     assert declared["verdict"] == "PASS"
@@ -102,7 +83,7 @@ def test_broken_copies_of_the_seed_002_shader_fail_where_broken(tmp_path, find, 
     item = checked(tmp_path, "broken", "256x192", *SEED002, "--shaders", "pipeline", "--pipeline",
                    broken_copy(tmp_path, find, replace))
     assert item["verdict"] == "FAIL"
-    first, named = first_cause(item)
+    first, named, _ = first_cause(item)
     assert first == stage and named in causes, (first, named)
 
 

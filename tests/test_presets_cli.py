@@ -14,28 +14,17 @@ The GL cases skip without GL (exit 3) unless BLOOMREF_REQUIRE_GL=1.
 """
 import json
 import os
-import subprocess
 from pathlib import Path
 
 import pytest
 
-EXE = os.environ["BLOOMREF_EXE"]
+import cli_support
+from cli_support import first_cause, gl_or_skip, run
+
 ROOT = Path(__file__).resolve().parent.parent
 OWN = ROOT / "gpu" / "shaders"
 CORPUS = os.environ.get("BLOOMREF_CORPUS", "")
 ARTICLE = os.environ.get("BLOOMREF_LEARNOPENGL_PBB_DIR", "")
-
-
-def run(args, cwd, timeout=300):
-    p = subprocess.run([EXE] + args, cwd=cwd, capture_output=True, text=True, timeout=timeout)
-    return p.returncode, p.stdout, p.stderr
-
-
-def gl_or_skip(code, err):
-    if code == 3:
-        if os.environ.get("BLOOMREF_REQUIRE_GL") == "1":
-            pytest.fail("no GL although BLOOMREF_REQUIRE_GL=1: " + err)
-        pytest.skip("no GL: " + err.strip())
 
 
 def params(tmp_path, *args):
@@ -219,30 +208,12 @@ def test_random_mip_chain_bugs_are_named_right_or_not_at_all(tmp_path):
 
 def dump(tmp_path, name, *options):
     """The stages of preset learnopengl-pbb on a built-in scene of odd size, `options` planted."""
-    d = tmp_path / name
-    code, _, err = run(["run", "--scene", "demo", "--size", "203x131", "--preset", "learnopengl-pbb",
-                        "-q", "-o", str(tmp_path / (name + ".exr")), "--dump-stages", str(d), *options],
-                       tmp_path)
-    assert code == 0, err
-    return d
+    return cli_support.dump(tmp_path, name, "learnopengl-pbb", "203x131", *options)
 
 
 def judged(tmp_path, folder, keep, name):
     """check of `folder`'s stages in `keep` alone against the preset: the result's item."""
-    sub = tmp_path / name
-    sub.mkdir()
-    for stage in keep:
-        (sub / (stage + ".exr")).write_bytes((folder / (stage + ".exr")).read_bytes())
-    code, out, err = run(["check", "--scene", "demo", "--size", "203x131", "--preset", "learnopengl-pbb",
-                          "--stages", str(sub), "--json", str(sub / "r.json"), "-q"], tmp_path)
-    assert code in (0, 1), err
-    return json.loads((sub / "r.json").read_text())["items"][0]
-
-
-def first_cause(item):
-    first = [s for s in item["stages"] if s["stage"] == item["first_divergent_stage"]][0]
-    c = first.get("cause")
-    return first["stage"], c["id"] if c and c.get("likely") else "none", c
+    return cli_support.judged(tmp_path, folder, keep, name, "learnopengl-pbb", "203x131")
 
 
 def test_partial_captures_of_the_article_pipeline_pass_clean_and_fail_planted(tmp_path):

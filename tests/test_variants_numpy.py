@@ -258,7 +258,12 @@ def run_case(case, precision):
 
 
 def check_stages(got, want, levels, f64, label):
-    names = stage_names(levels)
+    check_images(got, want, stage_names(levels), f64, label)
+
+
+def check_images(got, want, names, f64, label):
+    """Every stage in `names` dumped, and each within the tolerance of its numpy image: half a
+    float ulp (f64 dumps) or F32_REL of the stage's largest value (f32), plus the absolute floor."""
     assert sorted(got) == sorted(names), f"{label}: dumped stages {sorted(got)}, expected {names}"
     for name in names:
         g, w = got[name], want[name]

@@ -229,33 +229,13 @@ T soft_knee_factor(const T rgb[3], float threshold, float knee) {
 template float soft_knee_factor<float>(const float[3], float, float);
 template double soft_knee_factor<double>(const double[3], float, float);
 
-// Bevy's Karis average (bloom.wesl, downsample_first), in its order: the groups as the
-// article's (below), each scaled by its weight first, then by 1 / (1 + dot(G, Rec. 709) / 4);
-// the sum clamped to [0.0001, 3.40282347e37].
-template <class T>
-void karis_group_linear(const T q[13][3], T r[3]) {
-  constexpr int kGroup[5][4] = {{11, 10, 12, 0}, {10, 9, 0, 8}, {12, 0, 5, 6}, {0, 8, 6, 7},
-                                {4, 3, 1, 2}};
-  const T scale[5] = {T(0.125f / 4.0f), T(0.125f / 4.0f), T(0.125f / 4.0f), T(0.125f / 4.0f),
-                      T(0.5f / 4.0f)};
-  for (int g = 0; g < 5; ++g) {
-    T v[3];
-    for (int c = 0; c < 3; ++c) {
-      const int* t = kGroup[g];
-      v[c] = (((q[t[0]][c] + q[t[1]][c]) + q[t[2]][c]) + q[t[3]][c]) * scale[g];
-    }
-    const T luma = (v[0] * T(0.2126f) + v[1] * T(0.7152f) + v[2] * T(0.0722f)) / T(4);
-    const T w = T(1) / (T(1) + luma);
-    for (int c = 0; c < 3; ++c) r[c] = r[c] + v[c] * w;
-  }
-  for (int c = 0; c < 3; ++c) r[c] = std::clamp(r[c], T(0.0001f), T(3.40282347e37f));
-}
-
-// The article's Karis average (6.new_downsample.fs, case 0), in its order. Its groups in tap
+// The group forms of the Karis average, in their shaders' order: the article's
+// (6.new_downsample.fs, case 0) and Bevy's (bloom.wesl, downsample_first). Their groups in tap
 // indices: a b d e, b c e f, d e g h, e f h i (the corners and edges around the centre, uv y
-// counting down the image as the rows do) and j k l m (the inner four).
-template <class T>
-void karis_group_srgb(const T q[13][3], T r[3]) {
+// counting down the image as the rows do) and j k l m (the inner four). Each group is the sum
+// of its four lookups times its weight / 4, then times 1 / (1 + luma(group)); the five summed.
+template <class T, class Luma>
+void karis_group_sum(const T q[13][3], T r[3], Luma luma) {
   // Tap indices of kDownOffset: a (-2,+2) = 11, b (0,+2) = 10, c (2,2) = 9, d (-2,0) = 12,
   // e = 0, f (2,0) = 8, g (-2,-2) = 5, h (0,-2) = 6, i (2,-2) = 7, j (-1,+1) = 4, k (1,1) = 3,
   // l (-1,-1) = 1, m (1,-1) = 2.
@@ -263,20 +243,38 @@ void karis_group_srgb(const T q[13][3], T r[3]) {
                                 {4, 3, 1, 2}};
   const T scale[5] = {T(0.125f / 4.0f), T(0.125f / 4.0f), T(0.125f / 4.0f), T(0.125f / 4.0f),
                       T(0.5f / 4.0f)};
-  const T inv_gamma = static_cast<T>(1.0f / 2.2f);  // the shader's const float 1.0 / 2.2
   for (int g = 0; g < 5; ++g) {
     T v[3];
     for (int c = 0; c < 3; ++c) {
       const int* t = kGroup[g];
       v[c] = (((q[t[0]][c] + q[t[1]][c]) + q[t[2]][c]) + q[t[3]][c]) * scale[g];
     }
-    const T luma = (std::pow(v[0], inv_gamma) * T(0.299f) + std::pow(v[1], inv_gamma) * T(0.587f) +
-                    std::pow(v[2], inv_gamma) * T(0.114f)) *
-                   T(0.25f);
-    const T w = T(1) / (T(1) + luma);
+    const T w = T(1) / (T(1) + luma(v));
     for (int c = 0; c < 3; ++c) r[c] = r[c] + v[c] * w;
   }
+}
+
+// The article's: luma the Rec. 601 weights of pow(group, 1 / 2.2), times 0.25; then
+// max(r, 0.0001).
+template <class T>
+void karis_group_srgb(const T q[13][3], T r[3]) {
+  const T inv_gamma = static_cast<T>(1.0f / 2.2f);  // the shader's const float 1.0 / 2.2
+  karis_group_sum(q, r, [&](const T v[3]) {
+    return (std::pow(v[0], inv_gamma) * T(0.299f) + std::pow(v[1], inv_gamma) * T(0.587f) +
+            std::pow(v[2], inv_gamma) * T(0.114f)) *
+           T(0.25f);
+  });
   for (int c = 0; c < 3; ++c) r[c] = std::max(r[c], T(0.0001f));
+}
+
+// Bevy's: luma the Rec. 709 luminance of the group in linear colour, / 4; then the sum clamped
+// to [0.0001, 3.40282347e37].
+template <class T>
+void karis_group_linear(const T q[13][3], T r[3]) {
+  karis_group_sum(q, r, [](const T v[3]) {
+    return (v[0] * T(0.2126f) + v[1] * T(0.7152f) + v[2] * T(0.0722f)) / T(4);
+  });
+  for (int c = 0; c < 3; ++c) r[c] = std::clamp(r[c], T(0.0001f), T(3.40282347e37f));
 }
 
 template <class T>
