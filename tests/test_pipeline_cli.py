@@ -1,8 +1,9 @@
 """check --shaders pipeline --pipeline FILE: any host code, described as data (docs/check.md, "Any
 host code: a pipeline description").
 
-- The article's host code written as a description (data/pipelines/learnopengl-pbb.json) around
-  bloomref's shaders of its interface gives what the dedicated host gives, stage by stage.
+- The article's host code and Bevy's render graph written as descriptions
+  (data/pipelines/learnopengl-pbb.json, bevy.json) around bloomref's shaders of their interfaces
+  give what the dedicated hosts give, stage by stage.
 - Seed 002's layout (one program for both directions, data/pipelines/seed-002.json, bloomref's own
   shaders of its interface) passes; at odd sizes its target-size step is named, and passes when
   declared (--texel-step target); broken copies fail where they are broken.
@@ -46,6 +47,24 @@ def test_the_articles_host_as_a_description_gives_the_dedicated_hosts_images(tmp
     for stage in a:  # the same images give the same errors against the same oracle
         assert a[stage]["max_abs"] == b[stage]["max_abs"], stage
         assert a[stage]["max_error_over_bound"] == b[stage]["max_error_over_bound"], stage
+    assert described["verdict"] == "PASS"
+
+
+def test_bevys_render_graph_as_a_description_gives_the_dedicated_hosts_images(tmp_path):
+    """data/pipelines/bevy.json: a first level 512 high (a size rule of fixed height), each
+    upsample blended with its constant colour, the last into the scene. Against compare --preset
+    bevy, which draws the same shaders through bloomref's own Bevy host."""
+    described = checked(tmp_path, "d", "203x131", "--preset", "bevy", "--shaders", "pipeline",
+                        "--pipeline", str(PIPELINES / "bevy.json"))
+    code, out, err = run(["compare", "--scene", "demo", "--size", "203x131", "--preset", "bevy",
+                          "--json", str(tmp_path / "c.json"), "-q"], tmp_path)
+    gl_or_skip(code, err)
+    assert code == 0, out + err
+    a = {s["stage"]: s["isolated"] for s in described["stages"]}
+    b = {s["stage"]: s["isolated"] for s in json.loads((tmp_path / "c.json").read_text())["stages"]}
+    assert sorted(a) == sorted(set(b) - {"input"}) and len(a) == 17
+    for stage in a:
+        assert a[stage]["max_abs"] == b[stage]["max_abs"], stage
     assert described["verdict"] == "PASS"
 
 

@@ -87,7 +87,7 @@ gpu::DescribedTexture texture(const std::string& file, const std::string& at, co
   if (t.contains("size")) {
     const ordered_json& s = t.at("size");
     const std::string sat = at + ".size";
-    json_fields::only_keys(file, sat, s, {"of", "scale", "halvings", "round"});
+    json_fields::only_keys(file, sat, s, {"of", "scale", "halvings", "height", "round"});
     out.size.of = s.contains("of") ? json_fields::text(file, sat + ".of", s.at("of")) : "scene";
     if (out.size.of != "scene" && !before.count(out.size.of))
       bad(file, sat + ".of", "'" + out.size.of + "' is not a texture declared before this one");
@@ -95,8 +95,13 @@ gpu::DescribedTexture texture(const std::string& file, const std::string& at, co
     if (r == "round") out.size.rounding = gpu::SizeRule::round;
     else if (r == "ceil") out.size.rounding = gpu::SizeRule::ceil;
     else if (r != "floor") bad(file, sat + ".round", "'" + r + "' is not floor, round or ceil");
-    if (s.contains("scale") && s.contains("halvings"))
-      bad(file, sat, "give scale or halvings, not both");
+    if (int(s.contains("scale")) + int(s.contains("halvings")) + int(s.contains("height")) > 1)
+      bad(file, sat, "give one of scale, halvings and height");
+    if (s.contains("height")) {
+      out.size.height = json_fields::integer(file, sat + ".height", s.at("height"));
+      if (out.size.height < 1 || out.size.height > 16384)
+        bad(file, sat + ".height", "must be in [1, 16384]");
+    }
     if (s.contains("scale")) {
       if (!s.at("scale").is_number() || !(s.at("scale").get<double>() > 0))
         bad(file, sat + ".scale", "must be a number > 0");

@@ -124,6 +124,11 @@ class DescribedHost {
         const Texture& of = textures_.at(t.size.of);  // the parser checked it is declared before
         tw = of.width, th = of.height;
       }
+      if (t.size.height > 0) {
+        const float ratio = static_cast<float>(t.size.height) / static_cast<float>(th);
+        tw = std::max(1, static_cast<int>(std::round(static_cast<float>(tw) * ratio)));
+        th = std::max(1, static_cast<int>(std::round(static_cast<float>(th) * ratio)));
+      }
       for (int k = 0; k < t.size.halvings; ++k) {
         tw = rounded(tw * 0.5, t.size.rounding);
         th = rounded(th * 0.5, t.size.rounding);

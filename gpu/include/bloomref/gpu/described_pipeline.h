@@ -20,11 +20,14 @@ namespace bloomref::gpu {
 /// How a texture's size follows from another's (declared before it): `scale` times its width
 /// and height, rounded down (floor), to the nearest (round, halves up) or up (ceil), at least 1;
 /// the scene's own size when `of` is "scene" and scale is 1.
-/// `halvings` > 0: halved that many times instead, each time rounded.
+/// `halvings` > 0: halved that many times instead, each time rounded. `height` > 0: that height
+/// and the width in proportion, round(width x height / its height) computed in f32, halves away
+/// from zero (a bloom texture of fixed height, as Bevy's 512).
 struct SizeRule {
   std::string of = "scene";
   double scale = 1.0;
   int halvings = 0;
+  int height = 0;
   enum Rounding { floor, round, ceil } rounding = floor;
 };
 
