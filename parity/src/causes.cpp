@@ -1346,9 +1346,13 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
                            std::string("the downsample's step from ") + kWhat[int(other)] +
                                " where " + kWhat[int(p.texel_step)] + " is specified");
       hy->texel_step = other;
-      char b[200];
-      std::snprintf(b, sizeof b, "level %d (%dx%d) reads a %dx%d level with the step 1 / %gx%g", k,
-                    l.width, l.height, sw, sh, double(s.first), double(s.second));
+      const auto specified = step_of(spec_opt);
+      char b[240];
+      std::snprintf(b, sizeof b,
+                    "level %d (%dx%d) reads a %dx%d level with the step 1 / %gx%g where 1 / %gx%g "
+                    "is specified",
+                    k, l.width, l.height, sw, sh, double(s.first), double(s.second),
+                    double(specified.first), double(specified.second));
       hy->detail = b;
     }
   }
