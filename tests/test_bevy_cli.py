@@ -125,13 +125,16 @@ def test_a_changed_choice_fails_where_it_enters(tmp_path, planted, stage, causes
 
 def test_old_school_soft_threshold_is_judged(tmp_path):
     """bevy-old-school's soft threshold at 0.6: dumps made with it at 0.3 fail at down.1, where
-    it enters; clean ones pass."""
+    it enters, the threshold fitted; clean ones pass."""
     def item(name, *options):
         folder = cli_support.dump(tmp_path, name, "bevy-old-school", SIZE, *options)
         return cli_support.judged(tmp_path, folder, None, name + "-judged", "bevy-old-school", SIZE)
     assert item("clean")["verdict"] == "PASS"
     low = item("low", "--threshold", "0.3")
     assert low["verdict"] == "FAIL" and low["first_divergent_stage"] == "down.1"
+    stage, named, cause = first_cause(low)
+    assert named == "threshold-other", cause  # the soft threshold fitted, 0.3 inside its interval
+    assert cause["fitted"]["low"] <= 0.3 <= cause["fitted"]["high"], cause
 
 
 def test_a_stronger_bloom_never_passes_with_only_the_composite(tmp_path):

@@ -42,7 +42,8 @@ struct Hypothesis {
   float strength_scale = 1.0f;     // the composite adds strength * scale * bloom
   bool ge = false, clamp_bright = false, f16 = false, no_exposure = false;
   bool clamp_blur = false;  // every blur pass's output clamped to [0, 1]
-  float threshold = NAN;    // another threshold for the bright pass (fitted); NaN: the plan's
+  float threshold = NAN;    // another threshold for the bright pass or the first level's soft
+                            // threshold (fitted); NaN: the plan's
   int gamma_times = 1;
   bool pow_negative = false;  // gamma as pow(x, 1 / gamma) without max(x, 0): NaN below 0
   float gamma = 0.0f;         // another gamma (fitted); 0: the plan's
@@ -98,7 +99,8 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
              (is_target && (!h.weights.empty() || h.stale || h.along_x || h.spacing != 1.0f)) ||
              h.f16;
     case StageKind::down:
-      return h.sampled() || h.ge || h.f16 || h.texel_step || (is_target && !h.source.empty());
+      return h.sampled() || h.ge || h.f16 || h.texel_step || !std::isnan(h.threshold) ||
+             (is_target && !h.source.empty());
     case StageKind::up:
       return h.sampled() || h.f16 ||
              (is_target && (!h.source.empty() || !std::isnan(h.level_weight)));
@@ -407,6 +409,7 @@ class Evaluator {
         {
           BloomParams q = p_;
           if (h_.texel_step) q.texel_step = *h_.texel_step;
+          if (!std::isnan(h_.threshold)) q.threshold = h_.threshold;
           downsample(in[0], out.view(),
                      downsample_options(q, spec.pass, ctx_.sanitized.width,
                                         ctx_.sanitized.height, ctx_.profile.subtexel_bits),
@@ -714,6 +717,7 @@ double squared_residual(ConstImageView a, ConstImageView b) {
   return r;
 }
 
+
 // Golden-section search of `cost` over [lo, hi] (14 steps): its minimum, or `best` when that
 // costs no more (`best_cost`).
 template <class Cost>
@@ -725,6 +729,41 @@ double refine(const Cost& cost, double lo, double hi, double best, double best_c
     else lo = a, a = b, ca = cb, b = lo + g * (hi - lo), cb = cost(b);
   }
   return std::min(ca, cb) < best_cost ? (ca < cb ? a : b) : best;
+}
+
+// The threshold of a first level's soft threshold (Prefilter::soft_knee, its knee the same
+// fraction of it) that best explains the captured down.1, by least squares: the plan's times
+// 2^(j/4), j = -8..8, then refined by golden-section search around the best. Nothing when no
+// other threshold fits better, or the best is the plan's within 0.1%.
+std::optional<float> fit_soft_threshold(const CauseContext& ctx, const StageSpec& target) {
+  const BloomParams& p = ctx.plan.params;
+  if (target.kind != StageKind::down || target.pass != 1 || p.prefilter != Prefilter::soft_knee ||
+      !(p.threshold > 0))
+    return std::nullopt;
+  const ConstImageView user = ctx.view(target.name), scene = ctx.sanitized;
+  const LevelSize& l = ctx.plan.levels[0];
+  if (!user.data || user.width != l.width || user.height != l.height) return std::nullopt;
+  Image out(l.width, l.height);
+  auto cost = [&](double t) {
+    BloomParams q = p;
+    q.threshold = static_cast<float>(t);
+    downsample(scene, out.view(),
+               downsample_options(q, 1, scene.width, scene.height, ctx.profile.subtexel_bits),
+               ctx.threads);
+    return squared_residual(out.cview(), user);
+  };
+  const double specified = cost(p.threshold);
+  double best = p.threshold, best_cost = specified;
+  for (int j = -8; j <= 8; ++j) {
+    if (j == 0) continue;
+    const double t = p.threshold * std::exp2(j / 4.0);
+    const double c = cost(t);
+    if (c < best_cost) best = t, best_cost = c;
+  }
+  if (best == double(p.threshold)) return std::nullopt;
+  const double t = refine(cost, best / 1.19, best * 1.19, best, best_cost);
+  if (std::fabs(t / p.threshold - 1) < 1e-3) return std::nullopt;
+  return static_cast<float>(t);
 }
 
 // The factor k by which the target pass's taps are spaced (texel step k / n along its axis)
@@ -1233,6 +1272,17 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     std::snprintf(b, sizeof b, exposure ? "the bloom fits best scaled by %.4g, the exposure"
                                         : "the bloom fits best scaled by %.6g", k);
     h->detail = b;
+    }
+  if (const auto t = fit_soft_threshold(ctx, target))
+    for (const double v : nearby_round(*t)) {
+      Hypothesis* h = add("threshold-other", "another threshold");
+      h->threshold = static_cast<float>(v);
+      h->params = 1;
+      char b[160];
+      std::snprintf(b, sizeof b,
+                    "the soft threshold fits %.4g (specified %.6g; --threshold declares it)", v,
+                    double(p.threshold));
+      h->detail = b;
     }
   if (const auto t = fit_threshold(ctx, target)) {
     Hypothesis* h = add("threshold-other", "another threshold");
