@@ -154,38 +154,49 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
         }
         return Values{coord, arith, thresh, kterm, 0.0};
   };
+  auto storage = [=](int x, int y, int c) {
+    return storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile, c) +
+           denormal_floor(*ctx.profile);
+  };
+  if (!opt.soft_knee)
+    return make_bounds(
+        {"coordinate rounding (x local range)", "filter and sum rounding",
+         "threshold within the tap's error (kept or dropped)",
+         "Karis weights (dL / (1 + L) x group range)", "storage and denormals"},
+        [=](int x, int y, int c) {
+          Values v = pre(x, y, c);
+          v[4] = storage(x, y, c);
+          return v;
+        },
+        tw, ctx.threads);
+  // out_c = r_c h(b), b the largest channel, h = g(b) / max(b, 1e-5) in [0, 1] with g
+  // 1-Lipschitz and g <= b: |dh| <= min(1, 2 Eb / max(b - Eb, 1e-5)), Eb the largest channel's
+  // error. So out_c moves by at most E_c (its own error, times h <= 1) + |r_c| |dh|, plus the
+  // product's and the factor's rounding. The three channels' terms at once: each needs Eb.
   return make_bounds(
       {"coordinate rounding (x local range)", "filter and sum rounding",
-       opt.soft_knee ? "soft threshold: the brightness's error through its slope"
-                     : "threshold within the tap's error (kept or dropped)",
+       "soft threshold: the brightness's error through its slope",
        "Karis weights (dL / (1 + L) x group range)", "storage and denormals"},
-      [=](int x, int y, int c) {
-        const double storage =
-            storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile, c) +
-            denormal_floor(*ctx.profile);
-        if (!opt.soft_knee) {
-          Values v = pre(x, y, c);
-          v[4] = storage;
-          return v;
-        }
-        // out_c = r_c h(b), b the largest channel, h = g(b) / max(b, 1e-5) in [0, 1] with g
-        // 1-Lipschitz and g <= b: |dh| <= min(1, 2 Eb / max(b - Eb, 1e-5)). So out_c moves by
-        // at most E_c (its own error, times h <= 1) + |r_c| |dh|, plus the product's and the
-        // factor's rounding.
-        double e[3];
-        Values own{};
+      [=](int x, int y) {
+        std::array<Values, 3> v;
+        double eb = 0;
         for (int k = 0; k < 3; ++k) {
-          const Values v = pre(x, y, k);
-          e[k] = v[0] + v[1] + v[2] + v[3];
-          if (k == c) own = v;
+          v[std::size_t(k)] = pre(x, y, k);
+          const Values& t = v[std::size_t(k)];
+          const double e = t[0] + t[1] + t[2] + t[3];
+          eb = std::isnan(e) ? INFINITY : std::max(eb, e);  // NaN: no bound on the slope's move
         }
         const float* r = before->pixel(x, y);
         const double b = std::max({double(r[0]), double(r[1]), double(r[2])});
-        const double eb = std::max({e[0], e[1], e[2]});
-        const double low = std::max(b - eb, 1e-5);
-        const double dh = std::isfinite(eb) ? std::min(1.0, 2 * eb / low) : 1.0;
-        const double rc = std::fabs(double(r[c]));
-        return Values{own[0], own[1] + 12 * U * rc, own[2] + rc * dh, own[3], storage};
+        const double dh = std::isfinite(eb) ? std::min(1.0, 2 * eb / std::max(b - eb, 1e-5)) : 1.0;
+        for (int k = 0; k < 3; ++k) {
+          Values& t = v[std::size_t(k)];
+          const double rk = std::fabs(double(r[k]));
+          t[1] += 12 * U * rk;
+          t[2] += rk * dh;
+          t[4] = storage(x, y, k);
+        }
+        return v;
       },
       tw, ctx.threads);
 }

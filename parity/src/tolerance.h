@@ -7,6 +7,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "bloomref/kernel.h"
@@ -70,11 +71,17 @@ inline double coordinate_error(int n, const DeviceProfile& p) {
 /// value by `f(x, y, c)`.
 using Values = std::array<double, 5>;
 
-/// Bounds whose terms are a function of the value's position: `f(x, y, c)` gives them. The
-/// bound sums all five in order, the rounding part the rounding ones (in double, then rounded
-/// to float once).
+/// Bounds whose terms are a function of the value's position: `f(x, y, c)` gives them, or
+/// `f(x, y)` those of the texel's three channels at once (where a channel's terms need the
+/// others'). The bound sums all five in order, the rounding part the rounding ones (in double,
+/// then rounded to float once).
 template <class F>
 struct TermBounds : StageBounds {
+  static constexpr bool kPerTexel = std::is_invocable_v<const F&, int, int>;
+  Values at(int x, int y, int c) const {
+    if constexpr (kPerTexel) return f(x, y)[std::size_t(c)];
+    else return f(x, y, c);
+  }
   std::vector<const char*> names;
   F f;
   int width;
@@ -88,8 +95,12 @@ struct TermBounds : StageBounds {
     for (int y = y0; y < y1; ++y)
       for (int x = 0; x < width; ++x) {
         const std::size_t at = (std::size_t(y - y0) * width + x) * kChannels;
+        std::array<Values, 3> texel{};
+        if constexpr (kPerTexel) texel = f(x, y);
         for (int c = 0; c < 3; ++c) {
-          const Values v = f(x, y, c);
+          Values v;
+          if constexpr (kPerTexel) v = texel[std::size_t(c)];
+          else v = f(x, y, c);
           if (bound) {
             double s = 0;
             for (double t : v) s += t;
@@ -105,7 +116,7 @@ struct TermBounds : StageBounds {
       }
   }
   std::vector<Term> terms(int x, int y, int c) const override {
-    const Values v = f(x, y, c);
+    const Values v = at(x, y, c);
     std::vector<Term> out;
     for (std::size_t i = 0; i < names.size(); ++i) out.push_back({names[i], v[i]});
     return out;
