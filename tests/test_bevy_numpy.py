@@ -13,8 +13,8 @@ the f64 truth uses their float32 values. Levels and the view are kept in f32 her
 import numpy as np
 import pytest
 
-from test_variants_numpy import (F32, F32_REL, centres, check_images, read_rgb, write_exr,
-                                 bloomref_exe)
+from test_variants_numpy import (F32, F32_REL, bloomref_exe, centres, check_images, random_hdr,
+                                 read_rgb, write_exr)
 
 import os
 import subprocess
@@ -170,15 +170,6 @@ def pipeline(img, old_school=False):
     st["tonemap"] = 1.0 - np.exp(-st["composite"] * EXPOSURE)
     st["output"] = np.power(np.maximum(st["tonemap"], 0.0), 1.0 / GAMMA)
     return st
-
-
-def random_hdr(w, h, seed):
-    rng = np.random.default_rng(seed)
-    img = rng.uniform(0.0, 1.6, size=(h, w, 3))
-    n = max(3, w * h // 100)
-    ys, xs = rng.integers(0, h, n), rng.integers(0, w, n)
-    img[ys, xs] = rng.uniform(5.0, 50.0, size=(n, 3))
-    return img.astype(np.float32)
 
 
 def check_stages(got, want, f64, label):
