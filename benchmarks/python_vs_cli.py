@@ -17,7 +17,7 @@ the medians of each, their ratios to the command's and the medians of the rounds
 --out/python_vs_cli.json. Every timed Python output must have the bits of the command's output
 file (exit 1 otherwise). The command runs as its own process, not through
 bloomref.run_command_line, because the module changes how this process allocates large buffers
-(huge pages, reference/src/image.cpp).
+(huge pages, machinery/src/pixel_memory.cpp).
 
   PYTHONPATH=build/python python3 benchmarks/python_vs_cli.py [--size WxH] [--rounds R]
       [--repeat N] [--cli PATH] [--out DIR]

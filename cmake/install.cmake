@@ -8,7 +8,7 @@ include(CMakePackageConfigHelpers)
 # Every library a consumer may link, with the name it has in the package (bloomref::runtime).
 # bloomref_cpu_flags carries no usage requirement out of the package (its compile options are
 # private to each library) but is named by their link interfaces, so it is exported too.
-set(bloomref_installed_libraries reference engine runtime io tools gpu parity cpu_flags)
+set(bloomref_installed_libraries machinery simd exact reference engine engine_internal runtime io tools gpu parity cpu_flags)
 set(bloomref_installed_targets)
 foreach(name ${bloomref_installed_libraries})
   set_target_properties(bloomref_${name} PROPERTIES EXPORT_NAME ${name})
@@ -21,7 +21,7 @@ install(TARGETS ${bloomref_installed_targets} EXPORT bloomrefTargets
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(TARGETS bloomref RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(TARGETS bloomref_oiio LIBRARY DESTINATION ${BLOOMREF_OIIO_MODULE_INSTALL_DIR})
-foreach(folder reference engine runtime io tools gpu parity)
+foreach(folder machinery reference engine runtime io tools gpu parity)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${folder}/include/bloomref
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} FILES_MATCHING PATTERN "*.h")
 endforeach()

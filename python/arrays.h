@@ -42,9 +42,9 @@ OutArray out_array(const pybind11::handle& obj, int width, int height, const std
 
 /// The kept buffer of the last array Python released, when it is `width` x `height` (else an
 /// empty image), for the executor to write its output into (executor.h): a loop of runs at one
-/// size then writes into pages already mapped, where a new 3840x2160 buffer costs about 170 ms
-/// of page faults on its first write (reference/src/image.cpp), as much as the rest of a sparse
-/// scene's run. Callable without the GIL.
+/// size then writes into pages already mapped, where a new buffer pays a page fault per page
+/// on its first write (docs/design.md, "Nothing is written where nothing is"). Callable without
+/// the GIL.
 Image kept_buffer(int width, int height);
 
 }  // namespace bloomref::python

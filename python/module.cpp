@@ -83,8 +83,9 @@ or input, 3 GL unavailable, 4 internal error, 5 nothing compared). It prints as 
 PYBIND11_MODULE(bloomref, m) {
   // Large buffers as numpy's own: advised for huge pages. A Python process runs image after
   // image of one size and keeps the buffers (arrays.cpp, kept_buffer; the scratch pool), so
-  // the slower first touch is paid once (reference/src/image.cpp has the figures).
-  bloomref::detail::advise_huge_pages(true);
+  // the slower first touch is paid once (docs/design.md, "Large buffers advised for huge pages in the Python
+  // process", has the figures).
+  bloomref::advise_huge_pages(true);
   m.doc() = "bloomref: the reference HDR bloom (CPU oracle, GL parity, check) on numpy arrays";
   m.attr("__version__") = BLOOMREF_VERSION;
   static py::exception<bloomref::gpu::GlUnavailable> gl_unavailable(m, "GlUnavailable",

@@ -649,7 +649,7 @@ TEST_CASE("prefault makes pages resident and leaves every value as it was", "[st
   REQUIRE(m != MAP_FAILED);
   auto* bytes = static_cast<unsigned char*>(m);
   std::memset(bytes + 10 * pg, 0xA5, pg);
-  bloomref::detail::prefault(bytes + 100, npages * pg - 200);
+  bloomref::prefault(bytes + 100, npages * pg - 200);
   std::vector<unsigned char> in_core(npages);
   REQUIRE(::mincore(m, npages * pg, in_core.data()) == 0);
   std::size_t resident_inside = 0;
@@ -747,10 +747,10 @@ TEST_CASE("advise_huge_pages: new buffers of 4 MiB or more advised for huge page
   const auto [b0, b1] = inside(before);
   REQUIRE(b1 - b0 >= huge);
   CHECK_FALSE(huge_advised(b0, b1));
-  bloomref::detail::advise_huge_pages(true);
+  bloomref::advise_huge_pages(true);
   const Image after = Image::uninitialised(1024, 384);
   const Image small = Image::uninitialised(1024, 255);  // 16 KiB under 4 MiB
-  bloomref::detail::advise_huge_pages(false);
+  bloomref::advise_huge_pages(false);
   const auto [a0, a1] = inside(after);
   REQUIRE(a1 - a0 >= huge);
   CHECK(huge_advised(a0, a1));
@@ -773,7 +773,7 @@ TEST_CASE("zero_lazily and Image::zeroed give zero bytes over dirty memory, any 
     for (std::size_t n : {std::size_t(0), std::size_t(5), page, page + 7, 3 * page + 100,
                           6 * page}) {
       std::fill(buf.begin(), buf.end(), 0xA5);
-      bloomref::detail::zero_lazily(buf.data() + off, n);
+      bloomref::zero_lazily(buf.data() + off, n);
       std::size_t zero = 0, kept = 0;
       for (std::size_t i = 0; i < buf.size(); ++i) {
         const bool inside = i >= off && i < off + n;
@@ -795,7 +795,7 @@ TEST_CASE("zero_lazily and Image::zeroed give zero bytes over dirty memory, any 
     REQUIRE(m != MAP_FAILED);
     auto* bytes = static_cast<unsigned char*>(m);
     std::memset(bytes + 10 * pg, 0xA5, pg);
-    bloomref::detail::zero_lazily(bytes, npages * pg);
+    bloomref::zero_lazily(bytes, npages * pg);
     std::vector<unsigned char> in_core(npages);
     REQUIRE(::mincore(m, npages * pg, in_core.data()) == 0);
     std::size_t resident = 0;

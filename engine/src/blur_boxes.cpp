@@ -180,7 +180,7 @@ struct BoxBuffers {
     q = PixelBuffer<float>(floats);
     p = PixelBuffer<float>(floats);
     for (PixelBuffer<float>* v : {&q, &p})
-      detail::zero_lazily(v->data(), v->size() * sizeof(float));
+      zero_lazily(v->data(), v->size() * sizeof(float));
     dirty = 0;
   }
   // Zero over the box's rows (and the padding after them), for the box to write there.

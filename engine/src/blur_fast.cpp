@@ -13,7 +13,8 @@
 #include <vector>
 
 #include "blur_internal.h"
-#include "simd_lanes.h"
+#include "bloomref/engine/scan.h"
+#include "bloomref/simd/simd_lanes.h"
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
 #include "bloomref/stages.h"
@@ -107,6 +108,17 @@ float* TileScratch::local(std::size_t n) {
   local_.resize(n);
   return local_.data();
 }
+
+ScanKernel scan_kernel_for(BlurIsa isa) {
+  switch (resolve_isa(isa)) {  // throws for avx2 and avx512 where they are not
+#ifdef BLOOMREF_HAVE_AVX2_KERNEL
+    case BlurIsa::avx512: return scan_row_avx512;
+    case BlurIsa::avx2: return scan_row_avx2;
+#endif
+    default: return scan_row_generic;
+  }
+}
+
 float* TileScratch::tile(std::size_t n) {
   tile_.resize(n);
   return tile_.data();

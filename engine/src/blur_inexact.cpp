@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "blur_internal.h"
-#include "texel.h"
+#include "bloomref/exact/texel.h"
 
 namespace bloomref {
 namespace detail {

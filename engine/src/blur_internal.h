@@ -16,8 +16,8 @@
 #include "bloomref/sampler.h"
 #include "bloomref/stages.h"
 #include "bloomref/engine/fast_stages.h"
-#include "isa_namespace.h"
-#include "taps.h"
+#include "bloomref/simd/isa_namespace.h"
+#include "bloomref/exact/taps.h"
 
 namespace bloomref::detail {
 

@@ -12,7 +12,7 @@
 
 #include "blur_internal.h"
 #include "finish_internal.h"
-#include "half_bits.h"
+#include "bloomref/simd/half_bits.h"
 #include "bloomref/error.h"
 #include "bloomref/parallel.h"
 #include "bloomref/stages.h"

@@ -8,7 +8,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "texel.h"
+#include "bloomref/exact/texel.h"
 #include "bloomref/parallel.h"
 #include "bloomref/sampler.h"
 #include "bloomref/stages.h"

@@ -9,8 +9,8 @@
 
 #include "bloomref/parallel.h"
 #include "bloomref/sampler.h"
-#include "oracle_math.h"
-#include "simd_lanes.h"
+#include "bloomref/exact/oracle_math.h"
+#include "bloomref/simd/simd_lanes.h"
 
 namespace bloomref {
 
@@ -89,6 +89,24 @@ NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite pol
   });
   return total;
 }
+
+namespace detail {
+namespace {
+/// The luminance of the four RGBA pixels at p, one a lane: the pixels transposed into R, G and
+/// B lanes, then luminance() on the lanes (built with -ffp-contract=off: no fused multiply-add),
+/// so each lane's value, and any comparison of it, is the scalar one.
+inline v4f luminance4(const float* p) {
+  const v4f a = load<v4f>(p), b = load<v4f>(p + 4), c = load<v4f>(p + 8), d = load<v4f>(p + 12);
+  const v4f rg01 = BLOOMREF_SHUFFLE2(v4i, a, b, 0, 4, 1, 5);  // r0 r1 g0 g1
+  const v4f rg23 = BLOOMREF_SHUFFLE2(v4i, c, d, 0, 4, 1, 5);
+  const v4f b01 = BLOOMREF_SHUFFLE2(v4i, a, b, 2, 6, 3, 7);  // b0 b1 a0 a1
+  const v4f b23 = BLOOMREF_SHUFFLE2(v4i, c, d, 2, 6, 3, 7);
+  return luminance<v4f, float>(BLOOMREF_SHUFFLE2(v4i, rg01, rg23, 0, 1, 4, 5),
+                               BLOOMREF_SHUFFLE2(v4i, rg01, rg23, 2, 3, 6, 7),
+                               BLOOMREF_SHUFFLE2(v4i, b01, b23, 0, 1, 4, 5));
+}
+}  // namespace
+}  // namespace detail
 
 // Whether any of the four RGBA pixels at p has luminance > threshold (luminance4: each lane's
 // comparison is the scalar one).

@@ -20,7 +20,7 @@
 namespace bloomref {
 namespace {
 
-// Faults in a buffer about to be written whole, the threads taking equal parts (detail::prefault):
+// Faults in a buffer about to be written whole, the threads taking equal parts (prefault):
 // the dense plan's bright image and blur target. In parts because first-touch faults are taken
 // by every writing thread, a single call by one (`bloomref run --size 3840x2160 --plan full` on
 // the 2-core AMD EPYC: median 548 ms split against 587 ms unsplit on two threads; one unsplit
@@ -33,7 +33,7 @@ void prefault_image(BasicImage<T>& img, int threads) {
   const int parts = 64;
   parallel_rows(parts, threads, [&](int i0, int i1) {
     const std::size_t a = bytes * i0 / parts, b = bytes * i1 / parts;
-    detail::prefault(base + a, b - a);
+    prefault(base + a, b - a);
   });
 }
 

@@ -9,8 +9,7 @@
 #include "bloomref/parallel.h"
 #include "bloomref/engine/fast_stages.h"
 #include "bloomref/engine/support.h"
-#include "blur_internal.h"
-#include "scan_internal.h"
+#include "bloomref/engine/scan.h"
 
 namespace bloomref {
 namespace {
@@ -171,17 +170,4 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
   return plan;
 }
 
-namespace detail {
-
-ScanKernel scan_kernel_for(BlurIsa isa) {
-  switch (resolve_isa(isa)) {  // throws for avx2 and avx512 where they are not
-#ifdef BLOOMREF_HAVE_AVX2_KERNEL
-    case BlurIsa::avx512: return scan_row_avx512;
-    case BlurIsa::avx2: return scan_row_avx2;
-#endif
-    default: return scan_row_generic;
-  }
-}
-
-}  // namespace detail
 }  // namespace bloomref

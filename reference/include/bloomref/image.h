@@ -19,30 +19,12 @@
 #include <utility>
 #include <vector>
 
+#include "bloomref/pixel_memory.h"
+
 namespace bloomref {
 
 constexpr int kChannels = 4;
 
-namespace detail {
-void* allocate_pixels(std::size_t bytes);
-void free_pixels(void* p, std::size_t bytes) noexcept;
-/// Faults in the whole pages of [p, p + bytes) in one call (madvise MADV_POPULATE_WRITE, Linux
-/// 5.14+; elsewhere nothing), for a buffer about to be written whole: cheaper than a fault per
-/// page on first touch (image.cpp has the figures). The values are left as they are.
-void prefault(void* p, std::size_t bytes) noexcept;
-/// Sets `bytes` at p to zero without writing the whole pages inside that are not resident: those
-/// are handed back to the kernel (madvise MADV_DONTNEED: private anonymous memory then reads as
-/// zero, and a page is only materialised when written); resident pages and the partial pages at
-/// the ends are written. Falls back to memset where mincore or madvise refuses.
-void zero_lazily(void* p, std::size_t bytes) noexcept;
-/// From this call on (with `on`), every new buffer of at least 4 MiB has its whole 2 MiB pages
-/// advised for transparent huge pages (madvise MADV_HUGEPAGE, before anything is written), as
-/// numpy advises its own arrays of that size. For a process that runs many images of one size
-/// and keeps their buffers (the Python module): fewer TLB misses on every later pass, at the
-/// cost of a slower first touch (image.cpp has the figures). Off by default.
-void advise_huge_pages(bool on) noexcept;
-
-}  // namespace detail
 
 /// The allocator of image buffers. Every buffer starts on a 64-byte (cache line) boundary, so
 /// that a row whose byte length is a multiple of 32 starts every 32-byte vector load of the blur
@@ -55,8 +37,8 @@ struct CacheAlignedAllocator {
   CacheAlignedAllocator() = default;
   template <class U>
   CacheAlignedAllocator(const CacheAlignedAllocator<U>&) {}
-  T* allocate(std::size_t n) { return static_cast<T*>(detail::allocate_pixels(n * sizeof(T))); }
-  void deallocate(T* p, std::size_t n) noexcept { detail::free_pixels(p, n * sizeof(T)); }
+  T* allocate(std::size_t n) { return static_cast<T*>(allocate_pixels(n * sizeof(T))); }
+  void deallocate(T* p, std::size_t n) noexcept { free_pixels(p, n * sizeof(T)); }
   template <class U, class... Args>
   void construct(U* p, Args&&... args) {
     if constexpr (sizeof...(Args) == 0) ::new (static_cast<void*>(p)) U;  // default-init
@@ -106,10 +88,10 @@ class BasicImage {
   }
 
   /// An image of +0 in every channel, alpha included, whose pages are only materialised where
-  /// they are written (detail::zero_lazily): for a destination written in a few places.
+  /// they are written (zero_lazily): for a destination written in a few places.
   static BasicImage zeroed(int width, int height) {
     BasicImage img = uninitialised(width, height);
-    detail::zero_lazily(img.pixels_.data(), img.pixels_.size() * sizeof(T));
+    zero_lazily(img.pixels_.data(), img.pixels_.size() * sizeof(T));
     return img;
   }
 

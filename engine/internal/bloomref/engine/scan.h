@@ -1,4 +1,4 @@
-// bloomref — the plan's scan of a row (plan.cpp), per instruction set (scan_kernels.inc).
+// bloomref — the scan of a scene row the plan makes (runtime plan.cpp), per instruction set.
 #pragma once
 
 #include <cstdint>

@@ -1,7 +1,5 @@
-// bloomref — image buffers (image.h: CacheAlignedAllocator).
-#include "bloomref/image.h"
-
-#include "bloomref/parallel.h"
+// bloomref — the memory image buffers live in (pixel_memory.h).
+#include "bloomref/pixel_memory.h"
 
 #include <sys/mman.h>
 #include <unistd.h>
@@ -16,13 +14,13 @@
 #include <new>
 #include <utility>
 
-namespace bloomref::detail {
+namespace bloomref {
 
-// Not the default: 2 MiB alignment with madvise(MADV_HUGEPAGE) for large buffers. Passes after
-// the first ran 10% faster, but faulting the huge pages in made the first blur pass ~3x slower
-// (3840x2160, the fast exact blur), and a command runs one image. A process that keeps its
-// buffers and runs again opts in (advise_huge_pages): the Python module (docs/design.md, "Large
-// buffers advised for huge pages in the Python process", has the figures).
+// Not the default: 2 MiB alignment with madvise(MADV_HUGEPAGE) for large buffers. A command
+// runs one image, and faulting huge pages in costs more than its later passes save; a process
+// that keeps its buffers opts in (advise_huge_pages). docs/design.md, "Large buffers advised for
+// huge pages in the Python process".
+namespace {
 constexpr std::align_val_t kAlign{64};
 std::atomic<bool> huge_pages{false};
 constexpr std::size_t kMinHugeAdvised = std::size_t(4) << 20;  // numpy's threshold
@@ -35,13 +33,12 @@ void advise_huge(void* p, std::size_t bytes) noexcept {
   const std::uintptr_t last = (begin + bytes) / huge * huge;
   if (first < last) ::madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
 }
+}  // namespace
 
 // Freed buffers of at least 16 MiB, up to 96 MiB in all, are kept for the next buffer of the
-// same size. Blocks that large are mapped afresh by malloc and handed back to the kernel when
-// freed, so every new image of a size seen before faulted its pages in again: `check` of a
-// 1920x1080 frame with 15 stages spent 0.62-0.71 s of system time, 0.38-0.46 s with freed
-// images kept (a 1920x1080 RGBA float image is 31.6 MiB: three are kept; one of 3840x2160,
-// 127 MiB, never is, so peak memory at that size is unchanged).
+// same size: malloc maps blocks that large afresh and hands them back when freed, so every new
+// image of a size seen before faulted its pages in again. docs/design.md, "Large image buffers
+// are kept for the next image of their size".
 namespace {
 constexpr std::size_t kMinKept = std::size_t(16) << 20, kKeptBytes = std::size_t(96) << 20;
 struct Kept {
@@ -82,10 +79,9 @@ void free_pixels(void* p, std::size_t bytes) noexcept {
   ::operator delete(p, kAlign);
 }
 
-// Writing a fresh 133 MB mapping (a 3840x2160 RGBA float image): 169-207 ms faulting 4 KiB pages
-// on first touch, 100-152 ms after this call (the 2-core AMD EPYC virtual machine, Linux 6.18).
-// Huge pages are not used: fast when the kernel has one free, far slower when it must compact
-// memory first.
+// Cheaper than a fault per page on first touch (docs/design.md, "Nothing is written where
+// nothing is"). Huge pages are not used: fast when the kernel has one free, far slower when it
+// must compact memory first.
 void prefault(void* p, std::size_t bytes) noexcept {
 #ifdef MADV_POPULATE_WRITE
   static const std::uintptr_t page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
@@ -126,4 +122,4 @@ void zero_lazily(void* p, std::size_t bytes) noexcept {
   }
 }
 
-}  // namespace bloomref::detail
+}  // namespace bloomref

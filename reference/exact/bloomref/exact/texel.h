@@ -9,8 +9,8 @@
 #include <type_traits>
 #include <vector>
 
-#include "simd_lanes.h"
-#include "taps.h"
+#include "bloomref/simd/simd_lanes.h"
+#include "bloomref/exact/taps.h"
 #include "bloomref/sampler.h"
 #include "bloomref/stages.h"
 

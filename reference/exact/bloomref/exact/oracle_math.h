@@ -31,7 +31,7 @@
 #include <immintrin.h>
 #endif
 
-#include "isa_namespace.h"  // each instruction set its own symbols
+#include "bloomref/simd/isa_namespace.h"  // each instruction set its own symbols
 
 namespace bloomref::detail {
 inline namespace BLOOMREF_ISA_NAMESPACE {

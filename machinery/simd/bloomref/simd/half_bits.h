@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <cstring>
 
-#include "isa_namespace.h"  // each instruction set its own symbols
+#include "bloomref/simd/isa_namespace.h"  // each instruction set its own symbols
 
 namespace bloomref::detail {
 inline namespace BLOOMREF_ISA_NAMESPACE {

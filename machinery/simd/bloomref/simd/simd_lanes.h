@@ -1,13 +1,12 @@
-// bloomref — the few vector helpers the blur kernels share (GCC/Clang vector extensions: the
+// bloomref — the few vector helpers the kernels share (GCC/Clang vector extensions: the
 // same IEEE operation in every lane). A texel is 4 lanes, RGBA, or 3, RGB (fill_zero_texels).
 #pragma once
 
 #include <cstddef>
 #include <cstring>
 
-#include "bloomref/stages.h"
-#include "isa_namespace.h"  // each instruction set its own symbols
-#include "vector_shuffle.h"
+#include "bloomref/simd/isa_namespace.h"  // each instruction set its own symbols
+#include "bloomref/simd/vector_shuffle.h"
 
 namespace bloomref::detail {
 inline namespace BLOOMREF_ISA_NAMESPACE {
@@ -21,20 +20,6 @@ inline V load(const float* p) {
   V v;
   std::memcpy(&v, p, sizeof v);
   return v;
-}
-
-/// The luminance of the four RGBA pixels at p, one a lane: the pixels transposed into R, G and
-/// B lanes, then luminance() on the lanes (built with -ffp-contract=off: no fused multiply-add),
-/// so each lane's value, and any comparison of it, is the scalar one.
-inline v4f luminance4(const float* p) {
-  const v4f a = load<v4f>(p), b = load<v4f>(p + 4), c = load<v4f>(p + 8), d = load<v4f>(p + 12);
-  const v4f rg01 = BLOOMREF_SHUFFLE2(v4i, a, b, 0, 4, 1, 5);  // r0 r1 g0 g1
-  const v4f rg23 = BLOOMREF_SHUFFLE2(v4i, c, d, 0, 4, 1, 5);
-  const v4f b01 = BLOOMREF_SHUFFLE2(v4i, a, b, 2, 6, 3, 7);  // b0 b1 a0 a1
-  const v4f b23 = BLOOMREF_SHUFFLE2(v4i, c, d, 2, 6, 3, 7);
-  return luminance<v4f, float>(BLOOMREF_SHUFFLE2(v4i, rg01, rg23, 0, 1, 4, 5),
-                               BLOOMREF_SHUFFLE2(v4i, rg01, rg23, 2, 3, 6, 7),
-                               BLOOMREF_SHUFFLE2(v4i, b01, b23, 0, 1, 4, 5));
 }
 
 /// RGB kept, alpha set to exactly 1 (what every blur writes); I is V's integer twin.
