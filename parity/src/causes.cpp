@@ -127,8 +127,7 @@ class Evaluator {
 
   // The part of down.k that up.k keeps (1, or 1 - C_k when the levels mix).
   float kept_of_current() const {
-    const LevelBlend b = level_blend(p_, target_.pass, int(ctx_.plan.levels.size()));
-    return b.combine == LevelCombine::mix ? 1.0f - b.weight : 1.0f;
+    return level_blend(p_, target_.pass, int(ctx_.plan.levels.size())).kept();
   }
 
   Image target() {
@@ -1467,7 +1466,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       Image kept;
       ConstImageView base = cur;
       if (!blend.plain()) {
-        const float keep = blend.combine == LevelCombine::mix ? 1.0f - blend.weight : 1.0f;
+        const float keep = blend.kept();
         kept = Image(cur.width, cur.height);
         for (int y = 0; y < cur.height; ++y)
           for (int x = 0; x < cur.width; ++x)

@@ -209,9 +209,7 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
   // the blend keeps of it, and the blend's two products and sum rounded.
   const bool plain = current.empty() || blend.plain();
   const double tent_w = plain ? 1.0 : std::fabs(double(blend.weight));
-  const double keep = plain || blend.combine == LevelCombine::add
-                          ? 1.0
-                          : std::fabs(1.0 - double(blend.weight));
+  const double keep = plain ? 1.0 : std::fabs(double(blend.kept()));
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   auto win = std::make_shared<Window2D>(window4x4(small, ctx.threads));
   auto ewin = small_error ? std::make_shared<Window2D>(window4x4(small_error->cview(), ctx.threads))

@@ -337,7 +337,7 @@ void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicVi
                    int subtexel_bits, int threads, const std::uint8_t* active, float radius,
                    LevelBlend blend, bool target_step) {
   const bool plain = current.empty() || blend.plain();
-  const T weight = static_cast<T>(blend.weight), keep = static_cast<T>(1.0f - blend.weight);
+  const T weight = static_cast<T>(blend.weight), keep = static_cast<T>(blend.kept());
   // 2 / size is 1 / (size / 2), one rounding of the same number.
   const Lookups<T> lookups =
       radius > 0.0f ? Lookups<T>(small, dst.width, dst.height, 1, subtexel_bits, {0.0f, radius},
@@ -364,8 +364,7 @@ void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicVi
         if (!plain) {
           const T* d = current.pixel(x, y);
           for (int c = 0; c < 3; ++c)
-            r[c] = blend.combine == LevelCombine::mix ? r[c] * weight + d[c] * keep
-                                                      : r[c] * weight + d[c];
+            r[c] = r[c] * weight + d[c] * keep;  // keep is exactly 1 under add
         }
         write_rgb1(dst.pixel(x, y), r);
       }

@@ -43,6 +43,8 @@ struct LevelBlend {
   float weight = 1.0f;
   /// add with weight 1: seed 002's order (down.k first, each tap added in turn).
   bool plain() const { return combine == LevelCombine::add && weight == 1.0f; }
+  /// What up.k keeps of down.k: 1 - C under mix, 1 under add.
+  float kept() const { return combine == LevelCombine::mix ? 1.0f - weight : 1.0f; }
 };
 
 /// The blend of stage up.k of a chain of `levels` levels under `p` (LevelWeights).
