@@ -41,11 +41,10 @@ constexpr int kMaxRepeat = 100000;
 
 /// Runs 2..repeat of the CPU pipeline in this process. The first run (the trace given) pays a
 /// page fault for every page its buffers touch; later runs reuse what earlier ones freed as far
-/// as the C library's allocator keeps it (glibc gave large buffers back to the kernel for the
-/// first few runs: StarField.exr's adaptive blur.2 took 12-17 ms in runs 1-3, 2.5-4.5 ms from
-/// about run 9). Each run gets its own copy of the input, made outside the timer, and must give
-/// the first run's output bits. Each run makes its plan again (its scan of the scene is timed as
-/// the stage "plan"). Returns the JSON entry.
+/// as the C library's allocator keeps it (glibc gives large buffers back to the kernel for the
+/// first few runs, which are then slower than the later ones). Each run gets its own copy of the
+/// input, made outside the timer, and must give the first run's output bits. Each run makes its
+/// plan again (its scan of the scene is timed as the stage "plan"). Returns the JSON entry.
 nlohmann::ordered_json repeat_runs(const Plan& plan, const Image& input, const StageTrace& first,
                                    int repeat) {
   // The same parameters and scene each time, so every run's timings list the same stages in the

@@ -3,12 +3,11 @@
 // Why: a sparse support spread over the image (StarField.exr: a few hundred bright pixels, the
 // last pass's support 8.5% of the texels) still touches most of the pages of two whole-image
 // buffers, since a 1000-texel row of RGBA floats is four pages and a star's support crosses one
-// or two of them on most rows; a process's first run pays a fault for each (4,600 on
-// StarField.exr, about 2 us each on the project's 2-core AMD EPYC virtual machine, where memory
-// the guest frees goes back to the host). Blurred box by box, in buffers the size of the largest
-// box reused from box to box, a run touches a few hundred pages, and the passes of one box need
-// no synchronisation with the others: one parallel loop for all the passes instead of three
-// per pass.
+// or two of them on most rows; a process's first run pays a page fault for each
+// (docs/design.md, "A sparse scene is blurred in boxes"). Blurred box by box, in buffers the
+// size of the largest box reused from box to box, a run touches a few hundred pages, and the
+// passes of one box need no synchronisation with the others: one parallel loop for all the
+// passes instead of three per pass.
 //
 // Why the same bits: the passes compute the tiles blur_pass_fast lists for the adaptive plan's
 // supports, with its kernels and tables; a tile only reads the texels within its taps' reach and

@@ -34,15 +34,14 @@ constexpr int kTileAcrossV = 1024;
 constexpr int kTileAcrossVMasked = 128;
 // The tiles of passes that visit only the tiles their support's spans touch (the adaptive
 // plan's sparse passes), where the support is small: 8 along the blur, 16 rows (horizontal) or
-// 32 columns (vertical) across. Against 64 x 32 / 64 x 128, `bloomref run IN --threads 2
-// --repeat 9`, blur warm medians, three alternated runs: StarField.exr 31-40 -> 6-19 ms, demo
-// 3840x2160 18-24 -> 15-19, GoldenGate 15-19 -> 16-20 (16 x 16 / 16 x 32: 19-21, 13-18, 14-17).
+// 32 columns (vertical) across. A small support leaves most of a 64 x 32 / 64 x 128 tile
+// empty, so smaller tiles leave more of the empty texels out (docs/design.md, "The support is
+// tracked as spans per row").
 using detail::kTileAlongListed;
 using detail::kTileAcrossHListed;
 using detail::kTileAcrossVListed;
 // ... while the support is under 1/8 of the image: on larger ones (WideColorGamut.exr, 10-25%
-// bright) the small tiles' per-tile work cost more than they left out (adaptive-table, warm:
-// 1.18x -> 0.81x of the dense plan with small tiles at every size).
+// bright) the small tiles' per-tile work costs more than they leave out.
 constexpr std::size_t kSmallTilesBelow = 8;
 
 bool cpu_has_avx2() {
@@ -320,8 +319,8 @@ namespace {
 // tile's lines and the other lines the inexact lines' lookups weight) and write of dst, and
 // faults the pages marked for the first time in. A sparse adaptive blur into zeroed
 // buffers otherwise reads pages no pass wrote yet (the zero page) and writes them a pass later
-// (a copy-on-write fault and a TLB flush on every CPU): StarField.exr, first run of a process,
-// 2 threads, median of 7 processes 41.5 ms without this, 30.1 ms with it (the 2-core AMD EPYC).
+// (a copy-on-write fault and a TLB flush on every CPU), which a process's first run pays for
+// (docs/design.md, "Nothing is written where nothing is").
 void populate_tile_pages(const detail::TileJob& job,
                          const std::shared_ptr<const detail::PassTables>& tables,
                          const std::vector<int>& listed, std::size_t grid,
@@ -340,10 +339,9 @@ void populate_tile_pages(const detail::TileJob& job,
   const std::size_t ss = std::size_t(src.stride) * kChannels,
                     ds = std::size_t(dst.stride) * kChannels;
   // A tile's reads and writes depend on the pass tables and the tile grid only: each ledger
-  // marks them once per tile (later runs of the same scene mark nothing; StarField, ten passes:
-  // 0.4-0.65 ms a run without this). A family is the tables (held by the ledger, so their
-  // address is not reused), read or written, and the grid's tile size (small or not); `grid`
-  // tiles in all.
+  // marks them once per tile, so later runs of the same scene mark nothing instead of walking
+  // every tile again. A family is the tables (held by the ledger, so their address is not
+  // reused), read or written, and the grid's tile size (small or not); `grid` tiles in all.
   const int small = job.tile_along == kTileAlongListed;
   for (int id : listed) {
     PageLedger* read = opt.src_pages && opt.src_pages->first_visit(tables, small, id, grid)

@@ -41,9 +41,8 @@ namespace {
 
 // Rows per chunk: the horizontal kernel's lanes run across rows (its widest group is 16
 // texels, AVX2: 8 vectors of 2 texels), so a chunk's height is the length of the horizontal
-// passes' lines, over which each line's tap setup is spread. 32 against 16: ten fused passes
-// at 3840x2160, min of 5, alternated (three runs): one thread 304-314 against 325-348 ms, two
-// 158-165 against 176-178; 64 no better than 32 (two runs).
+// passes' lines, over which each line's tap setup is spread: 32 rows spread it enough, where
+// 16 are slower and 64 no faster.
 constexpr int kChunk = 32;
 constexpr int kTileAlongH = 64;     // as blur_pass_fast
 constexpr int kTileAcrossV = 1024;  // as blur_pass_fast
@@ -65,8 +64,8 @@ constexpr int kRingBack = 64;
 constexpr std::size_t kRowAlign = 16;  // floats: a ring row's stride is a multiple of 64 bytes
 
 // The last pass stores its rows past the cache (TileJob::stream_dst) from this output size on:
-// twice the 32 MB last-level cache of the machine measured. Ten fused passes at 3840x2160
-// (133 MB), one thread, AVX-512, medians of 6 alternated (docs/design.md, "CPU engine").
+// twice a 32 MiB last-level cache, so that nothing of such an output would still be in cache
+// for the next stage (docs/design.md, "Streaming stores for a large last pass").
 constexpr std::size_t kStreamOutBytes = std::size_t(64) << 20;
 
 // One pass's tables (blur_pass_fast's) and, per output row, the input rows it reads. The bright
@@ -378,19 +377,17 @@ class StripWorker {
 
   // Pass k's output rows for the intermediate passes: a ring (row r in slot r mod ring[k],
   // columns x0[k] ... x1[k] - 1). A worker's rings are kept from strip to strip (grown where a
-  // strip needs more): made anew for every strip, ~9 x 0.4 MB were freed to the system and
-  // faulted in again each time (ten fused passes at 1920x1080, 20 runs: 26281 -> 19988 page
-  // faults on one thread).
+  // strip needs more): made anew for every strip, ~9 x 0.4 MB would be freed to the system and
+  // faulted in again each time.
   void bind_rings() {
     for (int k = 0; k + 1 < r_.n; ++k) {
       // Rows whole 64-byte cache lines apart: the vertical passes' loads of a row start on one
-      // and never straddle two (ten fused one-thread vertical passes at 3840x2160, 8-bit
-      // weights: 103.8 -> 90.1 ms). The exact passes' rings start at a column that is a
-      // multiple of 16, so that float 0 of a row (3 floats a texel) starts a line: the row
-      // kernel's vectors are whole lines. The approximate passes' rings all start at pass 0's
-      // first column (the widest), so that a column sits at the same place in every ring's
-      // 64-byte lines: a vertical pass then reads and writes whole lines
-      // (ApproxRowsJob::whole_lines).
+      // and never straddle two (docs/design.md, "Buffers are aligned to cache lines"). The
+      // exact passes' rings start at a column that is a multiple of 16, so that float 0 of a
+      // row (3 floats a texel) starts a line: the row kernel's vectors are whole lines. The
+      // approximate passes' rings all start at pass 0's first column (the widest), so that a
+      // column sits at the same place in every ring's 64-byte lines: a vertical pass then reads
+      // and writes whole lines (ApproxRowsJob::whole_lines).
       const bool approx = r_.kernels.approx;
       const int first = approx ? strip_->x0[0] : strip_->x0[k] / 16 * 16;
       const int last = approx ? strip_->x1[0] : strip_->x1[k];

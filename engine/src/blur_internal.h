@@ -160,8 +160,7 @@ struct PassTables {
   /// `sel`) of a row: its one-texel form (the sample mixed once across the blur) or, where `two`,
   /// that texel and the next at weights w0 and w1 (the 2-D bilinear mix). Built only for a
   /// horizontal pass with inexact rows (the vertical pass's columns: blur_inexact_columns_*).
-  /// 16: one 64-byte vector (8 lanes: ten fused one-thread horizontal passes at 3840x2160,
-  /// float weights, 215.5 -> 197.8 ms, medians of 5 alternated rounds).
+  /// 16: one 64-byte vector, faster than 8 lanes.
   static constexpr int kGroupLanes = 16;
   struct GroupTap {
     float w0[kGroupLanes], w1[kGroupLanes];  ///< along weights where `two` (0 elsewhere)
@@ -272,8 +271,8 @@ RowKernels row_kernels_for(BlurIsa isa);
 
 PassTables make_pass_tables(Axis axis, int width, int height, const Kernel& k, int bits);
 /// make_pass_tables, kept for the last few (axis, size, kernel offsets, bits) asked: the
-/// adaptive plan's passes ask for the same two, and building them (about 0.3 ms at 3840x2160)
-/// was a serial part of every pass.
+/// adaptive plan's passes ask for the same two, and building them would otherwise be a serial
+/// part of every pass (docs/design.md, "A pass's tables are built once and kept").
 std::shared_ptr<const PassTables> pass_tables(Axis axis, int width, int height, const Kernel& k,
                                               int bits);
 

@@ -106,8 +106,8 @@ std::vector<float> finished_half_table(detail::FinishKernel kernel, detail::Fini
 // The table of a job, kept between runs: it depends only on the kernel, the exposure and 1 /
 // gamma (finished_half_table: tone map and output, no composite), which stay the same run
 // after run (`run --repeat`, `bench`, a library's frames), and building it is the finishing of
-// 65536 values (StarField.exr, two threads: ~0.35 ms of a ~2.6 ms finish). At most kKeptTables,
-// the least recently used dropped first.
+// 65536 values, a large share of a sparse scene's finish (docs/design.md, "A pass's tables are
+// built once and kept"). At most kKeptTables, the least recently used dropped first.
 constexpr std::size_t kKeptTables = 4;
 
 std::shared_ptr<const std::vector<float>> kept_half_table(detail::FinishKernel kernel,

@@ -358,8 +358,8 @@ class GlExecutor {
 
   // The CPU plan's texel support of this pass (stages.h), from GL's own bright image, as
   // rectangles of tiles; false (draw it all) once it covers half the image, where the readback,
-  // support and many draws cost more than the texels saved (BrightRingsNanInf: 148 ms
-  // unscissored, 186 ms scissored on llvmpipe).
+  // support and many draws cost more than the texels saved (docs/design.md, "The GL path uses
+  // the adaptive plan's support").
   bool support_rects(const StageSpec& s, std::vector<Rect>& rects) {
     if (!support_.started()) support_.start(to_image(tex_.bright).cview(), 0);
     const BlurPassOptions bo{s.axis, &kernel_for(p_.kernel), p_.subtexel_bits};

@@ -243,9 +243,10 @@ int placed_index(const char* name, bool alpha) {
 /// other channels skipped), read through OpenEXRCore into `img` (the data window's size), the
 /// chunks decoded on as many threads as exr_threads' pool has. OpenEXR 3.1's C++ reader copies
 /// each line into the frame buffer through a generic per-value loop; Core's unpackers do it in
-/// a fraction of the time (1920x1080 float, two threads: uncompressed ~15 against ~90 ms, ZIP
-/// ~106 against ~166 ms). False, with `img` in any state, when Core cannot decode the file: the
-/// C++ reader then reads it and reports the problem in its words.
+/// a fraction of the time (docs/design.md, "Scanline EXR files are decoded by OpenEXRCore where
+/// it is faster than OpenEXR's C++ reader; no EXR codec is bloomref's own"). False, with `img`
+/// in any state, when Core cannot decode the file: the C++ reader then reads it and reports the
+/// problem in its words.
 bool read_core(const std::string& path, bool alpha, Image& img) {
   exr_context_t ctxt = open_silently(path);
   if (!ctxt) return false;

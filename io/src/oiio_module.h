@@ -3,10 +3,11 @@
 // first time such a file is read).
 //
 // Why a module: linking OpenImageIO 2.4 (Debian 12) loads ~260 shared libraries (OpenCV,
-// FFmpeg, GDAL, DCMTK, ...) into the process, and relocating them took 0.3-0.4 s at every start
-// of `bloomref`, whatever the command (docs/design.md, I/O). EXR input and PNG output do
-// not need OIIO; only Radiance .hdr, TIFF, PNG input and the other formats do, and they now pay
-// that cost when they are read, once per process.
+// FFmpeg, GDAL, DCMTK, ...) into the process, and relocating them slows every start of
+// `bloomref`, whatever the command (docs/design.md, "OpenImageIO is a module loaded on first
+// use, and PNG goes through libpng"). EXR input and PNG output do not need OIIO; only Radiance
+// .hdr, TIFF, PNG input and the other formats do, and they pay that cost when they are read,
+// once per process.
 //
 // Both sides are built by this project with the same compiler and standard library, so the
 // structures below may hold std::string and std::vector.

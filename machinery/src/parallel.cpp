@@ -34,13 +34,13 @@ int resolve_threads(int threads) {
 
 namespace {
 
-// One arena per thread count, made on first use and kept: creating an arena per call (as this
-// file did) cost its set-up and the workers' migration into it on every parallel loop, which
-// the adaptive plan's small passes (three loops each) felt most: at 256x256 its blur took 5.0 ms
-// on two threads against 2.9 ms on one (bench, medians of 21). Never destroyed: an arena
-// outliving the library's shutdown at exit is harmless, one destroyed after it is not. The map
-// that holds them is never destroyed either, so that they stay reachable to the end (a static
-// map was destroyed at exit, leaving the arenas unreachable: LeakSanitizer reported each).
+// One arena per thread count, made on first use and kept: an arena made per call costs its
+// set-up and the workers' migration into it on every parallel loop, which the adaptive plan's
+// small passes (three loops each) feel most (docs/design.md, "One row-parallel function is the
+// only code that talks to oneTBB"). Never destroyed: an arena outliving the library's shutdown
+// at exit is harmless, one destroyed after it is not. The map that holds them is never
+// destroyed either, so that they stay reachable to the end (a static map was destroyed at
+// exit, leaving the arenas unreachable: LeakSanitizer reported each).
 tbb::task_arena& arena_for(int n) {
   static std::mutex mutex;
   static auto* const arenas = new std::map<int, std::unique_ptr<tbb::task_arena>>();

@@ -27,9 +27,9 @@ T round_half_impl(T x, HalfRounding mode) {
 
 }  // namespace
 
-// The float version works on the bits (about 10x faster than the arithmetic one, which f16
-// storage calls for every stored value); tests check it against Imath over every half, every
-// tie between halves and a million random floats.
+// The float version works on the bits, as it is called for every value f16 storage stores and
+// the arithmetic one is far slower (docs/design.md, "Half rounding is arithmetic"); tests check
+// it against Imath over every half, every tie between halves and a million random floats.
 float round_to_half(float x, HalfRounding mode) {
   std::uint32_t b;
   std::memcpy(&b, &x, 4);

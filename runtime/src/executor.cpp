@@ -22,9 +22,9 @@ namespace {
 
 // Faults in a buffer about to be written whole, the threads taking equal parts (prefault):
 // the dense plan's bright image and blur target. In parts because first-touch faults are taken
-// by every writing thread, a single call by one (`bloomref run --size 3840x2160 --plan full` on
-// the 2-core AMD EPYC: median 548 ms split against 587 ms unsplit on two threads; one unsplit
-// call made two threads slower). Buffers under 8 MiB are left to fault as they are written.
+// by every writing thread, a single call by one: one unsplit call made a run on two threads
+// slower (docs/design.md, "Nothing is written where nothing is"). Buffers under 8 MiB are left
+// to fault as they are written.
 template <class T>
 void prefault_image(BasicImage<T>& img, int threads) {
   const std::size_t bytes = img.values().size() * sizeof(T);
@@ -38,11 +38,11 @@ void prefault_image(BasicImage<T>& img, int threads) {
 }
 
 // The adaptive plan's zeroed scratch images, kept between runs. A fresh zeroed image costs a
-// memset of its resident pages or a fault for every page a run touches (about 1.3 us a page on
-// this project's machine); the blur of a sparse support writes only its support (and its
-// tiles), so a kept image is zeroed again over that support alone: StarField.exr, 2 threads,
-// the runs after the first about 21 -> 17.5 ms on the 2-core AMD EPYC. At most kKeep images
-// are kept (the oldest go first); release_scratch_images() frees them.
+// memset of its resident pages or a fault for every page a run touches; the blur of a sparse
+// support writes only its support (and its tiles), so a kept image is zeroed again over that
+// support alone, and the runs after the first are faster (docs/design.md, "Nothing is written
+// where nothing is"). At most kKeep images are kept (the oldest go first);
+// release_scratch_images() frees them.
 // A kept image is +0 in R, G and B everywhere; its alpha may be 1 where a tile was computed
 // around the support (nothing reads the bright image's or the bloom's alpha).
 // Each image is kept with the ledger of the pages the blur has faulted in (image.h: PageLedger).
@@ -229,9 +229,8 @@ Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt, bool boxed
   if (p.method == Method::gaussian && fuse) {
     // The full plan blurs every pixel, and so does the adaptive plan on a dense scene
     // (Plan::dense_scene) and for the approximate blur, which following a support runs pass by
-    // pass over whole images (stages.h: blur_pass_approx) and measured slower than all of it
-    // fused (StarField 28.6 against 14.9 ms, 2 threads, the project's 2-core Zen 5). The bright
-    // image is then one more full-size image, faulted in, written and read once.
+    // pass over whole images (stages.h: blur_pass_approx) and is slower than all of it fused.
+    // The bright image is then one more full-size image, faulted in, written and read once.
     const bool dense = !adaptive || plan.dense_scene || p.blur == BlurImpl::approx;
     s.blur =
         dense && blurs_from_pass_1(plan) ? BlurPath::fused_from_bright : BlurPath::fused_once_dense;

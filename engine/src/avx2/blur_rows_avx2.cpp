@@ -3,11 +3,12 @@
 // rows of R, G, B (the fused blur's rings). Built with -mavx2 only: nothing is fused
 // (-ffp-contract=off, no FMA), so every lane does blur_inexact_lines's operations in its order.
 //
-// The AVX2 build transposes tiles for the other rows; its inexact rows went through the group
-// kernel (blur_tiles.inc), whose planes, picks and per-texel stores made these 85 of 2160 rows
-// ~22% of ten fused passes at 3840x2160 (skipping them outright: 1.222 of the time without).
-// With this kernel (for the passes between rings; the first pass, from RGBA, keeps the group
-// kernel), in-process alternation, per pair: 0.936 of the time on one thread, 0.931 on two.
+// The AVX2 build transposes tiles for the other rows. Its inexact rows run here along their rows
+// rather than through the group kernel (blur_tiles.inc), whose planes, picks and per-texel
+// stores make these few rows (85 of 2160) a large share of the fused passes' time
+// (docs/design.md, "Lines whose lookup straddles two lines across the blur go through the
+// reference texel"). This kernel serves the passes between rings; the first pass, from RGBA,
+// keeps the group kernel.
 // The shifted vectors a lane's taps read (3 j floats away) are loaded unaligned: AVX2 has no
 // lane rotation across its two halves.
 #define BLOOMREF_ISA_NAMESPACE isa_avx2

@@ -7,9 +7,9 @@
 // the CPU has AVX-512F.
 //
 // A lane reads its taps' texels 3 floats apart, so the vectors it needs start 3 j floats from
-// its own (j = -5 ... 5): they are cut from three aligned vectors by lane rotations (valignd).
-// Loading them unaligned, each straddling two cache lines, took 10.5-10.9 ns a vector against
-// 3.1-6.2 (every tap one texel; medians of 15, 32 rows x 480 columns held in cache).
+// its own (j = -5 ... 5): they are cut from three aligned vectors by lane rotations (valignd),
+// as loading them unaligned, each straddling two cache lines, is far slower (docs/design.md,
+// "Horizontal passes: transposed tiles, or rows on AVX-512").
 #define BLOOMREF_ISA_NAMESPACE isa_avx512
 #include <immintrin.h>
 
@@ -24,8 +24,8 @@ namespace {
 
 constexpr int L = RowTaps::kLanes;
 // How far ahead (in vectors) the first pass fetches its RGBA rows (4, 8 and 16 alike). Without
-// the prefetch, ten fused one-thread passes at 3840x2160 take 1.033 of the tile kernel's time,
-// with it 0.97 (in-process alternation, the 2-core AMD EPYC, Zen 5).
+// the prefetch the fused passes run slower on the row kernel than on the tile kernel; with it,
+// faster.
 constexpr int kPrefetch = 8;
 
 // s[j + 5]: the row's floats [f + 3 j, f + 3 j + 16), j = -5 ... 5, from a, b, c: its vectors
@@ -83,9 +83,7 @@ inline void shifted_at(const float* row, int v, const Packing& pk, __m512i* s) {
 
 // Bit k: tap k of a vector (its masks m[k]) is not every lane one texel at its offset (sel all
 // lanes, two none), so it takes tap's second form. Found once per vector, not tested from its
-// masks anew in every row: a load, a shift and a compare-and-branch a tap less per row (ten
-// fused one-thread passes at 3840x2160 on this project's 2-core AMD EPYC, Zen 5, in-process
-// alternation against testing the masks: 0.972 of the time).
+// masks anew in every row: a load, a shift and a compare-and-branch a tap less per row.
 inline std::uint32_t second_form_taps(const std::uint32_t* m) {
   std::uint32_t bits = 0;
   for (int k = 0; k < RowTaps::kTaps; ++k)
@@ -178,9 +176,9 @@ void row_inexact(const RowInexactJob& job) {
 }
 
 // Rows [y, r1) of vector v of rows of R, G, B (the rings), two at a time, their taps
-// interleaved: two independent chains of eight additions in flight where one row has one
-// (with second_form_taps, 0.94 of the one-row kernel's time: ten fused passes at 3840x2160, the
-// 2-core AMD EPYC, Zen 5). Returns the row left over when their count is odd (r1 otherwise).
+// interleaved: two independent chains of eight additions in flight where one row has one, which
+// is faster than the one-row kernel. Returns the row left over when their count is odd (r1
+// otherwise).
 // Rows packed from RGBA (rows_exact<4>, the first pass of blur_passes_fused) stay one at a time:
 // their packing's index registers beside two rows' shifted vectors make pairs there slower than
 // pairs for the rings alone.

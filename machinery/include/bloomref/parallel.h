@@ -16,8 +16,8 @@ void parallel_rows(int height, int threads, const std::function<void(int y0, int
 
 /// Starts parallel_rows's threads for `threads` on a thread of its own, for a caller with other
 /// work to do first (a command reading its input): a fresh process's first parallel loop
-/// otherwise waits for them (the 2-core AMD EPYC virtual machine: median 1.3 ms, up to 6 ms;
-/// 0.3 ms once started during a 20 ms read). Waits for that thread when destroyed.
+/// otherwise waits for them to start (docs/design.md, "A command starts its threads while it
+/// reads its input"). Waits for that thread when destroyed.
 class ThreadsStarting {
  public:
   explicit ThreadsStarting(int threads);

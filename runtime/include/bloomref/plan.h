@@ -66,10 +66,9 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
 /// every kernel.
 SceneFacts scan_scene(ConstImageView scene, const BloomParams& params, BlurIsa isa = BlurIsa::best);
 /// Whether the bright pixels are so many and so spread that tracking the blur's support costs
-/// more than it saves: at least 10% of the pixels bright, on at least half the rows. On the
-/// corpus, the scenes this takes (10.5-21% bright on 50-95% of the rows) ran 1.3-1.7x slower
-/// under the tracked support than under the full plan (the 2-core AMD EPYC, Zen 5); those it
-/// leaves (10.1% on 46%, 25% on 25%: compact) ran faster tracked.
+/// more than it saves: at least 10% of the pixels bright, on at least half the rows. The
+/// corpus's scenes this takes run faster under the full plan, and those it leaves (compact
+/// ones) faster tracked (docs/design.md, "A scene bright on half its rows is blurred whole").
 bool dense_scene(const SceneFacts& facts);
 
 /// How a stage's output is stored: the mip chain's levels (down.k, up.k) as the chain stores

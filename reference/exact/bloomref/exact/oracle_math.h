@@ -280,10 +280,11 @@ struct PowF32 {
 };
 
 /// pow over n floats in place, n a multiple of N: each of PowF32's steps runs over a block of
-/// values before the next, the intermediate lanes held in a few KiB on the stack (L1). The
+/// values before the next, the intermediate lanes held in a few KiB on the stack (L1), which
+/// keeps the vector units busy where one value at a time leaves them waiting on its chain. The
 /// same operations on every value as PowF32::operator(), so the same bits (tests/
-/// test_oracle_math.cpp). Measured: 25 million values in [0, 1), gamma 2.2, AVX2, one thread,
-/// best of 11, four runs: 130-144 ms one value at a time, 85-103 ms in blocks of 256.
+/// test_oracle_math.cpp; docs/design.md, "The finishing stages are vectorised in double lanes,
+/// with the oracle's bits").
 template <int N>
 inline void pow_blocks(const PowF32<N>& pow, float* p, std::size_t n) {
   using L = Lanes<N>;
@@ -353,8 +354,9 @@ inline typename Lanes<N>::F tonemap_f32(typename Lanes<N>::F h, float exposure) 
   F series;
   const auto near = tonemap_series(h, exposure, series);
   // Where every lane takes the series (dark pixels, most of a typical frame), exp is not
-  // evaluated at all: the lanes' results are the same (the demo scene's finishing stages at
-  // 3840x2160, one thread: 250-254 -> 203-211 ms).
+  // evaluated at all: the lanes' results are the same, and the finishing stages skip most of
+  // their exp work (docs/design.md, "The finishing stages are vectorised in double lanes, with
+  // the oracle's bits").
   if (all_lanes(near)) return series;
   const F far = 1.0f - exp_f32<N>(-h * exposure);
   return near ? series : far;
