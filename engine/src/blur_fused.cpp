@@ -11,7 +11,7 @@
 //
 // Every texel of every pass is computed by the same tile kernel and the same reference texel
 // as blur_pass_fast (blur_tiles.inc, blur_inexact_lines), from the same tap tables, so the bits are
-// blur_pass_fast's (tests/test_blur_fast.cpp). A strip also computes, in its earlier passes, the
+// blur_pass_fast's (tests/engine/test_blur_fast.cpp). A strip also computes, in its earlier passes, the
 // columns beside it that its later passes read (the horizontal taps' reach, 5 texels per pass),
 // a few percent of the work.
 //

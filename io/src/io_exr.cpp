@@ -294,7 +294,7 @@ bool read_core(const std::string& path, bool alpha, Image& img) {
 /// scanline, with R, G and B (A optional) in FLOAT, none subsampled, compressed by a lossless
 /// method OpenEXR offers (none, RLE, ZIPS, ZIP, PIZ). Not HALF: OpenEXRCore 3.1 converts a file
 /// of exactly the four half channels A, B, G, R (RenderDoc's EXR save of a 16-bit float target)
-/// to float in reverse channel order (tests/test_io.cpp writes that file). PXR24, B44 and DWA,
+/// to float in reverse channel order (tests/io/test_io.cpp writes that file). PXR24, B44 and DWA,
 /// and everything else, are left to the C++ reader.
 bool core_reads(const Imf::MultiPartInputFile& file, int chosen) {
   if (file.parts() != 1 || chosen != 0) return false;

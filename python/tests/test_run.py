@@ -267,7 +267,7 @@ def huge_advised(begin, end):
                     reason="no transparent huge pages in this kernel")
 def test_large_outputs_are_advised_for_huge_pages_as_numpy_arrays_are():
     # An 8 MiB output: its whole 2 MiB pages advised for huge pages, as numpy advises its own
-    # arrays of 4 MiB or more (the threshold itself: tests/test_stages.cpp).
+    # arrays of 4 MiB or more (the threshold itself: tests/machinery/test_pixel_memory.cpp).
     huge = 2 << 20
     out = bloomref.run(hdr_scene(512, 1024))
     start = out.ctypes.data

@@ -114,7 +114,7 @@ Image to_float_image(const ImageF64& img) { return convert_image<float>(img.cvie
 
 // ---- How to schedule it --------------------------------------------------------------------
 // The stages below are the specification's (plan.h); the schedule says which code computes
-// them. Every schedule gives the same bits (tests/test_stages.cpp, test_determinism.cpp).
+// them. Every schedule gives the same bits (tests/reference/test_stages.cpp, test_determinism.cpp).
 
 // How the gaussian method's blur passes run.
 enum class BlurPath {

@@ -156,7 +156,7 @@ void composite_mix(BasicView<const T> scene, BasicView<const T> bloom, BasicView
 /// not correctly rounded and differs between libraries). Within 1e-15 relative of e^x before
 /// the rounding, so it returns the correctly rounded float except where e^x lies that close to
 /// a rounding boundary (docs/design.md, "Specification"; tested in
-/// tests/test_oracle_math.cpp). Method: reference/exact/bloomref/exact/oracle_math.h.
+/// tests/reference/test_oracle_math.cpp). Method: reference/exact/bloomref/exact/oracle_math.h.
 float oracle_exp(float x);
 /// The f32 oracle's pow for x >= 0 (or NaN), the same way; IEEE pow's special cases for those x
 /// (including pow(-0, odd integer y) = -0), NaN for x < 0.

@@ -26,7 +26,7 @@ struct WorkingSet {
 /// passes), or with `kept_traces` > 0 that many images per stage instead (1: --dump-stages; 3:
 /// compare, which holds GL's trace, the oracle's and the GL driver's textures), the 8-bit PNG
 /// output buffer, and 64 MiB for the program, its tables and threads (128 MiB with `gl`: the
-/// driver). Measured peaks lie below it (tests/test_memory.cpp).
+/// driver). Measured peaks lie below it (tests/cli/test_memory.cpp).
 WorkingSet working_set(const BloomParams& params, int width, int height, int kept_traces = 0,
                        bool gl = false);
 

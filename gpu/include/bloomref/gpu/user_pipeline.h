@@ -215,7 +215,7 @@ std::vector<ProgramInterface> check_learnopengl(GlContext& ctx, const LearnOpenG
 /// Runs the user's pipeline on `scene` (any size GL allows). Throws UserShaderError (bad
 /// shaders), ParamError (bad options, or non-finite values under NonFinite::error), GlError.
 /// The caller makes the context: GlContext::create throws GlUnavailable where there is no GL
-/// (the CLI exits 3; tests skip unless BLOOMREF_REQUIRE_GL is set, tests/gl_fixture.h).
+/// (the CLI exits 3; tests skip unless BLOOMREF_REQUIRE_GL is set, tests/support/gl_fixture.h).
 UserPipelineRun run_learnopengl(GlContext& ctx, ConstImageView scene,
                                 const LearnOpenGLShaders& shaders,
                                 const UserPipelineOptions& opt = {});

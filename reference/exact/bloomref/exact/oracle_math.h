@@ -21,7 +21,7 @@
 //            (y e - round(y e)) + y log2 m before its own round(); 2^t as above.
 // Both keep the double result within ~1e-15 relative of the truth, so the float they return is
 // the correctly rounded one except where the truth lies that close to a rounding boundary
-// (measured in tests/test_stages.cpp against the C library's double exp and pow).
+// (measured in tests/reference/test_stages.cpp against the C library's double exp and pow).
 #pragma once
 
 #include <cmath>

@@ -8,7 +8,7 @@
   one of Bevy's choices changed fail, at the stage the change enters, and never with a wrong
   cause.
 The GL case skips without GL (exit 3) unless BLOOMREF_REQUIRE_GL=1. The CPU reference itself is
-checked against numpy in tests/test_bevy_numpy.py.
+checked against numpy in tests/cli/test_bevy_numpy.py.
 """
 import json
 import os

@@ -17,8 +17,8 @@ import types
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-SCRIPT = os.path.join(HERE, "..", "scripts", "renderdoc_save_stages.py")
-EXE = os.environ.get("BLOOMREF_EXE", os.path.join(HERE, "..", "build", "cli", "bloomref"))
+SCRIPT = os.path.join(HERE, "..", "..", "scripts", "renderdoc_save_stages.py")
+EXE = os.environ.get("BLOOMREF_EXE", os.path.join(HERE, "..", "..", "build", "cli", "bloomref"))
 
 
 def load_script():

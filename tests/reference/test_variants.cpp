@@ -1,7 +1,7 @@
 // The mip-chain variants' pieces against hand calculation: the packed-float storage of an
 // R11F_G11F_B10F level, GLSL's mix, the host's halved float sizes, the bright prefilter in the
 // plan, and the options a preset's variant gives each downsample. The whole chain against an
-// independent numpy computation is tests/test_variants_numpy.py.
+// independent numpy computation is tests/cli/test_variants_numpy.py.
 #include <catch2/catch.hpp>
 #include <cmath>
 

@@ -1197,7 +1197,7 @@ TEST_CASE("a mip level read from the wrong level is named with the levels", "[ch
   // 40x32: levels 20x16, 10x8, 5x4, 2x2, 1x1. down.3 made from down.1 (the level one further
   // up the chain) where down.2 is specified, at level 3's size with its own pass's options;
   // every other stage as the reference makes it. (bloomref's GL host reading up.4 for up.2
-  // is tests/test_gl_faults.cpp's.)
+  // is tests/gpu/test_gl_faults.cpp's.)
   const Image scene = test_scene();
   BloomParams p = test_params();
   p.method = Method::mip;

@@ -18,7 +18,7 @@ import pytest
 
 from cli_support import first_cause, gl_or_skip, run
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PIPELINES = ROOT / "data" / "pipelines"
 SHADERS = ROOT / "gpu" / "shaders"
 SEED002 = ["--preset", "cod-mip", "--composite", "after-tonemap", "--exposure", "0.5",

@@ -3,7 +3,7 @@
 # machine (scripts/slurm-local), and the documented job script, examples/slurm/bloom-array.sbatch,
 # submitted with `sbatch --array` and sparse ids over six frames, each task taking its shard with
 # --shard auto; then merge, and every frame's bytes against a single-process run.
-#   tests/slurm_sequence.sh BLOOMREF SOURCE_DIR
+#   tests/cli/slurm_sequence.sh BLOOMREF SOURCE_DIR
 # Exit 77 (skipped) without Slurm or root, unless BLOOMREF_REQUIRE_SLURM=1 (CI), which fails.
 set -euo pipefail
 bloomref=$1

@@ -4,7 +4,7 @@
 # engine sets (Slurm array, Kubernetes Indexed Job, GitLab `parallel:`, a GitHub matrix, GNU
 # parallel), then the file's merge. Every form must merge complete and give every frame the bytes
 # of a single-process run. The files name 240 frames; this runs 10 (--frames 1-240 -> 1-10).
-#   tests/cluster_forms.sh BLOOMREF SOURCE_DIR
+#   tests/cli/cluster_forms.sh BLOOMREF SOURCE_DIR
 set -euo pipefail
 bloomref=$1
 src=$2

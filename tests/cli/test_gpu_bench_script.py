@@ -14,8 +14,8 @@ import sys
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-SCRIPT = os.path.join(HERE, "..", "scripts", "gpu-bench")
-EXE = os.environ.get("BLOOMREF_EXE", os.path.join(HERE, "..", "build", "cli", "bloomref"))
+SCRIPT = os.path.join(HERE, "..", "..", "scripts", "gpu-bench")
+EXE = os.environ.get("BLOOMREF_EXE", os.path.join(HERE, "..", "..", "build", "cli", "bloomref"))
 OUTPUTS = {"gpu-bench.json", "gpu-bench.md", "gpu-bench.log", "compare-full.json",
            "bench-full.json"}
 
@@ -247,7 +247,7 @@ def test_run_without_egl_records_it_and_still_benches_the_cpu(tmp_path):
 def test_perf_report_summarises_a_gpu_bench_report(tmp_path):
     """scripts/perf-report's "On a GPU" section reads the report gpu-bench writes."""
     loader = importlib.machinery.SourceFileLoader(
-        "perf_report", os.path.join(HERE, "..", "scripts", "perf-report"))
+        "perf_report", os.path.join(HERE, "..", "..", "scripts", "perf-report"))
     spec = importlib.util.spec_from_loader("perf_report", loader)
     pr = importlib.util.module_from_spec(spec)
     loader.exec_module(pr)

@@ -31,7 +31,7 @@ std::optional<gpu::LearnOpenGLShaders> tutorial_shaders() {
   if (!dir || !*dir) {
     WARN(
         "BLOOMREF_LEARNOPENGL_DIR is not set: the tutorial's shaders are not tested (see "
-        "tests/test_learnopengl_files.cpp for how to get them)");
+        "tests/gpu/test_learnopengl_files.cpp for how to get them)");
     return std::nullopt;
   }
   const std::filesystem::path d(dir);

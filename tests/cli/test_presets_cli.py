@@ -21,7 +21,7 @@ import pytest
 import cli_support
 from cli_support import first_cause, gl_or_skip, run
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 OWN = ROOT / "gpu" / "shaders"
 CORPUS = os.environ.get("BLOOMREF_CORPUS", "")
 ARTICLE = os.environ.get("BLOOMREF_LEARNOPENGL_PBB_DIR", "")

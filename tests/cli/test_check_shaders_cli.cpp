@@ -1,5 +1,5 @@
 // bloomref check --shaders learnopengl as a CI job runs it: shaders written here from docs/design.md
-// (tests/user_shader_sources.h) pass, every pass; a copy with one blur weight 1% too large fails
+// (tests/support/user_shader_sources.h) pass, every pass; a copy with one blur weight 1% too large fails
 // at blur.1, a final pass reading half a texel off or clamping exposure at output;
 // a shader that does not compile, or a missing --final-fs, is exit 2 naming the problem. Shaders
 // under other names (an engine's) pass with a layout file declaring them, and its values reach
