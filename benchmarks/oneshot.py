@@ -10,6 +10,7 @@ Cases and goals (docs/performance.md, "one process per run"):
   StarField.exr (from --corpus)      a few stars on black, 1000x1000    >= 3x
   demo 3840x2160 (built-in scene)    four light cubes                   >= 3x
   noise 383x257 (built-in scene)     dense: gamma noise, 40 sources     >= 0.95x
+  impulse, hot-edge, 150x150-640x480 one or two bright texels on black     >= 0.95x
   with --all-corpus, every *.exr and *.hdr of the corpus                >= 0.95x
 
 A case whose full plan takes under 1 ms is shown but not judged on time. A case that misses its
@@ -63,6 +64,9 @@ def cases(corpus, all_corpus):
         out.append(("StarField.exr", None, 3.0))  # reported as not found
     out.append(("demo 3840x2160", ["--scene", "demo", "--size", "3840x2160"], 3.0))
     out.append(("noise 383x257 (dense)", ["--scene", "noise", "--size", "383x257"], 0.95))
+    for scene, size in (("impulse", "150x150"), ("hot-edge", "180x120"), ("impulse", "300x300"),
+                        ("impulse", "640x480")):
+        out.append((f"{scene} {size} (sparse)", ["--scene", scene, "--size", size], 0.95))
     if all_corpus and corpus:
         for f in sorted(list(corpus.glob("*.exr")) + list(corpus.glob("*.hdr"))):
             if f.name != "StarField.exr":

@@ -72,6 +72,7 @@ nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace) {
           {"bright_pixels", plan.facts.bright_pixels},
           // The adaptive plan's verdict on the scene: blurred whole, no support tracked.
           {"dense_scene", plan.dense_scene},
+          {"small_scene", plan.small_scene},
           {"mip_levels_used", plan.levels.size()},
           {"peak_rss_bytes", peak_rss_bytes()},
           {"width", plan.facts.width},

@@ -168,6 +168,7 @@ bool may_box(const Plan& plan, const ExecuteOptions& opt) {
   return p.plan == PlanMode::adaptive && p.method == Method::gaussian &&
          p.composite_mode == CompositeMode::add && p.precision == Precision::f32 && p.storage == Storage::f32 &&
          p.blur == BlurImpl::fast && !opt.keep_all && !plan.sanitize && !plan.dense_scene &&
+         !plan.small_scene &&
          p.passes > 0 && blurs_from_pass_1(plan) && plan.facts.bright_pixels * 100 <= pixels;
 }
 
@@ -231,7 +232,8 @@ Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt, bool boxed
     // (Plan::dense_scene) and for the approximate blur, which following a support runs pass by
     // pass over whole images (stages.h: blur_pass_approx) and is slower than all of it fused.
     // The bright image is then one more full-size image, faulted in, written and read once.
-    const bool dense = !adaptive || plan.dense_scene || p.blur == BlurImpl::approx;
+    const bool dense =
+        !adaptive || plan.dense_scene || plan.small_scene || p.blur == BlurImpl::approx;
     s.blur =
         dense && blurs_from_pass_1(plan) ? BlurPath::fused_from_bright : BlurPath::fused_once_dense;
   }

@@ -128,6 +128,10 @@ bool dense_scene(const SceneFacts& facts) {
   return facts.bright_pixels * 10 >= pixels && rows * 2 >= std::uint64_t(facts.height);
 }
 
+bool small_scene(const SceneFacts& facts) {
+  return std::uint64_t(facts.width) * std::uint64_t(facts.height) <= 40000;
+}
+
 // At most this many pixels, a run whose thread count was left to bloomref (threads 0) runs on
 // one thread: waking the workers costs more than they save (docs/design.md, "A small scene
 // runs on one thread", has the measurements).
@@ -156,6 +160,7 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
   plan.sanitize = !adaptive || plan.facts.nonfinite.any();
   const bool skip_blur = adaptive && plan.facts.bright_pixels == 0;
   plan.dense_scene = adaptive && dense_scene(plan.facts);
+  plan.small_scene = adaptive && small_scene(plan.facts);
 
   plan.stages.push_back({"input", StageKind::input});
   plan.stages.push_back({"bright", StageKind::bright});

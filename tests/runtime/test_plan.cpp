@@ -181,7 +181,7 @@ TEST_CASE("the plan's scan is a run's first timing and part of its total", "[sta
   }
 }
 
-TEST_CASE("a dense scene: at least 10% of the pixels bright, on at least half the rows",
+TEST_CASE("a dense scene (10% of the pixels bright on half the rows) or a small one is blurred whole",
           "[stages][plan]") {
   SceneFacts f;
   f.width = 20;
@@ -202,6 +202,17 @@ TEST_CASE("a dense scene: at least 10% of the pixels bright, on at least half th
   CHECK(dense_scene(f));
   f.bright_rows.clear();  // no row facts (as for no scan): not dense
   CHECK_FALSE(dense_scene(f));
+
+  // Small: at most 40,000 pixels, whatever is bright.
+  SceneFacts s;
+  s.width = 200;
+  s.height = 200;
+  CHECK(small_scene(s));
+  s.width = 201;
+  CHECK_FALSE(small_scene(s));
+  s.width = 40000;
+  s.height = 1;
+  CHECK(small_scene(s));
 
   // From the scan: the demo with a low threshold is dense, at the default one it is not; the
   // full plan never marks it (it tracks nothing).
@@ -230,4 +241,23 @@ TEST_CASE("a dense scene: at least 10% of the pixels bright, on at least half th
   const StageTrace ts = execute(make_plan(p, demo.cview()), demo.cview());
   CHECK_FALSE(has(ts, "bright+blur.1-10+composite+tonemap+output"));
   CHECK(has(ts, "blur.1"));
+
+  // A small sparse scene (one bright texel at 63x63) is blurred whole too: nothing of the blur
+  // left out, where at 640x480 the same scene's support is tracked.
+  const Image small = make_scene("impulse", 63, 63);
+  const Plan ps = make_plan(p, small.cview());
+  CHECK(ps.small_scene);
+  CHECK_FALSE(ps.dense_scene);
+  const StageTrace tsmall = execute(ps, small.cview());
+  CHECK(has(tsmall, "bright+blur.1-10+composite+tonemap+output"));
+  REQUIRE(tsmall.skipped_fraction.size() == 10u);
+  for (const auto& [name, fraction] : tsmall.skipped_fraction) CHECK(fraction == 0.0);
+  const Image large = make_scene("impulse", 640, 480);
+  const Plan pl = make_plan(p, large.cview());
+  CHECK_FALSE(pl.small_scene);
+  const StageTrace tlarge = execute(pl, large.cview());
+  REQUIRE_FALSE(tlarge.skipped_fraction.empty());
+  CHECK(tlarge.skipped_fraction.front().second > 0.99);  // one texel's support of 307,200
+  p.plan = PlanMode::full;
+  CHECK_FALSE(make_plan(p, small.cview()).small_scene);
 }

@@ -51,6 +51,8 @@ struct Plan {
   /// Adaptive gaussian plan: the scene is dense (dense_scene): where the fused f32 blur runs,
   /// the adaptive plan blurs it as the full plan does, without tracking a support.
   bool dense_scene = false;
+  /// Adaptive gaussian plan: the scene is small (small_scene): blurred as a dense one is.
+  bool small_scene = false;
   std::vector<LevelSize> levels;  ///< method mip: sizes of levels 1..K actually used
   std::vector<std::string> skipped_names() const;
 };
@@ -70,6 +72,11 @@ SceneFacts scan_scene(ConstImageView scene, const BloomParams& params, BlurIsa i
 /// corpus's scenes this takes run faster under the full plan, and those it leaves (compact
 /// ones) faster tracked (docs/design.md, "A scene bright on half its rows is blurred whole").
 bool dense_scene(const SceneFacts& facts);
+/// Whether the scene is so small (at most 40,000 pixels) that following its support costs
+/// more than it leaves out, however sparse it is: its fixed costs (the support's spans, the
+/// boxes, the finishing table) are a run's whole length there (docs/design.md, "A small scene
+/// is blurred whole").
+bool small_scene(const SceneFacts& facts);
 
 /// How a stage's output is stored: the mip chain's levels (down.k, up.k) as the chain stores
 /// them (BloomParams::level_storage), every other stage as `storage` says.
