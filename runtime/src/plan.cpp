@@ -129,7 +129,7 @@ bool dense_scene(const SceneFacts& facts) {
 }
 
 bool small_scene(const SceneFacts& facts) {
-  return std::uint64_t(facts.width) * std::uint64_t(facts.height) <= 40000;
+  return std::uint64_t(facts.width) * std::uint64_t(facts.height) <= 256 * 256;
 }
 
 // At most this many pixels, a run whose thread count was left to bloomref (threads 0) runs on

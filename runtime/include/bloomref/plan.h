@@ -72,7 +72,7 @@ SceneFacts scan_scene(ConstImageView scene, const BloomParams& params, BlurIsa i
 /// corpus's scenes this takes run faster under the full plan, and those it leaves (compact
 /// ones) faster tracked (docs/design.md, "A scene bright on half its rows is blurred whole").
 bool dense_scene(const SceneFacts& facts);
-/// Whether the scene is so small (at most 40,000 pixels) that following its support costs
+/// Whether the scene is so small (at most 256x256 pixels) that following its support costs
 /// more than it leaves out, however sparse it is: its fixed costs (the support's spans, the
 /// boxes, the finishing table) are a run's whole length there (docs/design.md, "A small scene
 /// is blurred whole").
