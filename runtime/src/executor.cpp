@@ -45,7 +45,8 @@ void prefault_image(BasicImage<T>& img, int threads) {
 // release_scratch_images() frees them.
 // A kept image is +0 in R, G and B everywhere; its alpha may be 1 where a tile was computed
 // around the support (nothing reads the bright image's or the bloom's alpha).
-// Each image is kept with the ledger of the pages the blur has faulted in (image.h: PageLedger).
+// Each image is kept with the ledger of the pages the blur has faulted in (PageLedger,
+// bloomref/engine/page_ledger.h).
 class ScratchPool {
  public:
   Image take(int w, int h, detail::PageLedger& pages) {
@@ -114,7 +115,7 @@ Image to_float_image(const ImageF64& img) { return convert_image<float>(img.cvie
 
 // ---- How to schedule it --------------------------------------------------------------------
 // The stages below are the specification's (plan.h); the schedule says which code computes
-// them. Every schedule gives the same bits (tests/reference/test_stages.cpp, test_determinism.cpp).
+// them. Every schedule gives the same bits (tests/runtime/test_determinism.cpp).
 
 // How the gaussian method's blur passes run.
 enum class BlurPath {
