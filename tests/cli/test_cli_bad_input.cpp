@@ -242,18 +242,30 @@ TEST_CASE("bloomref run writes EXR, PNG and JSON", "[cli]") {
   CHECK(j.contains("skipped"));
 }
 
-TEST_CASE("bloomref run --json says whether the adaptive plan took the scene as dense", "[cli]") {
+TEST_CASE("bloomref run --json says whether the adaptive plan took the scene as dense or small",
+          "[cli]") {
   TempDir dir;
-  for (const auto& [threshold, dense] : {std::pair{"1", false}, std::pair{"0.05", true}}) {
-    const std::string json = std::string("t") + threshold + ".json";
-    const CliResult r = run_cli(std::string("run --size 320x180 -q -o out.exr --threshold ") +
-                                    threshold + " --json " + json,
+  // 480x270: beyond a small scene (256x256), dense at threshold 0.05; 200x120: small.
+  struct Case {
+    const char* size;
+    const char* threshold;
+    bool dense, small;
+  };
+  for (const Case& c : {Case{"480x270", "1", false, false}, Case{"480x270", "0.05", true, false},
+                        Case{"200x120", "1", false, true}}) {
+    const std::string json = std::string("t") + c.size + "_" + c.threshold + ".json";
+    const CliResult r = run_cli(std::string("run --size ") + c.size + " -q -o out.exr --threshold " +
+                                    c.threshold + " --json " + json,
                                 "", dir.path());
     REQUIRE(r.code == 0);
     const auto j = nlohmann::json::parse(bloomref::test::read_bytes(dir / json));
-    INFO("threshold " << threshold);
-    CHECK(j["dense_scene"].get<bool>() == dense);
-    CHECK(j["timings_ms"].contains("bright+blur.1-10+composite+tonemap+output") == dense);
+    INFO(c.size << " threshold " << c.threshold);
+    CHECK(j["dense_scene"].get<bool>() == c.dense);
+    CHECK(j["small_scene"].get<bool>() == c.small);
+    // Blurred whole (dense or small): no texel of blur.1 left out; tracked: most of them.
+    const double left_out = j["skipped_texel_fraction"]["blur.1"].get<double>();
+    if (c.dense || c.small) CHECK(left_out == 0.0);
+    else CHECK(left_out > 0.5);
   }
 }
 
