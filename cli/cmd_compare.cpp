@@ -77,7 +77,8 @@ int compare_cmd(CompareArgs& a) {
   auto t0 = Clock::now();
   // A mip-chain variant runs through the article's host code with bloomref's own shaders for
   // it (gpu/shaders/pbb_*.frag), whose final pass reads with texture() and calls exp, or
-  // through Bevy's render graph with bloomref's GLSL of its passes (gpu/shaders/bevy_*.frag).
+  // through Bevy's render graph with bloomref's GLSL of its passes (gpu/shaders/bevy_*.frag), or
+  // Unity URP's SetupBloom with bloomref's GLSL of its passes (gpu/shaders/unity_*.frag).
   const bool variant = plan.params.mip_variant() || plan.params.composite_mode != CompositeMode::add;
   if (variant && (a.fault != "none" || shaders != gpu::ShaderKind::fragment))
     throw ParamError("--fault and --gl-shaders compute apply to bloomref's own pipeline shaders; "
@@ -101,8 +102,9 @@ int compare_cmd(CompareArgs& a) {
 
   std::string host = gpu::to_string(shaders) + " shaders";
   if (variant)
-    host = gpu::bevy_layout(plan.params) ? "Bevy's render graph, bloomref's bevy shaders"
-                                         : "the article's host, bloomref's pbb shaders";
+    host = gpu::bevy_layout(plan.params)    ? "Bevy's render graph, bloomref's bevy shaders"
+           : gpu::unity_layout(plan.params) ? "URP's SetupBloom, bloomref's unity shaders"
+                                            : "the article's host, bloomref's pbb shaders";
   const std::string renderer = "gl (" + host + "): " + ctx->info().renderer + ", " + ctx->info().version;
   if (!a.quiet) {
     std::printf("%s: %dx%d, %s, profile %s%s\n", source.c_str(), plan.facts.width,

@@ -36,7 +36,14 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
           {"first_level_height", p.first_level_height},
           {"knee", shortest(p.knee)},
           {"level_combine", to_string(p.level_combine)},
-          {"level_weights", to_string(p.level_weights)}};
+          {"level_weights", to_string(p.level_weights)},
+          {"level_weight", shortest(p.level_weight)},
+          {"knee_form", to_string(p.knee_form)},
+          {"clamp_max", shortest(p.clamp_max)},
+          {"first_downsample", to_string(p.first_downsample)},
+          {"downsample", to_string(p.downsample)},
+          {"upsample", to_string(p.upsample)},
+          {"level_count", to_string(p.level_count)}};
 }
 
 std::string cpu_renderer(const BloomParams& p) {

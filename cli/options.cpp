@@ -89,12 +89,39 @@ void PipelineOptions::add_to(CLI::App& app) {
                  "mip, --prefilter soft-knee: the knee as a fraction of the threshold, in [0, 1] "
                  "(Bevy's threshold_softness)")
       ->capture_default_str();
+  app.add_option("--knee-form", knee_form,
+                 "mip, --prefilter soft-knee: the soft threshold's arithmetic, bevy | unity "
+                 "(Unity URP's FragPrefilter)")
+      ->capture_default_str();
+  app.add_option("--clamp-max", p.clamp_max,
+                 "mip: the first level clamped to at most this before the soft threshold "
+                 "(Unity's clamp); 0 = none")
+      ->capture_default_str();
+  app.add_option("--first-downsample", first_downsample,
+                 "mip: the first level by 13-tap (seed 003) | bilinear (one lookup, Unity's "
+                 "prefilter)")
+      ->capture_default_str();
+  app.add_option("--downsample", downsample,
+                 "mip: the other levels by 13-tap (seed 003) | gaussian (Unity's 9-tap "
+                 "horizontal 2x downsample, then 5 bilinear taps vertical)")
+      ->capture_default_str();
+  app.add_option("--upsample", upsample,
+                 "mip: what up.k reads of the level below: tent (3x3) | bilinear (one lookup)")
+      ->capture_default_str();
+  app.add_option("--level-count", level_count,
+                 "mip: fixed (--levels) | unity (URP's floor(log2(max(w, h) / 2)) - 1, at most "
+                 "--levels)")
+      ->capture_default_str();
   app.add_option("--level-combine", level_combine,
-                 "mip: up.k = down.k + C tent (add) | C tent + (1 - C) down.k (mix)")
+                 "mip: up.k = down.k + C tent (add) | C tent + (1 - C) down.k (mix) | "
+                 "down.k + (tent - down.k) C (lerp)")
       ->capture_default_str();
   app.add_option("--level-weights", level_weights,
                  "mip: the constants C per level: one | bevy (Bevy's compute_blend_factor, "
-                 "intensity = --strength)")
+                 "intensity = --strength) | constant (--level-weight)")
+      ->capture_default_str();
+  app.add_option("--level-weight", p.level_weight,
+                 "mip, --level-weights constant: C at every level, in [0, 1] (Unity's scatter)")
       ->capture_default_str();
   app.add_option("--low-frequency-boost", p.low_frequency_boost,
                  "mip, --level-weights bevy: low_frequency_boost")
@@ -131,6 +158,11 @@ void PipelineOptions::finish() {
   params.bloom_upscale = parse_bloom_upscale(bloom_upscale);
   params.level_combine = parse_level_combine(level_combine);
   params.level_weights = parse_level_weights(level_weights);
+  params.knee_form = parse_knee_form(knee_form);
+  params.first_downsample = parse_first_downsample(first_downsample);
+  params.downsample = parse_downsample_filter(downsample);
+  params.upsample = parse_upsample_filter(upsample);
+  params.level_count = parse_level_count(level_count);
   params.chain_storage_set = !chain_storage.empty();
   if (params.chain_storage_set) params.chain_storage = parse_chain_storage(chain_storage);
   validate(params);

@@ -16,7 +16,9 @@ struct PipelineOptions {
               nonfinite = "zero", plan = "adaptive", blur = "fast",
               composite = "before-tonemap", composite_mode = "add", prefilter = "per-lookup",
               karis_form = "per-tap", texel_step = "texture", bloom_upscale = "tent",
-              level_combine = "add", level_weights = "one";
+              level_combine = "add", level_weights = "one", knee_form = "bevy",
+              first_downsample = "13-tap", downsample = "13-tap", upsample = "tent",
+              level_count = "fixed";
   std::string chain_storage;  ///< empty: the levels are stored as --storage says
   std::string preset;         ///< the preset applied, if any
   std::string scene = "demo";

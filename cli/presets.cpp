@@ -90,6 +90,19 @@ const std::map<std::string, Setter>& setters() {
          o.params.first_level_height = number_of<int>(v);
        }},
       {"knee", [](PipelineOptions& o, const nlohmann::json& v) { o.params.knee = number_of<float>(v); }},
+      {"knee-form", [](PipelineOptions& o, const nlohmann::json& v) { o.knee_form = text_of(v); }},
+      {"clamp-max",
+       [](PipelineOptions& o, const nlohmann::json& v) { o.params.clamp_max = number_of<float>(v); }},
+      {"first-downsample",
+       [](PipelineOptions& o, const nlohmann::json& v) { o.first_downsample = text_of(v); }},
+      {"downsample", [](PipelineOptions& o, const nlohmann::json& v) { o.downsample = text_of(v); }},
+      {"upsample", [](PipelineOptions& o, const nlohmann::json& v) { o.upsample = text_of(v); }},
+      {"level-count",
+       [](PipelineOptions& o, const nlohmann::json& v) { o.level_count = text_of(v); }},
+      {"level-weight",
+       [](PipelineOptions& o, const nlohmann::json& v) {
+         o.params.level_weight = number_of<float>(v);
+       }},
       {"low-frequency-boost",
        [](PipelineOptions& o, const nlohmann::json& v) {
          o.params.low_frequency_boost = number_of<float>(v);

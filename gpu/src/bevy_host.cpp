@@ -160,12 +160,19 @@ class BevyHost {
 
 }  // namespace
 
+bool unity_free(const BloomParams& p) {
+  return p.first_downsample == FirstDownsample::taps13 && p.downsample == DownsampleFilter::taps13 &&
+         p.upsample == UpsampleFilter::tent && p.level_combine != LevelCombine::lerp &&
+         p.level_weights != LevelWeights::constant && p.knee_form == KneeForm::bevy &&
+         p.clamp_max == 0.0f && p.level_count == LevelCount::fixed;
+}
+
 bool bevy_layout(const BloomParams& p) {
   return p.method == Method::mip &&
          (p.prefilter == Prefilter::none || p.prefilter == Prefilter::soft_knee) &&
          p.texel_step == TexelStep::texture && p.upsample_radius == 0.0f &&
          p.bloom_upscale == BloomUpscale::tent && p.composite == CompositeOrder::before_tonemap &&
-         (!p.karis || p.karis_form == KarisForm::group_linear);
+         (!p.karis || p.karis_form == KarisForm::group_linear) && unity_free(p);
 }
 
 StageTrace execute_gl_bevy(GlContext& ctx, const BloomParams& p, ConstImageView scene) {

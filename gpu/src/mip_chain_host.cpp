@@ -250,17 +250,19 @@ MipChainRun run_mip_chain(GlContext& ctx, ConstImageView scene, const MipChainSh
 
 StageTrace execute_gl_mip_chain(GlContext& ctx, const BloomParams& p, ConstImageView scene) {
   if (bevy_layout(p)) return execute_gl_bevy(ctx, p, scene);
+  if (unity_layout(p)) return execute_gl_unity(ctx, p, scene);
   const bool article = p.method == Method::mip && p.prefilter == Prefilter::bright &&
                        (!p.karis || p.karis_form == KarisForm::group_srgb) &&
                        p.texel_step == TexelStep::halved_float && p.upsample_radius > 0 &&
                        p.bloom_upscale == BloomUpscale::bilinear &&
                        p.composite_mode == CompositeMode::mix &&
-                       p.composite == CompositeOrder::before_tonemap && p.gamma == 2.2f;
+                       p.composite == CompositeOrder::before_tonemap && p.gamma == 2.2f &&
+                       unity_free(p);
   if (!article)
     throw ParamError(
         "bloomref's GL shaders run seed 002's chain (--method mip), the article's "
         "(--preset learnopengl-pbb, whose shaders take gamma 2.2 and the other options as "
-        "they are) and Bevy's (--preset bevy); this combination of variant options has no GL "
+        "they are), Bevy's (--preset bevy) and Unity URP's (--preset unity-urp); this combination of variant options has no GL "
         "shaders: judge yours with check --shaders");
   auto own = [](const char* name) {
     return ShaderSource{std::string("bloomref's ") + name, shader_sources().at(name)};

@@ -433,7 +433,8 @@ class Evaluator {
           if (up) blend = level_blend(p_, spec.pass, int(ctx_.plan.levels.size()));
           if (up && is_target && !std::isnan(h_.level_weight)) blend.weight = h_.level_weight;
           upsample_tent(in[0], cur, out.view(), ctx_.profile.subtexel_bits, threads, nullptr,
-                        p_.upsample_radius, blend, p_.texel_step == TexelStep::target);
+                        p_.upsample_radius, blend, p_.texel_step == TexelStep::target,
+                        up ? p_.upsample : UpsampleFilter::tent);
         }
         return out;
       }
@@ -1432,14 +1433,15 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     if (small.data && cur.data) {
       Image tent(cur.width, cur.height);
       upsample_tent(small, ConstImageView{}, tent.view(), ctx.profile.subtexel_bits, ctx.threads,
-                    nullptr, p.upsample_radius, LevelBlend{}, p.texel_step == TexelStep::target);
+                    nullptr, p.upsample_radius, LevelBlend{}, p.texel_step == TexelStep::target,
+                    p.upsample);
       // A blended level: up.k = C tent + keep down.k; the fit is of the tent's part.
       const LevelBlend blend = level_blend(p, target.pass, int(ctx.plan.levels.size()));
       // Another constant W: up.k - down.k = W (tent - down.k) under mix, W tent under add; W
       // by least squares over the finite values, and its two-digit neighbour.
       if (!blend.plain()) {
         const ConstImageView user = ctx.view(target.name);
-        const bool mix = blend.combine == LevelCombine::mix;
+        const bool mix = blend.combine != LevelCombine::add;  // mix and lerp: W (tent - down.k)
         double num = 0, den = 0;
         for (int y = 0; y < cur.height; ++y)
           for (int x = 0; x < cur.width; ++x)

@@ -50,16 +50,45 @@ Window2D window4x4(ConstImageView src, int threads) {
 
 // The base texel of a lookup for target texel x of a tw-wide target on a sw-wide source at
 // offset o: floor of its exact texel-space position, clamped.
-int base_texel(int x, int tw, int sw, int o) {
+int base_texel(int x, int tw, int sw, double o) {
   const double u = (x + 0.5) * sw / tw - 0.5 + o;
   return std::clamp(static_cast<int>(std::floor(u)), 0, sw - 1);
 }
 
+// One lookup of a stage whose taps are not seed 003's: offset in source texels, weight.
+struct Tap {
+  double ox, oy, weight;
+};
+
+// The bound of a sum of GL_LINEAR lookups of `src` (taps) into a tw x th target, per value:
+// each tap's weight times (the coordinates' error x its window's range + the input error in
+// it), and the lerps' and the sum's rounding on its window's magnitude (`ops` roundings per
+// tap). The coordinate error `delta` is in texels (both axes together).
+Values taps_terms(const Window2D& win, const Window2D* ewin, const std::vector<Tap>& taps,
+                  int x, int y, int tw, int th, int sw, int sh, int c, double delta, double U,
+                  int ops) {
+  double coord = 0, arith = 0, input = 0;
+  for (const Tap& t : taps) {
+    const int bx = base_texel(x, tw, sw, t.ox), by = base_texel(y, th, sh, t.oy);
+    const double w = std::fabs(t.weight);
+    coord += w * delta * win.range.pixel(bx, by)[c];
+    arith += w * ops * U * win.magnitude.pixel(bx, by)[c];
+    if (ewin) input += w * ewin->magnitude.pixel(bx, by)[c];
+  }
+  return Values{coord, arith, input, 0.0, 0.0};
+}
+
 }  // namespace
+
+std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImageView oracle,
+                                                  const Image* error,
+                                                  const DownsampleOptions& opt, BoundContext ctx);
 
 std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView oracle,
                                          const Image* error, const DownsampleOptions& opt,
                                          BoundContext ctx) {
+  if (!opt.first && opt.filter == DownsampleFilter::gaussian)
+    return gaussian_down_bounds(src, oracle, error, opt, ctx);
   const bool first = opt.first && opt.threshold_taps;  // the taps are thresholded
   const float threshold = opt.threshold;
   const bool karis = opt.first && opt.karis;
@@ -79,9 +108,13 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
     before = std::make_shared<Image>(tw, th);
     downsample(src, before->view(), o, ctx.threads);
   }
-  // Every term but storage, of one channel, before any soft threshold.
+  // One bilinear lookup (FirstDownsample::bilinear) or seed 003's 13 taps.
+  static const std::vector<MipTap> kCentre = {{0, 0, 1.0f}};
+  const bool single = opt.first && opt.first_filter == FirstDownsample::bilinear;
+  // Every term but storage, of one channel, before any soft threshold (a clamp, min(C, r), moves
+  // no value further than r moves).
   auto pre = [=](int x, int y, int c) {
-        const auto& taps = downsample_taps();
+        const auto& taps = single ? kCentre : downsample_taps();
         double coord = 0, arith = 0, thresh = 0;
         double dq[13], lum_err[13], qmax[13], lum[13], qs[13][3];
         for (std::size_t i = 0; i < taps.size(); ++i) {
@@ -201,13 +234,65 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
       tw, ctx.threads);
 }
 
+// Unity's Gaussian pyramid level (DownsampleFilter::gaussian): the horizontal pass's bound per
+// texel (its taps two source texels apart, plus its storage), then the vertical pass's taps on
+// the stored horizontal pass, each carrying the largest horizontal error in its window.
+std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImageView oracle,
+                                                  const Image* error,
+                                                  const DownsampleOptions& opt, BoundContext ctx) {
+  const double U = ctx.profile->unit_roundoff;
+  const int tw = oracle.width, th = oracle.height, sw = src.width, sh = src.height;
+  std::vector<Tap> htaps, vtaps;
+  for (const GaussianTap& t : gaussian_down_h_taps()) htaps.push_back({2.0 * t.offset, 0.0, t.weight});
+  for (const GaussianTap& t : gaussian_down_v_taps()) vtaps.push_back({0.0, t.offset, t.weight});
+  // The step's product with the offset and the lookup's two more roundings: 2 more per axis.
+  const double dh = coordinate_error(sw, *ctx.profile) + coordinate_error(sh, *ctx.profile) +
+                    2 * (sw + sh) * U;
+  const double dv = coordinate_error(tw, *ctx.profile) + coordinate_error(th, *ctx.profile) +
+                    2 * (tw + th) * U;
+  const Window2D win = window4x4(src, ctx.threads);
+  std::unique_ptr<Window2D> ewin;
+  if (error) ewin = std::make_unique<Window2D>(window4x4(error->cview(), ctx.threads));
+  Image h(tw, th);
+  downsample_gaussian_h(src, h.view(), opt, ctx.threads);
+  // The horizontal pass's whole bound, stored: E_h.
+  Image eh(tw, th, 0.0f);
+  parallel_rows(th, ctx.threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < tw; ++x)
+        for (int c = 0; c < 3; ++c) {
+          const Values v = taps_terms(win, ewin.get(), htaps, x, y, tw, th, sw, sh, c, dh, U,
+                                      3 + 2 * 9);
+          eh.pixel(x, y)[c] = static_cast<float>(
+              (v[0] + v[1] + v[2]) * (1 + 4 * U) +
+              storage_term(h.pixel(x, y)[c], opt.intermediate, *ctx.profile, c) +
+              denormal_floor(*ctx.profile));
+        }
+  });
+  auto hwin = std::make_shared<Window2D>(window4x4(h.cview(), ctx.threads));
+  auto ehwin = std::make_shared<Window2D>(window4x4(eh.cview(), ctx.threads));
+  return make_bounds(
+      {"coordinate rounding (x local range)", "filter and sum rounding",
+       "the horizontal pass's error, stored (through the vertical taps)", "storage and denormals"},
+      [=](int x, int y, int c) {
+        const Values v = taps_terms(*hwin, ehwin.get(), vtaps, x, y, tw, th, tw, th, c, dv, U,
+                                    3 + 2 * 5);
+        return Values{v[0], v[1], v[2],
+                      storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile, c) +
+                          denormal_floor(*ctx.profile),
+                      0.0};
+      },
+      tw, ctx.threads);
+}
+
 std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView current,
                                        ConstImageView oracle, const Image* small_error,
                                        const Image* current_error, LevelBlend blend,
-                                       BoundContext ctx) {
+                                       BoundContext ctx, UpsampleFilter filter) {
   // A blended level (level_blend): the tent's terms scaled by C, the current level's by what
   // the blend keeps of it, and the blend's two products and sum rounded.
   const bool plain = current.empty() || blend.plain();
+  const bool lerp = !plain && blend.combine == LevelCombine::lerp;
   const double tent_w = plain ? 1.0 : std::fabs(double(blend.weight));
   const double keep = plain ? 1.0 : std::fabs(double(blend.kept()));
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
@@ -217,22 +302,36 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
   const double delta = coordinate_error(small.width, *ctx.profile) +
                        coordinate_error(small.height, *ctx.profile);
   const int tw = oracle.width, th = oracle.height;
+  // Unity's upsample reads the current level with a lookup at its own texel centres (not through
+  // the blend unit): a coordinate off by its error mixes in a fraction of the neighbours.
+  std::shared_ptr<Window2D> cwin;
+  double cdelta = 0;
+  if (lerp) {
+    cwin = std::make_shared<Window2D>(window4x4(current, ctx.threads));
+    cdelta = coordinate_error(tw, *ctx.profile) + coordinate_error(th, *ctx.profile);
+  }
   return make_bounds(
       {"coordinate rounding (x local range)", "filter and sum rounding",
        "current level's own error", "storage and denormals"},
       [=](int x, int y, int c) {
-        double coord = 0, arith = 0;
-        for (const MipTap& t : tent_taps()) {
+        static const std::vector<MipTap> kCentre = {{0, 0, 1.0f}};
+        double coord = 0, arith = 0, tent_mag = 0;
+        for (const MipTap& t : filter == UpsampleFilter::bilinear ? kCentre : tent_taps()) {
           const int bx = base_texel(x, tw, small.width, t.ox);
           const int by = base_texel(y, th, small.height, t.oy);
           coord += t.weight * (delta * win->range.pixel(bx, by)[c] +
                                (ewin ? ewin->magnitude.pixel(bx, by)[c] : 0.0));
           arith += t.weight * (3 + 2 * 9) * U * win->magnitude.pixel(bx, by)[c];
+          tent_mag += t.weight * win->magnitude.pixel(bx, by)[c];
         }
         const double cur = current.empty() ? 0.0 : std::fabs(current.pixel(x, y)[c]);
         coord *= tent_w;
+        if (cwin) coord += keep * cdelta * cwin->range.pixel(x, y)[c];
         arith = arith * tent_w + 9 * U * cur;
         if (!plain) arith += 4 * U * (std::fabs(oracle.pixel(x, y)[c]) + keep * cur);
+        // lerp: t - d, times C, plus d; or a GPU's other forms of it (d (1 - C) + t C, a fused
+        // multiply-add): a few roundings of |t| and |d| each.
+        if (lerp) arith += 4 * U * (tent_mag + cur);
         const double ecur = keep * (current_error ? current_error->pixel(x, y)[c] : 0.0);
         const double v = oracle.pixel(x, y)[c];
         return Values{coord, arith, ecur,

@@ -148,7 +148,8 @@ Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanit
         upsample_tent(in[0], up ? in[1] : ConstImageView{}, out.view(), subtexel_bits, threads,
                       nullptr, p.upsample_radius,
                       up ? level_blend(p, spec.pass, int(plan.levels.size())) : LevelBlend{},
-                      p.texel_step == TexelStep::target);
+                      p.texel_step == TexelStep::target,
+                      up ? p.upsample : UpsampleFilter::tent);
       break;
     }
     case StageKind::composite:
@@ -301,7 +302,7 @@ StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in,
                          at.ctx);
     return up_bounds(a, up ? b : none, out, ea, up ? eb : nullptr,
                      up ? level_blend(p, spec.pass, int(at.plan.levels.size())) : LevelBlend{},
-                     at.ctx);
+                     at.ctx, up ? p.upsample : UpsampleFilter::tent);
   };
   t.bound = bounds(cin[0], up ? cin[1] : none, o, nullptr, nullptr);
   const Image* es = at.carried(in[0]);

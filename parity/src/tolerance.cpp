@@ -41,7 +41,8 @@ double storage_term(double v, Storage s, const DeviceProfile& p, int channel) {
   if (s == Storage::r11g11b10) {
     // One quantum: nearest or toward zero (the oracle's own rounding is added where it is
     // judged). Denormals below 2^-14.
-    if (!(v > 0)) return 0.0;
+    // No sign: a negative value is stored as 0, |v| away.
+    if (!(v > 0)) return std::fabs(v);
     int e = 0;
     std::frexp(v, &e);
     return std::ldexp(1.0, std::max(e - 1, -14) - (channel == 2 ? 5 : 6));

@@ -159,7 +159,8 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
 std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView current,
                                        ConstImageView oracle, const Image* small_error,
                                        const Image* current_error, LevelBlend blend,
-                                       BoundContext ctx);
+                                       BoundContext ctx,
+                                       UpsampleFilter filter = UpsampleFilter::tent);
 
 /// The blur of an error image with the kernel's weights over each tap's window (end-to-end
 /// propagation through one pass): sum_k w_k * (largest magnitude in tap k's window).

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 
 #include "bloomref/parallel.h"
 #include "bloomref/sampler.h"
@@ -29,6 +30,21 @@ constexpr int kTentOffset[kTentTaps][2] = {{0, 0}, {-1, -1}, {0, -1}, {1, -1}, {
                                            {1, 1}, {0, 1},   {-1, 1}, {-1, 0}};
 constexpr float kTentWeight[kTentTaps] = {0.25f,  0.0625f, 0.125f,  0.0625f, 0.125f,
                                           0.0625f, 0.125f, 0.0625f, 0.125f};
+
+// Unity URP's Gaussian pyramid (Bloom.shader, FragBlurH and FragBlurV): offsets in units of
+// the horizontal step and in texels, f32 as the shader's literals and f64 as written.
+constexpr float kGaussHOffset[9] = {-4.0f, -3.0f, -2.0f, -1.0f, 0.0f, 1.0f, 2.0f, 3.0f, 4.0f};
+constexpr float kGaussHWeight[9] = {0.01621622f, 0.05405405f, 0.12162162f,
+                                    0.19459459f, 0.22702703f, 0.19459459f,
+                                    0.12162162f, 0.05405405f, 0.01621622f};
+constexpr double kGaussHWeight64[9] = {0.01621622, 0.05405405, 0.12162162, 0.19459459, 0.22702703,
+                                       0.19459459, 0.12162162, 0.05405405, 0.01621622};
+constexpr float kGaussVOffset[5] = {-3.23076923f, -1.38461538f, 0.0f, 1.38461538f, 3.23076923f};
+constexpr double kGaussVOffset64[5] = {-3.23076923, -1.38461538, 0.0, 1.38461538, 3.23076923};
+constexpr float kGaussVWeight[5] = {0.07027027f, 0.31621622f, 0.22702703f, 0.31621622f,
+                                    0.07027027f};
+constexpr double kGaussVWeight64[5] = {0.07027027, 0.31621622, 0.22702703, 0.31621622,
+                                       0.07027027};
 
 // The distance of one offset unit in texture coordinates: 1 / `size` (a source texture's size,
 // or the host's float size), or a radius given in texture coordinates.
@@ -99,6 +115,95 @@ void write_zero(T* d) {
   write_rgb1(d, zero);
 }
 
+// The lookups of one axis at offsets given in texture coordinates (f32 as the shader computes
+// them, f64 as written), for every target texel: uv + offset, then GL_LINEAR.
+template <class T>
+class OffsetTable {
+ public:
+  OffsetTable(int tn, int sn, const std::vector<float>& off32, const std::vector<double>& off64,
+              int bits)
+      : n_(tn) {
+    taps_.reserve(off32.size() * std::size_t(tn));
+    for (std::size_t i = 0; i < off32.size(); ++i)
+      for (int x = 0; x < tn; ++x) {
+        if constexpr (std::is_same_v<T, float>)
+          taps_.push_back(gl_axis_tap(texel_centre(x, tn) + off32[i], sn, bits));
+        else
+          taps_.push_back(exact_axis_tap(((x + 0.5) / tn + off64[i]) * sn - 0.5, sn));
+      }
+  }
+  const AxisTap<T>& at(int x, std::size_t i) const { return taps_[i * std::size_t(n_) + x]; }
+
+ private:
+  int n_;
+  std::vector<AxisTap<T>> taps_;
+};
+
+// Unity URP's FragBlurH into `hv` (the level's size), unrounded.
+template <class T>
+void gaussian_h_pass(BasicView<const T> src, BasicView<T> hv, const DownsampleOptions& opt,
+                     int threads) {
+  const int tw = hv.width, th = hv.height, bits = opt.subtexel_bits;
+  // float texelSize = _BlitTex_TexelSize.x * 2.0; uv +- texelSize * i.
+  const float step = (1.0f / static_cast<float>(src.width)) * 2.0f;
+  std::vector<float> ox32;
+  std::vector<double> ox64;
+  for (float o : kGaussHOffset) {
+    ox32.push_back(o < 0 ? -(step * -o) : step * o);
+    ox64.push_back(2.0 * double(o) / src.width);
+  }
+  const OffsetTable<T> xs(tw, src.width, ox32, ox64, bits);
+  const OffsetTable<T> ys(th, src.height, {0.0f}, {0.0}, bits);
+  parallel_rows(th, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < tw; ++x) {
+        T r[3] = {0, 0, 0};
+        for (std::size_t i = 0; i < 9; ++i) {
+          T q[3] = {};
+          sample_rgb(src, xs.at(x, i), ys.at(y, 0), q);
+          const T w = std::is_same_v<T, float> ? T(kGaussHWeight[i]) : T(kGaussHWeight64[i]);
+          for (int c = 0; c < 3; ++c) r[c] = r[c] + q[c] * w;
+        }
+        write_rgb1(hv.pixel(x, y), r);
+      }
+  });
+}
+
+// Unity URP's Gaussian pyramid level (FragBlurH, stored as `opt.intermediate`, then FragBlurV).
+template <class T>
+void downsample_gaussian(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
+                         int threads) {
+  const int tw = dst.width, th = dst.height, bits = opt.subtexel_bits;
+  BasicImage<T> h(tw, th);
+  gaussian_h_pass(src, h.view(), opt, threads);
+  store(h.view(), opt.intermediate, opt.rounding, threads);
+  const BasicView<const T> hc = h.cview();
+  // float texelSize = _BlitTex_TexelSize.y; uv +- texelSize * o.
+  const float step = 1.0f / static_cast<float>(th);
+  std::vector<float> oy32;
+  std::vector<double> oy64;
+  for (int j = 0; j < 5; ++j) {
+    const float o = kGaussVOffset[j];
+    oy32.push_back(o < 0 ? -(step * -o) : step * o);
+    oy64.push_back(kGaussVOffset64[j] / th);
+  }
+  const OffsetTable<T> xs(tw, tw, {0.0f}, {0.0}, bits);
+  const OffsetTable<T> ys(th, th, oy32, oy64, bits);
+  parallel_rows(th, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < tw; ++x) {
+        T r[3] = {0, 0, 0};
+        for (std::size_t j = 0; j < 5; ++j) {
+          T q[3] = {};
+          sample_rgb(hc, xs.at(x, 0), ys.at(y, j), q);
+          const T w = std::is_same_v<T, float> ? T(kGaussVWeight[j]) : T(kGaussVWeight64[j]);
+          for (int c = 0; c < 3; ++c) r[c] = r[c] + q[c] * w;
+        }
+        write_rgb1(dst.pixel(x, y), r);
+      }
+  });
+}
+
 }  // namespace
 
 const std::vector<MipTap>& downsample_taps() {
@@ -122,6 +227,24 @@ const std::vector<std::vector<int>>& karis_groups() {
 const std::vector<float>& karis_group_weights() {
   static const std::vector<float> w(kGroupWeight, kGroupWeight + 5);
   return w;
+}
+
+const std::vector<GaussianTap>& gaussian_down_h_taps() {
+  static const std::vector<GaussianTap> t = [] {
+    std::vector<GaussianTap> v;
+    for (int i = 0; i < 9; ++i) v.push_back({kGaussHOffset[i], kGaussHWeight[i]});
+    return v;
+  }();
+  return t;
+}
+
+const std::vector<GaussianTap>& gaussian_down_v_taps() {
+  static const std::vector<GaussianTap> t = [] {
+    std::vector<GaussianTap> v;
+    for (int i = 0; i < 5; ++i) v.push_back({kGaussVOffset[i], kGaussVWeight[i]});
+    return v;
+  }();
+  return t;
 }
 
 const std::vector<MipTap>& tent_taps() {
@@ -151,6 +274,11 @@ DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int
   o.soft_knee = p.prefilter == Prefilter::soft_knee && k == 1;
   o.knee = p.threshold * std::clamp(p.knee, 0.0f, 1.0f);  // Bevy's extract_component
   o.karis_form = p.karis_form;
+  o.knee_form = p.knee_form;
+  o.first_filter = p.first_downsample;
+  o.clamp_max = k == 1 ? p.clamp_max : 0.0f;
+  o.filter = p.downsample;
+  o.intermediate = p.level_storage();
   if (p.texel_step == TexelStep::halved_float) {
     o.step_width = halved_size(width, k - 1);
     o.step_height = halved_size(height, k - 1);
@@ -182,6 +310,26 @@ std::vector<LevelSize> mip_levels(int width, int height, int levels) {
 }
 
 std::vector<LevelSize> chain_levels(const BloomParams& p, int width, int height) {
+  if (p.level_count == LevelCount::unity) {
+    // PostProcessPass.SetupBloom: tw = width >> 1, th = height >> 1; iterations =
+    // FloorToInt(Mathf.Log(max(tw, th), 2f) - 1) (Math.Log in double, then float); mipCount =
+    // Clamp(iterations, 1, k_MaxPyramidSize); each level Max(1, n >> 1) of the one above.
+    const int top = std::max(width >> 1, height >> 1);
+    int count = 1;
+    if (top > 0) {
+      const float log2 = static_cast<float>(std::log(double(top)) / std::log(2.0));
+      count = static_cast<int>(std::floor(log2 - 1.0f));
+    }
+    count = std::clamp(count, 1, p.levels);
+    std::vector<LevelSize> out;
+    int w = width, h = height;
+    for (int k = 0; k < count; ++k) {
+      w = std::max(1, w >> 1);
+      h = std::max(1, h >> 1);
+      out.push_back({w, h});
+    }
+    return out;
+  }
   if (p.first_level_height == 0) return mip_levels(width, height, p.levels);
   // Bevy: mip_height_ratio = max_mip_dimension as f32 / viewport.y as f32, then
   // (viewport.as_vec2() * ratio).round() (half away from zero), at least 1.
@@ -201,6 +349,10 @@ LevelBlend level_blend(const BloomParams& p, int k, int levels) {
   LevelBlend b;
   b.combine = p.level_combine;
   if (p.level_weights == LevelWeights::one) return b;
+  if (p.level_weights == LevelWeights::constant) {
+    b.weight = p.level_weight;
+    return b;
+  }
   // bevyengine/bevy crates/bevy_post_process/src/bloom/mod.rs, compute_blend_factor, in f32:
   // up.k reads level k + 1, Bevy's mip k (its mip 0 is down.1); max_mip the last level's index.
   const float mip = static_cast<float>(k), max_mip = static_cast<float>(levels - 1);
@@ -215,7 +367,15 @@ LevelBlend level_blend(const BloomParams& p, int k, int levels) {
 }
 
 template <class T>
-T soft_knee_factor(const T rgb[3], float threshold, float knee) {
+T soft_knee_factor(const T rgb[3], float threshold, float knee, KneeForm form) {
+  if (form == KneeForm::unity) {
+    // Bloom.shader, FragPrefilter, with _Params.z = threshold and .w = knee.
+    const T t = T(threshold), kn = T(knee);
+    const T brightness = std::max(rgb[0], std::max(rgb[1], rgb[2]));
+    T softness = std::clamp(brightness - t + kn, T(0), T(2) * kn);
+    softness = (softness * softness) / (T(4) * kn + T(1e-4f));
+    return std::max(brightness - t, softness) / std::max(brightness, T(1e-4f));
+  }
   // The host's threshold_precomputations (bevy settings.rs, extract_component), in f32.
   const T x = T(threshold), y = T(threshold - knee), z = T(2.0f * knee),
           w = T(0.25f / (knee + 0.00001f));
@@ -226,8 +386,8 @@ T soft_knee_factor(const T rgb[3], float threshold, float knee) {
   return contribution / std::max(brightness, T(0.00001f));
 }
 
-template float soft_knee_factor<float>(const float[3], float, float);
-template double soft_knee_factor<double>(const double[3], float, float);
+template float soft_knee_factor<float>(const float[3], float, float, KneeForm);
+template double soft_knee_factor<double>(const double[3], float, float, KneeForm);
 
 // The group forms of the Karis average, in their shaders' order: the article's
 // (6.new_downsample.fs, case 0) and Bevy's (bloom.wesl, downsample_first). Their groups in tap
@@ -277,9 +437,40 @@ void karis_group_linear(const T q[13][3], T r[3]) {
   for (int c = 0; c < 3; ++c) r[c] = std::clamp(r[c], T(0.0001f), T(3.40282347e37f));
 }
 
+// The first level's clamp (Unity's ClampMax) and soft threshold, where they apply.
+template <class T>
+void finish_first(T r[3], const DownsampleOptions& opt) {
+  if (opt.first && opt.clamp_max > 0.0f)
+    for (int c = 0; c < 3; ++c) r[c] = std::min(T(opt.clamp_max), r[c]);
+  if (opt.soft_knee) {
+    const T f = soft_knee_factor(r, opt.threshold, opt.knee, opt.knee_form);
+    for (int c = 0; c < 3; ++c) r[c] = r[c] * f;
+  }
+}
+
+// Unity URP's FragPrefilter: one lookup at the target texel's centre.
+template <class T>
+void downsample_bilinear(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
+                         int threads) {
+  const Lookups<T> lookups(src, dst.width, dst.height, 0, opt.subtexel_bits);
+  parallel_rows(dst.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < dst.width; ++x) {
+        T r[3] = {};
+        lookups.sample(src, x, y, 0, 0, r);
+        finish_first(r, opt);
+        write_rgb1(dst.pixel(x, y), r);
+      }
+  });
+}
+
 template <class T>
 void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
                 int threads) {
+  if (!opt.first && opt.filter == DownsampleFilter::gaussian)
+    return downsample_gaussian(src, dst, opt, threads);
+  if (opt.first && opt.first_filter == FirstDownsample::bilinear)
+    return downsample_bilinear(src, dst, opt, threads);
   const T threshold = static_cast<T>(opt.threshold);
   const bool thresholded = opt.first && opt.threshold_taps;
   const bool karis = opt.first && opt.karis;
@@ -323,10 +514,7 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
           for (int i = 0; i < kDownTaps; ++i)
             for (int c = 0; c < 3; ++c) r[c] = r[c] + q[i][c] * static_cast<T>(kDownWeight[i]);
         }
-        if (opt.soft_knee) {
-          const T f = soft_knee_factor(r, opt.threshold, opt.knee);
-          for (int c = 0; c < 3; ++c) r[c] = r[c] * f;
-        }
+        finish_first(r, opt);
         write_rgb1(dst.pixel(x, y), r);
       }
   });
@@ -335,8 +523,10 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
 template <class T>
 void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
                    int subtexel_bits, int threads, const std::uint8_t* active, float radius,
-                   LevelBlend blend, bool target_step) {
+                   LevelBlend blend, bool target_step, UpsampleFilter filter) {
   const bool plain = current.empty() || blend.plain();
+  const bool lerp = !plain && blend.combine == LevelCombine::lerp;
+  const int taps = filter == UpsampleFilter::bilinear ? 1 : kTentTaps;  // the centre tap first
   const T weight = static_cast<T>(blend.weight), keep = static_cast<T>(blend.kept());
   // 2 / size is 1 / (size / 2), one rounding of the same number.
   const Lookups<T> lookups =
@@ -356,12 +546,16 @@ void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicVi
         T r[3] = {0, 0, 0};
         if (!current.empty() && plain)
           for (int c = 0; c < 3; ++c) r[c] = current.pixel(x, y)[c];
-        for (int i = 0; i < kTentTaps; ++i) {
+        for (int i = 0; i < taps; ++i) {
           T s[3] = {};  // sample_rgb writes all three; the init only quiets -Wuninitialized
           lookups.sample(small, x, y, kTentOffset[i][0], kTentOffset[i][1], s);
-          for (int c = 0; c < 3; ++c) r[c] = r[c] + s[c] * static_cast<T>(kTentWeight[i]);
+          const T w = taps == 1 ? T(1) : static_cast<T>(kTentWeight[i]);
+          for (int c = 0; c < 3; ++c) r[c] = r[c] + s[c] * w;
         }
-        if (!plain) {
+        if (lerp) {
+          const T* d = current.pixel(x, y);
+          for (int c = 0; c < 3; ++c) r[c] = d[c] + (r[c] - d[c]) * weight;
+        } else if (!plain) {
           const T* d = current.pixel(x, y);
           for (int c = 0; c < 3; ++c)
             r[c] = r[c] * weight + d[c] * keep;  // keep is exactly 1 under add
@@ -457,12 +651,23 @@ template void downsample<double>(BasicView<const double>, BasicView<double>,
                                  const DownsampleOptions&, int);
 template void upsample_tent<float>(BasicView<const float>, BasicView<const float>,
                                    BasicView<float>, int, int, const std::uint8_t*, float,
-                                   LevelBlend, bool);
+                                   LevelBlend, bool, UpsampleFilter);
 template void upsample_tent<double>(BasicView<const double>, BasicView<const double>,
                                     BasicView<double>, int, int, const std::uint8_t*, float,
-                                    LevelBlend, bool);
+                                    LevelBlend, bool, UpsampleFilter);
 template void upscale_bilinear<float>(BasicView<const float>, BasicView<float>, int, int);
 template void upscale_bilinear<double>(BasicView<const double>, BasicView<double>, int, int);
+template <class T>
+void downsample_gaussian_h(BasicView<const T> src, BasicView<T> h, const DownsampleOptions& opt,
+                           int threads) {
+  gaussian_h_pass(src, h, opt, threads);
+  store(h, opt.intermediate, opt.rounding, threads);
+}
+
+template void downsample_gaussian_h<float>(BasicView<const float>, BasicView<float>,
+                                           const DownsampleOptions&, int);
+template void downsample_gaussian_h<double>(BasicView<const double>, BasicView<double>,
+                                            const DownsampleOptions&, int);
 template bool mip_nothing_bright<float>(BasicView<const float>, double, int);
 template bool mip_nothing_bright<double>(BasicView<const double>, double, int);
 template std::size_t mip_support<float>(const std::uint8_t*, int, int, const std::uint8_t*, int,

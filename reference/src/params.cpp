@@ -54,10 +54,20 @@ constexpr std::pair<const char*, TexelStep> kTexelSteps[] = {
     {"target", TexelStep::target}};
 constexpr std::pair<const char*, BloomUpscale> kUpscales[] = {
     {"tent", BloomUpscale::tent}, {"bilinear", BloomUpscale::bilinear}};
-constexpr std::pair<const char*, LevelCombine> kCombines[] = {{"add", LevelCombine::add},
-                                                               {"mix", LevelCombine::mix}};
-constexpr std::pair<const char*, LevelWeights> kWeights[] = {{"one", LevelWeights::one},
-                                                              {"bevy", LevelWeights::bevy}};
+constexpr std::pair<const char*, LevelCombine> kCombines[] = {
+    {"add", LevelCombine::add}, {"mix", LevelCombine::mix}, {"lerp", LevelCombine::lerp}};
+constexpr std::pair<const char*, LevelWeights> kWeights[] = {
+    {"one", LevelWeights::one}, {"bevy", LevelWeights::bevy}, {"constant", LevelWeights::constant}};
+constexpr std::pair<const char*, KneeForm> kKneeForms[] = {{"bevy", KneeForm::bevy},
+                                                            {"unity", KneeForm::unity}};
+constexpr std::pair<const char*, FirstDownsample> kFirstDownsamples[] = {
+    {"13-tap", FirstDownsample::taps13}, {"bilinear", FirstDownsample::bilinear}};
+constexpr std::pair<const char*, DownsampleFilter> kDownsamples[] = {
+    {"13-tap", DownsampleFilter::taps13}, {"gaussian", DownsampleFilter::gaussian}};
+constexpr std::pair<const char*, UpsampleFilter> kUpsamples[] = {
+    {"tent", UpsampleFilter::tent}, {"bilinear", UpsampleFilter::bilinear}};
+constexpr std::pair<const char*, LevelCount> kLevelCounts[] = {{"fixed", LevelCount::fixed},
+                                                                {"unity", LevelCount::unity}};
 constexpr std::pair<const char*, Storage> kChainStorages[] = {
     {"f32", Storage::f32}, {"f16", Storage::f16}, {"r11g11b10", Storage::r11g11b10}};
 constexpr std::pair<const char*, PlanMode> kPlans[] = {{"adaptive", PlanMode::adaptive},
@@ -87,8 +97,9 @@ void validate(const BloomParams& p) {
           "--storage r11g11b10 is for the mip chain's levels only (--chain-storage)");
   require(p.method == Method::mip || !p.mip_variant(),
           "--prefilter, --karis-form, --texel-step, --upsample-radius, --bloom-upscale, "
-          "--chain-storage, --first-level-height, --level-combine and --level-weights apply to "
-          "--method mip only");
+          "--chain-storage, --first-level-height, --level-combine, --level-weights, "
+          "--knee-form, --clamp-max, --first-downsample, --downsample, --upsample and "
+          "--level-count apply to --method mip only");
   require(p.first_level_height >= 0 && p.first_level_height <= 16384,
           "--first-level-height must be in [0, 16384] (0 = half the image), got " +
               std::to_string(p.first_level_height));
@@ -102,8 +113,22 @@ void validate(const BloomParams& p) {
               str(p.low_frequency_boost_curvature));
   require(p.high_pass_frequency > 0 && p.high_pass_frequency <= 1,
           "--high-pass-frequency must be in (0, 1], got " + str(p.high_pass_frequency));
-  require(p.level_combine == LevelCombine::add || p.strength <= 1,
+  require(p.level_combine != LevelCombine::mix || p.strength <= 1,
           "--level-combine mix needs --strength in [0, 1], got " + str(p.strength));
+  require(std::isfinite(p.level_weight) && p.level_weight >= 0 && p.level_weight <= 1,
+          "--level-weight must be in [0, 1], got " + str(p.level_weight));
+  require(std::isfinite(p.clamp_max) && p.clamp_max >= 0,
+          "--clamp-max must be finite and >= 0 (0 = no clamp), got " + str(p.clamp_max));
+  require(!p.karis || p.first_downsample == FirstDownsample::taps13,
+          "--karis needs --first-downsample 13-tap (the Karis average weights its 13 taps)");
+  require(p.first_downsample == FirstDownsample::taps13 || p.prefilter != Prefilter::per_lookup,
+          "--first-downsample bilinear has no taps to threshold: use --prefilter soft-knee, "
+          "bright or none");
+  require(p.downsample == DownsampleFilter::taps13 || p.texel_step == TexelStep::texture,
+          "--downsample gaussian steps by the source texture's size: --texel-step texture");
+  require(p.upsample == UpsampleFilter::tent ||
+              (p.upsample_radius == 0.0f && p.texel_step == TexelStep::texture),
+          "--upsample bilinear reads one texel centre: --upsample-radius 0, --texel-step texture");
   require(std::isfinite(p.upsample_radius) && p.upsample_radius >= 0 && p.upsample_radius < 1,
           "--upsample-radius must be in [0, 1) (texture coordinates; 0 = one texel), got " +
               str(p.upsample_radius));
@@ -140,6 +165,24 @@ std::string to_string(TexelStep v) { return name_of(v, kTexelSteps); }
 std::string to_string(BloomUpscale v) { return name_of(v, kUpscales); }
 std::string to_string(LevelCombine v) { return name_of(v, kCombines); }
 std::string to_string(LevelWeights v) { return name_of(v, kWeights); }
+std::string to_string(KneeForm v) { return name_of(v, kKneeForms); }
+std::string to_string(FirstDownsample v) { return name_of(v, kFirstDownsamples); }
+std::string to_string(DownsampleFilter v) { return name_of(v, kDownsamples); }
+std::string to_string(UpsampleFilter v) { return name_of(v, kUpsamples); }
+std::string to_string(LevelCount v) { return name_of(v, kLevelCounts); }
+KneeForm parse_knee_form(const std::string& s) { return parse_enum("--knee-form", s, kKneeForms); }
+FirstDownsample parse_first_downsample(const std::string& s) {
+  return parse_enum("--first-downsample", s, kFirstDownsamples);
+}
+DownsampleFilter parse_downsample_filter(const std::string& s) {
+  return parse_enum("--downsample", s, kDownsamples);
+}
+UpsampleFilter parse_upsample_filter(const std::string& s) {
+  return parse_enum("--upsample", s, kUpsamples);
+}
+LevelCount parse_level_count(const std::string& s) {
+  return parse_enum("--level-count", s, kLevelCounts);
+}
 LevelCombine parse_level_combine(const std::string& s) {
   return parse_enum("--level-combine", s, kCombines);
 }

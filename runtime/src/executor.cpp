@@ -672,7 +672,9 @@ class Executor {
   }
 
   DownsampleOptions downsample_options(int k) const {
-    return bloomref::downsample_options(p_, k, w_, h_, p_.subtexel_bits);
+    DownsampleOptions o = bloomref::downsample_options(p_, k, w_, h_, p_.subtexel_bits);
+    o.rounding = opt_.half_rounding;
+    return o;
   }
 
   // Stage up.k = down.k + tent3x3(up.k+1) (the smallest level: down.K itself), or as the
@@ -685,7 +687,7 @@ class Executor {
     upsample_tent(small.cview(), down_[k].cview(), dst.view(), p_.subtexel_bits, threads_,
                   p_.mip_variant() ? nullptr : mip_mask(stage.name, small, dst, 1, down_[k]),
                   p_.upsample_radius, level_blend(p_, k, top),
-                  p_.texel_step == TexelStep::target);
+                  p_.texel_step == TexelStep::target, p_.upsample);
     store_level(dst);
     record(stage.name, dst, ms_since(t0), false);
   }

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "bloomref/half.h"
 #include "bloomref/image.h"
 #include "bloomref/params.h"
 
@@ -28,14 +29,17 @@ std::vector<LevelSize> mip_levels(int width, int height, int levels);
 /// The chain's level sizes under `p`: mip_levels, or with p.first_level_height set, level 1
 /// (round(width x r), round(height x r)) at least 1, r = first_level_height / height in f32 (Bevy's
 /// prepare_bloom_textures), and each next level its size >> 1 (at least 1), at most p.levels, no
-/// 1x1 repeated.
+/// 1x1 repeated; with p.level_count unity, the number of levels Unity URP's SetupBloom draws
+/// (at most p.levels), each floor(n / 2) of the one above.
 std::vector<LevelSize> chain_levels(const BloomParams& p, int width, int height);
 
 /// Bevy's soft_threshold (bloom.wesl) of one texel, in f32 as the shader computes it with the
 /// host's precomputed (threshold, threshold - knee, 2 knee, 0.25 / (knee + 0.00001)): the factor
-/// each channel is multiplied by. In [0, 1] for a threshold >= 0.
+/// each channel is multiplied by. In [0, 1] for a threshold >= 0. KneeForm::unity: Unity URP's
+/// FragPrefilter (Bloom.shader) in its order: softness = clamp(b - threshold + knee, 0, 2 knee),
+/// softness^2 / (4 knee + 1e-4), max(b - threshold, softness) / max(b, 1e-4); also in [0, 1].
 template <class T>
-T soft_knee_factor(const T rgb[3], float threshold, float knee);
+T soft_knee_factor(const T rgb[3], float threshold, float knee, KneeForm form = KneeForm::bevy);
 
 /// How up.k adds the tent of the level below to down.k (LevelCombine), with its constant.
 struct LevelBlend {
@@ -43,8 +47,8 @@ struct LevelBlend {
   float weight = 1.0f;
   /// add with weight 1: seed 002's order (down.k first, each tap added in turn).
   bool plain() const { return combine == LevelCombine::add && weight == 1.0f; }
-  /// What up.k keeps of down.k: 1 - C under mix, 1 under add.
-  float kept() const { return combine == LevelCombine::mix ? 1.0f - weight : 1.0f; }
+  /// What up.k keeps of down.k: 1 - C under mix and lerp, 1 under add.
+  float kept() const { return combine == LevelCombine::add ? 1.0f : 1.0f - weight; }
 };
 
 /// The blend of stage up.k of a chain of `levels` levels under `p` (LevelWeights).
@@ -84,6 +88,15 @@ struct DownsampleOptions {
   /// (soft_threshold), with this knee (threshold x softness).
   bool soft_knee = false;
   float knee = 0.0f;
+  KneeForm knee_form = KneeForm::bevy;
+  /// The first level: its filter, and the clamp of its result before the soft threshold (0: none).
+  FirstDownsample first_filter = FirstDownsample::taps13;
+  float clamp_max = 0.0f;
+  /// Levels after the first: seed 003's 13 taps or Unity's Gaussian pyramid, whose horizontal
+  /// pass is stored as `intermediate` (rounded as `rounding`) before the vertical one reads it.
+  DownsampleFilter filter = DownsampleFilter::taps13;
+  Storage intermediate = Storage::f32;
+  HalfRounding rounding = HalfRounding::nearest_even_saturate;
   /// Prefilter::none: the first level reads the scene and thresholds nothing.
   /// The size whose reciprocal is the texel step (TexelStep::halved_float: the host's float
   /// size); 0: the source texture's.
@@ -108,6 +121,13 @@ float halved_size(int n, int k);
 /// * 0.25)), r = G_0 + ... + G_4, then max(r, 0.0001). KarisForm::group_linear (Bevy's
 /// downsample_first): G as for group_srgb, G * (1 / (1 + dot(G, Rec. 709) / 4)), r = G_0 + ... +
 /// G_4, then clamp(r, 0.0001, 3.40282347e37).
+/// FirstDownsample::bilinear (the first level): r = one lookup at the target texel's centre, then
+/// min(r, clamp_max) when clamp_max > 0, then the soft threshold.
+/// DownsampleFilter::gaussian (the other levels; Unity URP's FragBlurH and FragBlurV): h = sum_i
+/// lookup(uv + (t i, 0)) w_i for i = -4..4 in order, t = (1 / source width) x 2, w = 0.01621622,
+/// 0.05405405, 0.12162162, 0.19459459, 0.22702703 (symmetric), stored as `intermediate`; then
+/// r = sum_j lookup_h(uv + (0, s o_j)) v_j, s = 1 / height, o = -3.23076923, -1.38461538, 0,
+/// 1.38461538, 3.23076923, v = 0.07027027, 0.31621622, 0.22702703 (symmetric).
 template <class T>
 void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
                 int threads);
@@ -122,10 +142,26 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
 /// the pass's output with the level it draws into.
 /// `target_step` (TexelStep::target): the taps 2 / the target's size apart (one texel of a source
 /// half its size) instead of one texel of `small`.
+/// LevelCombine::lerp: r = current + (t - current) * C (HLSL's lerp).
+/// UpsampleFilter::bilinear: t is one lookup of `small` at the texel's centre instead of the tent.
 template <class T>
 void upsample_tent(BasicView<const T> small, BasicView<const T> current, BasicView<T> dst,
                    int subtexel_bits, int threads, const std::uint8_t* active = nullptr,
-                   float radius = 0.0f, LevelBlend blend = {}, bool target_step = false);
+                   float radius = 0.0f, LevelBlend blend = {}, bool target_step = false,
+                   UpsampleFilter filter = UpsampleFilter::tent);
+
+/// The Gaussian pyramid's offsets and weights (DownsampleFilter::gaussian), in tap order:
+/// horizontal in units of the horizontal step t, vertical in texels of the level.
+struct GaussianTap {
+  float offset, weight;
+};
+const std::vector<GaussianTap>& gaussian_down_h_taps();
+const std::vector<GaussianTap>& gaussian_down_v_taps();
+/// The Gaussian pyramid's horizontal pass alone into `h` (the level's size), stored as
+/// opt.intermediate: what the vertical pass of downsample reads.
+template <class T>
+void downsample_gaussian_h(BasicView<const T> src, BasicView<T> h, const DownsampleOptions& opt,
+                           int threads);
 
 /// Stage `bloom` under BloomUpscale::bilinear: one GL_LINEAR lookup of `small` at each texel's
 /// centre of `dst` (the article's final pass reads the half-resolution level so). Alpha 1.

@@ -64,13 +64,33 @@ enum class TexelStep { texture, halved_float, target };
 enum class BloomUpscale { tent, bilinear };
 /// How up.k combines down.k with the tent of the level below it: `add` (down.k + C_k tent, the
 /// blend GL_ONE / GL_ONE when C_k is 1) or `mix` (tent C_k + down.k (1 - C_k): the blend
-/// constant / one-minus-constant, Bevy's energy-conserving mode).
-enum class LevelCombine { add, mix };
+/// constant / one-minus-constant, Bevy's energy-conserving mode) or `lerp` (HLSL's
+/// lerp(down.k, tent, C_k) = down.k + (tent - down.k) C_k in the shader, Unity URP's Upsample).
+enum class LevelCombine { add, mix, lerp };
 /// The per-level constants C_k: `one` (every C_k 1), or `bevy` (bloom/mod.rs,
 /// compute_blend_factor, in f32: (strength + boost) x high-pass, boost = (1 - (1 - k / K)^(1 / (1 -
 /// curvature))) x low_frequency_boost, times 1 - strength under LevelCombine::mix; K the last
-/// level's index, counted from 0 at down.1).
-enum class LevelWeights { one, bevy };
+/// level's index, counted from 0 at down.1), or `constant` (every C_k --level-weight: Unity
+/// URP's scatter, Mathf.Lerp(0.05, 0.95, scatter)).
+enum class LevelWeights { one, bevy, constant };
+/// The soft threshold's arithmetic (Prefilter::soft_knee): Bevy's (bloom.wesl, soft_threshold,
+/// with the host's precomputed constants and 0.00001) or Unity URP's (Bloom.shader,
+/// FragPrefilter: clamp(b - threshold + knee, 0, 2 knee)^2 / (4 knee + 1e-4), max(b, 1e-4)).
+enum class KneeForm { bevy, unity };
+/// The first level's filter: seed 003's 13 taps, or one bilinear lookup at the target texel's
+/// centre (Unity URP's FragPrefilter).
+enum class FirstDownsample { taps13, bilinear };
+/// The other levels' filter: seed 003's 13 taps, or Unity URP's Gaussian pyramid (Bloom.shader,
+/// FragBlurH then FragBlurV): nine lookups two source texels apart along x into the level's
+/// size, stored as the level is, then five lookups at 0, +-1.38461538 and +-3.23076923 texels
+/// along y.
+enum class DownsampleFilter { taps13, gaussian };
+/// What up.k reads of the level below: the 3x3 tent, or one bilinear lookup (Unity URP's
+/// Upsample without _BLOOM_HQ).
+enum class UpsampleFilter { tent, bilinear };
+/// How many levels: `fixed` (--levels, fewer when the image ends) or `unity` (URP's
+/// PostProcessPass.SetupBloom: clamp(floor(log2(max(w >> 1, h >> 1)) - 1), 1, --levels)).
+enum class LevelCount { fixed, unity };
 
 struct BloomParams {
   Method method = Method::gaussian;
@@ -115,6 +135,15 @@ struct BloomParams {
   float low_frequency_boost = 0.7f;            ///< LevelWeights::bevy (Bevy's defaults)
   float low_frequency_boost_curvature = 0.95f;  ///< in [0, 1)
   float high_pass_frequency = 1.0f;            ///< in (0, 1]
+  float level_weight = 1.0f;                   ///< LevelWeights::constant: every C_k
+  KneeForm knee_form = KneeForm::bevy;
+  /// The first level's input clamped to at most this before the soft threshold (Unity URP's
+  /// ClampMax, min(ClampMax, color)); 0: no clamp.
+  float clamp_max = 0.0f;
+  FirstDownsample first_downsample = FirstDownsample::taps13;
+  DownsampleFilter downsample = DownsampleFilter::taps13;
+  UpsampleFilter upsample = UpsampleFilter::tent;
+  LevelCount level_count = LevelCount::fixed;
   /// The storage of the chain's levels (chain_storage when set, else storage).
   Storage level_storage() const { return chain_storage_set ? chain_storage : storage; }
   /// Whether any mip-chain choice differs from seed 002's chain.
@@ -122,7 +151,10 @@ struct BloomParams {
     return prefilter != Prefilter::per_lookup || karis_form != KarisForm::per_tap ||
            texel_step != TexelStep::texture || upsample_radius != 0.0f ||
            bloom_upscale != BloomUpscale::tent || chain_storage_set || first_level_height != 0 ||
-           level_combine != LevelCombine::add || level_weights != LevelWeights::one;
+           level_combine != LevelCombine::add || level_weights != LevelWeights::one ||
+           knee_form != KneeForm::bevy || clamp_max != 0.0f ||
+           first_downsample != FirstDownsample::taps13 || downsample != DownsampleFilter::taps13 ||
+           upsample != UpsampleFilter::tent || level_count != LevelCount::fixed;
   }
 };
 
@@ -145,6 +177,11 @@ std::string to_string(TexelStep t);
 std::string to_string(BloomUpscale b);
 std::string to_string(LevelCombine c);
 std::string to_string(LevelWeights w);
+std::string to_string(KneeForm k);
+std::string to_string(FirstDownsample f);
+std::string to_string(DownsampleFilter f);
+std::string to_string(UpsampleFilter f);
+std::string to_string(LevelCount c);
 Method parse_method(const std::string& s);
 KernelName parse_kernel(const std::string& s);
 Storage parse_storage(const std::string& s);
@@ -160,6 +197,11 @@ TexelStep parse_texel_step(const std::string& s);
 BloomUpscale parse_bloom_upscale(const std::string& s);
 LevelCombine parse_level_combine(const std::string& s);
 LevelWeights parse_level_weights(const std::string& s);
+KneeForm parse_knee_form(const std::string& s);
+FirstDownsample parse_first_downsample(const std::string& s);
+DownsampleFilter parse_downsample_filter(const std::string& s);
+UpsampleFilter parse_upsample_filter(const std::string& s);
+LevelCount parse_level_count(const std::string& s);
 /// --chain-storage: f32, f16 or r11g11b10.
 Storage parse_chain_storage(const std::string& s);
 

@@ -301,4 +301,16 @@ bool bevy_layout(const BloomParams& params);
 /// unless bevy_layout(params).
 StageTrace execute_gl_bevy(GlContext& ctx, const BloomParams& params, ConstImageView scene);
 
+/// Whether `params` uses none of the choices only Unity URP's layout has (its filters, lerp,
+/// constant weights, its soft threshold's arithmetic, clamp and level count).
+bool unity_free(const BloomParams& params);
+
+/// Whether `params` is a chain Unity URP's SetupBloom draws (preset unity-urp and its overrides).
+bool unity_layout(const BloomParams& params);
+
+/// bloomref's own shaders for Unity URP's bloom (gpu/shaders/unity_*.frag) in SetupBloom's order
+/// (gpu/src/unity_host.cpp): the trace holds `input`, `down.1` .. `down.K`, `up.K-1` .. `up.1`,
+/// `composite` and `output`. Throws ParamError unless unity_layout(params).
+StageTrace execute_gl_unity(GlContext& ctx, const BloomParams& params, ConstImageView scene);
+
 }  // namespace bloomref::gpu
