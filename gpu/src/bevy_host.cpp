@@ -9,8 +9,6 @@
 
 #include "bloomref/gpu/user_pipeline.h"
 #include "bloomref/mip.h"
-#include "bloomref/stages.h"
-#include "shader_sources.h"
 #include "user_host.h"
 #include "user_program.h"
 
@@ -19,16 +17,10 @@ namespace {
 
 using host::Clock;
 using host::ms_since;
+using host::storage_format;
 
 UserProgram own_program(const char* name, const char* file, const std::vector<HostUniform>& host) {
-  const ShaderSource fs{std::string("bloomref's ") + file, shader_sources().at(file)};
-  VertexNames names;
-  names.varying = "texCoord";
-  return build_user_program(name, nullptr, fs, host, names, "bevy");
-}
-
-GLenum level_format(Storage s) {
-  return s == Storage::r11g11b10 ? GL_R11F_G11F_B10F : s == Storage::f16 ? GL_RGBA16F : GL_RGBA32F;
+  return host::own_program(name, file, host, "bevy");
 }
 
 class BevyHost {
@@ -71,31 +63,17 @@ class BevyHost {
 
  private:
   void add(const std::string& name, const Texture& t, double ms) {
-    Image img = Image::uninitialised(t.width, t.height);
-    t.read(img.data());
-    trace_.stages.push_back({name, std::move(img), ms, false});
-    trace_.timings.emplace_back(name, ms);
+    host::add_stage(trace_, name, t, ms);
   }
 
   // The HDR view: the scene after the non-finite policy, stored as the view's format stores it.
-  void upload() {
-    const auto t0 = Clock::now();
-    Image sanitized(w_, h_);
-    trace_.nonfinite = sanitize(scene_, sanitized.view(), p_.nonfinite, p_.storage, p_.threads);
-    if (p_.nonfinite == NonFinite::error && trace_.nonfinite.total() > 0)
-      throw ParamError("the scene holds " + std::to_string(trace_.nonfinite.total()) +
-                       " NaN or infinite values, refused under --nonfinite error");
-    store(sanitized.view(), p_.storage, HalfRounding::nearest_even_saturate, p_.threads);
-    view_ = Texture(w_, h_, level_format(p_.storage), sanitized.data());
-    view_.set_sampling(GL_LINEAR, GL_CLAMP_TO_EDGE);
-    ctx_.check("uploading the scene");
-    add("input", view_, ms_since(t0));
-  }
+  void upload() { view_ = host::upload_scene(ctx_, p_, scene_, trace_); }
+
 
   // downsample_first into mip 0 from the view, then mip k from mip k - 1.
   void downsamples() {
     for (const LevelSize& l : chain_levels(p_, w_, h_)) {
-      mips_.emplace_back(l.width, l.height, level_format(p_.level_storage()));
+      mips_.emplace_back(l.width, l.height, storage_format(p_.level_storage()));
       mips_.back().set_sampling(GL_LINEAR, GL_CLAMP_TO_EDGE);
     }
     for (std::size_t k = 0; k < mips_.size(); ++k) {
@@ -140,7 +118,7 @@ class BevyHost {
   }
 
   void finish() {
-    Texture out(w_, h_, level_format(p_.storage));
+    Texture out(w_, h_, storage_format(p_.storage));
     const std::array<float, 4> black = {0.0f, 0.0f, 0.0f, 1.0f};
     const double ms = quad_.draw(ctx_, finish_, {&view_}, out, nullptr, &black,
                                  "the tone map and gamma pass");

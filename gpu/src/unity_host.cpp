@@ -11,8 +11,6 @@
 
 #include "bloomref/gpu/user_pipeline.h"
 #include "bloomref/mip.h"
-#include "bloomref/stages.h"
-#include "shader_sources.h"
 #include "user_host.h"
 #include "user_program.h"
 
@@ -21,16 +19,10 @@ namespace {
 
 using host::Clock;
 using host::ms_since;
+using host::storage_format;
 
 UserProgram own_program(const char* name, const char* file, const std::vector<HostUniform>& host) {
-  const ShaderSource fs{std::string("bloomref's ") + file, shader_sources().at(file)};
-  VertexNames names;
-  names.varying = "texCoord";
-  return build_user_program(name, nullptr, fs, host, names, "unity-urp");
-}
-
-GLenum level_format(Storage s) {
-  return s == Storage::r11g11b10 ? GL_R11F_G11F_B10F : s == Storage::f16 ? GL_RGBA16F : GL_RGBA32F;
+  return host::own_program(name, file, host, "unity-urp");
 }
 
 const HostUniform kSource{"srcTexture", HostUniform::sampler, true, "texture unit 0"};
@@ -90,32 +82,18 @@ class UnityHost {
 
  private:
   void add(const std::string& name, const Texture& t, double ms) {
-    Image img = Image::uninitialised(t.width, t.height);
-    t.read(img.data());
-    trace_.stages.push_back({name, std::move(img), ms, false});
-    trace_.timings.emplace_back(name, ms);
+    host::add_stage(trace_, name, t, ms);
   }
 
   Texture level(int w, int h) const {
-    Texture t(w, h, level_format(p_.level_storage()));
+    Texture t(w, h, storage_format(p_.level_storage()));
     t.set_sampling(GL_LINEAR, GL_CLAMP_TO_EDGE);
     return t;
   }
 
   // The camera's colour: the scene after the non-finite policy, stored as its target stores it.
-  void upload() {
-    const auto t0 = Clock::now();
-    Image sanitized(w_, h_);
-    trace_.nonfinite = sanitize(scene_, sanitized.view(), p_.nonfinite, p_.storage, p_.threads);
-    if (p_.nonfinite == NonFinite::error && trace_.nonfinite.total() > 0)
-      throw ParamError("the scene holds " + std::to_string(trace_.nonfinite.total()) +
-                       " NaN or infinite values, refused under --nonfinite error");
-    store(sanitized.view(), p_.storage, HalfRounding::nearest_even_saturate, p_.threads);
-    view_ = Texture(w_, h_, level_format(p_.storage), sanitized.data());
-    view_.set_sampling(GL_LINEAR, GL_CLAMP_TO_EDGE);
-    ctx_.check("uploading the scene");
-    add("input", view_, ms_since(t0));
-  }
+  void upload() { view_ = host::upload_scene(ctx_, p_, scene_, trace_); }
+
 
   // The prefilter into mip 0; then per mip FragBlurH into a temporary of its size (mipUp) and
   // FragBlurV from it into the mip (mipDown).
@@ -156,7 +134,7 @@ class UnityHost {
   }
 
   void composite() {
-    comp_ = Texture(w_, h_, level_format(p_.storage));
+    comp_ = Texture(w_, h_, storage_format(p_.storage));
     const Texture& bloom = mips_.size() > 1 ? ups_[0] : mips_[0];
     const double ms = quad_.draw(ctx_, uber_, {&view_, &bloom}, comp_, nullptr, nullptr,
                                  "the uber pass (composite)");
@@ -164,7 +142,7 @@ class UnityHost {
   }
 
   void finish() {
-    Texture out(w_, h_, level_format(p_.storage));
+    Texture out(w_, h_, storage_format(p_.storage));
     const std::array<float, 4> black = {0.0f, 0.0f, 0.0f, 1.0f};
     const double ms = quad_.draw(ctx_, finish_, {&comp_}, out, nullptr, &black,
                                  "the tone map and gamma pass");

@@ -4,6 +4,10 @@
 #include <regex>
 #include <sstream>
 
+#include "bloomref/error.h"
+#include "bloomref/stages.h"
+#include "shader_sources.h"
+
 namespace bloomref::gpu::host {
 
 std::string number(float v) {
@@ -62,6 +66,41 @@ Image flipped_rows(ConstImageView src) {
     std::copy(src.row(y), src.row(y) + std::size_t(src.width) * kChannels,
               out.view().row(src.height - 1 - y));
   return out;
+}
+
+UserProgram own_program(const char* name, const char* file, const std::vector<HostUniform>& host,
+                        const std::string& preset) {
+  const ShaderSource fs{std::string("bloomref's ") + file, shader_sources().at(file)};
+  VertexNames names;
+  names.varying = "texCoord";
+  return build_user_program(name, nullptr, fs, host, names, preset);
+}
+
+GLenum storage_format(Storage s) {
+  return s == Storage::r11g11b10 ? GL_R11F_G11F_B10F : s == Storage::f16 ? GL_RGBA16F : GL_RGBA32F;
+}
+
+void add_stage(StageTrace& trace, const std::string& name, const Texture& t, double ms) {
+  Image img = Image::uninitialised(t.width, t.height);
+  t.read(img.data());
+  trace.stages.push_back({name, std::move(img), ms, false});
+  trace.timings.emplace_back(name, ms);
+}
+
+Texture upload_scene(GlContext& ctx, const BloomParams& p, ConstImageView scene,
+                     StageTrace& trace) {
+  const auto t0 = Clock::now();
+  Image sanitized(scene.width, scene.height);
+  trace.nonfinite = sanitize(scene, sanitized.view(), p.nonfinite, p.storage, p.threads);
+  if (p.nonfinite == NonFinite::error && trace.nonfinite.total() > 0)
+    throw ParamError("the scene holds " + std::to_string(trace.nonfinite.total()) +
+                     " NaN or infinite values, refused under --nonfinite error");
+  store(sanitized.view(), p.storage, HalfRounding::nearest_even_saturate, p.threads);
+  Texture view(scene.width, scene.height, storage_format(p.storage), sanitized.data());
+  view.set_sampling(GL_LINEAR, GL_CLAMP_TO_EDGE);
+  ctx.check("uploading the scene");
+  add_stage(trace, "input", view, ms_since(t0));
+  return view;
 }
 
 }  // namespace bloomref::gpu::host

@@ -1,5 +1,6 @@
 // The host side shared by the presets that run a user's shaders (user_pipeline.cpp,
-// mip_chain_host.cpp): the full-screen quad the tutorials draw, GL enums of the options, rows.
+// mip_chain_host.cpp) and the engines' (bevy_host.cpp, unity_host.cpp): the full-screen quad
+// the tutorials draw, GL enums of the options, rows, bloomref's own programs and the scene.
 #pragma once
 
 #include <epoxy/gl.h>
@@ -33,6 +34,25 @@ std::string varying_of(const ShaderSource& fs, const std::string& fallback);
 
 /// The image upside down (RowOrder::flipped uploads and readbacks).
 Image flipped_rows(ConstImageView src);
+
+// The engine presets' hosts (bevy_host.cpp, unity_host.cpp) around bloomref's own GLSL.
+
+/// bloomref's fragment shader `file` (gpu/shaders) as program `name` with the pass-through
+/// vertex shader writing `texCoord`; `preset` names the host in messages.
+UserProgram own_program(const char* name, const char* file, const std::vector<HostUniform>& host,
+                        const std::string& preset);
+
+/// The GL format of a stage stored as `s` (RGBA32F, RGBA16F, R11F_G11F_B10F).
+GLenum storage_format(Storage s);
+
+/// Reads `t` back into `trace` as stage `name`, drawn in `ms`.
+void add_stage(StageTrace& trace, const std::string& name, const Texture& t, double ms);
+
+/// The scene after `p`'s non-finite policy (counts into trace.nonfinite), stored as
+/// `p.storage` stores it, as a GL_LINEAR, clamp-to-edge texture; recorded as stage `input`.
+/// Throws ParamError under --nonfinite error when the scene holds NaN or Inf.
+Texture upload_scene(GlContext& ctx, const BloomParams& p, ConstImageView scene,
+                     StageTrace& trace);
 
 // The quad of bloom.cpp's renderQuad: a triangle strip, (x, y, z, s, t) per corner.
 constexpr float kQuad[] = {

@@ -51,3 +51,15 @@ def first_cause(item):
     first = [s for s in item["stages"] if s["stage"] == item["first_divergent_stage"]][0]
     c = first.get("cause")
     return first["stage"], c["id"] if c and c.get("likely") else "none", c
+
+
+def assert_fails_where_planted(item, stage, causes, planted_value=None):
+    """A dump with a planted error: FAIL, first at `stage`, its cause one of `causes` ("none":
+    unexplained); a named cause's fitted interval holds `planted_value` when one is given."""
+    assert item["verdict"] == "FAIL"
+    first, named, cause = first_cause(item)
+    assert first == stage, (first, json.dumps(cause))
+    assert named in causes, json.dumps(cause)
+    if named != "none" and planted_value is not None:
+        fitted = cause["fitted"]
+        assert fitted["low"] <= planted_value <= fitted["high"], json.dumps(cause)
