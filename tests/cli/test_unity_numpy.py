@@ -16,14 +16,9 @@ import math
 import numpy as np
 import pytest
 
+import test_bevy_numpy
 from test_bevy_numpy import lookup
-from test_variants_numpy import F32, bloomref_exe, centres, check_images, random_hdr
-
-import os
-import subprocess
-import tempfile
-
-from test_variants_numpy import read_rgb, write_exr
+from test_variants_numpy import F32, centres, check_constants, check_images, random_hdr
 
 # SetupBloom with the Volume's defaults: threshold GammaToLinearSpace(0.9), knee threshold x 0.5,
 # clamp 65472, scatter Mathf.Lerp(0.05, 0.95, 0.7); intensity 1 (the preset's choice).
@@ -39,17 +34,8 @@ V_WEIGHTS = [0.07027027, 0.31621622, 0.22702703, 0.31621622, 0.07027027]
 
 
 def run_bloomref(rgb, extra=()):
-    """Runs bloomref on rgb (float32 HxWx3) and returns {stage: HxWx3 float64}."""
-    with tempfile.TemporaryDirectory(prefix="unity_numpy_") as tmp:
-        src = os.path.join(tmp, "in.exr")
-        write_exr(src, rgb)
-        dump = os.path.join(tmp, "stages")
-        cmd = [bloomref_exe(), "run", src, "--preset", "unity-urp", "--storage", "f32",
-               "--chain-storage", "f32", *extra, "--dump-stages", dump, "-q"]
-        res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-        assert res.returncode == 0, f"{' '.join(cmd)} failed ({res.returncode}): {res.stderr}"
-        return {f[:-4]: read_rgb(os.path.join(dump, f)) for f in os.listdir(dump)
-                if f.endswith(".exr")}
+    """Runs bloomref's preset unity-urp on rgb (float32 HxWx3): {stage: HxWx3 float64}."""
+    return test_bevy_numpy.run_bloomref(rgb, extra, preset="unity-urp")
 
 
 def level_sizes(w, h):
@@ -164,12 +150,7 @@ def test_constant_image_closed_form(precision):
     want["up.1"] = d1  # lerps of values within 1e-7 of each other
     want["bloom"] = d1
     want["composite"] = v + d1
-    rel = 1e-7 if precision == "f64" else 2e-6
-    for name, value in want.items():
-        err = np.max(np.abs(got[name] - value), axis=(0, 1))
-        assert np.all(err <= rel * np.abs(value) + 1e-12), (
-            f"constant {precision}: stage {name}: expected {value}, got "
-            f"{got[name].reshape(-1, 3).min(axis=0)}..{got[name].reshape(-1, 3).max(axis=0)}")
+    check_constants(got, want, 1e-7 if precision == "f64" else 2e-6, precision)
 
 
 def test_scatter_is_what_is_tested():
