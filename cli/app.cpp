@@ -5,6 +5,7 @@
 
 #include "bloomref/error.h"
 #include "bloomref/gpu/context.h"
+#include "bloomref/vulkan/context.h"
 #include "commands.h"
 
 namespace bloomref::cli {
@@ -16,6 +17,7 @@ int run_command_line(const std::vector<std::string>& args) {
   auto run = add_run(app);
   auto scenes = add_scenes(app);
   auto gl_info = add_gl_info(app);
+  auto vulkan_info = add_vulkan_info(app);
   auto compare = add_compare(app);
   auto check = add_check(app);
   auto stability = add_stability(app);
@@ -34,7 +36,7 @@ int run_command_line(const std::vector<std::string>& args) {
     return 2;
   }
   try {
-    for (auto* cmd : {&run, &scenes, &gl_info, &compare, &check, &stability, &bench, &tradeoff, &merge}) {
+    for (auto* cmd : {&run, &scenes, &gl_info, &vulkan_info, &compare, &check, &stability, &bench, &tradeoff, &merge}) {
       const int rc = (*cmd)();
       if (rc >= 0) return rc;
     }
@@ -42,6 +44,12 @@ int run_command_line(const std::vector<std::string>& args) {
   } catch (const gpu::GlUnavailable& e) {
     std::cerr << "bloomref: GL path unavailable: " << e.what() << "\n";
     return 3;
+  } catch (const vulkan::VulkanUnavailable& e) {
+    std::cerr << "bloomref: Vulkan path unavailable: " << e.what() << "\n";
+    return 3;
+  } catch (const vulkan::VulkanError& e) {
+    std::cerr << "bloomref: Vulkan error: " << e.what() << "\n";
+    return 4;
   } catch (const Error& e) {
     std::cerr << "bloomref: " << e.what() << "\n";
     return 2;

@@ -8,6 +8,7 @@ namespace bloomref::cli {
 std::function<int()> add_run(CLI::App& app);
 std::function<int()> add_scenes(CLI::App& app);
 std::function<int()> add_gl_info(CLI::App& app);
+std::function<int()> add_vulkan_info(CLI::App& app);
 std::function<int()> add_compare(CLI::App& app);
 std::function<int()> add_check(CLI::App& app);
 std::function<int()> add_stability(CLI::App& app);
