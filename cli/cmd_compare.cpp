@@ -14,6 +14,7 @@
 #include "bloomref/output_files.h"
 #include "bloomref/parity/compare.h"
 #include "bloomref/scenes.h"
+#include "bloomref/vulkan/executor.h"
 #include "commands.h"
 #include "json_out.h"
 #include "options.h"
@@ -24,7 +25,7 @@ namespace {
 
 struct CompareArgs {
   std::string input, report_dir, json_path, fault = "none", shaders = "fragment",
-      profile = "auto";
+      profile = "auto", backend = "gl";
   bool quiet = false;
   PipelineOptions pipeline;
 };
@@ -48,6 +49,89 @@ nlohmann::ordered_json stage_json(const parity::StageComparison& s) {
           {"worst", worst}};
 }
 
+// Prints the table and writes --json: the result of one backend's trace against the oracle.
+int finish_compare(const CompareArgs& a, OutputSet& outs, const std::string& source,
+                   const std::string& renderer, const Plan& plan, const StageTrace& trace,
+                   const parity::DeviceProfile& profile, const parity::ParityResult& r,
+                   double device_ms, double cpu_ms, double parity_ms) {
+  if (!a.quiet) {
+    std::printf("%s: %dx%d, %s, profile %s%s\n", source.c_str(), plan.facts.width,
+                plan.facts.height, renderer.c_str(), profile.name.c_str(),
+                a.fault == "none" ? "" : (", injected fault " + a.fault).c_str());
+    std::printf("  %-10s %-8s %-12s %-12s %-8s %-12s\n", "stage", "isolated", "max |err|",
+                "err/bound", "end2end", "err/bound");
+    for (std::size_t i = 0; i < r.isolated.size(); ++i) {
+      const auto& s = r.isolated[i];
+      const auto& e = r.end_to_end[i];
+      std::printf("  %-10s %-8s %-12.3g %-12.3g %-8s %-12.3g\n", s.stage.c_str(),
+                  parity::to_string(s.verdict).c_str(), s.max_abs, s.max_ratio,
+                  parity::to_string(e.verdict).c_str(), e.max_ratio);
+    }
+    std::printf("verdict %s; first divergent stage: %s\n", parity::to_string(r.verdict).c_str(),
+                r.first_divergent_stage ? r.first_divergent_stage->c_str() : "none");
+  }
+  if (!a.json_path.empty()) {
+    nlohmann::ordered_json j = run_json(plan, trace);
+    j["renderer"] = renderer;
+    j["profile"] = {{"name", profile.name}, {"source", profile.source},
+                    {"subtexel_bits", profile.subtexel_bits},
+                    {"half_nearest_even", profile.half_nearest_even},
+                    {"half_toward_zero", profile.half_toward_zero},
+                    {"half_overflow_inf", profile.half_overflow_inf},
+                    {"half_overflow_saturate", profile.half_overflow_saturate},
+                    {"flush_denormals", profile.flush_denormals}, {"fma", profile.fma},
+                    {"division_ulps", profile.division_ulps}};
+    j["fault"] = a.fault;
+    j["compare_ms"] = {{a.backend + "_with_readbacks", device_ms}, {"cpu", cpu_ms}, {"parity", parity_ms - cpu_ms}};
+    j["verdict"] = parity::to_string(r.verdict);
+    j["first_divergent_stage"] = r.first_divergent_stage ? nlohmann::ordered_json(*r.first_divergent_stage)
+                                                         : nlohmann::ordered_json(nullptr);
+    nlohmann::ordered_json stages = nlohmann::ordered_json::array();
+    for (std::size_t i = 0; i < r.isolated.size(); ++i)
+      stages.push_back({{"stage", r.isolated[i].stage},
+                        {"isolated", stage_json(r.isolated[i])},
+                        {"end_to_end", stage_json(r.end_to_end[i])}});
+    j["stages"] = stages;
+    outs.write_text(a.json_path, escape::json_text(j) + "\n");
+  }
+  if (!a.report_dir.empty())
+    write_report_files(outs.folder(a.report_dir), source, renderer, plan, trace, r, a.fault);
+  outs.publish();
+  if (!a.report_dir.empty() && !a.quiet)
+    std::printf("report: %s/index.html\n", a.report_dir.c_str());
+  return r.verdict == parity::Verdict::fail ? 1 : 0;
+}
+
+// compare --backend vulkan: bloomref's stage shaders through Vulkan compute, judged as GL's.
+// The profile: lavapipe is llvmpipe's sampler and store code (vulkan-info's test holds them to
+// the same measured facts); another device gets the fixed-point profile.
+int compare_vulkan(const CompareArgs& a, OutputSet& outs, const LoadedImage& in,
+                   const std::string& source) {
+  if (a.fault != "none" || a.shaders != "fragment")
+    throw ParamError("--inject-fault and --gl-shaders apply to the GL backend");
+  if (!a.report_dir.empty()) throw ParamError("--report is written for the GL backend only");
+  auto ctx = vulkan::Context::create();  // VulkanUnavailable -> exit 3
+  const bool software = ctx->info().type == "cpu";
+  const parity::DeviceProfile profile =
+      a.profile == "auto" ? (software ? parity::profile_llvmpipe() : parity::profile_nvidia_like())
+                          : parity::profile_named(a.profile);
+  const Plan plan = parity::plan_for_device(a.pipeline.params, in.image.cview(), profile, source);
+  using Clock = std::chrono::steady_clock;
+  auto t0 = Clock::now();
+  const StageTrace trace = vulkan::execute_vulkan(*ctx, plan, in.image.cview());
+  const double device_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  parity::CompareOptions co;
+  t0 = Clock::now();
+  double cpu_ms = 0;
+  const parity::ParityResult r =
+      parity::compare_with_oracle(plan, in.image.cview(), trace, profile, co, &cpu_ms);
+  const double parity_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  const std::string renderer = "vulkan (compute, bloomref's stage shaders): " + ctx->info().name +
+                               ", " + ctx->info().driver_info;
+  return finish_compare(a, outs, source, renderer, plan, trace, profile, r, device_ms, cpu_ms,
+                        parity_ms);
+}
+
 int compare_cmd(CompareArgs& a) {
   const gpu::Fault fault = a.fault == "none" ? gpu::Fault::none : gpu::parse_fault(a.fault);
   const gpu::ShaderKind shaders = gpu::parse_shader_kind(a.shaders);
@@ -59,6 +143,7 @@ int compare_cmd(CompareArgs& a) {
 
   std::string source;
   const LoadedImage in = a.pipeline.load_input(a.input, source);
+  if (a.backend == "vulkan") return compare_vulkan(a, outs, in, source);
   auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3
   const parity::DeviceProfile profile =
       a.profile == "auto" ? (ctx->info().software ? parity::profile_llvmpipe()
@@ -106,52 +191,7 @@ int compare_cmd(CompareArgs& a) {
            : gpu::unity_layout(plan.params) ? "URP's SetupBloom, bloomref's unity shaders"
                                             : "the article's host, bloomref's pbb shaders";
   const std::string renderer = "gl (" + host + "): " + ctx->info().renderer + ", " + ctx->info().version;
-  if (!a.quiet) {
-    std::printf("%s: %dx%d, %s, profile %s%s\n", source.c_str(), plan.facts.width,
-                plan.facts.height, renderer.c_str(), profile.name.c_str(),
-                fault == gpu::Fault::none ? "" : (", injected fault " + a.fault).c_str());
-    std::printf("  %-10s %-8s %-12s %-12s %-8s %-12s\n", "stage", "isolated", "max |err|",
-                "err/bound", "end2end", "err/bound");
-    for (std::size_t i = 0; i < r.isolated.size(); ++i) {
-      const auto& s = r.isolated[i];
-      const auto& e = r.end_to_end[i];
-      std::printf("  %-10s %-8s %-12.3g %-12.3g %-8s %-12.3g\n", s.stage.c_str(),
-                  parity::to_string(s.verdict).c_str(), s.max_abs, s.max_ratio,
-                  parity::to_string(e.verdict).c_str(), e.max_ratio);
-    }
-    std::printf("verdict %s; first divergent stage: %s\n", parity::to_string(r.verdict).c_str(),
-                r.first_divergent_stage ? r.first_divergent_stage->c_str() : "none");
-  }
-  if (!a.json_path.empty()) {
-    nlohmann::ordered_json j = run_json(plan, gl);
-    j["renderer"] = renderer;
-    j["profile"] = {{"name", profile.name}, {"source", profile.source},
-                    {"subtexel_bits", profile.subtexel_bits},
-                    {"half_nearest_even", profile.half_nearest_even},
-                    {"half_toward_zero", profile.half_toward_zero},
-                    {"half_overflow_inf", profile.half_overflow_inf},
-                    {"half_overflow_saturate", profile.half_overflow_saturate},
-                    {"flush_denormals", profile.flush_denormals}, {"fma", profile.fma},
-                    {"division_ulps", profile.division_ulps}};
-    j["fault"] = a.fault;
-    j["compare_ms"] = {{"gl_with_readbacks", gl_ms}, {"cpu", cpu_ms}, {"parity", parity_ms - cpu_ms}};
-    j["verdict"] = parity::to_string(r.verdict);
-    j["first_divergent_stage"] = r.first_divergent_stage ? nlohmann::ordered_json(*r.first_divergent_stage)
-                                                         : nlohmann::ordered_json(nullptr);
-    nlohmann::ordered_json stages = nlohmann::ordered_json::array();
-    for (std::size_t i = 0; i < r.isolated.size(); ++i)
-      stages.push_back({{"stage", r.isolated[i].stage},
-                        {"isolated", stage_json(r.isolated[i])},
-                        {"end_to_end", stage_json(r.end_to_end[i])}});
-    j["stages"] = stages;
-    outs.write_text(a.json_path, escape::json_text(j) + "\n");
-  }
-  if (!a.report_dir.empty())
-    write_report_files(outs.folder(a.report_dir), source, renderer, plan, gl, r, a.fault);
-  outs.publish();
-  if (!a.report_dir.empty() && !a.quiet)
-    std::printf("report: %s/index.html\n", a.report_dir.c_str());
-  return r.verdict == parity::Verdict::fail ? 1 : 0;
+  return finish_compare(a, outs, source, renderer, plan, gl, profile, r, gl_ms, cpu_ms, parity_ms);
 }
 
 }  // namespace
@@ -167,6 +207,11 @@ std::function<int()> add_compare(CLI::App& app) {
   sub->add_option("--inject-fault", args->fault, "a deliberate GL bug: none, " + faults)
       ->capture_default_str();
   sub->add_option("--gl-shaders", args->shaders, "fragment | compute")->capture_default_str();
+  sub->add_option("--backend", args->backend,
+                  "gl | vulkan (Vulkan compute with bloomref's stage shaders: gaussian and "
+                  "seed 002's chain)")
+      ->check(CLI::IsMember({"gl", "vulkan"}))
+      ->capture_default_str();
   sub->add_option("--profile", args->profile, "auto | llvmpipe | nvidia (precision profile)")
       ->capture_default_str();
   sub->add_flag("-q,--quiet", args->quiet, "print nothing");

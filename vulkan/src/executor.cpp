@@ -1,0 +1,225 @@
+#include "bloomref/vulkan/executor.h"
+
+#include <Imath/half.h>
+
+#include <chrono>
+#include <cstring>
+#include <memory>
+
+#include "bloomref/error.h"
+#include "bloomref/stages.h"
+#include "stage_program.h"
+#include "vk_objects.h"
+
+namespace bloomref::vulkan {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+int policy_code(NonFinite n) {
+  switch (n) {
+    case NonFinite::zero: return 0;
+    case NonFinite::clamp: return 1;
+    case NonFinite::propagate: return 2;
+    case NonFinite::error: return 3;
+  }
+  return 0;
+}
+
+class VulkanExecutor {
+ public:
+  VulkanExecutor(Context& ctx, const Plan& plan, ConstImageView scene)
+      : ctx_(ctx.impl()), plan_(plan), p_(plan.params), scene_(scene), w_(scene.width),
+        h_(scene.height), f16_(p_.storage == Storage::f16),
+        format_(f16_ ? VK_FORMAT_R16G16B16A16_SFLOAT : VK_FORMAT_R32G32B32A32_SFLOAT),
+        sampler_(ctx_, VK_FILTER_LINEAR) {
+    std::vector<std::string> defs = {std::string("STORAGE_FORMAT ") + (f16_ ? "rgba16f" : "rgba32f")};
+    if (p_.kernel == KernelName::linear5) defs.push_back("KERNEL_LINEAR5 1");
+    extract_ = std::make_unique<StageProgram>(ctx_, "extract_bright.glsl", defs);
+    blur_ = std::make_unique<StageProgram>(ctx_, "blur_pass.glsl", defs);
+    composite_ = std::make_unique<StageProgram>(ctx_, "composite.glsl", defs);
+    tonemap_ = std::make_unique<StageProgram>(ctx_, "tonemap.glsl", defs);
+    encode_ = std::make_unique<StageProgram>(ctx_, "encode_output.glsl", defs);
+    extract_->set("threshold", p_.threshold);
+    extract_->set_int("policy", policy_code(p_.nonfinite));
+    extract_->set("storage_max", float(storage_max(f16_ ? Storage::f16 : Storage::f32)));
+    for (StageProgram* s : {extract_.get(), blur_.get(), composite_.get(), tonemap_.get(),
+                            encode_.get()})
+      s->set("range_guard", float(kRangeGuard));
+    composite_->set("strength", p_.strength);
+    tonemap_->set("exposure", p_.exposure);
+    encode_->set("gamma", p_.gamma);
+    if (p_.method == Method::mip) {
+      down_ = std::make_unique<StageProgram>(ctx_, "downsample.glsl", defs);
+      up_ = std::make_unique<StageProgram>(ctx_, "upsample_tent.glsl", defs);
+      for (StageProgram* s : {down_.get(), up_.get()}) s->set("range_guard", float(kRangeGuard));
+      down_->set_int("karis", p_.karis ? 1 : 0);
+      down_->set("threshold", p_.threshold);
+    }
+  }
+
+  StageTrace run() {
+    trace_.nonfinite = plan_.facts.nonfinite;
+    raw_ = image(w_, h_, VK_FORMAT_R32G32B32A32_SFLOAT);
+    std::vector<float> packed(std::size_t(w_) * h_ * kChannels);
+    for (int y = 0; y < h_; ++y)
+      std::copy(scene_.row(y), scene_.row(y) + std::size_t(w_) * kChannels,
+                packed.begin() + std::size_t(y) * w_ * kChannels);
+    raw_->upload(packed.data());
+    for (auto* t : {&scene_img_, &bright_, &hdr_, &mapped_, &out_, &ping_[0], &ping_[1]})
+      *t = image(w_, h_, format_);
+    bloom_ = bright_.get();
+    for (const StageSpec& s : plan_.stages) {
+      const auto t0 = Clock::now();
+      switch (s.kind) {
+        case StageKind::input:
+          extract_->run({raw_.get()}, *scene_img_, bright_.get(), sampler_.handle());
+          finish(s.name, *scene_img_, t0);
+          break;
+        case StageKind::bright:
+          finish(s.name, *bright_, t0);
+          break;
+        case StageKind::blur:
+          blur(s, t0);
+          break;
+        case StageKind::down:
+          down(s, t0);
+          break;
+        case StageKind::up:
+          up(s, t0);
+          break;
+        case StageKind::bloom:
+          mip_bloom(s, t0);
+          break;
+        case StageKind::composite:
+          composite_->run({after() ? mapped_.get() : scene_img_.get(), bloom_}, *hdr_, nullptr,
+                          sampler_.handle());
+          finish(s.name, *hdr_, t0);
+          break;
+        case StageKind::tonemap:
+          tonemap_->run({after() ? scene_img_.get() : hdr_.get()}, *mapped_, nullptr,
+                        sampler_.handle());
+          finish(s.name, *mapped_, t0);
+          break;
+        case StageKind::output:
+          encode_->run({after() ? hdr_.get() : mapped_.get()}, *out_, nullptr, sampler_.handle());
+          finish(s.name, *out_, t0);
+          break;
+      }
+    }
+    for (const auto& [name, ms] : trace_.timings) trace_.total_ms += ms;
+    return std::move(trace_);
+  }
+
+ private:
+  std::unique_ptr<Image2D> image(int w, int h, VkFormat f) {
+    return std::make_unique<Image2D>(ctx_, w, h, f,
+                                     VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_STORAGE_BIT);
+  }
+
+  // Method mip, after-tonemap (seed 003): the bloom is added to the tone-mapped scene.
+  bool after() const {
+    return p_.method == Method::mip && p_.composite == CompositeOrder::after_tonemap;
+  }
+
+  // A stage's wall time (its dispatch was submitted and waited for), then its image read back.
+  void finish(const std::string& name, Image2D& img, Clock::time_point t0, bool skipped = false) {
+    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    if (!skipped) trace_.timings.emplace_back(name, ms);
+    trace_.stages.push_back({name, read(img), ms, skipped});
+  }
+
+  Image read(Image2D& img) {
+    const std::vector<unsigned char> bytes = img.download();
+    Image out = Image::uninitialised(img.width, img.height);
+    const std::size_t n = std::size_t(img.width) * img.height * kChannels;
+    if (img.format == VK_FORMAT_R32G32B32A32_SFLOAT) {
+      std::memcpy(out.data(), bytes.data(), n * sizeof(float));
+    } else {
+      for (std::size_t i = 0; i < n; ++i) {
+        std::uint16_t bits = 0;
+        std::memcpy(&bits, bytes.data() + 2 * i, 2);
+        Imath::half h;
+        h.setBits(bits);
+        out.data()[i] = float(h);
+      }
+    }
+    return out;
+  }
+
+  void blur(const StageSpec& s, Clock::time_point t0) {
+    if (s.skipped) {  // the plan leaves it out: the bloom is what it was
+      finish(s.name, *bloom_, t0, true);
+      return;
+    }
+    Image2D& target = *ping_[s.pass % 2];
+    blur_->set_int("horizontal", s.axis == Axis::horizontal ? 1 : 0);
+    blur_->run({bloom_}, target, nullptr, sampler_.handle());
+    bloom_ = &target;
+    finish(s.name, target, t0);
+  }
+
+  void levels() {
+    if (!down_img_.empty()) return;
+    for (const LevelSize& l : plan_.levels) {
+      down_img_.push_back(image(l.width, l.height, format_));
+      up_img_.push_back(image(l.width, l.height, format_));
+    }
+    mip_bloom_ = image(w_, h_, format_);
+  }
+
+  void down(const StageSpec& s, Clock::time_point t0) {
+    levels();
+    const int k = s.pass;
+    down_->set_int("first_level", k == 1 ? 1 : 0);
+    down_->run({k == 1 ? scene_img_.get() : down_img_[std::size_t(k - 2)].get()},
+               *down_img_[std::size_t(k - 1)], nullptr, sampler_.handle());
+    finish(s.name, *down_img_[std::size_t(k - 1)], t0);
+  }
+
+  void up(const StageSpec& s, Clock::time_point t0) {
+    const int k = s.pass, top = static_cast<int>(plan_.levels.size());
+    const Image2D& small = k + 1 == top ? *down_img_[std::size_t(top - 1)] : *up_img_[std::size_t(k)];
+    up_->set_int("has_current", 1);
+    up_->run({&small, down_img_[std::size_t(k - 1)].get()}, *up_img_[std::size_t(k - 1)], nullptr,
+             sampler_.handle());
+    finish(s.name, *up_img_[std::size_t(k - 1)], t0);
+  }
+
+  void mip_bloom(const StageSpec& s, Clock::time_point t0) {
+    const Image2D& small = plan_.levels.size() == 1 ? *down_img_[0] : *up_img_[0];
+    up_->set_int("has_current", 0);
+    up_->run({&small, &small}, *mip_bloom_, nullptr, sampler_.handle());
+    bloom_ = mip_bloom_.get();
+    finish(s.name, *mip_bloom_, t0);
+  }
+
+  Context::Impl& ctx_;
+  const Plan& plan_;
+  const BloomParams& p_;
+  ConstImageView scene_;
+  const int w_, h_;
+  const bool f16_;
+  const VkFormat format_;
+  Sampler sampler_;
+  std::unique_ptr<StageProgram> extract_, blur_, composite_, tonemap_, encode_, down_, up_;
+  std::unique_ptr<Image2D> raw_, scene_img_, bright_, hdr_, mapped_, out_, ping_[2], mip_bloom_;
+  std::vector<std::unique_ptr<Image2D>> down_img_, up_img_;
+  Image2D* bloom_ = nullptr;
+  StageTrace trace_;
+};
+
+}  // namespace
+
+StageTrace execute_vulkan(Context& ctx, const Plan& plan, ConstImageView scene) {
+  const BloomParams& p = plan.params;
+  if (p.precision != Precision::f32)
+    throw ParamError("--precision f64 is the CPU truth; the Vulkan path computes in f32");
+  if (p.mip_variant() || p.composite_mode != CompositeMode::add)
+    throw ParamError("bloomref's Vulkan shaders run the gaussian method and seed 002's chain "
+                     "with the additive composite; a mip-chain variant or preset has no Vulkan "
+                     "shaders yet");
+  return VulkanExecutor(ctx, plan, scene).run();
+}
+
+}  // namespace bloomref::vulkan

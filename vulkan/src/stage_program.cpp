@@ -1,0 +1,136 @@
+#include "stage_program.h"
+
+#include <shaderc/shaderc.hpp>
+
+#include <cstring>
+#include <regex>
+#include <sstream>
+
+#include "vulkan_shader_sources.h"
+
+namespace bloomref::vulkan {
+namespace {
+
+struct Parsed {
+  std::string text;
+  std::vector<std::string> samplers;
+  std::vector<std::pair<std::string, std::string>> members;  // type, name
+};
+
+// Moves `uniform TYPE NAME;` lines out of `src`: samplers get bindings from `first_binding` on,
+// the others are collected for the push-constant block.
+void take_uniforms(const std::string& src, Parsed& out) {
+  static const std::regex sampler(R"(^\s*uniform\s+sampler2D\s+(\w+)\s*;)");
+  static const std::regex plain(R"(^\s*uniform\s+(float|int|bool|ivec2|vec2)\s+(\w+)\s*;)");
+  std::istringstream in(src);
+  std::string line;
+  std::smatch m;
+  while (std::getline(in, line)) {
+    if (std::regex_search(line, m, sampler)) {
+      out.text += "layout(binding = " + std::to_string(out.samplers.size() + 2) +
+                  ") uniform sampler2D " + m[1].str() + ";\n";
+      out.samplers.push_back(m[1]);
+    } else if (std::regex_search(line, m, plain)) {
+      out.members.emplace_back(m[1], m[2]);
+    } else {
+      out.text += line + "\n";
+    }
+  }
+}
+
+Parsed parse(const std::string& file, const std::vector<std::string>& defines) {
+  const auto& src = vulkan_shader_sources();
+  Parsed p;
+  p.members.emplace_back("ivec2", "u_origin");
+  Parsed body;
+  take_uniforms(src.at("common.glsl"), body);
+  take_uniforms(src.at(file), body);
+  p.samplers = body.samplers;
+  for (auto& m : body.members) p.members.push_back(m);
+  std::string head = "#version 450\n";
+  for (const std::string& d : defines) head += "#define " + d + "\n";
+  // Push constants in declaration order, each at its std430 offset (ivec2 and vec2 on 8).
+  std::string block = "layout(push_constant) uniform StageConstants {\n";
+  std::uint32_t offset = 0;
+  for (const auto& [type, name] : p.members) {
+    const std::uint32_t size = type == "ivec2" || type == "vec2" ? 8 : 4;
+    offset = (offset + size - 1) / size * size;
+    block += "  layout(offset = " + std::to_string(offset) + ") " + type + " " + name + ";\n";
+    offset += size;
+  }
+  block += "};\n";
+  p.text = head + block + src.at("vulkan_main.glsl") + body.text +
+           "void main() { stage_main(); }\n";
+  return p;
+}
+
+}  // namespace
+
+std::string vulkan_stage_source(const std::string& file, const std::vector<std::string>& defines) {
+  return parse(file, defines).text;
+}
+
+StageProgram::StageProgram(Context::Impl& ctx, const std::string& file,
+                           const std::vector<std::string>& defines)
+    : ctx_(ctx), file_(file) {
+  const Parsed p = parse(file, defines);
+  samplers_ = p.samplers;
+  std::uint32_t offset = 0;
+  for (const auto& [type, name] : p.members) {
+    const std::uint32_t size = type == "ivec2" || type == "vec2" ? 8 : 4;
+    offset = (offset + size - 1) / size * size;
+    members_.push_back({name, type, offset});
+    offset += size;
+  }
+  push_.assign(offset, 0);
+  shaderc::Compiler compiler;
+  shaderc::CompileOptions options;
+  options.SetTargetEnvironment(shaderc_target_env_vulkan, shaderc_env_version_vulkan_1_1);
+  options.SetOptimizationLevel(shaderc_optimization_level_zero);  // the shader's own order
+  const shaderc::SpvCompilationResult r =
+      compiler.CompileGlslToSpv(p.text, shaderc_compute_shader, file.c_str(), options);
+  if (r.GetCompilationStatus() != shaderc_compilation_status_success)
+    throw VulkanError("bloomref's " + file + " does not compile for Vulkan: " + r.GetErrorMessage());
+  const std::vector<std::uint32_t> code(r.cbegin(), r.cend());
+  std::vector<VkDescriptorType> types = {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE,
+                                         VK_DESCRIPTOR_TYPE_STORAGE_IMAGE};
+  for (std::size_t i = 0; i < samplers_.size(); ++i)
+    types.push_back(VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER);
+  pipeline_ = std::make_unique<ComputePipeline>(ctx, code.data(), code.size() * 4, types,
+                                                std::uint32_t(push_.size()));
+}
+
+const StageProgram::Member& StageProgram::member(const std::string& name) const {
+  for (const Member& m : members_)
+    if (m.name == name) return m;
+  throw VulkanError("bloomref's " + file_ + " has no uniform '" + name + "'");
+}
+
+void StageProgram::set(const std::string& name, float v) {
+  const Member& m = member(name);
+  if (m.type != "float") return set_int(name, int(v));
+  std::memcpy(push_.data() + m.offset, &v, 4);
+}
+
+void StageProgram::set_int(const std::string& name, int v) {
+  const Member& m = member(name);
+  const std::int32_t i = v;
+  std::memcpy(push_.data() + m.offset, &i, 4);
+}
+
+void StageProgram::run(const std::vector<const Image2D*>& inputs, const Image2D& out0,
+                       const Image2D* out1, VkSampler sampler) {
+  if (inputs.size() != samplers_.size())
+    throw VulkanError("bloomref's " + file_ + " reads " + std::to_string(samplers_.size()) +
+                      " images, given " + std::to_string(inputs.size()));
+  pipeline_->bind_image(0, out0.view());
+  pipeline_->bind_image(1, (out1 ? out1 : &out0)->view());
+  for (std::size_t i = 0; i < inputs.size(); ++i)
+    pipeline_->bind_image(std::uint32_t(i + 2), inputs[i]->view(), sampler);
+  ctx_.submit([&](VkCommandBuffer cb) {
+    pipeline_->dispatch(cb, push_.data(), std::uint32_t((out0.width + 7) / 8),
+                        std::uint32_t((out0.height + 7) / 8));
+  });
+}
+
+}  // namespace bloomref::vulkan
