@@ -102,13 +102,27 @@ int finish_compare(const CompareArgs& a, OutputSet& outs, const std::string& sou
   return r.verdict == parity::Verdict::fail ? 1 : 0;
 }
 
+std::string shader_fault_names() {
+  std::string names;
+  for (const gpu::FaultInfo& f : gpu::fault_list())
+    if (gpu::fault_in_shaders(f.fault)) names += (names.empty() ? "" : ", ") + f.name;
+  return names;
+}
+
 // compare --backend vulkan: bloomref's stage shaders through Vulkan compute, judged as GL's.
 // The profile: lavapipe is llvmpipe's sampler and store code (vulkan-info's test holds them to
 // the same measured facts); another device gets the fixed-point profile.
 int compare_vulkan(const CompareArgs& a, OutputSet& outs, const LoadedImage& in,
                    const std::string& source) {
-  if (a.fault != "none" || a.shaders != "fragment")
-    throw ParamError("--inject-fault and --gl-shaders apply to the GL backend");
+  if (a.shaders != "fragment") throw ParamError("--gl-shaders applies to the GL backend");
+  const gpu::Fault fault = a.fault == "none" ? gpu::Fault::none : gpu::parse_fault(a.fault);
+  if (fault != gpu::Fault::none && !gpu::fault_in_shaders(fault))
+    throw ParamError("--inject-fault " + a.fault +
+                     " is injected by the GL host (a texture's wrap, format or size, a skipped "
+                     "pass); on Vulkan only the shader faults are: " + shader_fault_names());
+  if (fault != gpu::Fault::none && !gpu::fault_applies(fault, a.pipeline.params.method))
+    throw ParamError("--inject-fault " + a.fault + " is not in --method " +
+                     to_string(a.pipeline.params.method) + "'s shaders");
   if (!a.report_dir.empty()) throw ParamError("--report is written for the GL backend only");
   auto ctx = vulkan::Context::create();  // VulkanUnavailable -> exit 3
   const bool software = ctx->info().type == "cpu";
@@ -118,7 +132,12 @@ int compare_vulkan(const CompareArgs& a, OutputSet& outs, const LoadedImage& in,
   const Plan plan = parity::plan_for_device(a.pipeline.params, in.image.cview(), profile, source);
   using Clock = std::chrono::steady_clock;
   auto t0 = Clock::now();
-  const StageTrace trace = vulkan::execute_vulkan(*ctx, plan, in.image.cview());
+  vulkan::SourceEdit edit;
+  if (fault != gpu::Fault::none)
+    edit = [fault](const std::string& file, std::string text) {
+      return gpu::apply_fault(fault, file, std::move(text));
+    };
+  const StageTrace trace = vulkan::execute_vulkan(*ctx, plan, in.image.cview(), edit);
   const double device_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   parity::CompareOptions co;
   t0 = Clock::now();

@@ -134,4 +134,6 @@ std::string apply_fault(Fault f, const std::string& file, std::string source) {
   return source;
 }
 
+bool fault_in_shaders(Fault f) { return !fault_patches(f).empty(); }
+
 }  // namespace bloomref::gpu

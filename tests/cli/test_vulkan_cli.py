@@ -81,3 +81,71 @@ def test_lavapipe_agrees_with_llvmpipe_gl(info, tmp_path):
                 "f32_denormals_kept", "bilinear_distinct_of_1024", "subtexel_bits",
                 "fma_contracted"):
         assert m[key] == gl[key], (key, m[key], gl[key])
+
+
+CORPUS = os.environ.get("BLOOMREF_CORPUS", "")
+SIZE = "203x131"
+
+
+def compare(tmp_path, *args):
+    code, out, err = run(["compare", "--backend", "vulkan", "--json", "c.json", *args], tmp_path,
+                         timeout=600)
+    vulkan_or_skip(code, err)
+    j = json.loads((tmp_path / "c.json").read_text()) if (tmp_path / "c.json").exists() else None
+    return code, out, err, j
+
+
+@pytest.mark.parametrize("options", [["--method", "gaussian"],
+                                     ["--method", "gaussian", "--storage", "f16", "--kernel", "linear5"],
+                                     ["--method", "mip", "--karis", "--storage", "f16"],
+                                     ["--method", "mip", "--composite", "after-tonemap"]],
+                         ids=["gaussian-f32", "gaussian-f16-linear5", "mip-karis-f16", "mip-after"])
+def test_compare_on_vulkan_passes_every_stage(tmp_path, options):
+    code, out, err, j = compare(tmp_path, "--scene", "demo", "--size", SIZE, *options)
+    assert code == 0 and "verdict PASS" in out, out + err
+    assert j["renderer"].startswith("vulkan (compute")
+    stages = {s["stage"]: s for s in j["stages"]}
+    assert {"input", "composite", "tonemap", "output"} <= set(stages)
+    assert all(s["isolated"]["verdict"] == "PASS" and s["end_to_end"]["verdict"] == "PASS"
+               for s in stages.values())
+    # The images are the device's own: somewhere they differ from the oracle's by its rounding.
+    assert max(s["isolated"]["max_abs"] for s in stages.values()) > 0
+
+
+# Each fault bloomref injects by editing its shaders, and the stage where it enters (where the
+# edit is: gpu/src/faults.cpp). Exposure 0.5: at exposure 1 an ignored exposure changes nothing.
+SHADER_FAULTS = [
+    ("weight-1pct", "gaussian", "blur.1"), ("weight-0.01pct", "gaussian", "blur.1"),
+    ("half-texel-shift", "gaussian", "blur.1"), ("vertical-offsets-x", "gaussian", "blur.2"),
+    ("threshold-ge", "gaussian", "bright"), ("gamma-twice", "gaussian", "output"),
+    ("swap-rb", "gaussian", "composite"), ("exposure-ignored", "gaussian", "tonemap"),
+    ("tap-offset", "mip", "down.1"), ("karis-unnormalised", "mip", "down.1"),
+]
+
+
+@pytest.mark.parametrize("fault,method,stage", SHADER_FAULTS, ids=[f[0] for f in SHADER_FAULTS])
+def test_an_injected_shader_fault_fails_on_vulkan_where_it_enters(tmp_path, fault, method, stage):
+    extra = ["--karis"] if method == "mip" else []
+    code, out, err, j = compare(tmp_path, "--scene", "demo", "--size", SIZE, "--method", method,
+                                "--exposure", "0.5", "--inject-fault", fault, *extra)
+    assert code == 1, out + err
+    assert j["verdict"] == "FAIL" and j["first_divergent_stage"] == stage, (
+        j["first_divergent_stage"], stage)
+
+
+def test_host_faults_and_variants_are_refused(tmp_path):
+    code, _, err = run(["compare", "--backend", "vulkan", "--size", "16x16",
+                        "--inject-fault", "repeat-wrap"], tmp_path)
+    assert code == 2 and "injected by the GL host" in err, err
+    code, _, err = run(["compare", "--backend", "vulkan", "--size", "16x16",
+                        "--preset", "unity-urp"], tmp_path)
+    vulkan_or_skip(code, err)
+    assert code == 2 and "no Vulkan shaders yet" in err, err
+
+
+@pytest.mark.skipif(not CORPUS, reason="BLOOMREF_CORPUS not set")
+@pytest.mark.parametrize("image,options", [("GoldenGate.exr", []),
+                                           ("WideFloatRange.exr", ["--method", "mip", "--storage", "f16"])])
+def test_compare_on_vulkan_on_the_corpus(tmp_path, image, options):
+    code, out, err, _ = compare(tmp_path, os.path.join(CORPUS, image), *options)
+    assert code == 0 and "verdict PASS" in out, out + err

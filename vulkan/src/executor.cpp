@@ -28,18 +28,18 @@ int policy_code(NonFinite n) {
 
 class VulkanExecutor {
  public:
-  VulkanExecutor(Context& ctx, const Plan& plan, ConstImageView scene)
+  VulkanExecutor(Context& ctx, const Plan& plan, ConstImageView scene, const SourceEdit& edit)
       : ctx_(ctx.impl()), plan_(plan), p_(plan.params), scene_(scene), w_(scene.width),
         h_(scene.height), f16_(p_.storage == Storage::f16),
         format_(f16_ ? VK_FORMAT_R16G16B16A16_SFLOAT : VK_FORMAT_R32G32B32A32_SFLOAT),
         sampler_(ctx_, VK_FILTER_LINEAR) {
     std::vector<std::string> defs = {std::string("STORAGE_FORMAT ") + (f16_ ? "rgba16f" : "rgba32f")};
     if (p_.kernel == KernelName::linear5) defs.push_back("KERNEL_LINEAR5 1");
-    extract_ = std::make_unique<StageProgram>(ctx_, "extract_bright.glsl", defs);
-    blur_ = std::make_unique<StageProgram>(ctx_, "blur_pass.glsl", defs);
-    composite_ = std::make_unique<StageProgram>(ctx_, "composite.glsl", defs);
-    tonemap_ = std::make_unique<StageProgram>(ctx_, "tonemap.glsl", defs);
-    encode_ = std::make_unique<StageProgram>(ctx_, "encode_output.glsl", defs);
+    extract_ = std::make_unique<StageProgram>(ctx_, "extract_bright.glsl", defs, edit);
+    blur_ = std::make_unique<StageProgram>(ctx_, "blur_pass.glsl", defs, edit);
+    composite_ = std::make_unique<StageProgram>(ctx_, "composite.glsl", defs, edit);
+    tonemap_ = std::make_unique<StageProgram>(ctx_, "tonemap.glsl", defs, edit);
+    encode_ = std::make_unique<StageProgram>(ctx_, "encode_output.glsl", defs, edit);
     extract_->set("threshold", p_.threshold);
     extract_->set_int("policy", policy_code(p_.nonfinite));
     extract_->set("storage_max", float(storage_max(f16_ ? Storage::f16 : Storage::f32)));
@@ -50,8 +50,8 @@ class VulkanExecutor {
     tonemap_->set("exposure", p_.exposure);
     encode_->set("gamma", p_.gamma);
     if (p_.method == Method::mip) {
-      down_ = std::make_unique<StageProgram>(ctx_, "downsample.glsl", defs);
-      up_ = std::make_unique<StageProgram>(ctx_, "upsample_tent.glsl", defs);
+      down_ = std::make_unique<StageProgram>(ctx_, "downsample.glsl", defs, edit);
+      up_ = std::make_unique<StageProgram>(ctx_, "upsample_tent.glsl", defs, edit);
       for (StageProgram* s : {down_.get(), up_.get()}) s->set("range_guard", float(kRangeGuard));
       down_->set_int("karis", p_.karis ? 1 : 0);
       down_->set("threshold", p_.threshold);
@@ -211,7 +211,8 @@ class VulkanExecutor {
 
 }  // namespace
 
-StageTrace execute_vulkan(Context& ctx, const Plan& plan, ConstImageView scene) {
+StageTrace execute_vulkan(Context& ctx, const Plan& plan, ConstImageView scene,
+                          const SourceEdit& edit) {
   const BloomParams& p = plan.params;
   if (p.precision != Precision::f32)
     throw ParamError("--precision f64 is the CPU truth; the Vulkan path computes in f32");
@@ -219,7 +220,7 @@ StageTrace execute_vulkan(Context& ctx, const Plan& plan, ConstImageView scene) 
     throw ParamError("bloomref's Vulkan shaders run the gaussian method and seed 002's chain "
                      "with the additive composite; a mip-chain variant or preset has no Vulkan "
                      "shaders yet");
-  return VulkanExecutor(ctx, plan, scene).run();
+  return VulkanExecutor(ctx, plan, scene, edit).run();
 }
 
 }  // namespace bloomref::vulkan

@@ -38,13 +38,15 @@ void take_uniforms(const std::string& src, Parsed& out) {
   }
 }
 
-Parsed parse(const std::string& file, const std::vector<std::string>& defines) {
+using Edit = std::function<std::string(const std::string&, std::string)>;
+
+Parsed parse(const std::string& file, const std::vector<std::string>& defines, const Edit& edit) {
   const auto& src = vulkan_shader_sources();
   Parsed p;
   p.members.emplace_back("ivec2", "u_origin");
   Parsed body;
   take_uniforms(src.at("common.glsl"), body);
-  take_uniforms(src.at(file), body);
+  take_uniforms(edit ? edit(file, src.at(file)) : src.at(file), body);
   p.samplers = body.samplers;
   for (auto& m : body.members) p.members.push_back(m);
   std::string head = "#version 450\n";
@@ -66,14 +68,15 @@ Parsed parse(const std::string& file, const std::vector<std::string>& defines) {
 
 }  // namespace
 
-std::string vulkan_stage_source(const std::string& file, const std::vector<std::string>& defines) {
-  return parse(file, defines).text;
+std::string vulkan_stage_source(const std::string& file, const std::vector<std::string>& defines,
+                                const Edit& edit) {
+  return parse(file, defines, edit).text;
 }
 
 StageProgram::StageProgram(Context::Impl& ctx, const std::string& file,
-                           const std::vector<std::string>& defines)
+                           const std::vector<std::string>& defines, const Edit& edit)
     : ctx_(ctx), file_(file) {
-  const Parsed p = parse(file, defines);
+  const Parsed p = parse(file, defines, edit);
   samplers_ = p.samplers;
   std::uint32_t offset = 0;
   for (const auto& [type, name] : p.members) {

@@ -4,6 +4,7 @@
 // when the run starts.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -16,7 +17,9 @@ class StageProgram {
  public:
   /// Stage file `file` of gpu/shaders (with common.glsl before it) under `defines` ("NAME
   /// VALUE"). Throws VulkanError with the compiler's message when it does not compile.
-  StageProgram(Context::Impl& ctx, const std::string& file, const std::vector<std::string>& defines);
+  /// `edit`, when given, changes the stage file's text first (an injected fault).
+  StageProgram(Context::Impl& ctx, const std::string& file, const std::vector<std::string>& defines,
+               const std::function<std::string(const std::string&, std::string)>& edit = {});
   /// A push constant by its uniform name (float, int or bool); throws for an unknown name.
   void set(const std::string& name, float v);
   void set_int(const std::string& name, int v);
@@ -41,6 +44,7 @@ class StageProgram {
 };
 
 /// The GLSL text StageProgram compiles (for tests and messages).
-std::string vulkan_stage_source(const std::string& file, const std::vector<std::string>& defines);
+std::string vulkan_stage_source(const std::string& file, const std::vector<std::string>& defines,
+                                const std::function<std::string(const std::string&, std::string)>& edit = {});
 
 }  // namespace bloomref::vulkan

@@ -56,6 +56,12 @@ const FaultInfo& fault_info(Fault f);
 /// Whether a fault exists in a method's shaders (blur faults in gaussian, level faults in mip;
 /// storage, composite, tone map and gamma faults in both).
 bool fault_applies(Fault f, Method m);
+/// `source`, the text of stage shader `file` (gpu/shaders), with the edits that inject `f`
+/// (none for the faults the host injects: wrap mode, a skipped pass, texture format, level
+/// size, level offset). Any backend that compiles these files can inject the same bugs.
+std::string apply_fault(Fault f, const std::string& file, std::string source);
+/// Whether `f` is injected by editing the shaders alone (apply_fault changes some file).
+bool fault_in_shaders(Fault f);
 
 struct GlOptions {
   ShaderKind shaders = ShaderKind::fragment;
