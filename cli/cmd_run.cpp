@@ -13,6 +13,7 @@
 #include "bloomref/output_files.h"
 #include "bloomref/parallel.h"
 #include "bloomref/scenes.h"
+#include "bloomref/vulkan/executor.h"
 #include "batch/run_sequence.h"
 #include "commands.h"
 #include "json_out.h"
@@ -73,8 +74,8 @@ nlohmann::ordered_json repeat_runs(const Plan& plan, const Image& input, const S
 
 // The options that do not go together, or leave nothing to write: exit 2 before any work.
 void check_run_args(const RunArgs& a, bool records) {
-  if (a.backend != "cpu" && a.backend != "gl")
-    throw ParamError("--backend '" + a.backend + "' is not one of: cpu, gl");
+  if (a.backend != "cpu" && a.backend != "gl" && a.backend != "vulkan")
+    throw ParamError("--backend '" + a.backend + "' is not one of: cpu, gl, vulkan");
   if (a.repeat < 1) throw ParamError("--repeat must be >= 1");
   if (a.fault != "none" && a.backend != "gl") throw ParamError("--inject-fault needs --backend gl");
   if (a.fault != "none") gpu::parse_fault(a.fault);  // an unknown name before any work
@@ -149,6 +150,11 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
     trace = gpu::execute_gl(*ctx, plan, in.image.cview(), go);
     renderer = "gl (" + gpu::to_string(go.shaders) + " shaders): " + ctx->info().renderer +
                ", " + ctx->info().version;
+  } else if (a.backend == "vulkan") {
+    auto ctx = vulkan::Context::create();  // VulkanUnavailable -> exit 3
+    trace = vulkan::execute_vulkan(*ctx, plan, in.image.cview());
+    renderer = "vulkan (compute, bloomref's stage shaders): " + ctx->info().name + ", " +
+               ctx->info().driver_info;
   } else {
     ExecuteOptions eo;
     eo.keep_all = !a.dump_dir.empty();
@@ -169,7 +175,7 @@ int run(const RunArgs& a, nlohmann::ordered_json* record = nullptr) {
                        windows, parse_exr_compression(a.dump_compression, "--dump-compression"));
   if (!a.json_path.empty()) {
     nlohmann::ordered_json j = run_json(plan, trace);
-    if (a.backend == "gl") j["renderer"] = renderer;
+    if (a.backend != "cpu") j["renderer"] = renderer;
     j["input"] = {{"path", in.info.path},     {"format", in.info.format},
                   {"layout", in.info.layout}, {"channels", in.info.channels},
                   {"has_alpha", in.info.has_alpha}};
@@ -193,7 +199,9 @@ std::function<int()> add_run(CLI::App& app) {
   CLI::App* sub = app.add_subcommand("run", "apply bloom to an image or a frame sequence (or a built-in scene)");
   sub->add_option("IN", args->input, "input image (EXR, HDR, PNG, TIFF...); none = --scene");
   sub->add_option("-o,--output", args->outputs, "output .exr (float, display-referred) or .png; repeatable");
-  sub->add_option("--backend", args->backend, "cpu | gl")->capture_default_str();
+  sub->add_option("--backend", args->backend,
+                  "cpu | gl | vulkan (Vulkan compute: gaussian and seed 002's chain)")
+      ->capture_default_str();
   sub->add_option("--gl-shaders", args->gl_shaders, "fragment | compute (GL backend)")
       ->capture_default_str();
   sub->add_option("--inject-fault", args->fault,

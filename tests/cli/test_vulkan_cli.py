@@ -149,3 +149,16 @@ def test_host_faults_and_variants_are_refused(tmp_path):
 def test_compare_on_vulkan_on_the_corpus(tmp_path, image, options):
     code, out, err, _ = compare(tmp_path, os.path.join(CORPUS, image), *options)
     assert code == 0 and "verdict PASS" in out, out + err
+
+
+def test_run_on_vulkan_dumps_stages_that_check_passes(tmp_path):
+    """run --backend vulkan writes the device's stages; check judges them as any capture."""
+    code, _, err = run(["run", "--backend", "vulkan", "--size", SIZE, "--method", "mip", "-q",
+                        "-o", "v.exr", "--dump-stages", "v", "--json", "r.json"], tmp_path)
+    vulkan_or_skip(code, err)
+    assert code == 0, err
+    assert json.loads((tmp_path / "r.json").read_text())["renderer"].startswith("vulkan")
+    code, _, err = run(["check", "--scene", "demo", "--size", SIZE, "--method", "mip",
+                        "--stages", "v", "--json", "c.json", "-q"], tmp_path)
+    assert code == 0, err
+    assert json.loads((tmp_path / "c.json").read_text())["verdict"] == "PASS"
