@@ -1,8 +1,9 @@
 // bloomref bench: per-stage and total times of the CPU path (thread wedge 1, 2, all; full and
-// adaptive plans) and the GL path (glFinish after every stage; renderer recorded), over sizes,
-// medians after a warm-up, every timed output checked in the same run: CPU runs must give the
-// 1-thread full plan's bits; GL runs must stay within 2e-3 of the CPU display output (parity
-// finds llvmpipe within 2e-7; 2e-3 is one 8-bit code's half).
+// adaptive plans), the GL path (glFinish after every stage; renderer recorded) and the Vulkan
+// path (a submit and wait per stage), the GPU paths' device time from timer queries beside
+// their wall time, over sizes, medians after a warm-up, every timed output checked in the same
+// run: CPU runs must give the 1-thread full plan's bits; GPU runs must stay within 2e-3 of the
+// CPU display output (parity finds llvmpipe within 2e-7; 2e-3 is one 8-bit code's half).
 #include <unistd.h>
 
 #include <algorithm>
@@ -18,6 +19,7 @@
 #include "escape.h"
 #include "bloomref/executor.h"
 #include "bloomref/gpu/gl_executor.h"
+#include "bloomref/vulkan/executor.h"
 #include "bloomref/io.h"
 #include "bloomref/parallel.h"
 #include "bloomref/scenes.h"
@@ -38,6 +40,10 @@ struct Row {
   std::vector<std::pair<std::string, double>> stages;
   bool checked = false;
   std::string check;
+  /// GPU backends: the device's own time (timer queries), median total and the last run's
+  /// stages; negative where there is none (the CPU, a device without timers).
+  double device_ms = -1;
+  std::vector<std::pair<std::string, double>> device_stages;
 };
 
 void progress(int done, int total, const std::string& what) {
@@ -77,7 +83,7 @@ struct BenchArgs {
   std::string sizes = "256x256,1024x1024,1920x1080,3840x2160";
   std::string out_dir;
   int repeat = 5;
-  bool no_gl = false;
+  bool no_gl = false, no_vulkan = false;
   PipelineOptions pipeline;
 };
 
@@ -138,7 +144,9 @@ Row time_cpu(const BenchArgs& a, const std::string& size, const Image& scene, in
           median(blurs),
           {},
           true,
-          ""};
+          "",
+          -1.0,
+          {}};
   for (std::size_t i = 0; i < last.timings.size(); ++i)
     row.stages.emplace_back(last.timings[i].first, median(per_stage[i]));
   if (reference.empty()) reference = last.final_image();
@@ -148,30 +156,32 @@ Row time_cpu(const BenchArgs& a, const std::string& size, const Image& scene, in
   return row;
 }
 
-// One GL shader kind: a warm-up (compiles the shaders), then `repeat` timed runs; its output
-// within 2e-3 of the CPU reference's.
-Row time_gl(const BenchArgs& a, gpu::GlContext& ctx, const std::string& size, const Image& scene,
-            gpu::ShaderKind k, const Image& reference) {
-  BloomParams p = a.pipeline.params;
-  gpu::GlOptions go;
-  go.shaders = k;
-  gpu::execute_gl(ctx, make_plan(p, scene.cview()), scene.cview(), go);  // warm-up
-  std::vector<double> totals, blurs;
+// A GPU backend's runs (`run_once` gives one run's trace): a warm-up (compiles the shaders),
+// then `repeat` timed runs; its output within 2e-3 of the CPU reference's. Wall and device
+// times apart: the device's from its timer queries.
+template <class RunOnce>
+Row time_device(const BenchArgs& a, const std::string& size, const Image& scene,
+                const std::string& backend, const Image& reference, RunOnce run_once) {
+  run_once();  // warm-up
+  std::vector<double> totals, blurs, device;
   StageTrace last;
   for (int r = 0; r < a.repeat; ++r) {
-    last = gpu::execute_gl(ctx, make_plan(p, scene.cview()), scene.cview(), go);
+    last = run_once();
     totals.push_back(last.total_ms);
     blurs.push_back(blur_ms(last));
+    double d = 0;
+    for (const auto& [n, ms] : last.device_timings) d += ms;
+    if (!last.device_timings.empty()) device.push_back(d);
   }
   double worst = 0;
   for (std::size_t i = 0; i < reference.values().size(); ++i)
     if (i % 4 != 3)
       worst = std::max(worst,
                        double(std::fabs(reference.values()[i] - last.final_image().values()[i])));
-  char b[32];
-  std::snprintf(b, sizeof b, "%.3g", worst);
+  char b[48];
+  std::snprintf(b, sizeof b, "max |%s - cpu| output %.3g", backend.c_str(), worst);
   return Row{size,
-             "gl-" + gpu::to_string(k),
+             backend,
              "full",
              0,
              (long long)scene.width() * scene.height(),
@@ -179,17 +189,52 @@ Row time_gl(const BenchArgs& a, gpu::GlContext& ctx, const std::string& size, co
              median(blurs),
              last.timings,
              worst <= 2e-3,
-             "max |gl - cpu| output " + std::string(b)};
+             b,
+             device.empty() ? -1.0 : median(device),
+             device.empty() ? std::vector<std::pair<std::string, double>>{} : last.device_timings};
+}
+
+Row time_gl(const BenchArgs& a, gpu::GlContext& ctx, const std::string& size, const Image& scene,
+            gpu::ShaderKind k, const Image& reference) {
+  gpu::GlOptions go;
+  go.shaders = k;
+  return time_device(a, size, scene, "gl-" + gpu::to_string(k), reference, [&] {
+    return gpu::execute_gl(ctx, make_plan(a.pipeline.params, scene.cview()), scene.cview(), go);
+  });
+}
+
+Row time_vulkan(const BenchArgs& a, vulkan::Context& ctx, const std::string& size,
+                const Image& scene, const Image& reference) {
+  return time_device(a, size, scene, "vulkan", reference, [&] {
+    BloomParams p = a.pipeline.params;
+    p.plan = PlanMode::full;  // the Vulkan run computes every stage whole
+    return vulkan::execute_vulkan(ctx, make_plan(p, scene.cview()), scene.cview());
+  });
+}
+
+// The Vulkan device (none with --no-vulkan or when there is none) and its description.
+std::string open_vulkan(bool no_vulkan, std::unique_ptr<vulkan::Context>& ctx) {
+  if (no_vulkan) return "none";
+  try {
+    ctx = vulkan::Context::create();
+    return ctx->info().name + ", " + ctx->info().driver_info;
+  } catch (const vulkan::VulkanUnavailable& e) {
+    return std::string("unavailable: ") + e.what();
+  }
 }
 
 void print_rows(const std::vector<Row>& rows, const std::string& renderer, int all, int repeat) {
   std::printf("renderer: %s; CPU threads available: %d; %d timed runs each, median\n",
               renderer.c_str(), all, repeat);
-  std::printf("%-10s %-13s %-8s %-7s %10s %10s  %s\n", "size", "backend", "plan", "threads",
-              "total ms", "blur ms", "check");
-  for (const Row& r : rows)
-    std::printf("%-10s %-13s %-8s %-7d %10.1f %10.1f  %s\n", r.size.c_str(), r.backend.c_str(),
-                r.plan.c_str(), r.threads, r.total_ms, r.blur_ms, r.check.c_str());
+  std::printf("%-10s %-13s %-8s %-7s %10s %10s %10s  %s\n", "size", "backend", "plan", "threads",
+              "total ms", "blur ms", "device ms", "check");
+  for (const Row& r : rows) {
+    char device[16] = "-";
+    if (r.device_ms >= 0) std::snprintf(device, sizeof device, "%.1f", r.device_ms);
+    std::printf("%-10s %-13s %-8s %-7d %10.1f %10.1f %10s  %s\n", r.size.c_str(),
+                r.backend.c_str(), r.plan.c_str(), r.threads, r.total_ms, r.blur_ms, device,
+                r.check.c_str());
+  }
 }
 
 nlohmann::ordered_json rows_json(const std::vector<Row>& rows) {
@@ -197,6 +242,8 @@ nlohmann::ordered_json rows_json(const std::vector<Row>& rows) {
   for (const Row& r : rows) {
     nlohmann::ordered_json st = nlohmann::ordered_json::object();
     for (const auto& [n, ms] : r.stages) st[n] = ms;
+    nlohmann::ordered_json dev = nlohmann::ordered_json::object();
+    for (const auto& [n, ms] : r.device_stages) dev[n] = ms;
     jr.push_back({{"size", r.size},
                   {"pixels", r.pixels},
                   {"backend", r.backend},
@@ -205,6 +252,9 @@ nlohmann::ordered_json rows_json(const std::vector<Row>& rows) {
                   {"total_ms", r.total_ms},
                   {"blur_ms", r.blur_ms},
                   {"stages_ms", st},
+                  {"device_total_ms", r.device_ms >= 0 ? nlohmann::ordered_json(r.device_ms)
+                                                       : nlohmann::ordered_json(nullptr)},
+                  {"device_stages_ms", dev},
                   {"check", r.check},
                   {"check_ok", r.checked}});
   }
@@ -213,10 +263,13 @@ nlohmann::ordered_json rows_json(const std::vector<Row>& rows) {
 
 std::string rows_csv(const std::vector<Row>& rows) {
   std::ostringstream csv;
-  csv << "size,pixels,backend,plan,threads,total_ms,blur_ms,check_ok\n";
-  for (const Row& r : rows)
+  csv << "size,pixels,backend,plan,threads,total_ms,blur_ms,check_ok,device_ms\n";
+  for (const Row& r : rows) {
     csv << r.size << "," << r.pixels << "," << r.backend << "," << r.plan << "," << r.threads << ","
-        << r.total_ms << "," << r.blur_ms << "," << (r.checked ? 1 : 0) << "\n";
+        << r.total_ms << "," << r.blur_ms << "," << (r.checked ? 1 : 0) << ",";
+    if (r.device_ms >= 0) csv << r.device_ms;
+    csv << "\n";
+  }
   return csv.str();
 }
 
@@ -291,12 +344,14 @@ nlohmann::ordered_json ceilings_json(const std::vector<ParallelCeiling>& ceiling
 
 std::function<int()> add_bench(CLI::App& app) {
   auto a = std::make_shared<BenchArgs>();
-  CLI::App* sub = app.add_subcommand("bench", "time CPU and GL per stage, checking every output");
+  CLI::App* sub =
+      app.add_subcommand("bench", "time CPU, GL and Vulkan per stage, checking every output");
   sub->add_option("--sizes", a->sizes, "comma-separated WxH list")->capture_default_str();
   sub->add_option("--repeat", a->repeat, "timed runs per configuration (median reported)")
       ->capture_default_str();
   sub->add_option("--out", a->out_dir, "write bench.csv and bench.json to DIR");
-  sub->add_flag("--no-gl", a->no_gl, "CPU only");
+  sub->add_flag("--no-gl", a->no_gl, "no GL runs");
+  sub->add_flag("--no-vulkan", a->no_vulkan, "no Vulkan runs");
   a->pipeline.add_to(*sub);
   return [a, sub]() -> int {
     if (!sub->parsed()) return -1;
@@ -305,6 +360,8 @@ std::function<int()> add_bench(CLI::App& app) {
     const auto sizes = parse_sizes(a->sizes);
     std::unique_ptr<gpu::GlContext> ctx;
     const std::string renderer = open_gl(a->no_gl, ctx);
+    std::unique_ptr<vulkan::Context> vk;
+    const std::string vulkan_device = open_vulkan(a->no_vulkan, vk);
     const int all = resolve_threads(0);
     const std::vector<int> wedge = thread_wedge(all);
     // The machine's own ceilings for the thread wedge, before and after the timed runs (the
@@ -312,7 +369,7 @@ std::function<int()> add_bench(CLI::App& app) {
     // throughput-bound, and memory copy.
     std::vector<ParallelCeiling> ceilings;
     if (all >= 2) ceilings.push_back(parallel_ceiling(2));
-    const int per_size = static_cast<int>(wedge.size()) * 2 + (ctx ? 2 : 0);
+    const int per_size = static_cast<int>(wedge.size()) * 2 + (ctx ? 2 : 0) + (vk ? 1 : 0);
     Progress bar{0, per_size * static_cast<int>(sizes.size())};
     std::vector<Row> rows;
     for (auto [w, h] : sizes) {
@@ -329,15 +386,23 @@ std::function<int()> add_bench(CLI::App& app) {
           rows.push_back(time_gl(*a, *ctx, size, scene, k, reference));
           bar.step(size + " gl " + gpu::to_string(k));
         }
+      if (vk) {
+        rows.push_back(time_vulkan(*a, *vk, size, scene, reference));
+        bar.step(size + " vulkan");
+      }
     }
     if (all >= 2) ceilings.push_back(parallel_ceiling(2));
     print_rows(rows, renderer, all, a->repeat);
+    std::printf("vulkan: %s\n", vulkan_device.c_str());
     nlohmann::ordered_json j = {
         {"renderer", renderer},
+        {"vulkan_device", vulkan_device},
         {"threads_available", all},
         {"repeat", a->repeat},
         {"params", params_json(a->pipeline.params)},
-        {"timing", "CPU: steady_clock per stage; GL: glFinish after each stage"}};
+        {"timing", "CPU: steady_clock per stage; GL: glFinish after each stage, and the device's "
+                   "time from GL_TIME_ELAPSED queries; Vulkan: a submit and wait per stage, and "
+                   "the device's time from timestamps around each dispatch"}};
     const nlohmann::ordered_json fits = linear_fits(rows);
     nlohmann::ordered_json scaling = nlohmann::ordered_json::array();
     if (all >= 2) {

@@ -66,9 +66,17 @@ nlohmann::ordered_json run_json(const Plan& plan, const StageTrace& trace) {
   nlohmann::ordered_json timings = nlohmann::ordered_json::object();
   for (const auto& [name, ms] : trace.timings) timings[name] = ms;
   timings["total"] = trace.total_ms;
+  nlohmann::ordered_json device = nlohmann::ordered_json::object();
+  double device_total = 0;
+  for (const auto& [name, ms] : trace.device_timings) {
+    device[name] = ms;
+    device_total += ms;
+  }
+  if (!trace.device_timings.empty()) device["total"] = device_total;
   return {{"params", params_json(plan.params)},
           {"renderer", cpu_renderer(plan.params)},
           {"timings_ms", timings},
+          {"device_timings_ms", device},
           {"skipped", plan.skipped_names()},
           {"skipped_texel_fraction", [&] {
              nlohmann::ordered_json f = nlohmann::ordered_json::object();

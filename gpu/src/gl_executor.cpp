@@ -271,12 +271,22 @@ class GlExecutor {
         progs_(build_programs(ctx, plan.params, sched_, opt.fault)),
         tex_(make_textures(ctx, plan, scene, sched_.format, opt.fault)),
         runner_(sched_.compute, sched_.format),
-        support_(scene.width, scene.height, 0.5) {}
+        support_(scene.width, scene.height, 0.5) {
+    glGenQueries(1, &query_);
+  }
+  ~GlExecutor() {
+    if (query_open_) glEndQuery(GL_TIME_ELAPSED);
+    glDeleteQueries(1, &query_);
+  }
+  GlExecutor(const GlExecutor&) = delete;
+  GlExecutor& operator=(const GlExecutor&) = delete;
 
   StageTrace run() {
     trace_.nonfinite = plan_.facts.nonfinite;
     for (const StageSpec& s : plan_.stages) {
       const auto t0 = Clock::now();
+      glBeginQuery(GL_TIME_ELAPSED, query_);  // the stage's commands on the device
+      query_open_ = true;
       switch (s.kind) {
         case StageKind::input:
           input(s, t0);
@@ -306,7 +316,13 @@ class GlExecutor {
           output(s, t0);
           break;
       }
+      if (query_open_) {  // a stage that ended without finish (a skipped pass not kept)
+        glEndQuery(GL_TIME_ELAPSED);
+        query_open_ = false;
+      }
     }
+    // A timer that did not time every stage times none (docs/design.md, "Device time").
+    if (!timer_sound_) trace_.device_timings.clear();
     // The plan's scan of the scene (on the CPU) is part of the run, as in the CPU executor.
     trace_.timings.insert(trace_.timings.begin(), {"plan", plan_.facts.scan_ms});
     for (const auto& [name, ms] : trace_.timings) trace_.total_ms += ms;  // readbacks excluded
@@ -319,10 +335,22 @@ class GlExecutor {
   // Ends a stage: its time (after glFinish; readbacks excluded) and, when kept, its image.
   void finish(const std::string& name, const Texture& t, Clock::time_point t0,
               bool skipped = false) {
+    const bool timed = query_open_;
+    if (query_open_) glEndQuery(GL_TIME_ELAPSED);
+    query_open_ = false;
     glFinish();
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     ctx_.check(name.c_str());
     if (!skipped) trace_.timings.emplace_back(name, ms);
+    if (!skipped && timed && name != "bright") {  // bright: no commands, the input's draw
+      GLuint64 ns = 0;
+      glGetQueryObjectui64v(query_, GL_QUERY_RESULT, &ns);
+      const double device_ms = double(ns) * 1e-6;
+      // A stage with commands takes some time, and no more than its wall time: otherwise the
+      // query did not time it (llvmpipe's do not time compute dispatches).
+      timer_sound_ = timer_sound_ && device_ms > 0 && device_ms <= ms * 1.01 + 0.05;
+      trace_.device_timings.emplace_back(name, device_ms);
+    }
     if (opt_.keep_all || name == "output")
       trace_.stages.push_back({name, to_image(t), ms, skipped});
   }
@@ -445,6 +473,9 @@ class GlExecutor {
   StageTrace trace_;
   BlurSupportTracker support_;  // adaptive plan (sched_.scissor): the blur's texel support
   bool mip_dark_ = false;       // decided by the input stage
+  GLuint query_ = 0;         // GL_TIME_ELAPSED around each stage's commands
+  bool query_open_ = false;
+  bool timer_sound_ = true;  // every stage's query result within (0, its wall time]
   // What the composite adds: the last blur pass, the mip chain's bloom, or (no pass ran) bright.
   const Texture* bloom_ = &tex_.bright;
 };

@@ -162,3 +162,30 @@ def test_run_on_vulkan_dumps_stages_that_check_passes(tmp_path):
                         "--stages", "v", "--json", "c.json", "-q"], tmp_path)
     assert code == 0, err
     assert json.loads((tmp_path / "c.json").read_text())["verdict"] == "PASS"
+
+
+def test_bench_times_vulkan_and_gl_on_the_device_and_checks_them(tmp_path):
+    """bench's GPU rows: wall time and the device's time from timer queries apart, per stage and
+    in total; the device's total is within the wall time of the same runs (it excludes the
+    drains and readbacks), and every row's output is checked."""
+    code, out, err = run(["bench", "--sizes", "96x64", "--repeat", "1", "--out", "b"], tmp_path,
+                         timeout=600)
+    assert code == 0, out + err
+    j = json.loads((tmp_path / "b" / "bench.json").read_text())
+    rows = {r["backend"]: r for r in j["rows"] if r["backend"] != "cpu"}
+    if "vulkan" not in rows:
+        vulkan_or_skip(3, j["vulkan_device"])
+    for backend, r in rows.items():
+        assert r["check_ok"], (backend, r["check"])
+        if r["device_total_ms"] is None:  # a timer that did not time every stage times none
+            assert backend == "gl-compute" and r["device_stages_ms"] == {}, (backend, r)
+            continue
+        assert 0 < r["device_total_ms"] <= r["total_ms"] * 1.05 + 0.5, (backend, r)
+        # A time for every stage that ran (the GL trace also times the plan's scan, on the CPU,
+        # and its bright stage is the input's draw).
+        assert set(r["device_stages_ms"]) == set(r["stages_ms"]) - {"plan", "bright"}, backend
+    # The Vulkan device's timestamps and GL's fragment-pass timer time every stage.
+    assert rows["vulkan"]["device_total_ms"] is not None
+    if "gl-fragment" in rows:
+        assert rows["gl-fragment"]["device_total_ms"] is not None
+    assert "device ms" in out

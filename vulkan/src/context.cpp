@@ -135,6 +135,7 @@ Context::~Context() {
   if (c.device) {
     vkDeviceWaitIdle(c.device);
     if (c.pool) vkDestroyCommandPool(c.device, c.pool, nullptr);
+    if (c.timestamps) vkDestroyQueryPool(c.device, c.timestamps, nullptr);
     vkDestroyDevice(c.device, nullptr);
   }
   if (c.instance) vkDestroyInstance(c.instance, nullptr);
@@ -206,6 +207,17 @@ std::uint32_t Context::Impl::memory_type(std::uint32_t bits, VkMemoryPropertyFla
   for (std::uint32_t i = 0; i < memory.memoryTypeCount; ++i)
     if ((bits & (1u << i)) && (memory.memoryTypes[i].propertyFlags & want) == want) return i;
   throw VulkanError("no memory type with the properties asked for");
+}
+
+VkQueryPool Context::Impl::timestamp_pool() {
+  if (!timestamps && info.timestamp_valid_bits > 0) {
+    VkQueryPoolCreateInfo q{};
+    q.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;
+    q.queryType = VK_QUERY_TYPE_TIMESTAMP;
+    q.queryCount = 2;
+    check(vkCreateQueryPool(device, &q, nullptr, &timestamps), "vkCreateQueryPool");
+  }
+  return timestamps;
 }
 
 VkCommandBuffer Context::Impl::begin() {

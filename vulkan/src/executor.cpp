@@ -73,7 +73,7 @@ class VulkanExecutor {
       const auto t0 = Clock::now();
       switch (s.kind) {
         case StageKind::input:
-          extract_->run({raw_.get()}, *scene_img_, bright_.get(), sampler_.handle());
+          device_ms_ = extract_->run({raw_.get()}, *scene_img_, bright_.get(), sampler_.handle());
           finish(s.name, *scene_img_, t0);
           break;
         case StageKind::bright:
@@ -92,17 +92,18 @@ class VulkanExecutor {
           mip_bloom(s, t0);
           break;
         case StageKind::composite:
-          composite_->run({after() ? mapped_.get() : scene_img_.get(), bloom_}, *hdr_, nullptr,
-                          sampler_.handle());
+          device_ms_ = composite_->run({after() ? mapped_.get() : scene_img_.get(), bloom_}, *hdr_,
+                                       nullptr, sampler_.handle());
           finish(s.name, *hdr_, t0);
           break;
         case StageKind::tonemap:
-          tonemap_->run({after() ? scene_img_.get() : hdr_.get()}, *mapped_, nullptr,
-                        sampler_.handle());
+          device_ms_ = tonemap_->run({after() ? scene_img_.get() : hdr_.get()}, *mapped_, nullptr,
+                                     sampler_.handle());
           finish(s.name, *mapped_, t0);
           break;
         case StageKind::output:
-          encode_->run({after() ? hdr_.get() : mapped_.get()}, *out_, nullptr, sampler_.handle());
+          device_ms_ = encode_->run({after() ? hdr_.get() : mapped_.get()}, *out_, nullptr,
+                                    sampler_.handle());
           finish(s.name, *out_, t0);
           break;
       }
@@ -123,9 +124,13 @@ class VulkanExecutor {
   }
 
   // A stage's wall time (its dispatch was submitted and waited for), then its image read back.
+  // The device's time of the dispatch (device_ms_, -1: no timestamps; the bright stage is the
+  // input's dispatch, timed there) goes to device_timings.
   void finish(const std::string& name, Image2D& img, Clock::time_point t0, bool skipped = false) {
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     if (!skipped) trace_.timings.emplace_back(name, ms);
+    if (!skipped && device_ms_ >= 0) trace_.device_timings.emplace_back(name, device_ms_);
+    device_ms_ = -1;
     trace_.stages.push_back({name, read(img), ms, skipped});
   }
 
@@ -154,7 +159,7 @@ class VulkanExecutor {
     }
     Image2D& target = *ping_[s.pass % 2];
     blur_->set_int("horizontal", s.axis == Axis::horizontal ? 1 : 0);
-    blur_->run({bloom_}, target, nullptr, sampler_.handle());
+    device_ms_ = blur_->run({bloom_}, target, nullptr, sampler_.handle());
     bloom_ = &target;
     finish(s.name, target, t0);
   }
@@ -172,8 +177,8 @@ class VulkanExecutor {
     levels();
     const int k = s.pass;
     down_->set_int("first_level", k == 1 ? 1 : 0);
-    down_->run({k == 1 ? scene_img_.get() : down_img_[std::size_t(k - 2)].get()},
-               *down_img_[std::size_t(k - 1)], nullptr, sampler_.handle());
+    device_ms_ = down_->run({k == 1 ? scene_img_.get() : down_img_[std::size_t(k - 2)].get()},
+                            *down_img_[std::size_t(k - 1)], nullptr, sampler_.handle());
     finish(s.name, *down_img_[std::size_t(k - 1)], t0);
   }
 
@@ -181,15 +186,15 @@ class VulkanExecutor {
     const int k = s.pass, top = static_cast<int>(plan_.levels.size());
     const Image2D& small = k + 1 == top ? *down_img_[std::size_t(top - 1)] : *up_img_[std::size_t(k)];
     up_->set_int("has_current", 1);
-    up_->run({&small, down_img_[std::size_t(k - 1)].get()}, *up_img_[std::size_t(k - 1)], nullptr,
-             sampler_.handle());
+    device_ms_ = up_->run({&small, down_img_[std::size_t(k - 1)].get()},
+                          *up_img_[std::size_t(k - 1)], nullptr, sampler_.handle());
     finish(s.name, *up_img_[std::size_t(k - 1)], t0);
   }
 
   void mip_bloom(const StageSpec& s, Clock::time_point t0) {
     const Image2D& small = plan_.levels.size() == 1 ? *down_img_[0] : *up_img_[0];
     up_->set_int("has_current", 0);
-    up_->run({&small, &small}, *mip_bloom_, nullptr, sampler_.handle());
+    device_ms_ = up_->run({&small, &small}, *mip_bloom_, nullptr, sampler_.handle());
     bloom_ = mip_bloom_.get();
     finish(s.name, *mip_bloom_, t0);
   }
@@ -206,6 +211,7 @@ class VulkanExecutor {
   std::unique_ptr<Image2D> raw_, scene_img_, bright_, hdr_, mapped_, out_, ping_[2], mip_bloom_;
   std::vector<std::unique_ptr<Image2D>> down_img_, up_img_;
   Image2D* bloom_ = nullptr;
+  double device_ms_ = -1;  // the last dispatch's time on the device, until finish takes it
   StageTrace trace_;
 };
 

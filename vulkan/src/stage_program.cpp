@@ -121,8 +121,8 @@ void StageProgram::set_int(const std::string& name, int v) {
   std::memcpy(push_.data() + m.offset, &i, 4);
 }
 
-void StageProgram::run(const std::vector<const Image2D*>& inputs, const Image2D& out0,
-                       const Image2D* out1, VkSampler sampler) {
+double StageProgram::run(const std::vector<const Image2D*>& inputs, const Image2D& out0,
+                         const Image2D* out1, VkSampler sampler) {
   if (inputs.size() != samplers_.size())
     throw VulkanError("bloomref's " + file_ + " reads " + std::to_string(samplers_.size()) +
                       " images, given " + std::to_string(inputs.size()));
@@ -130,10 +130,25 @@ void StageProgram::run(const std::vector<const Image2D*>& inputs, const Image2D&
   pipeline_->bind_image(1, (out1 ? out1 : &out0)->view());
   for (std::size_t i = 0; i < inputs.size(); ++i)
     pipeline_->bind_image(std::uint32_t(i + 2), inputs[i]->view(), sampler);
+  const VkQueryPool q = ctx_.timestamp_pool();
   ctx_.submit([&](VkCommandBuffer cb) {
+    if (q) {
+      vkCmdResetQueryPool(cb, q, 0, 2);
+      vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, q, 0);
+    }
     pipeline_->dispatch(cb, push_.data(), std::uint32_t((out0.width + 7) / 8),
                         std::uint32_t((out0.height + 7) / 8));
+    if (q) vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, q, 1);
   });
+  if (!q) return -1.0;
+  std::uint64_t ts[2] = {0, 0};
+  check(vkGetQueryPoolResults(ctx_.device, q, 0, 2, sizeof ts, ts, sizeof ts[0],
+                              VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
+        "vkGetQueryPoolResults");
+  const unsigned bits = ctx_.info.timestamp_valid_bits;
+  const std::uint64_t mask = bits >= 64 ? ~std::uint64_t(0) : (std::uint64_t(1) << bits) - 1;
+  const std::uint64_t ticks = ((ts[1] & mask) - (ts[0] & mask)) & mask;
+  return double(ticks) * double(ctx_.info.timestamp_period_ns) * 1e-6;
 }
 
 }  // namespace bloomref::vulkan

@@ -23,11 +23,13 @@ class StageProgram {
   /// A push constant by its uniform name (float, int or bool); throws for an unknown name.
   void set(const std::string& name, float v);
   void set_int(const std::string& name, int v);
-  /// Records one dispatch over `out0` (and `out1`, the second output, or out0 again), reading
+  /// Submits one dispatch over `out0` (and `out1`, the second output, or out0 again), reading
   /// `inputs` through its samplers in declaration order; the descriptor set is rewritten, so
   /// the previous dispatch must have finished.
-  void run(const std::vector<const Image2D*>& inputs, const Image2D& out0, const Image2D* out1,
-           VkSampler sampler);
+  /// Returns the dispatch's time on the device in ms (its two timestamps), or -1 where the
+  /// queue has no timestamps.
+  double run(const std::vector<const Image2D*>& inputs, const Image2D& out0, const Image2D* out1,
+             VkSampler sampler);
 
  private:
   struct Member {

@@ -24,6 +24,10 @@ struct Context::Impl {
   VkCommandPool pool = VK_NULL_HANDLE;
   VkPhysicalDeviceMemoryProperties memory{};
   DeviceInfo info;
+  /// Two timestamps (before and after a dispatch), made on first use; null where the compute
+  /// queue has no timestamps (DeviceInfo::timestamp_valid_bits 0).
+  VkQueryPool timestamps = VK_NULL_HANDLE;
+  VkQueryPool timestamp_pool();
 
   /// A memory type with `bits` allowed and every flag of `want`; throws VulkanError if none.
   std::uint32_t memory_type(std::uint32_t bits, VkMemoryPropertyFlags want) const;

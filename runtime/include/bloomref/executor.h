@@ -23,6 +23,10 @@ struct StageTrace {
   double total_ms = 0;
   std::optional<ImageF64> output_f64;  ///< the output stage in double (f64 precision only)
   std::vector<std::pair<std::string, double>> timings;  ///< every stage that ran, in order
+  /// Each stage's time on the device, from its timer queries (GL_TIME_ELAPSED around the
+  /// stage's draws, Vulkan timestamps around its dispatch): no drain or readback in it. Empty on
+  /// the CPU and where the device has no timer.
+  std::vector<std::pair<std::string, double>> device_timings;
   /// Adaptive plan: per blur pass, the fraction of texels left out (outside the bright pixels'
   /// dilated support, where the blur is exactly 0); for composite+tonemap+output, where it
   /// used one, the fraction of pixels finished from the table of binary16 values (stages.h:
