@@ -43,8 +43,8 @@ using Edit = std::function<std::string(const std::string&, std::string)>;
 Parsed parse(const std::string& file, const std::vector<std::string>& defines, const Edit& edit) {
   const auto& src = vulkan_shader_sources();
   Parsed p;
-  p.members.emplace_back("ivec2", "u_origin");
-  Parsed body;
+  Parsed body;  // the compute entry point (its u_origin a push constant), common, the stage
+  take_uniforms(src.at("compute_main.glsl"), body);
   take_uniforms(src.at("common.glsl"), body);
   take_uniforms(edit ? edit(file, src.at(file)) : src.at(file), body);
   p.samplers = body.samplers;
@@ -61,8 +61,7 @@ Parsed parse(const std::string& file, const std::vector<std::string>& defines, c
     offset += size;
   }
   block += "};\n";
-  p.text = head + block + src.at("vulkan_main.glsl") + body.text +
-           "void main() { stage_main(); }\n";
+  p.text = head + block + body.text;
   return p;
 }
 

@@ -1,7 +1,8 @@
 // bloomref's GL stage shaders (gpu/shaders/*.glsl, the same files) as Vulkan compute programs:
-// their plain uniforms become one push-constant block, their samplers numbered bindings, and
-// a compute entry point stores to one or two storage images. Compiled to SPIR-V with shaderc
-// when the run starts.
+// the GL path's compute entry point (compute_main.glsl: 8x8 work groups storing to one or two
+// storage images at bindings 0 and 1), common.glsl and the stage, their plain uniforms moved
+// into one push-constant block and their samplers numbered from binding 2. Compiled to SPIR-V
+// with shaderc when the run starts.
 #pragma once
 
 #include <functional>
