@@ -158,12 +158,7 @@ StageTrace execute_gl_bevy(GlContext& ctx, const BloomParams& p, ConstImageView 
     throw ParamError("bloomref's GL shaders for Bevy's layout need --prefilter none or "
                      "soft-knee, --texel-step texture, --upsample-radius 0, --bloom-upscale tent, "
                      "--composite before-tonemap and --karis-form group-linear");
-  GLint max_size = 0;
-  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
-  if (scene.width > max_size || scene.height > max_size)
-    throw ParamError("a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +
-                     " scene does not fit this GL's textures (GL_MAX_TEXTURE_SIZE " +
-                     std::to_string(max_size) + ")");
+  host::require_fits(scene);
   return BevyHost(ctx, p, scene).run();
 }
 

@@ -13,16 +13,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-int policy_code(NonFinite n) {
-  switch (n) {
-    case NonFinite::zero: return 0;
-    case NonFinite::clamp: return 1;
-    case NonFinite::propagate: return 2;
-    case NonFinite::error: return 3;
-  }
-  return 0;
-}
-
 std::vector<std::string> defines_for(const BloomParams& p, GLenum format) {
   std::vector<std::string> d;
   d.push_back(std::string("STORAGE_FORMAT ") + (format == GL_RGBA16F ? "rgba16f" : "rgba32f"));
@@ -207,7 +197,7 @@ StagePrograms build_programs(GlContext& ctx, const BloomParams& p, const GlSched
 
   g.extract.set("raw", 0);
   g.extract.set("threshold", p.threshold);
-  g.extract.set("policy", policy_code(p.nonfinite));
+  g.extract.set("policy", nonfinite_code(p.nonfinite));
   const bool f16 = s.format == GL_RGBA16F;
   g.extract.set("storage_max", static_cast<float>(storage_max(f16 ? Storage::f16 : Storage::f32)));
   g.extract.set("range_guard", static_cast<float>(kRangeGuard));

@@ -180,12 +180,7 @@ StageTrace execute_gl_unity(GlContext& ctx, const BloomParams& p, ConstImageView
                      "--downsample gaussian, --upsample bilinear, --level-combine lerp, "
                      "--level-weights constant, --bloom-upscale bilinear, --composite-mode add, "
                      "--composite before-tonemap, --texel-step texture and no --karis");
-  GLint max_size = 0;
-  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
-  if (scene.width > max_size || scene.height > max_size)
-    throw ParamError("a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +
-                     " scene does not fit this GL's textures (GL_MAX_TEXTURE_SIZE " +
-                     std::to_string(max_size) + ")");
+  host::require_fits(scene);
   return UnityHost(ctx, p, scene).run();
 }
 

@@ -80,6 +80,15 @@ GLenum storage_format(Storage s) {
   return s == Storage::r11g11b10 ? GL_R11F_G11F_B10F : s == Storage::f16 ? GL_RGBA16F : GL_RGBA32F;
 }
 
+void require_fits(ConstImageView scene) {
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+  if (scene.width > max_size || scene.height > max_size)
+    throw ParamError("a " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +
+                     " scene does not fit this GL's textures (GL_MAX_TEXTURE_SIZE " +
+                     std::to_string(max_size) + ")");
+}
+
 void add_stage(StageTrace& trace, const std::string& name, const Texture& t, double ms) {
   Image img = Image::uninitialised(t.width, t.height);
   t.read(img.data());

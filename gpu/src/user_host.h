@@ -45,6 +45,9 @@ UserProgram own_program(const char* name, const char* file, const std::vector<Ho
 /// The GL format of a stage stored as `s` (RGBA32F, RGBA16F, R11F_G11F_B10F).
 GLenum storage_format(Storage s);
 
+/// Throws ParamError naming both sizes unless a `scene` fits this GL's textures.
+void require_fits(ConstImageView scene);
+
 /// Reads `t` back into `trace` as stage `name`, drawn in `ms`.
 void add_stage(StageTrace& trace, const std::string& name, const Texture& t, double ms);
 

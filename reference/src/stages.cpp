@@ -59,6 +59,16 @@ void gl_texture_rgb(ConstImageView img, float s, float t, int subtexel_bits, flo
 
 // ---- per-pixel stages --------------------------------------------------------------------
 
+int nonfinite_code(NonFinite n) {
+  switch (n) {
+    case NonFinite::zero: return 0;
+    case NonFinite::clamp: return 1;
+    case NonFinite::propagate: return 2;
+    case NonFinite::error: return 3;
+  }
+  return 0;
+}
+
 double storage_max(Storage s) {
   return s == Storage::f16 ? kHalfMax : s == Storage::r11g11b10 ? 65024.0 : kRangeGuard;
 }

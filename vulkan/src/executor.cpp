@@ -16,16 +16,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-int policy_code(NonFinite n) {
-  switch (n) {
-    case NonFinite::zero: return 0;
-    case NonFinite::clamp: return 1;
-    case NonFinite::propagate: return 2;
-    case NonFinite::error: return 3;
-  }
-  return 0;
-}
-
 class VulkanExecutor {
  public:
   VulkanExecutor(Context& ctx, const Plan& plan, ConstImageView scene, const SourceEdit& edit)
@@ -41,7 +31,7 @@ class VulkanExecutor {
     tonemap_ = std::make_unique<StageProgram>(ctx_, "tonemap.glsl", defs, edit);
     encode_ = std::make_unique<StageProgram>(ctx_, "encode_output.glsl", defs, edit);
     extract_->set("threshold", p_.threshold);
-    extract_->set_int("policy", policy_code(p_.nonfinite));
+    extract_->set_int("policy", nonfinite_code(p_.nonfinite));
     extract_->set("storage_max", float(storage_max(f16_ ? Storage::f16 : Storage::f32)));
     for (StageProgram* s : {extract_.get(), blur_.get(), composite_.get(), tonemap_.get(),
                             encode_.get()})

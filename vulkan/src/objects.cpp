@@ -3,6 +3,21 @@
 #include "vk_objects.h"
 
 namespace bloomref::vulkan {
+namespace {
+
+// Memory for requirements `req` with properties `props`.
+VkDeviceMemory allocate(Context::Impl& ctx, const VkMemoryRequirements& req,
+                        VkMemoryPropertyFlags props, const char* what) {
+  VkMemoryAllocateInfo a{};
+  a.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
+  a.allocationSize = req.size;
+  a.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, props);
+  VkDeviceMemory m = VK_NULL_HANDLE;
+  check(vkAllocateMemory(ctx.device, &a, nullptr, &m), what);
+  return m;
+}
+
+}  // namespace
 
 Buffer::Buffer(Context::Impl& ctx, VkDeviceSize size, VkBufferUsageFlags usage)
     : ctx_(ctx), size_(size) {
@@ -14,12 +29,9 @@ Buffer::Buffer(Context::Impl& ctx, VkDeviceSize size, VkBufferUsageFlags usage)
   check(vkCreateBuffer(ctx.device, &bci, nullptr, &buffer_), "vkCreateBuffer");
   VkMemoryRequirements req{};
   vkGetBufferMemoryRequirements(ctx.device, buffer_, &req);
-  VkMemoryAllocateInfo a{};
-  a.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
-  a.allocationSize = req.size;
-  a.memoryTypeIndex = ctx.memory_type(
-      req.memoryTypeBits, VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
-  check(vkAllocateMemory(ctx.device, &a, nullptr, &memory_), "vkAllocateMemory (buffer)");
+  memory_ = allocate(ctx, req,
+                     VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT,
+                     "vkAllocateMemory (buffer)");
   check(vkBindBufferMemory(ctx.device, buffer_, memory_, 0), "vkBindBufferMemory");
   check(vkMapMemory(ctx.device, memory_, 0, VK_WHOLE_SIZE, 0, &mapped_), "vkMapMemory");
 }
@@ -47,11 +59,7 @@ Image2D::Image2D(Context::Impl& ctx, int w, int h, VkFormat f, VkImageUsageFlags
   check(vkCreateImage(ctx.device, &ici, nullptr, &image_), "vkCreateImage");
   VkMemoryRequirements req{};
   vkGetImageMemoryRequirements(ctx.device, image_, &req);
-  VkMemoryAllocateInfo a{};
-  a.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
-  a.allocationSize = req.size;
-  a.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
-  check(vkAllocateMemory(ctx.device, &a, nullptr, &memory_), "vkAllocateMemory (image)");
+  memory_ = allocate(ctx, req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, "vkAllocateMemory (image)");
   check(vkBindImageMemory(ctx.device, image_, memory_, 0), "vkBindImageMemory");
   VkImageViewCreateInfo v{};
   v.sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO;

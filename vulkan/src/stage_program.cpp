@@ -11,14 +11,20 @@
 namespace bloomref::vulkan {
 namespace {
 
+struct Member {
+  std::string type, name;
+  std::uint32_t offset = 0;  // in the push-constant block (set by parse)
+};
+
 struct Parsed {
   std::string text;
   std::vector<std::string> samplers;
-  std::vector<std::pair<std::string, std::string>> members;  // type, name
+  std::vector<Member> members;
+  std::uint32_t push_bytes = 0;
 };
 
-// Moves `uniform TYPE NAME;` lines out of `src`: samplers get bindings from `first_binding` on,
-// the others are collected for the push-constant block.
+// Moves `uniform TYPE NAME;` lines out of `src`: samplers get bindings from 2 on (0 and 1 are
+// the storage images), the others are collected for the push-constant block.
 void take_uniforms(const std::string& src, Parsed& out) {
   static const std::regex sampler(R"(^\s*uniform\s+sampler2D\s+(\w+)\s*;)");
   static const std::regex plain(R"(^\s*uniform\s+(float|int|bool|ivec2|vec2)\s+(\w+)\s*;)");
@@ -31,7 +37,7 @@ void take_uniforms(const std::string& src, Parsed& out) {
                   ") uniform sampler2D " + m[1].str() + ";\n";
       out.samplers.push_back(m[1]);
     } else if (std::regex_search(line, m, plain)) {
-      out.members.emplace_back(m[1], m[2]);
+      out.members.push_back({m[1], m[2]});
     } else {
       out.text += line + "\n";
     }
@@ -42,26 +48,22 @@ using Edit = std::function<std::string(const std::string&, std::string)>;
 
 Parsed parse(const std::string& file, const std::vector<std::string>& defines, const Edit& edit) {
   const auto& src = vulkan_shader_sources();
-  Parsed p;
-  Parsed body;  // the compute entry point (its u_origin a push constant), common, the stage
-  take_uniforms(src.at("compute_main.glsl"), body);
-  take_uniforms(src.at("common.glsl"), body);
-  take_uniforms(edit ? edit(file, src.at(file)) : src.at(file), body);
-  p.samplers = body.samplers;
-  for (auto& m : body.members) p.members.push_back(m);
+  Parsed p;  // the compute entry point (its u_origin a push constant), common, the stage
+  take_uniforms(src.at("compute_main.glsl"), p);
+  take_uniforms(src.at("common.glsl"), p);
+  take_uniforms(edit ? edit(file, src.at(file)) : src.at(file), p);
   std::string head = "#version 450\n";
   for (const std::string& d : defines) head += "#define " + d + "\n";
   // Push constants in declaration order, each at its std430 offset (ivec2 and vec2 on 8).
   std::string block = "layout(push_constant) uniform StageConstants {\n";
-  std::uint32_t offset = 0;
-  for (const auto& [type, name] : p.members) {
-    const std::uint32_t size = type == "ivec2" || type == "vec2" ? 8 : 4;
-    offset = (offset + size - 1) / size * size;
-    block += "  layout(offset = " + std::to_string(offset) + ") " + type + " " + name + ";\n";
-    offset += size;
+  for (Member& m : p.members) {
+    const std::uint32_t size = m.type == "ivec2" || m.type == "vec2" ? 8 : 4;
+    m.offset = (p.push_bytes + size - 1) / size * size;
+    block += "  layout(offset = " + std::to_string(m.offset) + ") " + m.type + " " + m.name + ";\n";
+    p.push_bytes = m.offset + size;
   }
   block += "};\n";
-  p.text = head + block + body.text;
+  p.text = head + block + p.text;
   return p;
 }
 
@@ -77,14 +79,8 @@ StageProgram::StageProgram(Context::Impl& ctx, const std::string& file,
     : ctx_(ctx), file_(file) {
   const Parsed p = parse(file, defines, edit);
   samplers_ = p.samplers;
-  std::uint32_t offset = 0;
-  for (const auto& [type, name] : p.members) {
-    const std::uint32_t size = type == "ivec2" || type == "vec2" ? 8 : 4;
-    offset = (offset + size - 1) / size * size;
-    members_.push_back({name, type, offset});
-    offset += size;
-  }
-  push_.assign(offset, 0);
+  for (const auto& m : p.members) members_.push_back({m.name, m.type, m.offset});
+  push_.assign(p.push_bytes, 0);
   shaderc::Compiler compiler;
   shaderc::CompileOptions options;
   options.SetTargetEnvironment(shaderc_target_env_vulkan, shaderc_env_version_vulkan_1_1);

@@ -58,6 +58,9 @@ inline T luminance(T r, T g, T b) {
 /// The largest value a stage stores: 65504 for f16, kRangeGuard (2^120) for f32; what
 /// `clamp` maps +Inf to.
 double storage_max(Storage s);
+/// The non-finite policy as the stage shaders' sanitize_value takes it (gpu/shaders/common.glsl):
+/// 0 zero, 1 clamp, 2 propagate, 3 error.
+int nonfinite_code(NonFinite n);
 
 /// One value under a non-finite policy. `error` leaves the value alone (the plan refuses the
 /// image before any stage runs).
