@@ -20,6 +20,7 @@
 #include "bloomref/memory_budget.h"
 #include "bloomref/output_files.h"
 #include "bloomref/parity/compare.h"
+#include "bloomref/pixel_memory.h"
 #include "check/command.h"
 #include "check/manifest.h"
 #include "check/output.h"
@@ -492,6 +493,11 @@ CheckRun check_cmd(CheckArgs& a) {
   // here, 2.6 GB resident for 0.8 GB allocated at once. Mapping every block from 1 MiB gives
   // each back when freed.
   mallopt(M_MMAP_THRESHOLD, 1 << 20);
+  // Those of the images' sizes, each written whole, are kept when freed for the next image of
+  // their size, and faulted in at once when new: the page faults were a third of check's time
+  // (docs/design.md, "check keeps its images' memory"). A quarter of the memory limit at most.
+  const PixelPolicyScope pixels(
+      {std::min<std::size_t>(PixelPolicy::kMostKept, a.pipeline.memory_budget() / 4), true});
   if (a.artifacts != "fail" && a.artifacts != "all" && a.artifacts != "none")
     throw ParamError("--artifacts '" + a.artifacts + "' is not one of: fail, all, none");
   if (int(!a.stages_dir.empty()) + int(!a.manifest.empty()) + int(a.shaders.any()) +

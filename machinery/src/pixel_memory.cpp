@@ -35,18 +35,20 @@ void advise_huge(void* p, std::size_t bytes) noexcept {
 }
 }  // namespace
 
-// Freed buffers of at least 16 MiB, up to 96 MiB in all, are kept for the next buffer of the
-// same size: malloc maps blocks that large afresh and hands them back when freed, so every new
-// image of a size seen before faulted its pages in again. docs/design.md, "Large image buffers
-// are kept for the next image of their size".
+// Freed buffers of at least 16 MiB, up to PixelPolicy::keep_bytes in all, are kept for the next
+// buffer of the same size: malloc maps blocks that large afresh and hands them back when freed,
+// so every new image of a size seen before faulted its pages in again. docs/design.md, "Large
+// image buffers are kept for the next image of their size".
 namespace {
-constexpr std::size_t kMinKept = std::size_t(16) << 20, kKeptBytes = std::size_t(96) << 20;
+constexpr std::size_t kMinKept = std::size_t(16) << 20;
 struct Kept {
   void* p = nullptr;
   std::size_t bytes = 0;
 };
 std::mutex kept_mutex;
-std::array<Kept, 6> kept;  // kKeptBytes / kMinKept
+std::array<Kept, 64> kept;  // PixelPolicy::kMostKept / kMinKept
+std::atomic<std::size_t> keep_bytes{PixelPolicy{}.keep_bytes};
+std::atomic<bool> prefault_new{false};
 }  // namespace
 
 void* allocate_pixels(std::size_t bytes) {
@@ -57,13 +59,38 @@ void* allocate_pixels(std::size_t bytes) {
   }
   void* p = ::operator new(bytes, kAlign);
   if (bytes >= kMinHugeAdvised && huge_pages.load(std::memory_order_relaxed)) advise_huge(p, bytes);
+  if (bytes >= kMinKept && prefault_new.load(std::memory_order_relaxed)) prefault(p, bytes);
   return p;
+}
+
+PixelPolicy pixel_policy() noexcept {
+  return {keep_bytes.load(std::memory_order_relaxed), prefault_new.load(std::memory_order_relaxed)};
+}
+
+PixelPolicy set_pixel_policy(const PixelPolicy& policy) noexcept {
+  const PixelPolicy old = pixel_policy();
+  const std::size_t most = std::min(policy.keep_bytes, PixelPolicy::kMostKept);
+  keep_bytes.store(most, std::memory_order_relaxed);
+  prefault_new.store(policy.prefault_new, std::memory_order_relaxed);
+  // What is kept beyond the new limit is handed back, the largest first.
+  const std::lock_guard<std::mutex> lock(kept_mutex);
+  std::size_t held = 0;
+  for (const Kept& k : kept) held += k.p ? k.bytes : 0;
+  while (held > most) {
+    Kept* largest = nullptr;
+    for (Kept& k : kept)
+      if (k.p && (!largest || k.bytes > largest->bytes)) largest = &k;
+    held -= largest->bytes;
+    ::operator delete(std::exchange(largest->p, nullptr), kAlign);
+  }
+  return old;
 }
 
 void advise_huge_pages(bool on) noexcept { huge_pages.store(on, std::memory_order_relaxed); }
 
 void free_pixels(void* p, std::size_t bytes) noexcept {
-  if (p && bytes >= kMinKept && bytes <= kKeptBytes) {
+  const std::size_t most = keep_bytes.load(std::memory_order_relaxed);
+  if (p && bytes >= kMinKept && bytes <= most) {
     const std::lock_guard<std::mutex> lock(kept_mutex);
     std::size_t held = 0;
     Kept* slot = nullptr;
@@ -71,7 +98,7 @@ void free_pixels(void* p, std::size_t bytes) noexcept {
       if (k.p) held += k.bytes;
       else if (!slot) slot = &k;
     }
-    if (slot && held + bytes <= kKeptBytes) {
+    if (slot && held + bytes <= most) {
       *slot = {p, bytes};
       return;
     }

@@ -459,8 +459,8 @@ Comparison::Envelope Comparison::carried_range(const std::string& n) const {
     float *l = r.lo.pixel(0, y), *h = r.hi.pixel(0, y);
     for (std::size_t i = 0; i < std::size_t(v.width) * kChannels; ++i) {
       const bool alpha = i % kChannels == 3;
-      l[i] = alpha ? a[i] : std::nextafter(a[i] - b[i], -INFINITY);
-      h[i] = alpha ? a[i] : std::nextafter(a[i] + b[i], INFINITY);
+      l[i] = alpha ? a[i] : next_down(a[i] - b[i]);
+      h[i] = alpha ? a[i] : next_up(a[i] + b[i]);
     }
   }
   return r;
@@ -499,14 +499,15 @@ void Comparison::make_envelope(const StageSpec& spec) {
   const int w = env.hi.width();
   over_bands(env.hi.height(), judge_band(0), threads_, [&](int y0, int y1, int) {
     const std::size_t values = std::size_t(y1 - y0) * w * kChannels;
-    std::vector<float> up(values), down(values), up_lo(values), down_lo(values);
-    dh.rows(y0, y1, up.data(), down.data());
-    dl.rows(y0, y1, up_lo.data(), down_lo.data());
+    float* const up = BandScratch::rows(band_scratch().envelope, 4 * values);
+    float *const down = up + values, *const up_lo = down + values, *const down_lo = up_lo + values;
+    dh.rows(y0, y1, up, down);
+    dl.rows(y0, y1, up_lo, down_lo);
     float *H = env.hi.pixel(0, y0), *L = env.lo.pixel(0, y0);
     for (std::size_t i = 0; i < values; ++i) up[i] += H[i], down_lo[i] = L[i] - down_lo[i];
-    widen(nullptr, up.data(), down_lo.data(), values);
-    std::copy(up.begin(), up.end(), H);
-    std::copy(down_lo.begin(), down_lo.end(), L);
+    widen(nullptr, up, down_lo, values);
+    std::copy(up, up + values, H);
+    std::copy(down_lo, down_lo + values, L);
   });
   if (prev != envelope_.end()) envelope_.erase(prev);
   env_ = std::move(env);
@@ -608,8 +609,8 @@ void Comparison::make_finish_envelope(const StageSpec& spec) {
             margin_bottom = bottom * rel(tl) + std::pow(0x1p-126, y_exp);
           }
           const double t = top + margin_top + floor, b = bottom - margin_bottom - floor;
-          H[c] = std::nextafter(static_cast<float>(t + storage_term(t, st, profile_, c)), INFINITY);
-          L[c] = std::nextafter(static_cast<float>(b - storage_term(b, st, profile_, c)), -INFINITY);
+          H[c] = next_up(static_cast<float>(t + storage_term(t, st, profile_, c)));
+          L[c] = next_down(static_cast<float>(b - storage_term(b, st, profile_, c)));
         }
       }
   });
@@ -624,15 +625,29 @@ void Comparison::make_finish_envelope(const StageSpec& spec) {
 void Comparison::widen(const float* base, float* H, float* L, std::size_t values) const {
   const Storage st = storage_at(*spec_);
   const double arithmetic = 32 * profile_.unit_roundoff, floor = denormal_floor(profile_);
+  if (st == Storage::f32) {  // no storage term (storage_term): loops that vectorise
+    const auto ends = [&](auto with_base) {
+      for (std::size_t i = 0; i < values; i += kChannels)
+        for (std::size_t c = 0; c < 3; ++c) {
+          double a = H[i + c], b = L[i + c];
+          if constexpr (decltype(with_base)::value) a = base[i + c] + a, b = base[i + c] - b;
+          H[i + c] = next_up(static_cast<float>(a + std::fabs(a) * arithmetic + floor));
+          L[i + c] = next_down(static_cast<float>(b - std::fabs(b) * arithmetic - floor));
+        }
+    };
+    if (base) ends(std::true_type{});
+    else ends(std::false_type{});
+    return;
+  }
   for (std::size_t i = 0; i < values; ++i) {
     const int c = static_cast<int>(i % kChannels);
     if (c == 3) continue;
     const double a = base ? double(base[i]) + H[i] : double(H[i]);
     const double b = base ? double(base[i]) - L[i] : double(L[i]);
-    H[i] = std::nextafter(static_cast<float>(a + std::fabs(a) * arithmetic + floor +
-                                             storage_term(a, st, profile_, c)), INFINITY);
-    L[i] = std::nextafter(static_cast<float>(b - std::fabs(b) * arithmetic - floor -
-                                             storage_term(b, st, profile_, c)), -INFINITY);
+    H[i] = next_up(static_cast<float>(a + std::fabs(a) * arithmetic + floor +
+                                      storage_term(a, st, profile_, c)));
+    L[i] = next_down(static_cast<float>(b - std::fabs(b) * arithmetic - floor -
+                                        storage_term(b, st, profile_, c)));
   }
 }
 
@@ -659,10 +674,10 @@ void Comparison::narrow_to_envelope(const Image& oracle, ConstImageView cap, Ima
   const int w = oracle.width();
   over_bands(oracle.height(), judge_band(0), threads_, [&](int y0, int y1, int) {
     const std::size_t n = std::size_t(y1 - y0) * w * kChannels;
-    std::vector<float> rows(2 * n);
+    float* const rows = BandScratch::rows(band_scratch().envelope, 2 * n);
     float *up = nullptr, *down = nullptr;
     if (env_.empty()) deviation_band(y0, y1, up, down);
-    envelope_rows(y0, y1, oracle.cview().row(y0), up, down, rows.data(), rows.data() + n);
+    envelope_rows(y0, y1, oracle.cview().row(y0), up, down, rows, rows + n);
     const float *o = oracle.cview().row(y0), *g = cap.row(y0);
     float* b = bound.pixel(0, y0);
     for (std::size_t i = 0; i < n; ++i) {
@@ -682,11 +697,11 @@ void Comparison::envelope_band(int y0, int y1, ConstImageView cap, const float* 
                                EnergySums& es) const {
   const int w = stage_width_, tiles = (w + kTile - 1) / kTile;
   const std::size_t values = std::size_t(y1 - y0) * w * kChannels;
-  std::vector<float> rows(2 * values);
-  envelope_rows(y0, y1, oracle, up, down, rows.data(), rows.data() + values);
+  float* const rows = BandScratch::rows(band_scratch().envelope, 2 * values);
+  envelope_rows(y0, y1, oracle, up, down, rows, rows + values);
   for (int y = y0; y < y1; ++y) {
     const std::size_t at0 = std::size_t(y - y0) * w * kChannels;
-    const float *H = rows.data() + at0, *L = rows.data() + values + at0, *g = cap.row(y);
+    const float *H = rows + at0, *L = rows + values + at0, *g = cap.row(y);
     for (int t = 0; t < tiles; ++t) {
       EnergySums::Sum te{}, tu{}, td{};
       for (int x = t * kTile; x < std::min(w, (t + 1) * kTile); ++x)
@@ -1028,63 +1043,87 @@ void Comparison::energy_band(int y0, int y1, bool gl, const float* oracle,
   const int tiles = (width + kTile - 1) / kTile;
   const ConstImageView cap = gl ? capture(name_).image : ConstImageView{};
   const float limit = p_.storage == Storage::f16 ? 65504.0f : FLT_MAX;
-  // Sums in lanes R, G, B, A (A dropped at the end), texel by texel: loops that vectorise.
+  // Sums in lanes R, G, B, A (A dropped at the end), texel by texel: loops that vectorise. Each
+  // keeps four partial sums, texels 4k, 4k+1, 4k+2, 4k+3 in their own, added together at the
+  // end: one running sum would wait for each add before the next.
   using Lanes = std::array<double, 4>;
-  auto add = [](Lanes& a, const float* v, std::size_t n) {
-    for (std::size_t i = 0; i < n; i += kChannels)
-      for (std::size_t c = 0; c < 4; ++c) a[c] += v[i + c];
+  auto sum = [](Lanes& a, std::size_t n, auto value) {
+    std::array<Lanes, 4> part{};
+    std::size_t i = 0;
+    for (; i + 4 * kChannels <= n; i += 4 * kChannels)
+      for (std::size_t k = 0; k < 4; ++k)
+        for (std::size_t c = 0; c < 4; ++c) part[k][c] += value(i + k * kChannels + c);
+    for (; i < n; i += kChannels)
+      for (std::size_t c = 0; c < 4; ++c) part[0][c] += value(i + c);
+    for (std::size_t c = 0; c < 4; ++c) a[c] += (part[0][c] + part[1][c]) + (part[2][c] + part[3][c]);
   };
-  auto add_diff = [](Lanes& a, const float* v, const float* w, std::size_t n) {
-    for (std::size_t i = 0; i < n; i += kChannels)
-      for (std::size_t c = 0; c < 4; ++c) a[c] += double(v[i + c]) - double(w[i + c]);
+  auto add = [&sum](Lanes& a, const float* v, std::size_t n) {
+    sum(a, n, [v](std::size_t i) { return double(v[i]); });
   };
-  auto add_max = [](Lanes& a, const float* v, const float* w, std::size_t n) {
-    for (std::size_t i = 0; i < n; i += kChannels)
-      for (std::size_t c = 0; c < 4; ++c) a[c] += std::max(v[i + c], w[i + c]);
+  auto add_diff = [&sum](Lanes& a, const float* v, const float* w, std::size_t n) {
+    sum(a, n, [v, w](std::size_t i) { return double(v[i]) - double(w[i]); });
+  };
+  auto add_max = [&sum](Lanes& a, const float* v, const float* w, std::size_t n) {
+    sum(a, n, [v, w](std::size_t i) { return double(std::max(v[i], w[i])); });
   };
   Lanes se{}, sr{}, su{}, sd{}, sm{}, sb{}, si{}, err{}, orc{}, l1{}, err2{}, full2{};
   // Per tile of the band: its total error, the sum of its bounds, its signed budgets.
   const std::size_t n_tiles = static_cast<std::size_t>(tiles);
   thread_local std::vector<Lanes> te, tb, tl, tu, td;
   for (std::vector<Lanes>* v : {&te, &tb, &tl, &tu, &td}) v->assign(n_tiles, Lanes{});
+  auto plus = [](Lanes& a, const Lanes& b) {
+    for (std::size_t c = 0; c < 4; ++c) a[c] += b[c];
+  };
+  // What every value adds, judged or not: a tile's sums, each added to the band's.
+  auto every_value = [&](std::size_t i0, std::size_t n, Lanes& r, Lanes& i, Lanes& u, Lanes& d,
+                         Lanes& b) {
+    Lanes et{}, mt{};
+    add(et, e + i0, n);
+    add(r, rounding + i0, n);
+    add(b, bound + i0, n);
+    if (inherited) add(i, inherited + i0, n);
+    if (up) {
+      add(u, up + i0, n);
+      add(d, down + i0, n);
+      add_max(mt, up + i0, down + i0, n);
+    }
+    plus(se, et), plus(sr, r), plus(sb, b), plus(si, i), plus(su, u), plus(sd, d), plus(sm, mt);
+  };
   for (int y = y0; y < y1; ++y) {
     const std::size_t at0 = std::size_t(y - y0) * row;
-    // What every value adds, judged or not.
-    add(se, e + at0, row);
-    add(sr, rounding + at0, row);
-    add(sb, bound + at0, row);
-    if (inherited) add(si, inherited + at0, row);
-    if (up) {
-      add(su, up + at0, row);
-      add(sd, down + at0, row);
-      add_max(sm, up + at0, down + at0, row);
+    if (!gl) {
+      Lanes r{}, i{}, u{}, d{}, b{};
+      every_value(at0, row, r, i, u, d, b);
+      continue;
     }
-    if (!gl) continue;
     const float* g = cap.row(y);
     for (std::size_t t = 0; t < n_tiles; ++t) {
       const std::size_t x0 = t * kTile, x1 = std::min<std::size_t>(width, x0 + kTile);
       const std::size_t i0 = at0 + x0 * kChannels, n = (x1 - x0) * kChannels;
       const float *gv = g + x0 * kChannels, *ov = oracle + i0, *fv = full + i0, *bv = bound + i0,
                   *ev = e + i0;
+      Lanes rt{}, it{}, ut{}, dt{}, bt{};
+      every_value(i0, n, rt, it, ut, dt, bt);
       // A run whose values are all finite, within range, with finite bounds (the usual case)
       // is judged whole; otherwise value by value, as judge_row judges them.
-      bool plain = true;
+      // (Bitwise |, no branch: a loop that vectorises.)
+      int odd = 0;
       for (std::size_t i = 0; i < n; i += kChannels)
         for (std::size_t c = 0; c < 3; ++c)
-          plain &= std::fabs(gv[i + c]) <= limit && std::fabs(ov[i + c]) <= limit &&
-                   std::fabs(fv[i + c]) <= limit && bv[i + c] <= FLT_MAX && ev[i + c] <= FLT_MAX;
+          odd |= !(std::fabs(gv[i + c]) <= limit) | !(std::fabs(ov[i + c]) <= limit) |
+                 !(std::fabs(fv[i + c]) <= limit) | !(bv[i + c] <= FLT_MAX) | !(ev[i + c] <= FLT_MAX);
+      const bool plain = odd == 0;
       // The tile's budgets take every value (a larger budget is still a bound).
-      add(tl[t], rounding + i0, n);
-      if (inherited) add(tl[t], inherited + i0, n);
-      if (up) add(tu[t], up + i0, n), add(td[t], down + i0, n);
+      plus(tl[t], rt), plus(tl[t], it);
+      if (up) plus(tu[t], ut), plus(td[t], dt);
       if (plain) {
-        add_diff(err, gv, ov, n);
+        Lanes diff{};
+        add_diff(diff, gv, ov, n);
+        plus(err, diff), plus(te[t], diff);
         add(orc, ov, n);
-        add(l1, bv, n);
+        plus(l1, bt), plus(tb[t], bt);
         add_diff(err2, gv, fv, n);
         add(full2, fv, n);
-        add_diff(te[t], gv, ov, n);
-        add(tb[t], bv, n);
         continue;
       }
       for (std::size_t i = 0; i < n; ++i) {

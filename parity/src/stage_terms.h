@@ -4,7 +4,11 @@
 #pragma once
 
 #include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -43,9 +47,26 @@ struct StageTerms {
   BandRows inherited, end_to_end;
 };
 
+// The float after x toward +infinity (next_up) or -infinity (next_down): std::nextafter's value
+// (NaN and the infinity it moves toward unchanged; either zero to the smallest denormal of that
+// direction), inline: the envelopes round every value of a band outward with it.
+inline float next_up(float x) {
+  std::uint32_t b;
+  std::memcpy(&b, &x, sizeof b);
+  // Away from zero above it, toward zero below it; either zero to the smallest denormal. As
+  // selects, not branches: loops over rows vectorise.
+  std::uint32_t u = b < 0x80000000u ? b + 1 : b - 1;
+  u = (b & 0x7fffffffu) == 0 ? 1u : u;
+  float r;
+  std::memcpy(&r, &u, sizeof r);
+  return x < INFINITY ? r : x;
+}
+inline float next_down(float x) { return -next_up(-x); }
+
 // Scratch rows of a band, per thread (reused band after band).
 struct BandScratch {
   std::vector<float> bound, rounding, inherited, e2e, judged, codes, codes_e2e, oracle_e2e, kept;
+  std::vector<float> envelope;  // a blur pass's envelope rows (high, then low)
   std::vector<float> read[2];  // end-to-end bounds of the inputs made again (BoundRows)
   static float* rows(std::vector<float>& v, std::size_t n) {
     if (v.size() < n) v.resize(n);

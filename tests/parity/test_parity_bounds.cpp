@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -437,4 +439,32 @@ TEST_CASE("an end-to-end bound carried through gamma covers the image of its int
   CHECK(loose == 0);
   CHECK(std::isinf(tol::through_output(NAN, 1.0, 2.2)));
   CHECK(std::isinf(tol::through_output(1.0, INFINITY, 2.2)));
+}
+
+TEST_CASE("next_up and next_down step as std::nextafter does", "[parity]") {
+  using bloomref::parity::detail::next_down;
+  using bloomref::parity::detail::next_up;
+  const float inf = std::numeric_limits<float>::infinity();
+  std::vector<float> values{0.0f, -0.0f, 1.0f, -1.0f, 3.5e-42f, -3.5e-42f, 0x1p-126f, -0x1p-126f,
+                            std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
+                            std::numeric_limits<float>::denorm_min(), -std::numeric_limits<float>::denorm_min(),
+                            inf, -inf, 65504.0f, 0.1f};
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<std::uint32_t> bits;
+  for (int i = 0; i < 10000; ++i) {
+    const std::uint32_t b = bits(rng);
+    float v;
+    std::memcpy(&v, &b, sizeof v);
+    if (!std::isnan(v)) values.push_back(v);
+  }
+  for (float v : values) {
+    INFO(v);
+    const float up = std::nextafter(v, inf), down = std::nextafter(v, -inf);
+    CHECK(next_up(v) == up);
+    CHECK(std::signbit(next_up(v)) == std::signbit(up));
+    CHECK(next_down(v) == down);
+    CHECK(std::signbit(next_down(v)) == std::signbit(down));
+  }
+  CHECK(std::isnan(next_up(std::nanf(""))));
+  CHECK(std::isnan(next_down(std::nanf(""))));
 }

@@ -18,6 +18,32 @@ void prefault(void* p, std::size_t bytes) noexcept;
 /// zero, and a page is only materialised when written); resident pages and the partial pages at
 /// the ends are written. Falls back to memset where mincore or madvise refuses.
 void zero_lazily(void* p, std::size_t bytes) noexcept;
+/// How the process treats buffers of at least 16 MiB (process-wide; set_pixel_policy).
+struct PixelPolicy {
+  static constexpr std::size_t kMostKept = std::size_t(1) << 30;
+  /// Freed buffers kept for the next buffer of their size, in bytes in all (at most kMostKept):
+  /// a buffer taken again costs no page faults.
+  std::size_t keep_bytes = std::size_t(96) << 20;
+  /// New buffers faulted in whole when allocated (prefault): one call in place of a fault per
+  /// page, for a process whose buffers are written whole (check's oracles, bounds, decoded stages).
+  bool prefault_new = false;
+};
+PixelPolicy pixel_policy() noexcept;
+/// Sets the policy, handing back kept buffers beyond its keep_bytes; returns the one before.
+PixelPolicy set_pixel_policy(const PixelPolicy& policy) noexcept;
+
+/// A policy for the lifetime of this object; the one before restored after it.
+class PixelPolicyScope {
+ public:
+  explicit PixelPolicyScope(const PixelPolicy& policy) : before_(set_pixel_policy(policy)) {}
+  ~PixelPolicyScope() { set_pixel_policy(before_); }
+  PixelPolicyScope(const PixelPolicyScope&) = delete;
+  PixelPolicyScope& operator=(const PixelPolicyScope&) = delete;
+
+ private:
+  PixelPolicy before_;
+};
+
 /// From this call on (with `on`), every new buffer of at least 4 MiB has its whole 2 MiB pages
 /// advised for transparent huge pages (madvise MADV_HUGEPAGE, before anything is written), as
 /// numpy advises its own arrays of that size. For a process that runs many images of one size
