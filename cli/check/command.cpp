@@ -493,9 +493,9 @@ CheckRun check_cmd(CheckArgs& a) {
   // here, 2.6 GB resident for 0.8 GB allocated at once. Mapping every block from 1 MiB gives
   // each back when freed.
   mallopt(M_MMAP_THRESHOLD, 1 << 20);
-  // Those of the images' sizes, each written whole, are kept when freed for the next image of
-  // their size, and faulted in at once when new: the page faults were a third of check's time
-  // (docs/design.md, "check keeps its images' memory"). A quarter of the memory limit at most.
+  // Image buffers, each written whole, are kept when freed for the next image of their size,
+  // and faulted in at once when new (docs/design.md, "check keeps its images' memory"); a
+  // quarter of the memory limit at most.
   const PixelPolicyScope pixels(
       {std::min<std::size_t>(PixelPolicy::kMostKept, a.pipeline.memory_budget() / 4), true});
   if (a.artifacts != "fail" && a.artifacts != "all" && a.artifacts != "none")

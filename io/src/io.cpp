@@ -113,8 +113,10 @@ void save_exr(const std::string& path, ConstImageView img, const ImageInfo* wind
 ExrCompression parse_exr_compression(const std::string& name, const std::string& option) {
   if (name == "piz") return ExrCompression::piz;
   if (name == "zip") return ExrCompression::zip;
+  if (name == "zips") return ExrCompression::zips;
+  if (name == "rle") return ExrCompression::rle;
   if (name == "none") return ExrCompression::none;
-  throw ParamError(option + " '" + name + "' is not one of: zip, piz, none");
+  throw ParamError(option + " '" + name + "' is not one of: none, rle, zips, zip, piz");
 }
 
 void save_png(const std::string& path, ConstImageView img) {

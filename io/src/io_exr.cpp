@@ -484,9 +484,11 @@ void write_exr_stream(std::FILE* f, const std::string& name, ConstImageView img,
                                                               : header.dataWindow();
   }
   // Every choice lossless; the figures behind each are in docs/design.md, "EXR compression".
-  header.compression() = compression == ExrCompression::piz   ? Imf::PIZ_COMPRESSION
-                         : compression == ExrCompression::zip ? Imf::ZIP_COMPRESSION
-                                                              : Imf::NO_COMPRESSION;
+  header.compression() = compression == ExrCompression::piz    ? Imf::PIZ_COMPRESSION
+                         : compression == ExrCompression::zip  ? Imf::ZIP_COMPRESSION
+                         : compression == ExrCompression::zips ? Imf::ZIPS_COMPRESSION
+                         : compression == ExrCompression::rle  ? Imf::RLE_COMPRESSION
+                                                               : Imf::NO_COMPRESSION;
   for (const char* c : {"R", "G", "B", "A"}) header.channels().insert(c, Imf::Channel(Imf::FLOAT));
   const Imath::Box2i dw = header.dataWindow();
   // OpenEXR takes non-const pointers for writing too; it only reads through them.

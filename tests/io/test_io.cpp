@@ -438,6 +438,22 @@ TEST_CASE("save_exr / load_image round trip is exact and keeps the windows", "[i
   CHECK(back.info.display_window.x1 == 19);
   CHECK(back.info.display_window.y1 == 9);
 
+  SECTION("every compression save_exr offers keeps the bits, and is the one the file names") {
+    const std::pair<const char*, const char*> kinds[] = {
+        {"none", "none"}, {"rle", "rle"}, {"zips", "zips"}, {"zip", "zip"}, {"piz", "piz"}};
+    for (const auto& [option, oiio_name] : kinds) {
+      INFO(option);
+      save_exr(path, img.cview(), &windows, parse_exr_compression(option, "--dump-compression"));
+      auto in = OIIO::ImageInput::open(path);
+      REQUIRE(in);
+      CHECK(in->spec().get_string_attribute("compression") == oiio_name);
+      in->close();
+      const LoadedImage b = load_image(path);
+      CHECK(std::memcmp(b.image.data(), img.data(), sizeof(values)) == 0);
+    }
+    CHECK_THROWS_WITH(parse_exr_compression("b44", "--dump-compression"),
+                      Catch::Contains("--dump-compression 'b44'") && Catch::Contains("none, rle, zips, zip, piz"));
+  }
   SECTION("NaN survives too") {
     Image nan_img(1, 1, kNaN);
     save_exr(path, nan_img.cview());

@@ -87,10 +87,10 @@ void check_size(const std::string& path, long long width, long long height,
 void save_image(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr);
 
 /// How a float EXR is compressed, all lossless (docs/design.md, "EXR compression"): PIZ for
-/// outputs (smallest, fastest to write), ZIP for stage images read back by check (OpenEXRCore
-/// decodes it on every thread), none where size does not matter and reading must be fastest.
-enum class ExrCompression { piz, zip, none };
-/// "piz", "zip" or "none"; ParamError naming `option` otherwise.
+/// outputs (smallest, fastest to write); for stage images read back by check, none (fastest to
+/// write and to read), RLE, ZIPS or ZIP (smaller, slower to read).
+enum class ExrCompression { piz, zip, zips, rle, none };
+/// "piz", "zip", "zips", "rle" or "none"; ParamError naming `option` otherwise.
 ExrCompression parse_exr_compression(const std::string& name, const std::string& option);
 
 void save_exr(const std::string& path, ConstImageView img, const ImageInfo* windows = nullptr,
