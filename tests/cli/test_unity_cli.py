@@ -139,3 +139,51 @@ def test_a_stronger_bloom_never_passes_with_only_the_composite(tmp_path):
     assert judged(tmp_path, strong, ["composite"], "c")["verdict"] == "FAIL"
     item = judged(tmp_path, strong, ["up.1", "composite"], "uc")
     assert item["verdict"] == "FAIL" and first_cause(item)[:2] == ("composite", "bloom-scaled")
+
+
+@pytest.mark.skipif(not CORPUS, reason="BLOOMREF_CORPUS not set")
+def test_a_sign_kept_where_r11g11b10_has_none_fails(tmp_path):
+    """WideColorGamut's first level has negative values, which R11G11B10 (no sign) stores as 0:
+    the bound allows a device anything between 2v and 0 there. A device that stored |v| (the
+    sign dropped by abs, not clamped) must fail at down.1; the clean capture passes."""
+    import numpy as np
+    import OpenImageIO as oiio
+
+    scene = os.path.join(CORPUS, "WideColorGamut.exr")
+
+    def dumped(name, *options):
+        d = tmp_path / name
+        code, _, err = run(["run", scene, "--preset", "unity-urp", "-q", "-o",
+                            str(tmp_path / (name + ".exr")), "--dump-stages", str(d), *options],
+                           tmp_path, timeout=600)
+        assert code == 0, err
+        return d
+
+    def read(path):
+        return oiio.ImageBuf(str(path)).get_pixels(oiio.FLOAT)
+
+    def judge(name, down1):
+        sub = tmp_path / name
+        sub.mkdir()
+        (sub / "input.exr").write_bytes((stored / "input.exr").read_bytes())
+        spec = oiio.ImageSpec(down1.shape[1], down1.shape[0], 4, oiio.FLOAT)
+        spec.channelnames = ("R", "G", "B", "A")
+        out = oiio.ImageBuf(spec)
+        out.set_pixels(oiio.ROI(), np.ascontiguousarray(down1, dtype=np.float32))
+        assert out.write(str(sub / "down.1.exr"))
+        code, _, err = run(["check", scene, "--preset", "unity-urp", "--stages", str(sub),
+                            "--json", str(sub / "r.json"), "-q"], tmp_path, timeout=600)
+        assert code in (0, 1), err
+        return json.loads((sub / "r.json").read_text())["items"][0]
+
+    stored = dumped("stored")
+    signed = read(dumped("signed", "--chain-storage", "f32") / "down.1.exr")
+    clean = read(stored / "down.1.exr")
+    negative = signed[..., :3] < 0
+    assert negative.sum() > 100  # the case exists: enough negative values to see
+    assert (clean[..., :3][negative] == 0).all()  # the CPU stores them as the format does
+    assert judge("clean", clean)["verdict"] == "PASS"
+    planted = clean.copy()
+    planted[..., :3][negative] = np.abs(signed[..., :3][negative])
+    item = judge("abs", planted)
+    assert item["verdict"] == "FAIL" and item["first_divergent_stage"] == "down.1"
