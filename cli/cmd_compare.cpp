@@ -123,7 +123,6 @@ int compare_vulkan(const CompareArgs& a, OutputSet& outs, const LoadedImage& in,
   if (fault != gpu::Fault::none && !gpu::fault_applies(fault, a.pipeline.params.method))
     throw ParamError("--inject-fault " + a.fault + " is not in --method " +
                      to_string(a.pipeline.params.method) + "'s shaders");
-  if (!a.report_dir.empty()) throw ParamError("--report is written for the GL backend only");
   auto ctx = vulkan::Context::create();  // VulkanUnavailable -> exit 3
   const bool software = ctx->info().type == "cpu";
   const parity::DeviceProfile profile =
@@ -140,6 +139,7 @@ int compare_vulkan(const CompareArgs& a, OutputSet& outs, const LoadedImage& in,
   const StageTrace trace = vulkan::execute_vulkan(*ctx, plan, in.image.cview(), edit);
   const double device_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   parity::CompareOptions co;
+  co.keep_images = !a.report_dir.empty();
   t0 = Clock::now();
   double cpu_ms = 0;
   const parity::ParityResult r =

@@ -65,7 +65,7 @@ Image display(const Image& img, bool scene_referred) {
   return out;
 }
 
-// Signed difference gl - oracle: red where GL is larger, blue where smaller, scaled to the
+// Signed difference device - oracle: red where the device is larger, blue where smaller, scaled to the
 // stage's largest |difference| (stated in the page).
 Image signed_diff(const Image& gl, const Image& oracle, double& scale) {
   scale = 0;
@@ -250,7 +250,7 @@ void write_causes(std::ostringstream& html, const parity::StageComparison& s) {
 
 void write_worst(std::ostringstream& html, const parity::StageComparison& s) {
   html << "<h3>worst values (largest error / bound)</h3><table><tr><th>x</th><th>y</th><th>ch</th>"
-          "<th>oracle</th><th>GL</th><th>|err|</th><th>bound</th><th>err/bound</th>"
+          "<th>oracle</th><th>device</th><th>|err|</th><th>bound</th><th>err/bound</th>"
           "<th style='text-align:left'>bound terms</th></tr>";
   for (const auto& w : s.worst) {
     std::string terms;
@@ -262,7 +262,7 @@ void write_worst(std::ostringstream& html, const parity::StageComparison& s) {
          << "</td><td>" << (std::isfinite(w.error) && w.bound > 0 ? num(w.error / w.bound) : "-")
          << "</td><td style='text-align:left'>" << terms << "</td></tr>";
   }
-  html << "</table><h3>signed f16-ULP differences (GL - oracle), log scale</h3>"
+  html << "</table><h3>signed f16-ULP differences (device - oracle), log scale</h3>"
        << histogram_svg(s.ulp_histogram);
 }
 
@@ -282,9 +282,9 @@ void write_stage(std::ostringstream& html, const fs::path& root, const parity::S
   const std::string base = (root / s.stage).string();
   save_exr(base + ".oracle.exr", s.oracle.cview());
   // The user's own file is linked, not copied (a float EXR is most of a report's size).
-  std::string under_test = s.stage + ".gl.exr";
+  std::string under_test = s.stage + ".device.exr";
   if (captured_file.empty()) {
-    save_exr(base + ".gl.exr", captured.cview());
+    save_exr(base + ".device.exr", captured.cview());
   } else {
     std::error_code ec;
     const fs::path rel = fs::proximate(fs::absolute(captured_file, ec), fs::absolute(root, ec), ec);
@@ -294,7 +294,7 @@ void write_stage(std::ostringstream& html, const fs::path& root, const parity::S
   save_exr(base + ".ratio.exr", raw.cview());
   const Image d_or = display(s.oracle, scene_referred), d_gl = display(captured, scene_referred);
   save_png(base + ".oracle.png", d_or.cview());
-  save_png(base + ".gl.png", d_gl.cview());
+  save_png(base + ".device.png", d_gl.cview());
   save_png(base + ".diff.png", diff.cview());
   save_png(base + ".ratio.png", heat.cview());
   save_png(base + ".mask.png", mask.cview());
@@ -371,7 +371,7 @@ bool report_may_write(const std::string& filename) {
     return filename.size() > tail.size() &&
            filename.compare(filename.size() - tail.size(), tail.size(), tail) == 0;
   };
-  for (const char* kind : {".oracle", ".gl", ".diff", ".ratio", ".mask"})
+  for (const char* kind : {".oracle", ".device", ".diff", ".ratio", ".mask"})
     for (const char* ext : {".exr", ".png"})
       if (ends(std::string(kind) + ext)) return true;
   return false;

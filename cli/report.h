@@ -1,4 +1,4 @@
-// bloomref compare --report DIR: per-stage images (oracle, GL, signed difference, error/bound
+// bloomref compare --report DIR: per-stage images (oracle, the device's, signed difference, error/bound
 // heat map, pass/fail mask; PNG for the eye, EXR for the numbers), worst values with their bound
 // terms, the causes tested on a failing stage, f16-ULP histograms, and one self-contained index.html opening on the first divergent
 // stage.
@@ -20,11 +20,11 @@ std::string cause_line(const parity::StageComparison& s);
 std::string action_line(const parity::StageComparison& s);
 
 /// The user's own files of the stages under test (stage -> path): the report links to them
-/// instead of writing a copy (<stage>.gl.exr) of each.
+/// instead of writing a copy (<stage>.device.exr) of each.
 using CapturedFiles = std::map<std::string, std::string>;
 
 /// Whether a report may write a file of this name into its folder (index.html, and each stage's
-/// <stage>.oracle|gl|diff|ratio.exr|png and <stage>.mask.png): an input of that name there would
+/// <stage>.oracle|device|diff|ratio.exr|png and <stage>.mask.png): an input of that name there would
 /// be replaced, so the caller refuses the folder first.
 bool report_may_write(const std::string& filename);
 

@@ -187,13 +187,13 @@ ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::D
   }
   if (item.scratch) {
     // The passes' readbacks are in a temporary folder, gone at exit: the results name the
-    // report's copies (<stage>.gl.exr), or no file.
+    // report's copies (<stage>.device.exr), or no file.
     for (auto& [stage, path] : r.file_of) {
       path.clear();
       if (a.report_dir.empty()) continue;
       for (const parity::StageComparison& s : r.parity.isolated)
         if (s.stage == stage && !s.oracle.empty())
-          path = report_dir + "/" + stage + ".gl.exr";
+          path = report_dir + "/" + stage + ".device.exr";
     }
   }
   return r;

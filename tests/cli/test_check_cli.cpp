@@ -212,7 +212,7 @@ TEST_CASE("a blur pass with a wrong weight fails there, and says so", "[check-cl
   CHECK_FALSE(fs::exists(dir / "rep/d/blur.2.diff.exr"));
   CHECK_FALSE(fs::exists(dir / "rep/d/bright.diff.exr"));
   // The stage under test is the user's own file: linked (relative to the page), not copied.
-  CHECK_FALSE(fs::exists(dir / "rep/d/blur.3.gl.exr"));
+  CHECK_FALSE(fs::exists(dir / "rep/d/blur.3.device.exr"));
   CHECK(html.find("href='../../d/blur.3.exr'") != std::string::npos);
   CHECK(fs::exists(fs::path(dir / "rep/d") / "../../d/blur.3.exr"));
 }

@@ -125,9 +125,9 @@ TEST_CASE("check --shaders runs the user's own GLSL and judges every pass", "[ch
     CHECK(j["items"][0]["first_divergent_stage"] == "blur.1");
     // The passes were read back into a temporary folder, gone now: the report keeps a copy,
     // and the results name it.
-    CHECK(bloomref::load_image(dir / "rep/learnopengl/blur.1.gl.exr").image.width() == 48);
+    CHECK(bloomref::load_image(dir / "rep/learnopengl/blur.1.device.exr").image.width() == 48);
     CHECK(j["items"][0]["stages"][0]["stage"] == "blur.1");
-    CHECK(j["items"][0]["stages"][0]["file"] == "rep/learnopengl/blur.1.gl.exr");
+    CHECK(j["items"][0]["stages"][0]["file"] == "rep/learnopengl/blur.1.device.exr");
   }
   SECTION("a blur that clamps its sum to [0, 1] fails at blur.1, the clamp named alone") {
     test::write_bytes(dir / "clamped.fs",

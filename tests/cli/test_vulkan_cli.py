@@ -189,3 +189,23 @@ def test_bench_times_vulkan_and_gl_on_the_device_and_checks_them(tmp_path):
     if "gl-fragment" in rows:
         assert rows["gl-fragment"]["device_total_ms"] is not None
     assert "device ms" in out
+
+
+def test_compare_on_vulkan_writes_the_report_of_the_failing_stage(tmp_path):
+    """--report on Vulkan: the page, and the failing stage's images as the device wrote them
+    beside the oracle's (an injected 1% weight error at blur.1)."""
+    import numpy as np
+    import OpenImageIO as oiio
+
+    code, out, err, j = compare(tmp_path, "--scene", "demo", "--size", SIZE, "--method", "gaussian",
+                                "--inject-fault", "weight-1pct", "--report", "rep")
+    assert code == 1 and j["first_divergent_stage"] == "blur.1", out + err
+    rep = tmp_path / "rep"
+    page = (rep / "index.html").read_text()
+    assert "blur.1" in page and "<th>device</th>" in page
+    device = oiio.ImageBuf(str(rep / "blur.1.device.exr")).get_pixels(oiio.FLOAT)
+    oracle = oiio.ImageBuf(str(rep / "blur.1.oracle.exr")).get_pixels(oiio.FLOAT)
+    assert device.shape == oracle.shape == (131, 203, 4)
+    # Weights summing to 1.01 (one tap 1% heavier): the device's image is brighter than the oracle's.
+    assert device[..., :3].sum() > oracle[..., :3].sum()
+    assert (rep / "blur.1.device.png").exists() and (rep / "blur.1.mask.png").exists()
