@@ -102,13 +102,6 @@ int finish_compare(const CompareArgs& a, OutputSet& outs, const std::string& sou
   return r.verdict == parity::Verdict::fail ? 1 : 0;
 }
 
-std::string shader_fault_names() {
-  std::string names;
-  for (const gpu::FaultInfo& f : gpu::fault_list())
-    if (gpu::fault_in_shaders(f.fault)) names += (names.empty() ? "" : ", ") + f.name;
-  return names;
-}
-
 // compare --backend vulkan: bloomref's stage shaders through Vulkan compute, judged as GL's.
 // The profile: lavapipe is llvmpipe's sampler and store code (vulkan-info's test holds them to
 // the same measured facts); another device gets the fixed-point profile.
@@ -116,10 +109,6 @@ int compare_vulkan(const CompareArgs& a, OutputSet& outs, const LoadedImage& in,
                    const std::string& source) {
   if (a.shaders != "fragment") throw ParamError("--gl-shaders applies to the GL backend");
   const gpu::Fault fault = a.fault == "none" ? gpu::Fault::none : gpu::parse_fault(a.fault);
-  if (fault != gpu::Fault::none && !gpu::fault_in_shaders(fault))
-    throw ParamError("--inject-fault " + a.fault +
-                     " is injected by the GL host (a texture's wrap, format or size, a skipped "
-                     "pass); on Vulkan only the shader faults are: " + shader_fault_names());
   if (fault != gpu::Fault::none && !gpu::fault_applies(fault, a.pipeline.params.method))
     throw ParamError("--inject-fault " + a.fault + " is not in --method " +
                      to_string(a.pipeline.params.method) + "'s shaders");
@@ -136,7 +125,14 @@ int compare_vulkan(const CompareArgs& a, OutputSet& outs, const LoadedImage& in,
     edit = [fault](const std::string& file, std::string text) {
       return gpu::apply_fault(fault, file, std::move(text));
     };
-  const StageTrace trace = vulkan::execute_vulkan(*ctx, plan, in.image.cview(), edit);
+  // The host's faults, injected by the Vulkan host as the GL host injects them.
+  vulkan::HostFaults host;
+  host.repeat_wrap = fault == gpu::Fault::repeat_wrap;
+  host.skip_pass = fault == gpu::Fault::skip_pass;
+  host.f16_storage = fault == gpu::Fault::f16_storage;
+  host.level_size = fault == gpu::Fault::level_size;
+  host.level_offset = fault == gpu::Fault::level_offset;
+  const StageTrace trace = vulkan::execute_vulkan(*ctx, plan, in.image.cview(), edit, host);
   const double device_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   parity::CompareOptions co;
   co.keep_images = !a.report_dir.empty();

@@ -18,11 +18,12 @@ using Clock = std::chrono::steady_clock;
 
 class VulkanExecutor {
  public:
-  VulkanExecutor(Context& ctx, const Plan& plan, ConstImageView scene, const SourceEdit& edit)
+  VulkanExecutor(Context& ctx, const Plan& plan, ConstImageView scene, const SourceEdit& edit,
+                 const HostFaults& faults)
       : ctx_(ctx.impl()), plan_(plan), p_(plan.params), scene_(scene), w_(scene.width),
-        h_(scene.height), f16_(p_.storage == Storage::f16),
+        h_(scene.height), faults_(faults), f16_(p_.storage == Storage::f16 || faults.f16_storage),
         format_(f16_ ? VK_FORMAT_R16G16B16A16_SFLOAT : VK_FORMAT_R32G32B32A32_SFLOAT),
-        sampler_(ctx_, VK_FILTER_LINEAR) {
+        sampler_(ctx_, VK_FILTER_LINEAR), blur_sampler_(ctx_, VK_FILTER_LINEAR, faults.repeat_wrap) {
     std::vector<std::string> defs = {std::string("STORAGE_FORMAT ") + (f16_ ? "rgba16f" : "rgba32f")};
     if (p_.kernel == KernelName::linear5) defs.push_back("KERNEL_LINEAR5 1");
     extract_ = std::make_unique<StageProgram>(ctx_, "extract_bright.glsl", defs, edit);
@@ -148,17 +149,21 @@ class VulkanExecutor {
       return;
     }
     Image2D& target = *ping_[s.pass % 2];
-    blur_->set_int("horizontal", s.axis == Axis::horizontal ? 1 : 0);
-    device_ms_ = blur_->run({bloom_}, target, nullptr, sampler_.handle());
+    if (!(faults_.skip_pass && s.pass == 3)) {
+      blur_->set_int("horizontal", s.axis == Axis::horizontal ? 1 : 0);
+      device_ms_ = blur_->run({bloom_}, target, nullptr, blur_sampler_.handle());
+    }
     bloom_ = &target;
     finish(s.name, target, t0);
   }
 
   void levels() {
     if (!down_img_.empty()) return;
-    for (const LevelSize& l : plan_.levels) {
-      down_img_.push_back(image(l.width, l.height, format_));
-      up_img_.push_back(image(l.width, l.height, format_));
+    for (std::size_t k = 0; k < plan_.levels.size(); ++k) {
+      const int extra = faults_.level_size && k == 1 ? 1 : 0;
+      const LevelSize& l = plan_.levels[k];
+      down_img_.push_back(image(l.width + extra, l.height, format_));
+      up_img_.push_back(image(l.width + extra, l.height, format_));
     }
     mip_bloom_ = image(w_, h_, format_);
   }
@@ -174,7 +179,10 @@ class VulkanExecutor {
 
   void up(const StageSpec& s, Clock::time_point t0) {
     const int k = s.pass, top = static_cast<int>(plan_.levels.size());
-    const Image2D& small = k + 1 == top ? *down_img_[std::size_t(top - 1)] : *up_img_[std::size_t(k)];
+    // Level k + 1's result (the deepest level's downsample); with the fault, level 2 reads the
+    // one after it.
+    const int read = faults_.level_offset && k == 2 && top >= 4 ? k + 1 : k;
+    const Image2D& small = read + 1 == top ? *down_img_[std::size_t(top - 1)] : *up_img_[std::size_t(read)];
     up_->set_int("has_current", 1);
     device_ms_ = up_->run({&small, down_img_[std::size_t(k - 1)].get()},
                           *up_img_[std::size_t(k - 1)], nullptr, sampler_.handle());
@@ -194,9 +202,10 @@ class VulkanExecutor {
   const BloomParams& p_;
   ConstImageView scene_;
   const int w_, h_;
+  const HostFaults faults_;
   const bool f16_;
   const VkFormat format_;
-  Sampler sampler_;
+  Sampler sampler_, blur_sampler_;
   std::unique_ptr<StageProgram> extract_, blur_, composite_, tonemap_, encode_, down_, up_;
   std::unique_ptr<Image2D> raw_, scene_img_, bright_, hdr_, mapped_, out_, ping_[2], mip_bloom_;
   std::vector<std::unique_ptr<Image2D>> down_img_, up_img_;
@@ -208,7 +217,7 @@ class VulkanExecutor {
 }  // namespace
 
 StageTrace execute_vulkan(Context& ctx, const Plan& plan, ConstImageView scene,
-                          const SourceEdit& edit) {
+                          const SourceEdit& edit, const HostFaults& faults) {
   const BloomParams& p = plan.params;
   if (p.precision != Precision::f32)
     throw ParamError("--precision f64 is the CPU truth; the Vulkan path computes in f32");
@@ -216,7 +225,7 @@ StageTrace execute_vulkan(Context& ctx, const Plan& plan, ConstImageView scene,
     throw ParamError("bloomref's Vulkan shaders run the gaussian method and seed 002's chain "
                      "with the additive composite; a mip-chain variant or preset has no Vulkan "
                      "shaders yet");
-  return VulkanExecutor(ctx, plan, scene, edit).run();
+  return VulkanExecutor(ctx, plan, scene, edit, faults).run();
 }
 
 }  // namespace bloomref::vulkan

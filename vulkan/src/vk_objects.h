@@ -118,7 +118,8 @@ class ComputePipeline {
 /// GL_LINEAR (or GL_NEAREST) with GL_CLAMP_TO_EDGE.
 class Sampler {
  public:
-  Sampler(Context::Impl& ctx, VkFilter filter);
+  /// Clamp to edge, or `repeat` (a host fault compare injects).
+  Sampler(Context::Impl& ctx, VkFilter filter, bool repeat = false);
   ~Sampler();
   Sampler(const Sampler&) = delete;
   Sampler& operator=(const Sampler&) = delete;

@@ -17,10 +17,21 @@ namespace bloomref::vulkan {
 /// breaks GL's.
 using SourceEdit = std::function<std::string(const std::string& file, std::string text)>;
 
+/// The faults compare injects through the host rather than the shaders' text (gpu::Fault's
+/// repeat-wrap, skip-pass, f16-storage, level-size, mip-level-offset), as the GL executor
+/// injects them: each at the same stage.
+struct HostFaults {
+  bool repeat_wrap = false;   ///< the blur's source sampled with REPEAT, not CLAMP_TO_EDGE
+  bool skip_pass = false;     ///< blur pass 3 not dispatched: its image keeps pass 1's result
+  bool f16_storage = false;   ///< RGBA16F images where f32 storage was asked
+  bool level_size = false;    ///< level 2 one texel wider than max(1, floor(n / 2))
+  bool level_offset = false;  ///< the upsample of level 2 reads level 4, not level 3
+};
+
 /// Runs `plan` (params as the plan gives them) on `scene`. Every stage is computed whole (no
 /// adaptive leaving out). Throws ParamError for what it does not run (f64 precision, a mip-chain
 /// variant, the mix composite), VulkanError when the device fails.
 StageTrace execute_vulkan(Context& ctx, const Plan& plan, ConstImageView scene,
-                          const SourceEdit& edit = {});
+                          const SourceEdit& edit = {}, const HostFaults& faults = {});
 
 }  // namespace bloomref::vulkan
