@@ -103,8 +103,9 @@ int finish_compare(const CompareArgs& a, OutputSet& outs, const std::string& sou
 }
 
 // compare --backend vulkan: bloomref's stage shaders through Vulkan compute, judged as GL's.
-// The profile: lavapipe is llvmpipe's sampler and store code (vulkan-info's test holds them to
-// the same measured facts); another device gets the fixed-point profile.
+// The profile: on Mesa's software device, lavapipe's (llvmpipe's sampler and store code, its
+// compute shaders keeping denormals: what vulkan-info measures); another device gets the
+// fixed-point profile.
 int compare_vulkan(const CompareArgs& a, OutputSet& outs, const LoadedImage& in,
                    const std::string& source) {
   if (a.shaders != "fragment") throw ParamError("--gl-shaders applies to the GL backend");
@@ -115,7 +116,7 @@ int compare_vulkan(const CompareArgs& a, OutputSet& outs, const LoadedImage& in,
   auto ctx = vulkan::Context::create();  // VulkanUnavailable -> exit 3
   const bool software = ctx->info().type == "cpu";
   const parity::DeviceProfile profile =
-      a.profile == "auto" ? (software ? parity::profile_llvmpipe() : parity::profile_nvidia_like())
+      a.profile == "auto" ? (software ? parity::profile_lavapipe() : parity::profile_nvidia_like())
                           : parity::profile_named(a.profile);
   const Plan plan = parity::plan_for_device(a.pipeline.params, in.image.cview(), profile, source);
   using Clock = std::chrono::steady_clock;

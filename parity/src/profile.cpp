@@ -21,6 +21,15 @@ DeviceProfile profile_llvmpipe() {
   return p;
 }
 
+DeviceProfile profile_lavapipe() {
+  DeviceProfile p = profile_llvmpipe();  // Mesa's Vulkan driver: llvmpipe's sampler and stores
+  p.name = "lavapipe";
+  p.source = "measured with `bloomref vulkan-info` on Mesa 22.3.6 lavapipe (docs/design.md, "
+             "Vulkan device)";
+  p.flush_denormals = false;  // 2^-126 * 0.5 computes to 2^-127 in its compute shaders
+  return p;
+}
+
 DeviceProfile profile_nvidia_like() {
   DeviceProfile p;
   p.name = "nvidia";
@@ -63,6 +72,7 @@ const StageOverride* stage_override(const DeviceProfile& p, const std::string& s
 
 DeviceProfile profile_named(const std::string& name) {
   if (name == "llvmpipe") return profile_llvmpipe();
+  if (name == "lavapipe") return profile_lavapipe();
   if (name == "nvidia") return profile_nvidia_like();
   if (name == "vulkan") return profile_vulkan();
   if (name == "mediump") return profile_mediump();
@@ -70,6 +80,6 @@ DeviceProfile profile_named(const std::string& name) {
   throw ParamError("--profile '" + name + "' is not one of: " + profile_names());
 }
 
-std::string profile_names() { return "llvmpipe, nvidia, vulkan, mediump, ldr8"; }
+std::string profile_names() { return "llvmpipe, lavapipe, nvidia, vulkan, mediump, ldr8"; }
 
 }  // namespace bloomref::parity

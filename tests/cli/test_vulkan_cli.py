@@ -210,3 +210,20 @@ def test_compare_on_vulkan_writes_the_report_of_the_failing_stage(tmp_path):
     # Weights summing to 1.01 (one tap 1% heavier): the device's image is brighter than the oracle's.
     assert device[..., :3].sum() > oracle[..., :3].sum()
     assert (rep / "blur.1.device.png").exists() and (rep / "blur.1.mask.png").exists()
+
+
+def test_compare_on_lavapipe_takes_the_profile_vulkan_info_measures(info, tmp_path):
+    """--profile auto on Mesa's software device is `lavapipe`, and each of its fields is what the
+    device's probe measured (or allows more: FMA is allowed though not observed)."""
+    if info["type"] != "cpu":
+        pytest.skip("not a software Vulkan device: " + info["device"])
+    code, out, err, j = compare(tmp_path, "--scene", "demo", "--size", "64x64")
+    assert code == 0, out + err
+    p, m = j["profile"], info["measured"]
+    assert p["name"] == "lavapipe"
+    assert p["subtexel_bits"] == m["subtexel_bits"]
+    assert p["half_toward_zero"] == (m["half_rounding"] == "toward-zero")
+    assert p["half_nearest_even"] == (m["half_rounding"] == "nearest-even")
+    assert p["half_overflow_saturate"] == (m["half_of_70000"] == 65504.0)
+    assert p["flush_denormals"] == (not m["shader_denormals_kept"])
+    assert p["fma"] or not m["fma_contracted"]

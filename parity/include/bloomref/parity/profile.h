@@ -74,6 +74,11 @@ struct DeviceProfile {
 /// a driver update may fuse).
 DeviceProfile profile_llvmpipe();
 
+/// Mesa lavapipe (Vulkan), from the facts `bloomref vulkan-info` measured: llvmpipe's sampler
+/// and stores (the same code; tests/cli/test_vulkan_cli.py holds the two probes to it), but its
+/// compute shaders keep denormals.
+DeviceProfile profile_lavapipe();
+
 /// NVIDIA-like hardware: 8-bit fixed-point bilinear weights, either half rounding, FMA.
 DeviceProfile profile_nvidia_like();
 
