@@ -133,17 +133,31 @@ int compare_vulkan(const CompareArgs& a, OutputSet& outs, const LoadedImage& in,
   host.f16_storage = fault == gpu::Fault::f16_storage;
   host.level_size = fault == gpu::Fault::level_size;
   host.level_offset = fault == gpu::Fault::level_offset;
+  // A mip-chain variant: its host code as a pipeline description (the GL hosts' textures,
+  // passes and blending) around bloomref's shaders for it, each pass a compute shader; judged
+  // as GL's variants are (the stages drawn, against the oracle run alongside).
+  const bool variant = plan.params.mip_variant() || plan.params.composite_mode != CompositeMode::add;
+  if (variant && fault != gpu::Fault::none)
+    throw ParamError("--inject-fault applies to bloomref's own pipeline shaders; a mip-chain "
+                     "variant runs its preset's passes");
   const StageTrace trace = vulkan::execute_vulkan(*ctx, plan, in.image.cview(), edit, host);
   const double device_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   parity::CompareOptions co;
   co.keep_images = !a.report_dir.empty();
+  co.direct_exp_tonemap = variant;  // the variants' shaders compute the specification's series
+  co.interpolated_reads = variant;  // and read the composite's inputs with texelFetch
   t0 = Clock::now();
   double cpu_ms = 0;
+  parity::CapturedStages drawn;
+  for (const StageResult& st : trace.stages) drawn[st.name] = parity::CapturedStage{st.image.cview()};
   const parity::ParityResult r =
-      parity::compare_with_oracle(plan, in.image.cview(), trace, profile, co, &cpu_ms);
+      variant ? parity::check_with_oracle(plan, in.image.cview(), drawn, profile, co, &cpu_ms)
+              : parity::compare_with_oracle(plan, in.image.cview(), trace, profile, co, &cpu_ms);
   const double parity_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  const std::string renderer = "vulkan (compute, bloomref's stage shaders): " + ctx->info().name +
-                               ", " + ctx->info().driver_info;
+  const std::string renderer =
+      std::string("vulkan (compute, ") +
+      (variant ? "its preset's passes as compute shaders" : "bloomref's stage shaders") +
+      "): " + ctx->info().name + ", " + ctx->info().driver_info;
   return finish_compare(a, outs, source, renderer, plan, trace, profile, r, device_ms, cpu_ms,
                         parity_ms);
 }

@@ -273,10 +273,13 @@ CheckItem shaders_item(CheckArgs& a, CheckRun& run, ScratchDir& scratch) {
   bool software = false;
   const std::string gl = run_user_shaders_bounded(a.shaders, a.scene, a.pipeline, scratch.path(), software);
   // Without --profile, the device's own: llvmpipe's measured facts, or NVIDIA-like hardware.
+  const bool vk = a.shaders.backend == "vulkan";
   if (a.sub->count("--profile") == 0)
-    run.profile = software ? parity::profile_llvmpipe() : parity::profile_nvidia_like();
+    run.profile = !software ? parity::profile_nvidia_like()
+                  : vk      ? parity::profile_lavapipe()
+                            : parity::profile_llvmpipe();
   if (run.device.renderer.empty()) run.device.renderer = gl;
-  if (run.device.api.empty()) run.device.api = "OpenGL (headless EGL)";
+  if (run.device.api.empty()) run.device.api = vk ? "Vulkan (compute)" : "OpenGL (headless EGL)";
   CheckItem item;
   item.scene = a.scene;
   item.stages_dir = scratch.path().string();
@@ -610,6 +613,11 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
   sub->add_option("--pipeline", args->shaders.pipeline,
                   "--shaders pipeline: the JSON description of your host code: textures, "
                   "programs, passes (docs/check.md)");
+  sub->add_option("--backend", args->shaders.backend,
+                  "--shaders pipeline: run the passes as GL fragment passes (gl) or as Vulkan "
+                  "compute shaders (vulkan)")
+      ->check(CLI::IsMember({"gl", "vulkan"}))
+      ->capture_default_str();
   sub->add_option("--downsample-fs", args->shaders.downsample_fs,
                   "--shaders learnopengl-pbb: the downsample fragment shader");
   sub->add_option("--upsample-fs", args->shaders.upsample_fs,
@@ -701,6 +709,9 @@ std::function<int()> add_check(CLI::App& app) {
   return [args]() -> int {
     if (!args->sub->parsed()) return -1;
     args->pipeline.finish();
+    if (args->shaders.backend != "gl" && args->shaders.preset != "pipeline")
+      throw ParamError("--backend vulkan runs the passes of a pipeline description: it needs "
+                       "--shaders pipeline --pipeline FILE");
     bound_memory(*args);
     return check_cmd(*args).exit_code;
   };

@@ -23,6 +23,7 @@
 #include "bloomref/io.h"
 #include "bloomref/memory_budget.h"
 #include "bloomref/plan.h"
+#include "bloomref/vulkan/described.h"
 #include "check/layout.h"
 #include "check/pipeline.h"
 
@@ -125,10 +126,18 @@ std::string run_pipeline_shaders(const ShaderArgs& s, const std::string& scene_p
       throw InputError(s.pipeline, "a pass reads back stage '" + p.stage +
                                        "', which the pipeline judged against (--preset and the "
                                        "options) does not have on this scene");
+  auto save = [&](const StageTrace& trace) {
+    for (const auto& st : trace.stages)
+      save_exr((dir / (st.name + ".exr")).string(), st.image.cview(), nullptr, ExrCompression::none);
+  };
+  if (s.backend == "vulkan") {
+    auto vk = vulkan::Context::create();  // VulkanUnavailable -> exit 3
+    save(vulkan::run_described(*vk, scene.image.cview(), d, pipeline.params));
+    software = vk->info().type == "cpu";
+    return vk->info().name + " (Vulkan compute, " + vk->info().driver_info + ")";
+  }
   auto ctx = gpu::GlContext::create();  // GlUnavailable -> exit 3
-  const gpu::DescribedRun run = gpu::run_described(*ctx, scene.image.cview(), d, pipeline.params);
-  for (const auto& st : run.trace.stages)
-    save_exr((dir / (st.name + ".exr")).string(), st.image.cview(), nullptr, ExrCompression::none);
+  save(gpu::run_described(*ctx, scene.image.cview(), d, pipeline.params).trace);
   const gpu::ContextInfo& info = ctx->info();
   software = info.software;
   return info.renderer + " (" + info.version + ")";
@@ -227,6 +236,8 @@ void send(int fd, const std::vector<std::string>& fields) {
     send(fd, {"ok", software ? "1" : "0", renderer});
   } catch (const gpu::GlUnavailable& e) {
     send(fd, {"gl", e.what()});
+  } catch (const vulkan::VulkanUnavailable& e) {
+    send(fd, {"vulkan", e.what()});
   } catch (const InputError& e) {
     send(fd, {"input", e.file(), e.problem()});
   } catch (const Error& e) {
@@ -346,6 +357,7 @@ std::string run_user_shaders_bounded(const ShaderArgs& s, const std::string& sce
     return f[2];
   }
   if (f[0] == "gl" && f.size() == 2) throw gpu::GlUnavailable(f[1]);
+  if (f[0] == "vulkan" && f.size() == 2) throw vulkan::VulkanUnavailable(f[1]);
   if (f[0] == "input" && f.size() == 3) throw InputError(f[1], f[2]);
   if (f[0] == "error" && f.size() == 2) throw Error(f[1]);
   if (f[0] == "memory")

@@ -20,6 +20,9 @@ struct ShaderArgs {
   std::string target_format, filter = "linear", wrap = "clamp-to-edge", final_target = "same";
   std::string layout;  ///< a layout file: the names the shaders use (check/layout.h)
   std::string pipeline;  ///< --shaders pipeline: the description file (check/pipeline.h)
+  /// --shaders pipeline only: "gl" (fragment passes, headless EGL) or "vulkan" (each pass a
+  /// compute shader, vulkan/described.h).
+  std::string backend = "gl";
   /// What running them may cost: seconds of wall time (0: shader_timeout's default) and bytes
   /// of resident memory (0: shader_memory's default), compiling and linking included.
   double timeout_s = 0;

@@ -98,7 +98,9 @@ class DescribedHost {
   void build_programs() {
     ctx_.check("before building the user's programs");
     for (const auto& [name, prog] : d_.programs) {
-      const ShaderSource fs = load_shader(prog.fragment);
+      const ShaderSource fs = prog.fragment_text.empty()
+                                  ? load_shader(prog.fragment)
+                                  : ShaderSource{prog.fragment, prog.fragment_text};
       std::optional<ShaderSource> vs;
       if (!prog.vertex.empty()) vs = load_shader(prog.vertex);
       VertexNames names;
@@ -118,25 +120,10 @@ class DescribedHost {
     if (p_.nonfinite == NonFinite::error && out_.trace.nonfinite.total() > 0)
       throw ParamError("the scene holds " + std::to_string(out_.trace.nonfinite.total()) +
                        " NaN or infinite values, refused under --nonfinite error");
-    for (const DescribedTexture& t : d_.textures) {
-      int tw = w, th = h;
-      if (t.size.of != "scene") {
-        const Texture& of = textures_.at(t.size.of);  // the parser checked it is declared before
-        tw = of.width, th = of.height;
-      }
-      if (t.size.height > 0) {
-        const float ratio = static_cast<float>(t.size.height) / static_cast<float>(th);
-        tw = std::max(1, static_cast<int>(std::round(static_cast<float>(tw) * ratio)));
-        th = std::max(1, static_cast<int>(std::round(static_cast<float>(th) * ratio)));
-      }
-      for (int k = 0; k < t.size.halvings; ++k) {
-        tw = rounded(tw * 0.5, t.size.rounding);
-        th = rounded(th * 0.5, t.size.rounding);
-      }
-      if (t.size.scale != 1.0) {
-        tw = rounded(tw * t.size.scale, t.size.rounding);
-        th = rounded(th * t.size.scale, t.size.rounding);
-      }
+    const std::vector<std::pair<int, int>> sizes = texture_sizes(d_, w, h);
+    for (std::size_t i = 0; i < d_.textures.size(); ++i) {
+      const DescribedTexture& t = d_.textures[i];
+      const int tw = sizes[i].first, th = sizes[i].second;
       const GLenum format = host::gl_format(t.format);
       if (t.content == DescribedTexture::clear) {
         textures_.emplace(t.name, Texture(tw, th, format));
@@ -146,15 +133,15 @@ class DescribedHost {
           throw ParamError(d_.file + ": texture '" + t.name + "' holds the " +
                            (t.content == DescribedTexture::scene ? "scene" : "bright image") +
                            " and must be the scene's size");
-        Image img(w, h);
-        if (t.content == DescribedTexture::scene)
-          std::copy(sanitized.data(), sanitized.data() + sanitized.values().size(), img.data());
-        else
-          extract_bright(sanitized.cview(), img.view(), p_.threshold, p_.threads);
-        store(img.view(), storage_of(t.format), HalfRounding::nearest_even_saturate, p_.threads);
+        const Image img = texture_content(t, sanitized.cview(), p_);
         textures_.emplace(t.name, Texture(w, h, format, img.data()));
       }
       textures_.at(t.name).set_sampling(host::gl_filter(t.filter), host::gl_wrap(t.wrap));
+      if (!t.stage.empty()) {
+        Image img = Image::uninitialised(tw, th);
+        textures_.at(t.name).read(img.data());
+        out_.trace.stages.push_back({t.stage, std::move(img), 0.0, false});
+      }
     }
     ctx_.check("making the description's textures");
   }
@@ -233,6 +220,50 @@ class DescribedHost {
 };
 
 }  // namespace
+
+Image texture_content(const DescribedTexture& t, ConstImageView sanitized, const BloomParams& p) {
+  Image img(sanitized.width, sanitized.height);
+  if (t.content == DescribedTexture::scene)
+    for (int y = 0; y < sanitized.height; ++y)
+      std::copy(sanitized.row(y), sanitized.row(y) + std::size_t(sanitized.width) * kChannels,
+                img.view().row(y));
+  else
+    extract_bright(sanitized, img.view(), p.threshold, p.threads);
+  store(img.view(), storage_of(t.format), HalfRounding::nearest_even_saturate, p.threads);
+  return img;
+}
+
+std::vector<std::pair<int, int>> texture_sizes(const PipelineDescription& d, int w, int h) {
+  std::vector<std::pair<int, int>> out;
+  std::map<std::string, std::size_t> index;
+  for (const DescribedTexture& t : d.textures) {
+    int tw = w, th = h;
+    if (t.size.of != "scene") {
+      const auto it = index.find(t.size.of);
+      if (it == index.end())
+        throw ParamError(d.file + ": texture '" + t.name + "' takes its size from '" + t.size.of +
+                         "', not declared before it");
+      tw = out[it->second].first, th = out[it->second].second;
+    }
+    if (t.size.height > 0) {
+      const float ratio = static_cast<float>(t.size.height) / static_cast<float>(th);
+      tw = std::max(1, static_cast<int>(std::round(static_cast<float>(tw) * ratio)));
+      th = std::max(1, static_cast<int>(std::round(static_cast<float>(th) * ratio)));
+    }
+    for (int k = 0; k < t.size.halvings; ++k) {
+      tw = rounded(tw * 0.5, t.size.rounding);
+      th = rounded(th * 0.5, t.size.rounding);
+    }
+    if (t.size.scale != 1.0) {
+      tw = rounded(tw * t.size.scale, t.size.rounding);
+      th = rounded(th * t.size.scale, t.size.rounding);
+    }
+    if (t.size.exact_width > 0) tw = t.size.exact_width, th = t.size.exact_height;
+    index[t.name] = out.size();
+    out.emplace_back(tw, th);
+  }
+  return out;
+}
 
 unsigned blend_factor(const std::string& name) {
   std::string known;

@@ -4,8 +4,9 @@
 #include <cmath>
 #include <limits>
 
-#include "bloomref/mip.h"
 #include "bloomref/engine/support.h"
+#include "bloomref/gpu/described_pipeline.h"
+#include "bloomref/mip.h"
 #include "gl_objects.h"
 
 namespace bloomref::gpu {
@@ -476,12 +477,15 @@ StageTrace execute_gl(GlContext& ctx, const Plan& plan, ConstImageView scene,
                       const GlOptions& opt) {
   if (plan.params.precision != Precision::f32)
     throw ParamError("--precision f64 is the CPU truth; the GL path computes in f32");
-  if (plan.params.mip_variant() || plan.params.composite_mode != CompositeMode::add)
-    throw ParamError(
-        "bloomref's GL shaders run seed 002's chain and the additive composite; a variant "
-        "(--preset learnopengl-pbb, --prefilter, --karis-form, --texel-step, --upsample-radius, "
-        "--bloom-upscale, --chain-storage, --composite-mode mix) is judged on a GPU through "
-        "check --shaders");
+  if (plan.params.mip_variant() || plan.params.composite_mode != CompositeMode::add) {
+    // A preset's chain: its host code as a description around bloomref's shaders for it.
+    if (opt.fault != Fault::none || opt.shaders != ShaderKind::fragment)
+      throw ParamError("--inject-fault and --gl-shaders compute apply to bloomref's own pipeline "
+                       "shaders; a mip-chain variant runs its preset's fragment passes");
+    return run_described(ctx, scene,
+                         preset_description(plan.params, scene.width, scene.height), plan.params)
+        .trace;
+  }
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
   if (scene.width > max_size || scene.height > max_size)

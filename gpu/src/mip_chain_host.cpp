@@ -248,17 +248,18 @@ MipChainRun run_mip_chain(GlContext& ctx, ConstImageView scene, const MipChainSh
   return MipChainHost(ctx, scene, shaders, opt).run();
 }
 
+bool article_layout(const BloomParams& p) {
+  return p.method == Method::mip && p.prefilter == Prefilter::bright &&
+         (!p.karis || p.karis_form == KarisForm::group_srgb) &&
+         p.texel_step == TexelStep::halved_float && p.upsample_radius > 0 &&
+         p.bloom_upscale == BloomUpscale::bilinear && p.composite_mode == CompositeMode::mix &&
+         p.composite == CompositeOrder::before_tonemap && p.gamma == 2.2f && unity_free(p);
+}
+
 StageTrace execute_gl_mip_chain(GlContext& ctx, const BloomParams& p, ConstImageView scene) {
   if (bevy_layout(p)) return execute_gl_bevy(ctx, p, scene);
   if (unity_layout(p)) return execute_gl_unity(ctx, p, scene);
-  const bool article = p.method == Method::mip && p.prefilter == Prefilter::bright &&
-                       (!p.karis || p.karis_form == KarisForm::group_srgb) &&
-                       p.texel_step == TexelStep::halved_float && p.upsample_radius > 0 &&
-                       p.bloom_upscale == BloomUpscale::bilinear &&
-                       p.composite_mode == CompositeMode::mix &&
-                       p.composite == CompositeOrder::before_tonemap && p.gamma == 2.2f &&
-                       unity_free(p);
-  if (!article)
+  if (!article_layout(p))
     throw ParamError(
         "bloomref's GL shaders run seed 002's chain (--method mip), the article's "
         "(--preset learnopengl-pbb, whose shaders take gamma 2.2 and the other options as "

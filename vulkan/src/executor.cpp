@@ -8,6 +8,7 @@
 
 #include "bloomref/error.h"
 #include "bloomref/stages.h"
+#include "bloomref/vulkan/described.h"
 #include "stage_program.h"
 #include "vk_objects.h"
 
@@ -221,10 +222,14 @@ StageTrace execute_vulkan(Context& ctx, const Plan& plan, ConstImageView scene,
   const BloomParams& p = plan.params;
   if (p.precision != Precision::f32)
     throw ParamError("--precision f64 is the CPU truth; the Vulkan path computes in f32");
-  if (p.mip_variant() || p.composite_mode != CompositeMode::add)
-    throw ParamError("bloomref's Vulkan shaders run the gaussian method and seed 002's chain "
-                     "with the additive composite; a mip-chain variant or preset has no Vulkan "
-                     "shaders yet");
+  if (p.mip_variant() || p.composite_mode != CompositeMode::add) {
+    // A preset's chain: its host code as a description, each pass a compute shader.
+    if (edit || faults.repeat_wrap || faults.skip_pass || faults.f16_storage ||
+        faults.level_size || faults.level_offset)
+      throw ParamError("faults are injected into bloomref's own pipeline shaders; a mip-chain "
+                       "variant runs its preset's passes");
+    return run_described(ctx, scene, gpu::preset_description(p, scene.width, scene.height), p);
+  }
   return VulkanExecutor(ctx, plan, scene, edit, faults).run();
 }
 

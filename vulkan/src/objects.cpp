@@ -228,13 +228,17 @@ void ComputePipeline::dispatch(VkCommandBuffer cb, const void* push, std::uint32
   vkCmdDispatch(cb, gx, gy, 1);
 }
 
-Sampler::Sampler(Context::Impl& ctx, VkFilter filter, bool repeat) : ctx_(ctx) {
+Sampler::Sampler(Context::Impl& ctx, VkFilter filter, bool repeat)
+    : Sampler(ctx, filter,
+              repeat ? VK_SAMPLER_ADDRESS_MODE_REPEAT : VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE) {}
+
+Sampler::Sampler(Context::Impl& ctx, VkFilter filter, VkSamplerAddressMode mode) : ctx_(ctx) {
   VkSamplerCreateInfo s{};
   s.sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO;
   s.magFilter = s.minFilter = filter;
   s.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
-  s.addressModeU = s.addressModeV = s.addressModeW =
-      repeat ? VK_SAMPLER_ADDRESS_MODE_REPEAT : VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+  s.addressModeU = s.addressModeV = s.addressModeW = mode;
+  s.borderColor = VK_BORDER_COLOR_FLOAT_TRANSPARENT_BLACK;  // GL's default border colour
   s.maxLod = 0.0f;
   check(vkCreateSampler(ctx.device, &s, nullptr, &sampler_), "vkCreateSampler");
 }

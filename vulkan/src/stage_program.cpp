@@ -11,15 +11,10 @@
 namespace bloomref::vulkan {
 namespace {
 
-struct Member {
-  std::string type, name;
-  std::uint32_t offset = 0;  // in the push-constant block (set by parse)
-};
-
 struct Parsed {
   std::string text;
   std::vector<std::string> samplers;
-  std::vector<Member> members;
+  std::vector<PushMember> members;
   std::uint32_t push_bytes = 0;
 };
 
@@ -37,7 +32,7 @@ void take_uniforms(const std::string& src, Parsed& out) {
                   ") uniform sampler2D " + m[1].str() + ";\n";
       out.samplers.push_back(m[1]);
     } else if (std::regex_search(line, m, plain)) {
-      out.members.push_back({m[1], m[2]});
+      out.members.push_back({m[2], m[1]});
     } else {
       out.text += line + "\n";
     }
@@ -54,20 +49,62 @@ Parsed parse(const std::string& file, const std::vector<std::string>& defines, c
   take_uniforms(edit ? edit(file, src.at(file)) : src.at(file), p);
   std::string head = "#version 450\n";
   for (const std::string& d : defines) head += "#define " + d + "\n";
-  // Push constants in declaration order, each at its std430 offset (ivec2 and vec2 on 8).
-  std::string block = "layout(push_constant) uniform StageConstants {\n";
-  for (Member& m : p.members) {
-    const std::uint32_t size = m.type == "ivec2" || m.type == "vec2" ? 8 : 4;
-    m.offset = (p.push_bytes + size - 1) / size * size;
-    block += "  layout(offset = " + std::to_string(m.offset) + ") " + m.type + " " + m.name + ";\n";
-    p.push_bytes = m.offset + size;
-  }
-  block += "};\n";
+  const std::string block = push_constant_block(p.members, p.push_bytes);
   p.text = head + block + p.text;
   return p;
 }
 
 }  // namespace
+
+std::string push_constant_block(std::vector<PushMember>& members, std::uint32_t& bytes) {
+  // In declaration order, each at its std430 offset (vec2 and ivec2 on 8, vec3 and vec4 on 16).
+  std::string block = "layout(push_constant) uniform StageConstants {\n";
+  bytes = 0;
+  for (PushMember& m : members) {
+    const bool wide = m.type == "vec3" || m.type == "vec4";
+    const std::uint32_t align = wide ? 16 : m.type == "ivec2" || m.type == "vec2" ? 8 : 4;
+    const std::uint32_t size = m.type == "vec3" ? 12 : wide ? 16 : align;
+    m.offset = (bytes + align - 1) / align * align;
+    block += "  layout(offset = " + std::to_string(m.offset) + ") " + m.type + " " + m.name + ";\n";
+    bytes = m.offset + size;
+  }
+  return block + "};\n";
+}
+
+std::vector<std::uint32_t> compile_compute(const std::string& text, const std::string& file,
+                                           const std::string& what) {
+  shaderc::Compiler compiler;
+  shaderc::CompileOptions options;
+  options.SetTargetEnvironment(shaderc_target_env_vulkan, shaderc_env_version_vulkan_1_1);
+  options.SetOptimizationLevel(shaderc_optimization_level_zero);  // the shader's own order
+  const shaderc::SpvCompilationResult r =
+      compiler.CompileGlslToSpv(text, shaderc_compute_shader, file.c_str(), options);
+  if (r.GetCompilationStatus() != shaderc_compilation_status_success)
+    throw VulkanError(what + " does not compile for Vulkan: " + r.GetErrorMessage());
+  return std::vector<std::uint32_t>(r.cbegin(), r.cend());
+}
+
+double timed_dispatch(Context::Impl& ctx, const ComputePipeline& pipeline, const void* push,
+                      int width, int height) {
+  const VkQueryPool q = ctx.timestamp_pool();
+  ctx.submit([&](VkCommandBuffer cb) {
+    if (q) {
+      vkCmdResetQueryPool(cb, q, 0, 2);
+      vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, q, 0);
+    }
+    pipeline.dispatch(cb, push, std::uint32_t((width + 7) / 8), std::uint32_t((height + 7) / 8));
+    if (q) vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, q, 1);
+  });
+  if (!q) return -1.0;
+  std::uint64_t ts[2] = {0, 0};
+  check(vkGetQueryPoolResults(ctx.device, q, 0, 2, sizeof ts, ts, sizeof ts[0],
+                              VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
+        "vkGetQueryPoolResults");
+  const unsigned bits = ctx.info.timestamp_valid_bits;
+  const std::uint64_t mask = bits >= 64 ? ~std::uint64_t(0) : (std::uint64_t(1) << bits) - 1;
+  const std::uint64_t ticks = ((ts[1] & mask) - (ts[0] & mask)) & mask;
+  return double(ticks) * double(ctx.info.timestamp_period_ns) * 1e-6;
+}
 
 std::string vulkan_stage_source(const std::string& file, const std::vector<std::string>& defines,
                                 const Edit& edit) {
@@ -81,15 +118,7 @@ StageProgram::StageProgram(Context::Impl& ctx, const std::string& file,
   samplers_ = p.samplers;
   for (const auto& m : p.members) members_.push_back({m.name, m.type, m.offset});
   push_.assign(p.push_bytes, 0);
-  shaderc::Compiler compiler;
-  shaderc::CompileOptions options;
-  options.SetTargetEnvironment(shaderc_target_env_vulkan, shaderc_env_version_vulkan_1_1);
-  options.SetOptimizationLevel(shaderc_optimization_level_zero);  // the shader's own order
-  const shaderc::SpvCompilationResult r =
-      compiler.CompileGlslToSpv(p.text, shaderc_compute_shader, file.c_str(), options);
-  if (r.GetCompilationStatus() != shaderc_compilation_status_success)
-    throw VulkanError("bloomref's " + file + " does not compile for Vulkan: " + r.GetErrorMessage());
-  const std::vector<std::uint32_t> code(r.cbegin(), r.cend());
+  const std::vector<std::uint32_t> code = compile_compute(p.text, file, "bloomref's " + file);
   std::vector<VkDescriptorType> types = {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE,
                                          VK_DESCRIPTOR_TYPE_STORAGE_IMAGE};
   for (std::size_t i = 0; i < samplers_.size(); ++i)
@@ -125,25 +154,7 @@ double StageProgram::run(const std::vector<const Image2D*>& inputs, const Image2
   pipeline_->bind_image(1, (out1 ? out1 : &out0)->view());
   for (std::size_t i = 0; i < inputs.size(); ++i)
     pipeline_->bind_image(std::uint32_t(i + 2), inputs[i]->view(), sampler);
-  const VkQueryPool q = ctx_.timestamp_pool();
-  ctx_.submit([&](VkCommandBuffer cb) {
-    if (q) {
-      vkCmdResetQueryPool(cb, q, 0, 2);
-      vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, q, 0);
-    }
-    pipeline_->dispatch(cb, push_.data(), std::uint32_t((out0.width + 7) / 8),
-                        std::uint32_t((out0.height + 7) / 8));
-    if (q) vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, q, 1);
-  });
-  if (!q) return -1.0;
-  std::uint64_t ts[2] = {0, 0};
-  check(vkGetQueryPoolResults(ctx_.device, q, 0, 2, sizeof ts, ts, sizeof ts[0],
-                              VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
-        "vkGetQueryPoolResults");
-  const unsigned bits = ctx_.info.timestamp_valid_bits;
-  const std::uint64_t mask = bits >= 64 ? ~std::uint64_t(0) : (std::uint64_t(1) << bits) - 1;
-  const std::uint64_t ticks = ((ts[1] & mask) - (ts[0] & mask)) & mask;
-  return double(ticks) * double(ctx_.info.timestamp_period_ns) * 1e-6;
+  return timed_dispatch(ctx_, *pipeline_, push_.data(), out0.width, out0.height);
 }
 
 }  // namespace bloomref::vulkan

@@ -14,6 +14,27 @@
 
 namespace bloomref::vulkan {
 
+/// A plain uniform moved into the push-constant block: its name, GLSL type (float, int, bool,
+/// vec2, ivec2, vec3, vec4) and byte offset.
+struct PushMember {
+  std::string name, type;
+  std::uint32_t offset = 0;
+};
+
+/// The push-constant block of `members` in their order, each at its std430 offset (set here);
+/// `bytes` is the block's size.
+std::string push_constant_block(std::vector<PushMember>& members, std::uint32_t& bytes);
+
+/// SPIR-V of the compute shader `text` (the file name `file` in messages). Throws VulkanError
+/// starting with `what` and holding the compiler's message when it does not compile.
+std::vector<std::uint32_t> compile_compute(const std::string& text, const std::string& file,
+                                           const std::string& what);
+
+/// Submits one dispatch of `pipeline` (8x8 work groups over `width` x `height`) with `push` and
+/// waits for it; its time on the device in ms (two timestamps), or -1 without timestamps.
+double timed_dispatch(Context::Impl& ctx, const ComputePipeline& pipeline, const void* push,
+                      int width, int height);
+
 class StageProgram {
  public:
   /// Stage file `file` of gpu/shaders (with common.glsl before it) under `defines` ("NAME
@@ -33,10 +54,7 @@ class StageProgram {
              VkSampler sampler);
 
  private:
-  struct Member {
-    std::string name, type;
-    std::uint32_t offset;
-  };
+  using Member = PushMember;
   const Member& member(const std::string& name) const;
   Context::Impl& ctx_;
   std::string file_;

@@ -120,6 +120,8 @@ class Sampler {
  public:
   /// Clamp to edge, or `repeat` (a host fault compare injects).
   Sampler(Context::Impl& ctx, VkFilter filter, bool repeat = false);
+  /// Any address mode on both axes (clamp to border: transparent black, as GL's default).
+  Sampler(Context::Impl& ctx, VkFilter filter, VkSamplerAddressMode mode);
   ~Sampler();
   Sampler(const Sampler&) = delete;
   Sampler& operator=(const Sampler&) = delete;

@@ -25,6 +25,7 @@ namespace bloomref::gpu {
 /// from zero (a bloom texture of fixed height, as Bevy's 512).
 struct SizeRule {
   std::string of = "scene";
+  int exact_width = 0, exact_height = 0;  ///< > 0: that size, whatever the rest says
   double scale = 1.0;
   int halvings = 0;
   int height = 0;
@@ -41,6 +42,7 @@ struct DescribedTexture {
   TargetFormat format = TargetFormat::rgba16f;
   TextureFilter filter = TextureFilter::linear;
   TextureWrap wrap = TextureWrap::clamp_to_edge;
+  std::string stage;  ///< the bloomref stage it holds before the first pass; empty: none
 };
 
 struct DescribedUniform {
@@ -72,6 +74,7 @@ struct DescribedPass {
 
 struct DescribedProgram {
   std::string fragment, vertex;  ///< files; vertex empty: bloomref's pass-through
+  std::string fragment_text;     ///< not empty: the fragment shader's text, `fragment` its name
 };
 
 struct PipelineDescription {
@@ -81,6 +84,14 @@ struct PipelineDescription {
   std::vector<DescribedPass> passes;
 };
 
+/// Each texture's width and height for a `width` x `height` scene, in declaration order.
+std::vector<std::pair<int, int>> texture_sizes(const PipelineDescription& d, int width, int height);
+
+/// What texture `t` (content scene or bright) holds before the first pass: `sanitized` (the
+/// scene after the non-finite policy) or the bright image made from it (luminance > the
+/// threshold of `params`), stored in the texture's format.
+Image texture_content(const DescribedTexture& t, ConstImageView sanitized, const BloomParams& params);
+
 /// The blend factors by GL name ("GL_ONE", "GL_ONE_MINUS_CONSTANT_COLOR", ...) or short name
 /// ("one", "one_minus_constant_color"); ParamError listing the known ones otherwise.
 unsigned blend_factor(const std::string& name);
@@ -89,6 +100,14 @@ struct DescribedRun {
   StageTrace trace;  ///< the stages the passes named, in pass order
   std::vector<ProgramInterface> programs;
 };
+
+/// The chain a built-in layout draws, as a description for a `width` x `height` scene: the
+/// article's host (execute_gl_mip_chain's combinations), Bevy's render graph (bevy_layout) or
+/// URP's SetupBloom (unity_layout), around bloomref's shaders of their passes
+/// (gpu/shaders/pbb_*, bevy_*, unity_*), every texture at the size its host makes it and every
+/// stage the host reads back (input, bright where the host has one, down.k, up.k, composite
+/// where it draws one, output). Throws ParamError for a combination no built-in host draws.
+PipelineDescription preset_description(const BloomParams& params, int width, int height);
 
 /// Runs the description on `scene` (params: the non-finite policy, the threshold of a bright
 /// texture, the threads). Refuses (UserShaderError, ParamError naming the description and the

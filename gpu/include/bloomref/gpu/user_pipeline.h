@@ -290,6 +290,11 @@ MipChainRun run_mip_chain(GlContext& ctx, ConstImageView scene, const MipChainSh
 /// Bevy's layout (bevy_layout) goes to execute_gl_bevy.
 StageTrace execute_gl_mip_chain(GlContext& ctx, const BloomParams& params, ConstImageView scene);
 
+/// Whether `params` is a chain the article's host code draws with bloomref's pbb shaders
+/// (preset learnopengl-pbb and its overrides): prefilter bright, Karis group-srgb or none, the
+/// halved-float texel step, a radius in texture coordinates, a bilinear bloom, mix, gamma 2.2.
+bool article_layout(const BloomParams& params);
+
 /// Whether `params` is a chain Bevy's render graph draws (preset bevy and its overrides):
 /// prefilter none, the texture's texel step, a tent of one texel, the composite before the tone
 /// map, Karis group-linear or none.

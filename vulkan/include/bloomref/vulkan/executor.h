@@ -1,6 +1,7 @@
 // bloomref Vulkan — a Plan run through Vulkan compute with bloomref's own stage shaders (the GL
 // path's gpu/shaders files, compiled for Vulkan): every stage read back for parity, as the GL
-// executor's keep_all trace. Methods gaussian and mip (seed 002's chain), f32 and f16 storage.
+// executor's keep_all trace. Methods gaussian and mip (seed 002's chain), f32 and f16 storage;
+// the presets' chains through their pipeline descriptions (described.h).
 #pragma once
 
 #include <functional>
@@ -29,8 +30,10 @@ struct HostFaults {
 };
 
 /// Runs `plan` (params as the plan gives them) on `scene`. Every stage is computed whole (no
-/// adaptive leaving out). Throws ParamError for what it does not run (f64 precision, a mip-chain
-/// variant, the mix composite), VulkanError when the device fails.
+/// adaptive leaving out). A mip-chain variant (a preset's chain: learnopengl-pbb, bevy,
+/// unity-urp) runs its host code's passes through run_described (gpu::preset_description).
+/// Throws ParamError for what it does not run (f64 precision, a variant no preset draws, a
+/// fault in a variant), VulkanError when the device fails.
 StageTrace execute_vulkan(Context& ctx, const Plan& plan, ConstImageView scene,
                           const SourceEdit& edit = {}, const HostFaults& faults = {});
 
