@@ -109,7 +109,7 @@ PipelineDescription article(const BloomParams& p, int w, int h) {
   b.program("down", "pbb_downsample.frag");
   b.program("up", "pbb_upsample.frag");
   b.program("final", "pbb_final.frag");
-  const Storage st = storage_of(o.format), levels = storage_of(o.level_format);
+  const Storage st = storage_of(o.format), levels = p.level_storage();
   b.scene_texture("scene", st, DescribedTexture::scene, "input");
   b.scene_texture("bright", st, DescribedTexture::bright, "bright");
   const std::vector<LevelSize> sizes = mip_levels(w, h, o.levels);

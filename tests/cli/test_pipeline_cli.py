@@ -171,3 +171,24 @@ def test_what_the_shaders_and_the_plan_refuse(tmp_path):
     code, _, err = run(["check", "--scene", "demo", "--size", "64x48", "--shaders", "pipeline",
                         "--pipeline", str(PIPELINES / "seed-002.json"), "--final-fs", "x.frag"], tmp_path)
     assert code == 2 and "--*-fs" in err, err
+
+
+@pytest.mark.parametrize("preset", ["learnopengl-pbb", "bevy", "bevy-old-school", "unity-urp"])
+def test_the_presets_as_descriptions_give_their_hosts_images(tmp_path, preset):
+    """run --backend gl --preset P draws the preset's host code written as a description
+    (gpu::preset_description, the form the Vulkan path runs); compare --preset P draws it through
+    the dedicated host. The same images give the same errors against the same oracle."""
+    code, _, err = run(["run", "--backend", "gl", "--scene", "demo", "--size", "203x131",
+                        "--preset", preset, "-o", "o.exr", "--dump-stages", "d", "-q"], tmp_path)
+    gl_or_skip(code, err)
+    assert code == 0, err
+    a = checked(tmp_path, "d", "203x131", "--preset", preset, "--stages", "d", "--profile", "llvmpipe")
+    code, out, err = run(["compare", "--scene", "demo", "--size", "203x131", "--preset", preset,
+                          "--json", "c.json", "-q"], tmp_path)
+    assert code == 0, out + err
+    b = {s["stage"]: s["isolated"] for s in json.loads((tmp_path / "c.json").read_text())["stages"]}
+    got = {s["stage"]: s["isolated"] for s in a["stages"]}
+    assert set(got) - {"input"} == set(b) - {"input"}, (sorted(got), sorted(b))
+    for stage in got:
+        assert got[stage]["max_abs"] == b[stage]["max_abs"], stage
+    assert a["verdict"] == "PASS"

@@ -8,11 +8,16 @@ store code (gallivm), must find the same store rounding and filter precision.
 """
 import json
 import os
+import shutil
+from pathlib import Path
 import subprocess
 
 import pytest
 
-from cli_support import EXE, run
+from cli_support import EXE, first_cause, run
+
+ROOT = Path(__file__).resolve().parents[2]
+PIPELINES = ROOT / "data" / "pipelines"
 
 
 def vulkan_or_skip(code, err):
@@ -137,16 +142,64 @@ def test_an_injected_fault_fails_on_vulkan_where_it_enters(tmp_path, fault, meth
         j["first_divergent_stage"], stage)
 
 
-def test_variants_are_refused(tmp_path):
-    code, _, err = run(["compare", "--backend", "vulkan", "--size", "16x16",
-                        "--preset", "unity-urp"], tmp_path)
+# The stages each preset's host reads back at 203x131, counted from its layout (docs/presets.md):
+# the article's 6 levels with its bright image; Bevy's 8 levels and the composite it blends into
+# the view; URP's floor(log2(max(203 >> 1, 131 >> 1))) - 1 = floor(log2(101)) - 1 = 5 levels.
+def chain(n, bright=False, composite=True):
+    names = ["input"] + (["bright"] if bright else [])
+    names += ["down.%d" % k for k in range(1, n + 1)] + ["up.%d" % k for k in range(n - 1, 0, -1)]
+    return names + (["composite"] if composite else []) + ["output"]
+
+
+PRESETS = [
+    (["--preset", "learnopengl-pbb"], chain(6, bright=True, composite=False)),
+    (["--preset", "learnopengl-pbb", "--chain-storage", "f16"], chain(6, bright=True, composite=False)),
+    (["--preset", "bevy"], chain(8)),
+    (["--preset", "bevy", "--storage", "f32", "--chain-storage", "f32"], chain(8)),
+    (["--preset", "bevy-old-school"], chain(8)),
+    (["--preset", "unity-urp"], chain(5)),
+    (["--preset", "unity-urp", "--chain-storage", "f16", "--storage", "f16"], chain(5)),
+]
+
+
+@pytest.mark.parametrize("options,stages", PRESETS, ids=[" ".join(p[0][1:]) for p in PRESETS])
+def test_every_preset_passes_compare_on_vulkan(tmp_path, options, stages):
+    """The presets' chains run on Vulkan as their hosts' passes, each a compute shader; every
+    stage the host reads back is judged and passes."""
+    code, out, err, j = compare(tmp_path, "--scene", "demo", "--size", SIZE, *options)
+    assert code == 0 and "verdict PASS" in out, out + err
+    assert "preset's passes as compute shaders" in j["renderer"]
+    assert [s["stage"] for s in j["stages"]] == stages
+    assert all(s["isolated"]["verdict"] == "PASS" for s in j["stages"])
+    # The device's own images: somewhere they differ from the oracle's by its rounding.
+    assert max(s["isolated"]["max_abs"] for s in j["stages"]) > 0
+
+
+def test_a_fault_in_a_presets_chain_is_refused(tmp_path):
+    code, _, err = run(["compare", "--backend", "vulkan", "--size", "16x16", "--preset",
+                        "unity-urp", "--inject-fault", "tap-offset"], tmp_path)
     vulkan_or_skip(code, err)
-    assert code == 2 and "no Vulkan shaders yet" in err, err
+    assert code == 2 and "preset's passes" in err, err
+
+
+def test_run_on_vulkan_with_a_preset_dumps_stages_that_check_passes(tmp_path):
+    code, _, err = run(["run", "--backend", "vulkan", "--size", SIZE, "--preset", "bevy", "-q",
+                        "-o", "v.exr", "--dump-stages", "v"], tmp_path)
+    vulkan_or_skip(code, err)
+    assert code == 0, err
+    assert sorted(p.stem for p in (tmp_path / "v").iterdir()) == sorted(chain(8))
+    code, _, err = run(["check", "--scene", "demo", "--size", SIZE, "--preset", "bevy",
+                        "--stages", "v", "--json", "c.json", "-q"], tmp_path)
+    assert code == 0, err
+    assert json.loads((tmp_path / "c.json").read_text())["verdict"] == "PASS"
 
 
 @pytest.mark.skipif(not CORPUS, reason="BLOOMREF_CORPUS not set")
 @pytest.mark.parametrize("image,options", [("GoldenGate.exr", []),
-                                           ("WideFloatRange.exr", ["--method", "mip", "--storage", "f16"])])
+                                           ("WideFloatRange.exr", ["--method", "mip", "--storage", "f16"]),
+                                           ("CandleGlass.exr", ["--preset", "learnopengl-pbb"]),
+                                           ("StageEnvLatLong.exr", ["--preset", "bevy"]),
+                                           ("WideColorGamut.exr", ["--preset", "unity-urp"])])
 def test_compare_on_vulkan_on_the_corpus(tmp_path, image, options):
     code, out, err, _ = compare(tmp_path, os.path.join(CORPUS, image), *options)
     assert code == 0 and "verdict PASS" in out, out + err
@@ -227,3 +280,96 @@ def test_compare_on_lavapipe_takes_the_profile_vulkan_info_measures(info, tmp_pa
     assert p["half_overflow_saturate"] == (m["half_of_70000"] == 65504.0)
     assert p["flush_denormals"] == (not m["shader_denormals_kept"])
     assert p["fma"] or not m["fma_contracted"]
+
+
+# check --shaders pipeline --backend vulkan: a description's fragment passes as compute shaders.
+SEED002 = ["--preset", "cod-mip", "--composite", "after-tonemap", "--exposure", "0.5",
+           "--strength", "0.02"]
+
+
+def described(tmp_path, size, description, *options):
+    code, out, err = run(["check", "--scene", "demo", "--size", size, *options, "--shaders",
+                          "pipeline", "--pipeline", str(description), "--backend", "vulkan",
+                          "--json", "c.json", "-q"], tmp_path, timeout=600)
+    vulkan_or_skip(code, err)
+    assert code in (0, 1), err
+    return json.loads((tmp_path / "c.json").read_text())["items"][0]
+
+
+def copied(tmp_path, name, edit=None, shader=None, find=None, replace=None):
+    """A copy of data/pipelines/NAME.json (its shaders' paths made absolute), its JSON changed by
+    `edit` and, with `shader`, that shader copied and one text replaced."""
+    d = json.loads((PIPELINES / (name + ".json")).read_text())
+    for prog in d["programs"].values():
+        prog["fragment"] = str((PIPELINES / prog["fragment"]).resolve())
+    if shader:
+        src = Path(d["programs"][shader]["fragment"])
+        text = src.read_text()
+        assert find in text
+        (tmp_path / src.name).write_text(text.replace(find, replace))
+        d["programs"][shader]["fragment"] = str(tmp_path / src.name)
+    if edit:
+        edit(d)
+    f = tmp_path / "described.json"
+    f.write_text(json.dumps(d))
+    return f
+
+
+def test_descriptions_pass_on_vulkan(tmp_path):
+    """Seed 002's one-program layout (its samplers left to the units GL would give them) and the
+    article's and Bevy's hosts, as descriptions, pass on Vulkan."""
+    item = described(tmp_path, "256x192", PIPELINES / "seed-002.json", *SEED002)
+    assert item["verdict"] == "PASS", item
+    for name, preset, n in [("learnopengl-pbb", "learnopengl-pbb", 12), ("bevy", "bevy", 17)]:
+        item = described(tmp_path, SIZE, PIPELINES / (name + ".json"), "--preset", preset)
+        assert item["verdict"] == "PASS" and len(item["stages"]) == n, (name, item["verdict"])
+
+
+@pytest.mark.parametrize("name,preset,edit,shader,find,replace,stage,causes", [
+    # Seed 002's tent weights summing to 2: the upsample's gain
+    ("seed-002", SEED002, None, "bloom", "/ 16.0", "/ 8.0", "up.5", {"upsample-gain"}),
+    # Seed 002 with no threshold on the first level
+    ("seed-002", SEED002, None, "bloom", "< 1.0) c = vec3(0.0)", "< -1.0) c = vec3(0.0)",
+     "down.1", {"none", "threshold-other"}),
+    # Bevy's deepest upsample blended with 0.8 where compute_blend_factor gives 0.745
+    ("bevy", ["--preset", "bevy"],
+     lambda d: d["passes"][2]["blend"].update(constant=0.8),
+     None, None, None, "up.7", {"level-blend-constant"}),
+    # The article's upsample drawn over a cleared level: GL's (ONE, ONE) blend loses the level
+    ("learnopengl-pbb", ["--preset", "learnopengl-pbb"],
+     lambda d: d["passes"][2]["passes"][0].update(clear=True), None, None, None, "up.5", None),
+    # The article's downsample reading each tap one texel to the right
+    ("learnopengl-pbb", ["--preset", "learnopengl-pbb"], None, "down",
+     "texCoord + steps / srcResolution", "texCoord + (steps + vec2(1.0, 0.0)) / srcResolution",
+     "down.1", None),
+], ids=["seed-tent-gain", "seed-no-threshold", "bevy-blend-constant", "pbb-cleared-level",
+        "pbb-shifted-downsample"])
+def test_broken_descriptions_fail_on_vulkan_where_broken(tmp_path, name, preset, edit, shader,
+                                                         find, replace, stage, causes):
+    size = "256x192" if name == "seed-002" else SIZE
+    f = copied(tmp_path, name, edit, shader, find, replace)
+    item = described(tmp_path, size, f, *preset)
+    assert item["verdict"] == "FAIL"
+    first, named, _ = first_cause(item)
+    assert first == stage, (first, stage)
+    if causes:
+        assert named in causes, named
+
+
+def test_what_vulkan_cannot_run_is_refused_naming_the_file(tmp_path):
+    # A program with its own vertex shader: a compute pass has none.
+    f = copied(tmp_path, "seed-002",
+               lambda d: d["programs"]["bloom"].update(vertex=d["programs"]["bloom"]["fragment"]))
+    code, _, err = run(["check", "--scene", "demo", "--size", "64x48", *SEED002, "--shaders",
+                        "pipeline", "--pipeline", str(f), "--backend", "vulkan"], tmp_path)
+    vulkan_or_skip(code, err)
+    assert code == 2 and "vertex shader" in err and str(f) in err, err
+    # A shader that does not compile: its file and the compiler's message.
+    f = copied(tmp_path, "seed-002", None, "bloom", "/ 16.0", "/ sixteen")
+    code, _, err = run(["check", "--scene", "demo", "--size", "64x48", *SEED002, "--shaders",
+                        "pipeline", "--pipeline", str(f), "--backend", "vulkan"], tmp_path)
+    assert code == 2 and "bloom.frag" in err and "sixteen" in err, err
+    # --backend vulkan without a description
+    code, _, err = run(["check", "--scene", "demo", "--size", "64x48", "--backend", "vulkan",
+                        "--stages", "."], tmp_path)
+    assert code == 2 and "--shaders pipeline" in err, err
