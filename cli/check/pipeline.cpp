@@ -158,6 +158,11 @@ gpu::DescribedUniform uniform(const std::string& file, const std::string& at, co
     json_fields::only_keys(file, at, v, {"texel_of"});
     u.kind = gpu::DescribedUniform::texel;
     u.texture = named_texture("texel_of");
+  } else if (v.is_object() && (v.contains("width_of") || v.contains("height_of"))) {
+    const char* key = v.contains("width_of") ? "width_of" : "height_of";
+    json_fields::only_keys(file, at, v, {key});
+    u.kind = v.contains("width_of") ? gpu::DescribedUniform::width : gpu::DescribedUniform::height;
+    u.texture = named_texture(key);
   } else if (v.is_object() && v.contains("halved")) {
     json_fields::only_keys(file, at, v, {"halved", "times"});
     u.kind = gpu::DescribedUniform::halved;
@@ -166,7 +171,8 @@ gpu::DescribedUniform uniform(const std::string& file, const std::string& at, co
   } else {
     bad(file, at,
         "is not a uniform value: a number, a list of numbers, true/false, {\"int\": N}, "
-        "{\"size_of\": TEXTURE}, {\"texel_of\": TEXTURE} or {\"halved\": TEXTURE, \"times\": N}");
+        "{\"size_of\": TEXTURE}, {\"texel_of\": TEXTURE}, {\"width_of\": TEXTURE}, "
+        "{\"height_of\": TEXTURE} or {\"halved\": TEXTURE, \"times\": N}");
   }
   return u;
 }
@@ -174,12 +180,49 @@ gpu::DescribedUniform uniform(const std::string& file, const std::string& at, co
 gpu::DescribedPass pass(const std::string& file, const std::string& at, const ordered_json& p,
                         const gpu::PipelineDescription& d, const std::set<std::string>& textures) {
   using json_fields::bad;
-  json_fields::only_keys(file, at, p,
-                         {"program", "target", "inputs", "uniforms", "blend", "clear", "stage"});
+  json_fields::only_keys(file, at, p, {"program", "target", "inputs", "images", "dispatch",
+                                       "uniforms", "blend", "clear", "stage"});
   gpu::DescribedPass out;
   out.program = json_fields::text(file, at + ".program", p.value("program", ordered_json()));
   if (!d.programs.count(out.program))
     bad(file, at + ".program", "'" + out.program + "' is not a declared program");
+  const bool compute = !d.programs.at(out.program).compute.empty();
+  if (compute) {
+    out.clear = false;  // a compute pass writes what it writes; "clear": true clears first
+    if (p.contains("blend")) bad(file, at + ".blend", "a compute pass blends in its shader, if at all");
+  } else {
+    for (const char* key : {"images", "dispatch"})
+      if (p.contains(key))
+        bad(file, at + "." + key, std::string("applies to a compute program's pass; '") +
+                                      out.program + "' is a fragment program");
+  }
+  if (p.contains("images")) {
+    const ordered_json& im = p.at("images");
+    if (!im.is_object()) bad(file, at + ".images", "must be an object: storage image -> texture");
+    for (const auto& [name, tex] : im.items()) {
+      const std::string t = json_fields::text(file, at + ".images." + name, tex);
+      const bool number = !name.empty() && name.find_first_not_of("0123456789") == std::string::npos;
+      if (!number && !json_fields::identifier(name))
+        bad(file, at + ".images." + name, "is neither a GLSL name nor a binding number");
+      if (!textures.count(t)) bad(file, at + ".images." + name, "'" + t + "' is not a declared texture");
+      out.images.emplace_back(name, t);
+    }
+  }
+  if (p.contains("dispatch")) {
+    const ordered_json& g = p.at("dispatch");
+    if (g.is_array() && g.size() == 2 && g[0].is_number_integer() && g[1].is_number_integer() &&
+        g[0].get<int>() > 0 && g[1].get<int>() > 0) {
+      out.groups_x = g[0].get<int>();
+      out.groups_y = g[1].get<int>();
+    } else if (g.is_object()) {
+      json_fields::only_keys(file, at + ".dispatch", g, {"over"});
+      out.dispatch_over = json_fields::text(file, at + ".dispatch.over", g.value("over", ordered_json()));
+      if (!textures.count(out.dispatch_over))
+        bad(file, at + ".dispatch.over", "'" + out.dispatch_over + "' is not a declared texture");
+    } else {
+      bad(file, at + ".dispatch", "must be [groups x, groups y] (positive) or {\"over\": TEXTURE}");
+    }
+  }
   out.target = json_fields::text(file, at + ".target", p.value("target", ordered_json()));
   if (!textures.count(out.target))
     bad(file, at + ".target", "'" + out.target + "' is not a declared texture");
@@ -252,11 +295,20 @@ gpu::PipelineDescription read_pipeline(const std::string& path) {
     bad(path, "programs", "must be an object of at least one program");
   for (const auto& [name, prog] : j.at("programs").items()) {
     const std::string at = "programs." + name;
-    json_fields::only_keys(path, at, prog, {"fragment", "vertex"});
+    json_fields::only_keys(path, at, prog, {"fragment", "vertex", "compute", "entry"});
     gpu::DescribedProgram p;
-    p.fragment = (folder / json_fields::text(path, at + ".fragment", prog.value("fragment", ordered_json()))).string();
-    if (prog.contains("vertex"))
-      p.vertex = (folder / json_fields::text(path, at + ".vertex", prog.at("vertex"))).string();
+    if (prog.contains("compute")) {
+      if (prog.contains("fragment") || prog.contains("vertex"))
+        bad(path, at, "has a compute shader and a fragment or vertex shader: one or the other");
+      p.compute = (folder / json_fields::text(path, at + ".compute", prog.at("compute"))).string();
+      if (prog.contains("entry")) p.entry = json_fields::text(path, at + ".entry", prog.at("entry"));
+      if (!json_fields::identifier(p.entry)) bad(path, at + ".entry", "is not a function name");
+    } else {
+      if (prog.contains("entry")) bad(path, at + ".entry", "names a compute shader's entry point");
+      p.fragment = (folder / json_fields::text(path, at + ".fragment", prog.value("fragment", ordered_json()))).string();
+      if (prog.contains("vertex"))
+        p.vertex = (folder / json_fields::text(path, at + ".vertex", prog.at("vertex"))).string();
+    }
     d.programs[name] = p;
   }
   std::set<std::string> textures;

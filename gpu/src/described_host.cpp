@@ -67,6 +67,8 @@ std::vector<HostUniform> host_uniforms(const PipelineDescription& d, const std::
         case DescribedUniform::number:
           if (u.values.size() > 1) h.kind = HostUniform::vector, h.components = int(u.values.size());
           break;
+        case DescribedUniform::width:
+        case DescribedUniform::height: break;  // a float
         default: h.kind = HostUniform::vector, h.components = 2; break;
       }
       out.push_back(h);
@@ -98,6 +100,9 @@ class DescribedHost {
   void build_programs() {
     ctx_.check("before building the user's programs");
     for (const auto& [name, prog] : d_.programs) {
+      if (!prog.compute.empty())
+        throw ParamError(d_.file + ": program '" + name + "' is a compute shader (" + prog.compute +
+                         "); it runs on Vulkan: --backend vulkan");
       const ShaderSource fs = prog.fragment_text.empty()
                                   ? load_shader(prog.fragment)
                                   : ShaderSource{prog.fragment, prog.fragment_text};
@@ -167,6 +172,12 @@ class DescribedHost {
         const float sx = static_cast<float>(t.width), sy = static_cast<float>(t.height);
         if (u.kind == DescribedUniform::size) prog.set_vector(name, {sx, sy});
         else prog.set_vector(name, {1.0f / sx, 1.0f / sy});
+        return;
+      }
+      case DescribedUniform::width:
+      case DescribedUniform::height: {
+        const Texture& t = textures_.at(u.texture);
+        prog.set_number(name, static_cast<float>(u.kind == DescribedUniform::width ? t.width : t.height));
         return;
       }
       case DescribedUniform::halved: {

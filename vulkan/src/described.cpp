@@ -1,14 +1,19 @@
 #include "bloomref/vulkan/described.h"
 
+#include <algorithm>
 #include <chrono>
+#include <fstream>
 #include <cstring>
 #include <map>
 #include <memory>
+#include <filesystem>
 #include <regex>
+#include <set>
 #include <sstream>
 
 #include "bloomref/error.h"
 #include "bloomref/stages.h"
+#include "reflect.h"
 #include "stage_program.h"
 #include "vk_objects.h"
 
@@ -375,6 +380,10 @@ class DescribedRunner {
       case DescribedUniform::number: return u.values;
       case DescribedUniform::integer:
       case DescribedUniform::flag: return {static_cast<float>(u.integer_value)};
+      case DescribedUniform::width:
+        return {static_cast<float>(textures_.at(u.texture).image->width)};
+      case DescribedUniform::height:
+        return {static_cast<float>(textures_.at(u.texture).image->height)};
       case DescribedUniform::size:
       case DescribedUniform::texel:
       case DescribedUniform::halved: {
@@ -390,6 +399,7 @@ class DescribedRunner {
   }
 
   void draw(std::size_t i) {
+    if (!d_.programs.at(d_.passes[i].program).compute.empty()) return draw_compute(i);
     const auto t0 = Clock::now();
     const DescribedPass& pass = d_.passes[i];
     const auto target_it = textures_.find(pass.target);
@@ -418,6 +428,11 @@ class DescribedRunner {
     if (pass.clear) clear(target);
     const double device_ms =
         timed_dispatch(ctx_, *prog.pipeline, push.data(), target.width, target.height);
+    finish(pass, target, t0, device_ms);
+  }
+
+  // Counts a pass's time and reads its target back when it names a stage.
+  void finish(const DescribedPass& pass, Image2D& target, Clock::time_point t0, double device_ms) {
     // A pass that names no stage (URP's horizontal pass) counts toward the next that does.
     pending_ms_ += std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     pending_device_ms_ = device_ms < 0 || pending_device_ms_ < 0 ? -1 : pending_device_ms_ + device_ms;
@@ -428,6 +443,176 @@ class DescribedRunner {
     pending_ms_ = pending_device_ms_ = 0;
   }
 
+  // A user's compute shader: compiled (GLSL, HLSL) or read (SPIR-V), reflected, and its
+  // pipeline made with the bindings it declares.
+  struct ComputeProgram {
+    std::string file;
+    Reflection r;
+    std::unique_ptr<ComputePipeline> pipeline;
+    std::map<std::uint32_t, std::unique_ptr<Buffer>> buffers;  // its uniform buffers
+  };
+
+  ComputeProgram& compute_program(const std::string& name) {
+    auto it = compute_.find(name);
+    if (it != compute_.end()) return it->second;
+    const gpu::DescribedProgram& prog = d_.programs.at(name);
+    ComputeProgram cp;
+    cp.file = prog.compute;
+    std::string ext = std::filesystem::path(cp.file).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    std::vector<std::uint32_t> code;
+    if (ext == ".spv") {
+      std::ifstream in(cp.file, std::ios::binary);
+      if (!in) throw InputError(cp.file, "cannot be read");
+      const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      if (bytes.size() < 20 || bytes.size() % 4 != 0)
+        throw InputError(cp.file, "is not SPIR-V: " + std::to_string(bytes.size()) +
+                                      " bytes, not a whole number of 32-bit words with a header");
+      code.resize(bytes.size() / 4);
+      std::memcpy(code.data(), bytes.data(), bytes.size());
+      if (code[0] != 0x07230203u) throw InputError(cp.file, "is not SPIR-V (no magic number)");
+    } else {
+      const gpu::ShaderSource src = gpu::load_shader(cp.file);
+      try {
+        code = compile_compute(src.text, cp.file, cp.file, ext == ".hlsl", prog.entry);
+      } catch (const VulkanError& e) {
+        throw gpu::UserShaderError(cp.file, e.what());
+      }
+    }
+    cp.r = reflect(code, cp.file);  // ParamError naming the file
+    std::vector<std::pair<std::uint32_t, VkDescriptorType>> types;
+    for (const ReflectedBinding& b : cp.r.bindings) {
+      if (b.set != 0)
+        throw InputError(cp.file, "'" + b.name + "' is in descriptor set " + std::to_string(b.set) +
+                                      "; bloomref binds set 0 only");
+      using K = ReflectedBinding::Kind;
+      types.emplace_back(b.binding, b.kind == K::sampled_image    ? VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER
+                                    : b.kind == K::storage_image  ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
+                                    : b.kind == K::separate_image ? VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE
+                                    : b.kind == K::sampler        ? VK_DESCRIPTOR_TYPE_SAMPLER
+                                                                  : VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER);
+      if (b.kind == K::uniform_buffer)
+        cp.buffers[b.binding] = std::make_unique<Buffer>(ctx_, std::max<std::uint32_t>(b.size, 16),
+                                                         VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT);
+    }
+    if (cp.r.local_size[2] != 1)
+      throw InputError(cp.file, "has a work group " + std::to_string(cp.r.local_size[2]) +
+                                    " deep; bloomref dispatches 2-D groups over a texture");
+    cp.pipeline = std::make_unique<ComputePipeline>(ctx_, code.data(), code.size() * 4, types,
+                                                    cp.r.push_bytes, prog.entry);
+    return compute_.emplace(name, std::move(cp)).first->second;
+  }
+
+  std::string bindings_of(const ComputeProgram& cp) const {
+    std::string out;
+    for (const ReflectedBinding& b : cp.r.bindings)
+      out += (out.empty() ? "" : ", ") + b.name + " (binding " + std::to_string(b.binding) + ", " +
+             to_string(b.kind) + ")";
+    return out.empty() ? "none" : out;
+  }
+
+  // Writes the pass's uniforms into a block's members; each member must be set, and `used`
+  // collects the names set.
+  void fill(std::size_t i, const DescribedPass& pass, const ComputeProgram& cp,
+            const std::vector<ReflectedMember>& members, const std::string& block,
+            unsigned char* data, std::set<std::string>& used) {
+    for (const ReflectedMember& m : members) {
+      const auto u = pass.uniforms.find(m.name);
+      if (u == pass.uniforms.end())
+        throw ParamError(where(i) + " does not set '" + m.name + "' (" + m.type + ") of " +
+                         block + " of " + cp.file);
+      const std::vector<float> v = values(u->second);
+      if (v.size() != m.components)
+        throw ParamError(where(i) + " sets '" + m.name + "' (a " + m.type + " of " + cp.file +
+                         ") with " + std::to_string(v.size()) + " value(s)");
+      for (std::size_t c = 0; c < v.size(); ++c) {
+        if (m.integer) {
+          const std::int32_t x = static_cast<std::int32_t>(v[c]);
+          std::memcpy(data + m.offset + 4 * c, &x, 4);
+        } else {
+          std::memcpy(data + m.offset + 4 * c, &v[c], 4);
+        }
+      }
+      used.insert(m.name);
+    }
+  }
+
+  void draw_compute(std::size_t i) {
+    const auto t0 = Clock::now();
+    const DescribedPass& pass = d_.passes[i];
+    ComputeProgram& cp = compute_program(pass.program);
+    using K = ReflectedBinding::Kind;
+    auto matches = [](const ReflectedBinding& b, const std::string& key) {
+      return key == b.name || key == std::to_string(b.binding);
+    };
+    auto find = [&](const std::vector<std::pair<std::string, std::string>>& entries,
+                    const ReflectedBinding& b) -> const std::string* {
+      for (const auto& [key, texture] : entries)
+        if (matches(b, key)) return &texture;
+      return nullptr;
+    };
+    // Every entry of the pass names a binding of its kind.
+    for (const auto& [key, texture] : pass.inputs)
+      if (std::none_of(cp.r.bindings.begin(), cp.r.bindings.end(), [&](const ReflectedBinding& b) {
+            return b.kind != K::storage_image && b.kind != K::uniform_buffer && matches(b, key);
+          }))
+        throw ParamError(where(i) + " reads '" + texture + "' through '" + key + "', which is not a "
+                         "sampled image, texture or sampler of " + cp.file + " (its bindings: " +
+                         bindings_of(cp) + ")");
+    for (const auto& [key, texture] : pass.images)
+      if (std::none_of(cp.r.bindings.begin(), cp.r.bindings.end(), [&](const ReflectedBinding& b) {
+            return b.kind == K::storage_image && matches(b, key);
+          }))
+        throw ParamError(where(i) + " binds '" + texture + "' to '" + key + "', which is not a "
+                         "storage image of " + cp.file + " (its bindings: " + bindings_of(cp) + ")");
+    std::set<std::string> used;
+    for (const ReflectedBinding& b : cp.r.bindings) {
+      const std::string what = "'" + b.name + "' (binding " + std::to_string(b.binding) + ", " +
+                               to_string(b.kind) + ") of " + cp.file;
+      if (b.kind == K::uniform_buffer) {
+        Buffer& buf = *cp.buffers.at(b.binding);
+        std::memset(buf.data(), 0, buf.size());
+        fill(i, pass, cp, b.members, "uniform buffer '" + b.name + "'",
+             static_cast<unsigned char*>(buf.data()), used);
+        cp.pipeline->bind_buffer(b.binding, buf.handle(), buf.size());
+        continue;
+      }
+      const std::string* texture = find(b.kind == K::storage_image ? pass.images : pass.inputs, b);
+      if (!texture)
+        throw ParamError(where(i) + " gives " + what + " no texture (" +
+                         (b.kind == K::storage_image ? "\"images\"" : "\"inputs\"") + ")");
+      const Texture& tex = textures_.at(*texture);
+      if (b.kind == K::storage_image) {
+        const std::string have = qualifier(tex.image->format);
+        if (!b.format.empty() && b.format != have)
+          throw ParamError(where(i) + " binds '" + *texture + "' (" + have + ") to " + what +
+                           ", declared " + b.format);
+        cp.pipeline->bind_image(b.binding, tex.image->view());
+      } else if (b.kind == K::sampler) {
+        cp.pipeline->bind_image(b.binding, VK_NULL_HANDLE, tex.sampler->handle());
+      } else {
+        cp.pipeline->bind_image(b.binding, tex.image->view(), tex.sampler->handle());
+      }
+    }
+    std::vector<unsigned char> push(cp.r.push_bytes, 0);
+    fill(i, pass, cp, cp.r.push, "the push constants", push.data(), used);
+    for (const auto& [name, u] : pass.uniforms)
+      if (!used.count(name))
+        throw ParamError(where(i) + " sets '" + name + "', which is not a push constant or "
+                         "uniform-buffer member of " + cp.file);
+    Image2D& target = *textures_.at(pass.target).image;
+    std::uint32_t gx = std::uint32_t(pass.groups_x), gy = std::uint32_t(pass.groups_y);
+    if (gx == 0) {
+      const Image2D& over = *textures_.at(pass.dispatch_over.empty() ? pass.target : pass.dispatch_over).image;
+      gx = (std::uint32_t(over.width) + cp.r.local_size[0] - 1) / cp.r.local_size[0];
+      gy = (std::uint32_t(over.height) + cp.r.local_size[1] - 1) / cp.r.local_size[1];
+    }
+    if (pass.clear) clear(target);
+    const double device_ms =
+        timed_dispatch_groups(ctx_, *cp.pipeline, push.empty() ? nullptr : push.data(), gx, gy);
+    finish(pass, target, t0, device_ms);
+  }
+
   Context::Impl& ctx_;
   ConstImageView scene_;
   const gpu::PipelineDescription& d_;
@@ -436,6 +621,7 @@ class DescribedRunner {
   Texture black_;
   std::map<std::string, std::map<std::string, std::size_t>> units_;  // program -> sampler -> unit
   std::map<std::string, Program> programs_;
+  std::map<std::string, ComputeProgram> compute_;
   std::map<std::string, std::unique_ptr<ComputePipeline>> converters_;
   StageTrace trace_;
   double pending_ms_ = 0, pending_device_ms_ = 0;

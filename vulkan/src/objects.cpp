@@ -143,9 +143,29 @@ std::vector<unsigned char> Image2D::download() {
   return std::vector<unsigned char>(p, p + n);
 }
 
+namespace {
+std::vector<std::pair<std::uint32_t, VkDescriptorType>> numbered(std::vector<VkDescriptorType> t) {
+  std::vector<std::pair<std::uint32_t, VkDescriptorType>> out;
+  for (std::uint32_t i = 0; i < t.size(); ++i) out.emplace_back(i, t[i]);
+  return out;
+}
+}  // namespace
+
 ComputePipeline::ComputePipeline(Context::Impl& ctx, const std::uint32_t* code,
                                  std::size_t code_bytes, std::vector<VkDescriptorType> types,
                                  std::uint32_t push_bytes)
+    : ComputePipeline(ctx, code, code_bytes, numbered(std::move(types)), push_bytes, "main") {}
+
+VkDescriptorType ComputePipeline::type_of(std::uint32_t binding) const {
+  for (const auto& [b, t] : types_)
+    if (b == binding) return t;
+  throw VulkanError("no binding " + std::to_string(binding) + " in the pipeline");
+}
+
+ComputePipeline::ComputePipeline(Context::Impl& ctx, const std::uint32_t* code,
+                                 std::size_t code_bytes,
+                                 std::vector<std::pair<std::uint32_t, VkDescriptorType>> types,
+                                 std::uint32_t push_bytes, const std::string& entry)
     : ctx_(ctx), types_(std::move(types)), push_bytes_(push_bytes) {
   VkShaderModuleCreateInfo smi{};
   smi.sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO;
@@ -154,14 +174,14 @@ ComputePipeline::ComputePipeline(Context::Impl& ctx, const std::uint32_t* code,
   check(vkCreateShaderModule(ctx.device, &smi, nullptr, &module_), "vkCreateShaderModule");
   std::vector<VkDescriptorSetLayoutBinding> bindings;
   std::vector<VkDescriptorPoolSize> sizes;
-  for (std::uint32_t i = 0; i < types_.size(); ++i) {
+  for (const auto& [binding, type] : types_) {
     VkDescriptorSetLayoutBinding b{};
-    b.binding = i;
-    b.descriptorType = types_[i];
+    b.binding = binding;
+    b.descriptorType = type;
     b.descriptorCount = 1;
     b.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
     bindings.push_back(b);
-    sizes.push_back({types_[i], 1});
+    sizes.push_back({type, 1});
   }
   VkDescriptorSetLayoutCreateInfo dl{};
   dl.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO;
@@ -182,13 +202,14 @@ ComputePipeline::ComputePipeline(Context::Impl& ctx, const std::uint32_t* code,
   cp.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
   cp.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
   cp.stage.module = module_;
-  cp.stage.pName = "main";
+  cp.stage.pName = entry.c_str();
   cp.layout = layout_;
   check(vkCreateComputePipelines(ctx.device, VK_NULL_HANDLE, 1, &cp, nullptr, &pipeline_),
         "vkCreateComputePipelines");
   VkDescriptorPoolCreateInfo dp{};
   dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
   dp.maxSets = 1;
+  if (sizes.empty()) sizes.push_back({VK_DESCRIPTOR_TYPE_SAMPLER, 1});  // a pool has a size
   dp.poolSizeCount = std::uint32_t(sizes.size());
   dp.pPoolSizes = sizes.data();
   check(vkCreateDescriptorPool(ctx.device, &dp, nullptr, &pool_), "vkCreateDescriptorPool");
@@ -215,8 +236,20 @@ void ComputePipeline::bind_image(std::uint32_t binding, VkImageView view, VkSamp
   w.dstSet = set_;
   w.dstBinding = binding;
   w.descriptorCount = 1;
-  w.descriptorType = types_.at(binding);
+  w.descriptorType = type_of(binding);
   w.pImageInfo = &ii;
+  vkUpdateDescriptorSets(ctx_.device, 1, &w, 0, nullptr);
+}
+
+void ComputePipeline::bind_buffer(std::uint32_t binding, VkBuffer buffer, VkDeviceSize size) {
+  VkDescriptorBufferInfo bi{buffer, 0, size};
+  VkWriteDescriptorSet w{};
+  w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+  w.dstSet = set_;
+  w.dstBinding = binding;
+  w.descriptorCount = 1;
+  w.descriptorType = type_of(binding);
+  w.pBufferInfo = &bi;
   vkUpdateDescriptorSets(ctx_.device, 1, &w, 0, nullptr);
 }
 

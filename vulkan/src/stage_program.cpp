@@ -72,13 +72,18 @@ std::string push_constant_block(std::vector<PushMember>& members, std::uint32_t&
 }
 
 std::vector<std::uint32_t> compile_compute(const std::string& text, const std::string& file,
-                                           const std::string& what) {
+                                           const std::string& what, bool hlsl,
+                                           const std::string& entry) {
   shaderc::Compiler compiler;
   shaderc::CompileOptions options;
   options.SetTargetEnvironment(shaderc_target_env_vulkan, shaderc_env_version_vulkan_1_1);
   options.SetOptimizationLevel(shaderc_optimization_level_zero);  // the shader's own order
-  const shaderc::SpvCompilationResult r =
-      compiler.CompileGlslToSpv(text, shaderc_compute_shader, file.c_str(), options);
+  if (hlsl) {
+    options.SetSourceLanguage(shaderc_source_language_hlsl);
+    options.SetAutoBindUniforms(true);  // registers without [[vk::binding]] numbered in order
+  }
+  const shaderc::SpvCompilationResult r = compiler.CompileGlslToSpv(
+      text.data(), text.size(), shaderc_compute_shader, file.c_str(), entry.c_str(), options);
   if (r.GetCompilationStatus() != shaderc_compilation_status_success)
     throw VulkanError(what + " does not compile for Vulkan: " + r.GetErrorMessage());
   return std::vector<std::uint32_t>(r.cbegin(), r.cend());
@@ -86,13 +91,19 @@ std::vector<std::uint32_t> compile_compute(const std::string& text, const std::s
 
 double timed_dispatch(Context::Impl& ctx, const ComputePipeline& pipeline, const void* push,
                       int width, int height) {
+  return timed_dispatch_groups(ctx, pipeline, push, std::uint32_t((width + 7) / 8),
+                               std::uint32_t((height + 7) / 8));
+}
+
+double timed_dispatch_groups(Context::Impl& ctx, const ComputePipeline& pipeline, const void* push,
+                             std::uint32_t groups_x, std::uint32_t groups_y) {
   const VkQueryPool q = ctx.timestamp_pool();
   ctx.submit([&](VkCommandBuffer cb) {
     if (q) {
       vkCmdResetQueryPool(cb, q, 0, 2);
       vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, q, 0);
     }
-    pipeline.dispatch(cb, push, std::uint32_t((width + 7) / 8), std::uint32_t((height + 7) / 8));
+    pipeline.dispatch(cb, push, groups_x, groups_y);
     if (q) vkCmdWriteTimestamp(cb, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, q, 1);
   });
   if (!q) return -1.0;

@@ -27,13 +27,18 @@ std::string push_constant_block(std::vector<PushMember>& members, std::uint32_t&
 
 /// SPIR-V of the compute shader `text` (the file name `file` in messages). Throws VulkanError
 /// starting with `what` and holding the compiler's message when it does not compile.
+/// `hlsl`: the text is HLSL (glslang's front end), its entry point `entry`.
 std::vector<std::uint32_t> compile_compute(const std::string& text, const std::string& file,
-                                           const std::string& what);
+                                           const std::string& what, bool hlsl = false,
+                                           const std::string& entry = "main");
 
 /// Submits one dispatch of `pipeline` (8x8 work groups over `width` x `height`) with `push` and
 /// waits for it; its time on the device in ms (two timestamps), or -1 without timestamps.
 double timed_dispatch(Context::Impl& ctx, const ComputePipeline& pipeline, const void* push,
                       int width, int height);
+/// The same with the number of work groups given.
+double timed_dispatch_groups(Context::Impl& ctx, const ComputePipeline& pipeline, const void* push,
+                             std::uint32_t groups_x, std::uint32_t groups_y);
 
 class StageProgram {
  public:

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bloomref/vulkan/context.h"
@@ -93,19 +94,26 @@ class ComputePipeline {
  public:
   ComputePipeline(Context::Impl& ctx, const std::uint32_t* code, std::size_t code_bytes,
                   std::vector<VkDescriptorType> types, std::uint32_t push_bytes);
+  /// Bindings numbered as given (binding, type), the entry point `entry`.
+  ComputePipeline(Context::Impl& ctx, const std::uint32_t* code, std::size_t code_bytes,
+                  std::vector<std::pair<std::uint32_t, VkDescriptorType>> bindings,
+                  std::uint32_t push_bytes, const std::string& entry);
   ~ComputePipeline();
   ComputePipeline(const ComputePipeline&) = delete;
   ComputePipeline& operator=(const ComputePipeline&) = delete;
   /// Points binding `binding` at `view` (with `sampler` for a combined image sampler).
   void bind_image(std::uint32_t binding, VkImageView view, VkSampler sampler = VK_NULL_HANDLE);
+  /// Points uniform-buffer binding `binding` at the whole of `buffer`.
+  void bind_buffer(std::uint32_t binding, VkBuffer buffer, VkDeviceSize size);
   /// Records the dispatch of `groups_x` x `groups_y` work groups with `push` as constants.
   void dispatch(VkCommandBuffer cb, const void* push, std::uint32_t groups_x,
                 std::uint32_t groups_y) const;
 
  private:
   Context::Impl& ctx_;
-  std::vector<VkDescriptorType> types_;
+  std::vector<std::pair<std::uint32_t, VkDescriptorType>> types_;
   std::uint32_t push_bytes_;
+  VkDescriptorType type_of(std::uint32_t binding) const;
   VkShaderModule module_ = VK_NULL_HANDLE;
   VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
   VkPipelineLayout layout_ = VK_NULL_HANDLE;

@@ -49,7 +49,8 @@ struct DescribedUniform {
   /// number: a float (or a vector of floats); integer: an int; flag: a bool; size: a texture's
   /// integer size as a float vec2; texel: 1 / that size; halved: the size of `texture` halved
   /// `times` times in float, as a host that keeps a float size does (vec2).
-  enum Kind { number, integer, flag, size, texel, halved } kind = number;
+  /// width, height: one of a texture's integer sizes as a float.
+  enum Kind { number, integer, flag, size, texel, halved, width, height } kind = number;
   std::vector<float> values;
   int integer_value = 0;
   std::string texture;
@@ -69,12 +70,21 @@ struct DescribedPass {
   std::map<std::string, DescribedUniform> uniforms;
   DescribedBlend blend;
   bool clear = true;   ///< cleared to black before the draw (false: it draws over what is there)
+  /// A compute program's storage images: binding (its name, or its number) -> texture.
+  std::vector<std::pair<std::string, std::string>> images;
+  /// A compute program's work groups: over `dispatch_over`'s size (the target's when empty) in
+  /// groups of its local size, or exactly groups_x x groups_y when those are > 0.
+  std::string dispatch_over;
+  int groups_x = 0, groups_y = 0;
   std::string stage;   ///< the bloomref stage the target holds after this pass; empty: none
 };
 
 struct DescribedProgram {
   std::string fragment, vertex;  ///< files; vertex empty: bloomref's pass-through
   std::string fragment_text;     ///< not empty: the fragment shader's text, `fragment` its name
+  /// A compute shader instead (Vulkan only): GLSL (#version 450), HLSL (.hlsl) or SPIR-V (.spv),
+  /// its entry point `entry`.
+  std::string compute, entry = "main";
 };
 
 struct PipelineDescription {
