@@ -100,6 +100,20 @@ def test_the_downsample_passes_in_hlsl(tmp_path):
     assert item["verdict"] in ("WARN", "FAIL") and item["first_divergent_stage"] == "down.1", err
 
 
+def test_constants_from_a_uniform_buffer(tmp_path):
+    """The upsample's constants in a uniform buffer (std140, binding 2) instead of push
+    constants: set by member name the same way."""
+    ubo = broken(tmp_path, "upsample.comp", "layout(push_constant) uniform PushConstant {",
+                 "layout(binding = 2) uniform Params {")
+    code, err, item = check(tmp_path, description(tmp_path, up=ubo))
+    assert code == 0 and item["verdict"] == "PASS", err
+    # the radius in the buffer doubled: the tent's taps two texels apart fail at up.4
+    def wide(d):
+        d["passes"][2]["passes"][0]["uniforms"]["radius"] = 4.0
+    code, err, item = check(tmp_path, description(tmp_path, wide, up=ubo))
+    assert code == 1 and item["first_divergent_stage"] == "up.4", err
+
+
 # The bugs GraphicsSandbox's own shaders ship (downsample.comp.glsl, upsample.comp.glsl at
 # fddfdcf), planted one at a time into the correct copies.
 BUGS = [
