@@ -27,6 +27,7 @@
 #include "commands.h"
 #include "json_out.h"
 #include "options.h"
+#include "pass_probe.h"
 #include "timing.h"
 
 namespace bloomref::cli {
@@ -83,7 +84,7 @@ struct BenchArgs {
   std::string sizes = "256x256,1024x1024,1920x1080,3840x2160";
   std::string out_dir;
   int repeat = 5;
-  bool no_gl = false, no_vulkan = false;
+  bool no_gl = false, no_vulkan = false, pass_probe = false;
   PipelineOptions pipeline;
 };
 
@@ -352,6 +353,9 @@ std::function<int()> add_bench(CLI::App& app) {
   sub->add_option("--out", a->out_dir, "write bench.csv and bench.json to DIR");
   sub->add_flag("--no-gl", a->no_gl, "no GL runs");
   sub->add_flag("--no-vulkan", a->no_vulkan, "no Vulkan runs");
+  sub->add_flag("--pass-probe", a->pass_probe,
+                "time one 9-tap pass per size as a GL fragment pass, a GL compute pass and a "
+                "Vulkan dispatch (device time, GB/s, the device's compute units) instead");
   a->pipeline.add_to(*sub);
   return [a, sub]() -> int {
     if (!sub->parsed()) return -1;
@@ -362,6 +366,22 @@ std::function<int()> add_bench(CLI::App& app) {
     const std::string renderer = open_gl(a->no_gl, ctx);
     std::unique_ptr<vulkan::Context> vk;
     const std::string vulkan_device = open_vulkan(a->no_vulkan, vk);
+    if (a->pass_probe) {
+      bool ok = true;
+      nlohmann::ordered_json probes = nlohmann::ordered_json::array();
+      for (auto [w, h] : sizes)
+        probes.push_back(pass_probe(a->pipeline.params, a->pipeline.scene, w, h, a->repeat,
+                                    ctx.get(), vk.get(), ok));
+      std::printf("gl: %s\nvulkan: %s\n", renderer.c_str(), vulkan_device.c_str());
+      if (!a->out_dir.empty()) {
+        std::filesystem::create_directories(a->out_dir);
+        save_text((std::filesystem::path(a->out_dir) / "pass-probe.json").string(),
+                  escape::json_text(nlohmann::ordered_json{{"renderer", renderer},
+                                                           {"vulkan_device", vulkan_device},
+                                                           {"probes", probes}}) + "\n");
+      }
+      return ok ? 0 : 1;
+    }
     const int all = resolve_threads(0);
     const std::vector<int> wedge = thread_wedge(all);
     // The machine's own ceilings for the thread wedge, before and after the timed runs (the

@@ -31,6 +31,8 @@ std::function<int()> add_vulkan_info(CLI::App& app) {
           {"timestamps_on_compute", i.timestamps_on_compute},
           {"timestamp_valid_bits", i.timestamp_valid_bits},
           {"max_workgroup_invocations", i.max_workgroup_invocations},
+          {"compute_units", i.compute_units},
+          {"compute_units_from", i.compute_units_from},
           {"max_workgroup_size",
            {i.max_workgroup_size[0], i.max_workgroup_size[1], i.max_workgroup_size[2]}},
           {"shader_float16", i.shader_float16},

@@ -179,7 +179,7 @@ def test_pack_then_run_from_a_copy(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "LD_LIBRARY_PATH"}
     out = tmp_path / "out"
     r = run_script(["run", str(copy), "--out", str(out), "--sizes", "32x32", "--repeat", "1",
-                    "--check-size", "48x32", "--budget", "240"], env=env)
+                    "--check-size", "48x32", "--probe-size", "64x48", "--budget", "300"], env=env)
     assert set(os.listdir(out)) == OUTPUTS
     res = json.loads((out / "gpu-bench.json").read_text())
     assert res["environment"]["LD_LIBRARY_PATH"].split(":")[0] == str(copy / "lib")
@@ -191,7 +191,7 @@ def test_pack_then_run_from_a_copy(tmp_path):
                for s in res["steps"])
     if res["steps"][0]["rc"] != 0:
         pytest.skip("no GL here: " + res["gl"]["note"])
-    compares = [s for s in res["steps"] if s["kind"] == "compare"]
+    compares = [s for s in res["steps"] if s["kind"] == "compare" and s["shaders"] != "vulkan"]
     # One image and the scene at one size: f32 and f16, fragment and compute (8), mip on the
     # image (2), and the nvidia profile on the fragment ones wherever auto chose another.
     others = sum(1 for s in compares if s["profile_asked"] == "auto" and s["shaders"] ==
@@ -208,6 +208,22 @@ def test_pack_then_run_from_a_copy(tmp_path):
         c = checks[f"LearnOpenGL, {what} f32"]
         assert (c["verdict"], c["first_divergent_stage"], c["status"]) == ("FAIL", stage, "ok")
     assert len(checks) == 4 + (2 + len(gb.LO_BROKEN) if lo else 0)
+    # Vulkan: the device, the pass probe (one pass per API, each checked against the CPU's),
+    # and compares of the image (f32 and f16 gaussian and mip) and three presets' chains.
+    vk = [s for s in res["steps"] if s["kind"] == "compare" and s["shaders"] == "vulkan"]
+    if res["vulkan"].get("device"):
+        assert "vulkan-info" in names
+        probe = [s for s in res["steps"] if s["kind"] == "probe"][0]
+        rows = {r["api"]: r for r in probe["probes"][0]["rows"]}
+        assert set(rows) == {"gl-fragment", "gl-compute", "vulkan"}
+        assert all(r["checked"] for r in rows.values())
+        assert probe["probes"][0]["bytes_per_pass"] == 2 * 16 * 64 * 48  # RGBA32F read + write
+        assert len(vk) == 7 and all(c["verdict"] == "PASS" for c in vk), [
+            (c["name"], c.get("verdict")) for c in vk]
+        assert sorted(c["method"] for c in vk if "--preset" in c["method"]) == [
+            "mip --preset bevy", "mip --preset learnopengl-pbb", "mip --preset unity-urp"]
+        md = (out / "gpu-bench.md").read_text()
+        assert "## Where the time goes" in md and "| 64x48 | f32 | vulkan |" in md
     cvr = res["check_vs_run"][0]
     assert (cvr["size"], cvr["verdict"], cvr["runs"]) == ("48x32", "PASS", 1)
     assert cvr["ratio"] == pytest.approx(cvr["check_ms"] / cvr["run_ms"], rel=0.01)
@@ -231,14 +247,17 @@ def test_run_without_egl_records_it_and_still_benches_the_cpu(tmp_path):
     env.pop("LD_LIBRARY_PATH", None)
     out = tmp_path / "out"
     r = run_script(["run", str(packed), "--out", str(out), "--sizes", "32x32", "--repeat", "1",
-                    "--check-size", "48x32", "--expect-gpu"], env=env)
+                    "--check-size", "48x32", "--probe-size", "64x48", "--expect-gpu"], env=env)
     assert r.returncode == 3
     res = json.loads((out / "gpu-bench.json").read_text())
     assert res["steps"][0]["name"] == "gl-info" and res["steps"][0]["rc"] == 3
     assert res["gl"]["note"].startswith("GL unavailable (gl-info exit 3)")
-    # check against run needs no GL: the CPU's run and check of one frame, timed.
-    assert [s["kind"] for s in res["steps"]] == ["gl-info", "bench", "prep", "timed", "timed",
-                                                 "bench"]
+    # check against run needs no GL: the CPU's run and check of one frame, timed. Vulkan needs
+    # no EGL: its device, the probe (the Vulkan pass alone) and its compares run.
+    vulkan = ["vulkan-info", "probe"] + ["compare"] * 7 if res["vulkan"].get("device") else \
+        ["vulkan-info"]
+    assert [s["kind"] for s in res["steps"]] == ["gl-info", "bench", *vulkan, "prep", "timed",
+                                                 "timed", "bench"]
     assert res["check_vs_run"][0]["verdict"] == "PASS"
     assert all(s["rc"] == 0 for s in res["steps"][1:])
     assert "GL unavailable (gl-info exit 3)" in (out / "gpu-bench.md").read_text()

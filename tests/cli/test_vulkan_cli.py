@@ -373,3 +373,25 @@ def test_what_vulkan_cannot_run_is_refused_naming_the_file(tmp_path):
     code, _, err = run(["check", "--scene", "demo", "--size", "64x48", "--backend", "vulkan",
                         "--stages", "."], tmp_path)
     assert code == 2 and "--shaders pipeline" in err, err
+
+
+def test_the_pass_probe_times_one_pass_per_api_and_checks_it(tmp_path):
+    """bench --pass-probe: blur.1 of a one-pass plan as a GL fragment pass, a GL compute pass and
+    a Vulkan dispatch; device times only where plausible (llvmpipe's GL timer does not time
+    compute dispatches), every pass checked against the CPU's."""
+    code, out, err = run(["bench", "--pass-probe", "--sizes", "96x64", "--repeat", "3", "--out",
+                          "p"], tmp_path, timeout=600)
+    assert code == 0, out + err
+    j = json.loads((tmp_path / "p" / "pass-probe.json").read_text())
+    if not j["probes"][0]["vulkan_device"]:
+        vulkan_or_skip(3, j["vulkan_device"])
+    p = j["probes"][0]
+    assert p["size"] == "96x64" and p["bytes_per_pass"] == 2 * 16 * 96 * 64
+    rows = {r["api"]: r for r in p["rows"]}
+    assert "vulkan" in rows and all(r["checked"] for r in rows.values())
+    for r in rows.values():
+        if r["device_ms"] is not None:
+            assert 0.01 * r["wall_ms"] <= r["device_ms"] <= 1.05 * r["wall_ms"]
+            assert r["device_gb_per_s"] == pytest.approx(p["bytes_per_pass"] / r["device_ms"] / 1e6)
+    assert rows["vulkan"]["device_ms"] is not None  # lavapipe's timestamps time the dispatch
+    assert "pass probe: one 9-tap pass (blur.1) at 96x64" in out

@@ -71,6 +71,39 @@ int compute_family(VkPhysicalDevice d, std::uint32_t* timestamp_bits) {
   return -1;
 }
 
+// The device's SMs or compute units, where an extension reports them: NVIDIA's
+// VK_NV_shader_sm_builtins (shaderSMCount), AMD's VK_AMD_shader_core_properties (engines x arrays
+// per engine x compute units per array). Core Vulkan has no such count.
+void compute_units(VkPhysicalDevice d, DeviceInfo& i) {
+  std::uint32_t n = 0;
+  vkEnumerateDeviceExtensionProperties(d, nullptr, &n, nullptr);
+  std::vector<VkExtensionProperties> ext(n);
+  vkEnumerateDeviceExtensionProperties(d, nullptr, &n, ext.data());
+  auto has = [&](const char* name) {
+    for (const VkExtensionProperties& e : ext)
+      if (std::string(e.extensionName) == name) return true;
+    return false;
+  };
+  VkPhysicalDeviceProperties2 p{};
+  p.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2;
+  if (has(VK_NV_SHADER_SM_BUILTINS_EXTENSION_NAME)) {
+    VkPhysicalDeviceShaderSMBuiltinsPropertiesNV nv{};
+    nv.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_SM_BUILTINS_PROPERTIES_NV;
+    p.pNext = &nv;
+    vkGetPhysicalDeviceProperties2(d, &p);
+    i.compute_units = nv.shaderSMCount;
+    i.compute_units_from = "VK_NV_shader_sm_builtins (SMs)";
+  } else if (has(VK_AMD_SHADER_CORE_PROPERTIES_EXTENSION_NAME)) {
+    VkPhysicalDeviceShaderCorePropertiesAMD amd{};
+    amd.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_CORE_PROPERTIES_AMD;
+    p.pNext = &amd;
+    vkGetPhysicalDeviceProperties2(d, &p);
+    i.compute_units = amd.shaderEngineCount * amd.shaderArraysPerEngineCount *
+                      amd.computeUnitsPerShaderArray;
+    i.compute_units_from = "VK_AMD_shader_core_properties (compute units)";
+  }
+}
+
 DeviceInfo describe(VkPhysicalDevice d) {
   VkPhysicalDeviceVulkan12Properties p12{};
   p12.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_PROPERTIES;
@@ -95,6 +128,7 @@ DeviceInfo describe(VkPhysicalDevice d) {
   i.max_workgroup_invocations = l.maxComputeWorkGroupInvocations;
   for (int k = 0; k < 3; ++k) i.max_workgroup_size[k] = l.maxComputeWorkGroupSize[k];
   compute_family(d, &i.timestamp_valid_bits);
+  compute_units(d, i);
   i.denorm_behavior_independence = "none";
   i.rounding_mode_independence = "none";
   if (v12) {

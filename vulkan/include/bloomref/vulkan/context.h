@@ -32,7 +32,10 @@ struct DeviceInfo {
   bool timestamps_on_compute = false;  ///< timestampComputeAndGraphics
   std::uint32_t timestamp_valid_bits = 0;  ///< of the compute queue family
   std::uint32_t max_workgroup_invocations = 0, max_workgroup_size[3] = {0, 0, 0};
-  std::uint32_t compute_units = 0;  ///< not reported by core Vulkan: 0
+  /// SMs or compute units where an extension reports them (compute_units_from says which);
+  /// 0 where none does (core Vulkan has no such count).
+  std::uint32_t compute_units = 0;
+  std::string compute_units_from = "not reported";
   // Float controls (VkPhysicalDeviceVulkan12Properties); "none" where the device is older.
   std::string denorm_behavior_independence, rounding_mode_independence;
   bool denorm_preserve_f16 = false, denorm_preserve_f32 = false;
