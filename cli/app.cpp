@@ -20,6 +20,7 @@ int run_command_line(const std::vector<std::string>& args) {
   auto vulkan_info = add_vulkan_info(app);
   auto compare = add_compare(app);
   auto check = add_check(app);
+  auto describe = add_describe(app);
   auto stability = add_stability(app);
   auto bench = add_bench(app);
   auto tradeoff = add_tradeoff(app);
@@ -36,7 +37,8 @@ int run_command_line(const std::vector<std::string>& args) {
     return 2;
   }
   try {
-    for (auto* cmd : {&run, &scenes, &gl_info, &vulkan_info, &compare, &check, &stability, &bench, &tradeoff, &merge}) {
+    for (auto* cmd : {&run, &scenes, &gl_info, &vulkan_info, &compare, &check, &describe, &stability, &bench,
+                      &tradeoff, &merge}) {
       const int rc = (*cmd)();
       if (rc >= 0) return rc;
     }

@@ -11,6 +11,7 @@ std::function<int()> add_gl_info(CLI::App& app);
 std::function<int()> add_vulkan_info(CLI::App& app);
 std::function<int()> add_compare(CLI::App& app);
 std::function<int()> add_check(CLI::App& app);
+std::function<int()> add_describe(CLI::App& app);
 std::function<int()> add_stability(CLI::App& app);
 std::function<int()> add_bench(CLI::App& app);
 std::function<int()> add_tradeoff(CLI::App& app);

@@ -87,7 +87,16 @@ gpu::DescribedTexture texture(const std::string& file, const std::string& at, co
   if (t.contains("size")) {
     const ordered_json& s = t.at("size");
     const std::string sat = at + ".size";
-    json_fields::only_keys(file, sat, s, {"of", "scale", "halvings", "height", "round"});
+    json_fields::only_keys(file, sat, s, {"of", "scale", "halvings", "height", "round", "exact"});
+    if (s.contains("exact")) {
+      const ordered_json& e = s.at("exact");
+      if (s.size() != 1 || !e.is_array() || e.size() != 2 || !e[0].is_number_integer() ||
+          !e[1].is_number_integer() || e[0].get<int>() < 1 || e[1].get<int>() < 1 ||
+          e[0].get<int>() > 65536 || e[1].get<int>() > 65536)
+        bad(file, sat + ".exact", "must be [width, height], integers in [1, 65536], alone");
+      out.size.exact_width = e[0].get<int>();
+      out.size.exact_height = e[1].get<int>();
+    }
     out.size.of = s.contains("of") ? json_fields::text(file, sat + ".of", s.at("of")) : "scene";
     if (out.size.of != "scene" && !before.count(out.size.of))
       bad(file, sat + ".of", "'" + out.size.of + "' is not a texture declared before this one");
@@ -331,6 +340,94 @@ gpu::PipelineDescription read_pipeline(const std::string& path) {
   }
   if (stages.empty()) bad(path, "passes", "no pass names a stage: nothing would be judged");
   return d;
+}
+
+namespace {
+
+ordered_json uniform_json(const gpu::DescribedUniform& u) {
+  using U = gpu::DescribedUniform;
+  switch (u.kind) {
+    case U::number: return u.values.size() == 1 ? ordered_json(u.values[0]) : ordered_json(u.values);
+    case U::integer: return {{"int", u.integer_value}};
+    case U::flag: return ordered_json(u.integer_value != 0);
+    case U::size: return {{"size_of", u.texture}};
+    case U::texel: return {{"texel_of", u.texture}};
+    case U::width: return {{"width_of", u.texture}};
+    case U::height: return {{"height_of", u.texture}};
+    case U::halved: return {{"halved", u.texture}, {"times", u.times}};
+  }
+  return nullptr;
+}
+
+std::string bare_name(const std::string& fragment) {  // "bloomref's bevy_finish.frag" -> file name
+  return fs::path(fragment.substr(fragment.rfind(' ') == std::string::npos ? 0
+                                                                          : fragment.rfind(' ') + 1))
+      .filename()
+      .string();
+}
+
+}  // namespace
+
+std::vector<std::pair<std::string, std::string>> pipeline_files(
+    const gpu::PipelineDescription& d, const std::string& path, const std::string& title,
+    const std::string& source) {
+  const std::string folder = fs::path(path).stem().string();
+  std::vector<std::pair<std::string, std::string>> files;
+  ordered_json j = {{"pipeline", 1}, {"title", title}, {"source", source}};
+  ordered_json programs = ordered_json::object();
+  for (const auto& [name, prog] : d.programs) {
+    if (prog.fragment_text.empty() || !prog.compute.empty() || !prog.vertex.empty())
+      throw ParamError("program '" + name + "' is not a built-in fragment program: not written");
+    const std::string file = folder + "/" + bare_name(prog.fragment);
+    programs[name] = {{"fragment", file}};
+    files.emplace_back((fs::path(path).parent_path() / file).string(), prog.fragment_text);
+  }
+  j["programs"] = programs;
+  ordered_json textures = ordered_json::array();
+  for (const gpu::DescribedTexture& t : d.textures) {
+    ordered_json o = {{"name", t.name}};
+    if (t.content != gpu::DescribedTexture::clear)
+      o["holds"] = t.content == gpu::DescribedTexture::scene ? "scene" : "bright";
+    if (t.size.exact_width > 0) {
+      o["size"] = {{"exact", {t.size.exact_width, t.size.exact_height}}};
+    } else if (t.size.of != "scene" || t.size.halvings || t.size.height || t.size.scale != 1.0) {
+      ordered_json s = {{"of", t.size.of}};
+      if (t.size.halvings) s["halvings"] = t.size.halvings;
+      if (t.size.height) s["height"] = t.size.height;
+      if (t.size.scale != 1.0) s["scale"] = t.size.scale;
+      s["round"] = t.size.rounding == gpu::SizeRule::floor   ? "floor"
+                   : t.size.rounding == gpu::SizeRule::round ? "round"
+                                                             : "ceil";
+      o["size"] = s;
+    }
+    o["format"] = gpu::to_string(t.format);
+    o["filter"] = gpu::to_string(t.filter);
+    o["wrap"] = gpu::to_string(t.wrap);
+    textures.push_back(o);
+  }
+  j["textures"] = textures;
+  ordered_json passes = ordered_json::array();
+  for (const gpu::DescribedPass& p : d.passes) {
+    ordered_json o = {{"program", p.program}, {"target", p.target}};
+    if (!p.inputs.empty()) {
+      ordered_json in = ordered_json::object();
+      for (const auto& [sampler, texture] : p.inputs) in[sampler] = texture;
+      o["inputs"] = in;
+    }
+    if (!p.uniforms.empty()) {
+      ordered_json us = ordered_json::object();
+      for (const auto& [name, u] : p.uniforms) us[name] = uniform_json(u);
+      o["uniforms"] = us;
+    }
+    if (p.blend.enabled)
+      o["blend"] = {{"src", p.blend.src}, {"dst", p.blend.dst}, {"constant", p.blend.constant}};
+    if (!p.clear) o["clear"] = false;
+    if (!p.stage.empty()) o["stage"] = p.stage;
+    passes.push_back(o);
+  }
+  j["passes"] = passes;
+  files.insert(files.begin(), {path, j.dump(1) + "\n"});
+  return files;
 }
 
 }  // namespace bloomref::cli

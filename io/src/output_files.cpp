@@ -334,18 +334,22 @@ void OutputSet::add_folder(const std::string& path, const std::string& option, b
   s_->folders.push_back(std::move(f));
 }
 
-void OutputSet::write_image(const std::string& path, ConstImageView img,
-                            const ImageInfo* windows, ExrCompression compression) {
+void OutputSet::declared_file(const std::string& path) {
   const fs::path key = key_of(path);
   if (!s_->declared_files.count(key))
     throw std::logic_error("OutputSet: " + path + " was not declared with add_file");
-  if (State::Folder* f = s_->folder_holding(key)) {
+  if (State::Folder* f = s_->folder_holding(key)) {  // made when its first file is written
     std::error_code ec;
     if (!fs::is_directory(f->path, ec)) {
       f->created = fs::create_directories(f->path, ec);
       if (ec) throw InputError(f->path, "cannot create the folder: " + ec.message());
     }
   }
+}
+
+void OutputSet::write_image(const std::string& path, ConstImageView img,
+                            const ImageInfo* windows, ExrCompression compression) {
+  declared_file(path);
   PendingFile file(path);
   detail::write_image_pending(file, img, windows, compression);
   if (++s_->open > kMaxOpenPending) file.prepare();
@@ -353,8 +357,7 @@ void OutputSet::write_image(const std::string& path, ConstImageView img,
 }
 
 void OutputSet::write_text(const std::string& path, const std::string& text) {
-  if (!s_->declared_files.count(key_of(path)))
-    throw std::logic_error("OutputSet: " + path + " was not declared with add_file");
+  declared_file(path);
   PendingFile file(path);
   detail::write_pending(file, [&](std::FILE* f) {
     if (std::fwrite(text.data(), 1, text.size(), f) != text.size())

@@ -131,6 +131,9 @@ class OutputSet {
   void publish();
 
  private:
+  /// Throws unless `path` was given to add_file; makes the folder holding it, where it is one
+  /// given to add_folder that does not exist yet.
+  void declared_file(const std::string& path);
   struct State;
   std::unique_ptr<State> s_;
 };
