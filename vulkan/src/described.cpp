@@ -1,12 +1,13 @@
 #include "bloomref/vulkan/described.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
-#include <fstream>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
-#include <filesystem>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -49,19 +50,26 @@ const char* qualifier(VkFormat f) {
 
 const char* qualifier(TargetFormat f) { return qualifier(vk_format(f)); }
 
-// GL's blend factor (glBlendFunc's, by either name) as a GLSL vec4 of src, dst and the
-// constant c.
+// GL's blend factor (glBlendFunc's, by either name: "one_minus_src_color" or
+// "GL_ONE_MINUS_SRC_COLOR") as a GLSL vec4 of src, dst and the constant.
 std::string factor(const std::string& name) {
-  static const std::map<unsigned, const char*> kTerms = {
-      {0, "vec4(0.0)"},  // GL_ZERO
-      {1, "vec4(1.0)"},  // GL_ONE
-      {0x0300, "src"},            {0x0301, "(vec4(1.0) - src)"},
-      {0x0306, "dst"},            {0x0307, "(vec4(1.0) - dst)"},
-      {0x0302, "vec4(src.a)"},    {0x0303, "vec4(1.0 - src.a)"},
-      {0x0304, "vec4(dst.a)"},    {0x0305, "vec4(1.0 - dst.a)"},
-      {0x8001, "vec4(bloomref_blend_constant)"},
-      {0x8002, "vec4(1.0 - bloomref_blend_constant)"}};
-  return kTerms.at(gpu::blend_factor(name));  // ParamError for an unknown name
+  gpu::blend_factor(name);  // ParamError for an unknown name
+  std::string key = name.rfind("GL_", 0) == 0 ? name.substr(3) : name;
+  std::transform(key.begin(), key.end(), key.begin(), [](unsigned char c) { return std::tolower(c); });
+  static const std::map<std::string, const char*> kTerms = {
+      {"zero", "vec4(0.0)"},
+      {"one", "vec4(1.0)"},
+      {"src_color", "src"},
+      {"one_minus_src_color", "(vec4(1.0) - src)"},
+      {"dst_color", "dst"},
+      {"one_minus_dst_color", "(vec4(1.0) - dst)"},
+      {"src_alpha", "vec4(src.a)"},
+      {"one_minus_src_alpha", "vec4(1.0 - src.a)"},
+      {"dst_alpha", "vec4(dst.a)"},
+      {"one_minus_dst_alpha", "vec4(1.0 - dst.a)"},
+      {"constant_color", "vec4(bloomref_blend_constant)"},
+      {"one_minus_constant_color", "vec4(1.0 - bloomref_blend_constant)"}};
+  return kTerms.at(key);
 }
 
 struct Translated {
