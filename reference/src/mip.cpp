@@ -415,7 +415,9 @@ void karis_group_sum(const T q[13][3], T r[3], Luma luma) {
 }
 
 // The article's: luma the Rec. 601 weights of pow(group, 1 / 2.2), times 0.25; then
-// max(r, 0.0001).
+// max(r, 0.0001). A group with a negative channel makes pow, and so r, NaN; GLSL leaves max of a
+// NaN undefined, and the devices measured return the other operand (IEEE maxNum: llvmpipe's GL
+// and lavapipe's Vulkan store 0.0001 there, WideColorGamut.exr), as fmax does.
 template <class T>
 void karis_group_srgb(const T q[13][3], T r[3]) {
   const T inv_gamma = static_cast<T>(1.0f / 2.2f);  // the shader's const float 1.0 / 2.2
@@ -424,17 +426,17 @@ void karis_group_srgb(const T q[13][3], T r[3]) {
             std::pow(v[2], inv_gamma) * T(0.114f)) *
            T(0.25f);
   });
-  for (int c = 0; c < 3; ++c) r[c] = std::max(r[c], T(0.0001f));
+  for (int c = 0; c < 3; ++c) r[c] = std::fmax(r[c], T(0.0001f));
 }
 
 // Bevy's: luma the Rec. 709 luminance of the group in linear colour, / 4; then the sum clamped
-// to [0.0001, 3.40282347e37].
+// to [0.0001, 3.40282347e37] (WGSL's clamp, min(max(.)), with maxNum's NaN as above).
 template <class T>
 void karis_group_linear(const T q[13][3], T r[3]) {
   karis_group_sum(q, r, [](const T v[3]) {
     return (v[0] * T(0.2126f) + v[1] * T(0.7152f) + v[2] * T(0.0722f)) / T(4);
   });
-  for (int c = 0; c < 3; ++c) r[c] = std::clamp(r[c], T(0.0001f), T(3.40282347e37f));
+  for (int c = 0; c < 3; ++c) r[c] = std::fmin(std::fmax(r[c], T(0.0001f)), T(3.40282347e37f));
 }
 
 // The first level's clamp (Unity's ClampMax) and soft threshold, where they apply.

@@ -151,7 +151,7 @@ def downsample(src, tw, th, step_w, step_h, karis):
                   (d + e + g + h) * 0.03125, (e + f + h + i) * 0.03125,
                   (j + k + l + m) * 0.125]
         total = sum(gr * karis_weight(gr)[..., None] for gr in groups)
-        return np.maximum(total, 0.0001)
+        return np.fmax(total, 0.0001)  # maxNum: a NaN group (pow of a negative) gives 0.0001
     return e * 0.125 + (a + c + g + i) * 0.03125 + (b + d + f + h) * 0.0625 + (j + k + l + m) * 0.125
 
 

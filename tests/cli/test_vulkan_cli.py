@@ -395,3 +395,28 @@ def test_the_pass_probe_times_one_pass_per_api_and_checks_it(tmp_path):
             assert r["device_gb_per_s"] == pytest.approx(p["bytes_per_pass"] / r["device_ms"] / 1e6)
     assert rows["vulkan"]["device_ms"] is not None  # lavapipe's timestamps time the dispatch
     assert "pass probe: one 9-tap pass (blur.1) at 96x64" in out
+
+
+@pytest.mark.skipif(not CORPUS, reason="BLOOMREF_CORPUS not set")
+def test_the_articles_floor_on_negative_colour(tmp_path):
+    """WideColorGamut.exr has negative channels: the article's Karis weight takes pow of a
+    negative (NaN) and its max(., 0.0001) gives 0.0001 on the devices (maxNum), which the oracle
+    models. Its chain passes on GL and Vulkan; a copy without the floor, leaving the NaN, fails
+    at down.1 on both."""
+    scene = os.path.join(CORPUS, "WideColorGamut.exr")
+    for backend in ("gl", "vulkan"):
+        code, out, err = run(["compare", scene, "--preset", "learnopengl-pbb", "--backend",
+                              backend, "-q"], tmp_path, timeout=600)
+        vulkan_or_skip(code, err)
+        assert code == 0, (backend, out + err)
+    f = copied(tmp_path, "learnopengl-pbb", None, "down", "level = max(sum, vec3(0.0001));",
+               "level = sum;")
+    for backend in ("gl", "vulkan"):
+        code, out, err = run(["check", scene, "--preset", "learnopengl-pbb", "--shaders",
+                              "pipeline", "--pipeline", str(f), "--backend", backend, "--json",
+                              "c.json", "-q"], tmp_path, timeout=600)
+        vulkan_or_skip(code, err)
+        item = json.loads((tmp_path / "c.json").read_text())["items"][0]
+        assert code == 1 and item["first_divergent_stage"] == "down.1", (backend, err)
+        down1 = [s for s in item["stages"] if s["stage"] == "down.1"][0]
+        assert down1["isolated"]["nonfinite_mismatch"] > 0
