@@ -1042,7 +1042,7 @@ void Comparison::energy_band(int y0, int y1, bool gl, const float* oracle,
   const std::size_t row = std::size_t(width) * kChannels;
   const int tiles = (width + kTile - 1) / kTile;
   const ConstImageView cap = gl ? capture(name_).image : ConstImageView{};
-  const float limit = p_.storage == Storage::f16 ? 65504.0f : FLT_MAX;
+  const float limit = static_cast<float>(storage_limit(p_.storage));
   // Sums in lanes R, G, B, A (A dropped at the end), texel by texel: loops that vectorise. Each
   // keeps four partial sums, texels 4k, 4k+1, 4k+2, 4k+3 in their own, added together at the
   // end: one running sum would wait for each add before the next.

@@ -48,16 +48,24 @@ double inverse_ulp16(double v) {
   return r;
 }
 
-// Whether a non-finite or overflowing pair is acceptable, decided without a bound.
-// Returns 1 acceptable, 0 mismatch, -1 not such a case (compare with the bound).
-int special_case(double o, double g, Storage storage, const DeviceProfile& p, double bound) {
+}  // namespace
+
+int special_case(double o, double g, Storage storage, const DeviceProfile& p, double bound,
+                 int channel) {
   if (std::isnan(o) || std::isnan(g)) return std::isnan(o) && std::isnan(g) ? 1 : 0;
-  const double limit = storage == Storage::f16 ? 65504.0 : FLT_MAX;
-  if (storage == Storage::f16 && std::fabs(o) > limit) {
-    // Beyond half's range: Inf (nearest-even overflow) or 65504 (saturation), same sign.
+  // Unknown channel of R11G11B10: beyond the larger limit only (R and G's).
+  const double limit = storage == Storage::r11g11b10 && channel < 0
+                           ? storage_limit(storage, 0)
+                           : storage_limit(storage, channel);
+  if (storage != Storage::f32 && std::fabs(o) > limit) {
+    // Beyond half's range: Inf (nearest-even overflow) or 65504 (saturation), same sign, as
+    // the profile says. Beyond R11G11B10's: its channel's largest value (llvmpipe and lavapipe
+    // saturate there: AllHalfValues.exr under --preset bevy-old-school) or Inf.
     const bool same_sign = std::signbit(o) == std::signbit(g);
-    const bool ok = (p.half_overflow_inf && std::isinf(g)) ||
-                    (p.half_overflow_saturate && std::fabs(g) == limit);
+    const bool ok = storage == Storage::f16
+                        ? (p.half_overflow_inf && std::isinf(g)) ||
+                              (p.half_overflow_saturate && std::fabs(g) == limit)
+                        : std::isinf(g) || std::fabs(g) == limit;
     return same_sign && (ok || std::fabs(g) == std::fabs(o)) ? 1 : 0;
   }
   if (std::isinf(o) || std::isinf(g)) {
@@ -69,8 +77,6 @@ int special_case(double o, double g, Storage storage, const DeviceProfile& p, do
   }
   return -1;
 }
-
-}  // namespace
 
 bool judged_as_number_slow(double o, double g, Storage storage, const DeviceProfile& p, double bound) {
   return bound < INFINITY && special_case(o, g, storage, p, bound) == -1;
@@ -291,7 +297,7 @@ void judge_row(const JudgeRules& rules, int y, const float* gl, const float* ora
   // Window by window along the row (chunks of 16 texels when there are none), texel by texel;
   // a chunk whose values all equal the oracle's, finite, within a finite bound, only counts.
   const int chunk = windows ? n : 16;
-  const float limit = rules.storage == Storage::f16 ? 65504.0f : FLT_MAX;
+  const float limit = static_cast<float>(storage_limit(rules.storage));
   for (int x0 = 0, wi = 0; x0 < rules.width; x0 += chunk, ++wi) {
     const int x1 = std::min(rules.width, x0 + chunk);
     if (same_values(gl, oracle, bound, x0, x1, limit)) {
@@ -314,7 +320,7 @@ void judge_row(const JudgeRules& rules, int y, const float* gl, const float* ora
         // An infinite (or NaN, from non-finite data) bound: unpinned by GL (NaN/Inf in the
         // footprint, max(NaN, 0)); where NaN/Inf appear is still compared through the stages.
         if (!(b < INFINITY)) continue;
-        const int special = special_case(o, g, rules.storage, p, b);
+        const int special = special_case(o, g, rules.storage, p, b, c);
         if (special == 0) {
           ++t.mismatch;
           offer_worst(t, rules.worst_count, {x, y, c, o, g, INFINITY, b, {}});
@@ -419,9 +425,9 @@ double within_bound(ConstImageView gl, ConstImageView oracle, const Image& bound
         // Finite values in the storage's range are numbers (special_case's -1), told apart here
         // without the call.
         const bool plain = std::isfinite(o[i]) && std::isfinite(g[i]) &&
-                           (storage != Storage::f16 || std::fabs(o[i]) <= 65504.0f);
+                           std::fabs(o[i]) <= storage_limit(storage, int(i % kChannels));
         if (!plain) {
-          const int special = special_case(o[i], g[i], storage, p, relaxed);
+          const int special = special_case(o[i], g[i], storage, p, relaxed, int(i % kChannels));
           if (special != -1) {
             n += special == 0;
             continue;

@@ -59,9 +59,22 @@ StageComparison conclude(const std::string& stage, Tally total, const JudgeRules
 /// Whether judge_row compares this value's error with its bound (`bound` finite, neither side
 /// NaN/Inf, no f16 overflow): the values the gain gates add up.
 bool judged_as_number_slow(double o, double g, Storage storage, const DeviceProfile& p, double bound);
+/// What judges a value that is NaN, Inf or beyond `storage`'s range in `channel` (-1: not known)
+/// on one side or both: 1 acceptable, 0 a mismatch, -1 not such a case (compare with the bound).
+int special_case(double o, double g, Storage storage, const DeviceProfile& p, double bound,
+                 int channel = -1);
+/// The largest finite value `storage` holds in `channel`: 65504 (f16); R11G11B10's 65024 for R
+/// and G (6-bit mantissas at exponent 15) and 64512 for B (5 bits), the smaller where the
+/// channel is not given (-1); FLT_MAX.
+inline double storage_limit(Storage storage, int channel = -1) {
+  return storage == Storage::f16         ? 65504.0
+         : storage == Storage::r11g11b10 ? (channel == 0 || channel == 1 ? 65024.0 : 64512.0)
+                                         : 3.4028234663852886e38;
+}
+
 inline bool judged_as_number(double o, double g, Storage storage, const DeviceProfile& p,
                              double bound) {
-  const double limit = storage == Storage::f16 ? 65504.0 : 3.4028234663852886e38;
+  const double limit = storage_limit(storage);
   if (std::fabs(o) <= limit && std::fabs(g) <= limit) return bound < INFINITY;  // the usual case
   return judged_as_number_slow(o, g, storage, p, bound);
 }

@@ -199,7 +199,9 @@ def test_run_on_vulkan_with_a_preset_dumps_stages_that_check_passes(tmp_path):
                                            ("WideFloatRange.exr", ["--method", "mip", "--storage", "f16"]),
                                            ("CandleGlass.exr", ["--preset", "learnopengl-pbb"]),
                                            ("StageEnvLatLong.exr", ["--preset", "bevy"]),
-                                           ("WideColorGamut.exr", ["--preset", "unity-urp"])])
+                                           ("WideColorGamut.exr", ["--preset", "unity-urp"]),
+                                           # up.1 beyond R11G11B10's range: saturated
+                                           ("AllHalfValues.exr", ["--preset", "bevy-old-school"])])
 def test_compare_on_vulkan_on_the_corpus(tmp_path, image, options):
     code, out, err, _ = compare(tmp_path, os.path.join(CORPUS, image), *options)
     assert code == 0 and "verdict PASS" in out, out + err

@@ -16,6 +16,7 @@
 #include "bloomref/kernel.h"
 #include "bloomref/parity/profile.h"
 #include "bloomref/stages.h"
+#include "judge.h"
 #include "stage_terms.h"
 #include "tolerance.h"
 
@@ -467,4 +468,30 @@ TEST_CASE("next_up and next_down step as std::nextafter does", "[parity]") {
   }
   CHECK(std::isnan(next_up(std::nanf(""))));
   CHECK(std::isnan(next_down(std::nanf(""))));
+}
+
+TEST_CASE("R11G11B10 overflow: each channel's largest value or Inf, nothing else",
+          "[parity][bounds]") {
+  // The largest finite values, by hand: (2 - 2^-m) 2^15 with m = 6 (R, G) and 5 (B).
+  const double rg = (2.0 - 1.0 / 64) * 32768, b = (2.0 - 1.0 / 32) * 32768;
+  REQUIRE(rg == 65024.0);
+  REQUIRE(b == 64512.0);
+  CHECK(tol::storage_limit(Storage::r11g11b10, 0) == rg);
+  CHECK(tol::storage_limit(Storage::r11g11b10, 2) == b);
+  const DeviceProfile p = profile_llvmpipe();
+  const auto r11 = Storage::r11g11b10;
+  // Beyond B's range, B saturates to 64512 (or overflows to Inf); 65024 is not a B value.
+  CHECK(tol::special_case(66877.5, b, r11, p, 2048, 2) == 1);
+  CHECK(tol::special_case(66877.5, INFINITY, r11, p, 2048, 2) == 1);
+  CHECK(tol::special_case(66877.5, rg, r11, p, 2048, 2) == 0);
+  CHECK(tol::special_case(66877.5, 60000, r11, p, 2048, 2) == 0);
+  // R beyond its range saturates to 65024; 64512 there is a wrong value.
+  CHECK(tol::special_case(69118.9, rg, r11, p, 2048, 0) == 1);
+  CHECK(tol::special_case(69118.9, b, r11, p, 2048, 0) == 0);
+  // Within R's range (above B's) a value is a number, judged against its bound.
+  CHECK(tol::special_case(64800.0, 64768.0, r11, p, 2048, 0) == -1);
+  CHECK(tol::special_case(64800.0, b, r11, p, 2048, 2) == 1);
+  // f16 keeps its profile's rule: llvmpipe saturates to 65504.
+  CHECK(tol::special_case(70000.0, 65504.0, Storage::f16, p, 32, 0) == 1);
+  CHECK(tol::special_case(70000.0, 65024.0, Storage::f16, p, 32, 0) == 0);
 }
