@@ -100,6 +100,14 @@ class Builder {
   PipelineDescription d_;
 };
 
+// The engines' last pass (bevy_finish.frag): bloomref's tone map and gamma of `input` into
+// "out", the output stage.
+void finish(Builder& b, const std::string& input, const BloomParams& p) {
+  DescribedPass& f = b.pass("finish", "out", {{"srcTexture", input}}, "output");
+  f.uniforms["exposure"] = number({p.exposure});
+  f.uniforms["gamma"] = number({p.gamma});
+}
+
 // mip_chain_host.cpp: the scene and bright image, RenderDownsamples from the bright image with
 // srcResolution the float size halved per level, RenderUpsamples blending (ONE, ONE) into the
 // larger level, the final pass over the scene and mip 0.
@@ -173,9 +181,7 @@ PipelineDescription bevy(const BloomParams& p, int w, int h) {
   Builder::blend(c, "constant_color",
                  p.composite_mode == CompositeMode::mix ? "one_minus_constant_color" : "one",
                  p.strength);
-  DescribedPass& f = b.pass("finish", "out", {{"srcTexture", "view"}}, "output");
-  f.uniforms["exposure"] = number({p.exposure});
-  f.uniforms["gamma"] = number({p.gamma});
+  finish(b, "view", p);
   return b.take();
 }
 
@@ -224,9 +230,7 @@ PipelineDescription unity(const BloomParams& p, int w, int h) {
   b.pass("uber", "comp", {{"srcTexture", "view"}, {"bloomTexture", levels > 1 ? "up0" : "mip0"}},
          "composite")
       .uniforms["intensity"] = number({p.strength});
-  DescribedPass& f = b.pass("finish", "out", {{"srcTexture", "comp"}}, "output");
-  f.uniforms["exposure"] = number({p.exposure});
-  f.uniforms["gamma"] = number({p.gamma});
+  finish(b, "comp", p);
   return b.take();
 }
 

@@ -230,26 +230,25 @@ ComputePipeline::~ComputePipeline() {
 }
 
 void ComputePipeline::bind_image(std::uint32_t binding, VkImageView view, VkSampler sampler) {
-  VkDescriptorImageInfo ii{sampler, view, VK_IMAGE_LAYOUT_GENERAL};
-  VkWriteDescriptorSet w{};
-  w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-  w.dstSet = set_;
-  w.dstBinding = binding;
-  w.descriptorCount = 1;
-  w.descriptorType = type_of(binding);
-  w.pImageInfo = &ii;
-  vkUpdateDescriptorSets(ctx_.device, 1, &w, 0, nullptr);
+  const VkDescriptorImageInfo ii{sampler, view, VK_IMAGE_LAYOUT_GENERAL};
+  write(binding, &ii, nullptr);
 }
 
 void ComputePipeline::bind_buffer(std::uint32_t binding, VkBuffer buffer, VkDeviceSize size) {
-  VkDescriptorBufferInfo bi{buffer, 0, size};
+  const VkDescriptorBufferInfo bi{buffer, 0, size};
+  write(binding, nullptr, &bi);
+}
+
+void ComputePipeline::write(std::uint32_t binding, const VkDescriptorImageInfo* image,
+                            const VkDescriptorBufferInfo* buffer) {
   VkWriteDescriptorSet w{};
   w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
   w.dstSet = set_;
   w.dstBinding = binding;
   w.descriptorCount = 1;
   w.descriptorType = type_of(binding);
-  w.pBufferInfo = &bi;
+  w.pImageInfo = image;
+  w.pBufferInfo = buffer;
   vkUpdateDescriptorSets(ctx_.device, 1, &w, 0, nullptr);
 }
 

@@ -114,6 +114,9 @@ class ComputePipeline {
   std::vector<std::pair<std::uint32_t, VkDescriptorType>> types_;
   std::uint32_t push_bytes_;
   VkDescriptorType type_of(std::uint32_t binding) const;
+  /// Points `binding` at an image (with its sampler) or a buffer.
+  void write(std::uint32_t binding, const VkDescriptorImageInfo* image,
+             const VkDescriptorBufferInfo* buffer);
   VkShaderModule module_ = VK_NULL_HANDLE;
   VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
   VkPipelineLayout layout_ = VK_NULL_HANDLE;
