@@ -39,8 +39,10 @@ std::function<int()> add_describe(CLI::App& app) {
         gpu::preset_description(p, scene.image.width(), scene.image.height());
     const std::string size = std::to_string(scene.image.width()) + "x" +
                              std::to_string(scene.image.height());
+    // The preset named (bevy-old-school draws Bevy's layout), else the layout's.
+    const std::string what = a->pipeline.preset.empty() ? d.file : "preset " + a->pipeline.preset;
     const auto files = pipeline_files(
-        d, a->output, "bloomref's " + d.file + " for a " + size + " scene",
+        d, a->output, "bloomref's " + what + " for a " + size + " scene",
         "bloomref describe: gpu::preset_description, its textures sized for " + size +
             " (docs/presets.md cites the code each preset follows)");
     OutputSet outs;
@@ -52,7 +54,7 @@ std::function<int()> add_describe(CLI::App& app) {
     for (const auto& [path, text] : files) outs.write_text(path, text);
     outs.publish();  // all of them, or none
     std::cout << "wrote " << a->output << " and " << files.size() - 1 << " shader(s) for "
-              << d.file << " at " << size << "\n";
+              << what << " at " << size << "\n";
     return 0;
   };
 }
