@@ -491,6 +491,10 @@ TEST_CASE("R11G11B10 overflow: each channel's largest value or Inf, nothing else
   // Within R's range (above B's) a value is a number, judged against its bound.
   CHECK(tol::special_case(64800.0, 64768.0, r11, p, 2048, 0) == -1);
   CHECK(tol::special_case(64800.0, b, r11, p, 2048, 2) == 1);
+  // Beyond the limit by less than the bound: the device's errors may leave it below, a number.
+  CHECK(tol::special_case(64512.004, 63488.0, r11, p, 2048, 2) == -1);
+  // Beyond it by more than the bound: the limit, Inf, or a mismatch.
+  CHECK(tol::special_case(66000.0, 63488.0, r11, p, 0.5, 2) == 0);
   // f16 keeps its profile's rule: llvmpipe saturates to 65504.
   CHECK(tol::special_case(70000.0, 65504.0, Storage::f16, p, 32, 0) == 1);
   CHECK(tol::special_case(70000.0, 65024.0, Storage::f16, p, 32, 0) == 0);
