@@ -422,3 +422,33 @@ def test_the_articles_floor_on_negative_colour(tmp_path):
         assert code == 1 and item["first_divergent_stage"] == "down.1", (backend, err)
         down1 = [s for s in item["stages"] if s["stage"] == "down.1"][0]
         assert down1["isolated"]["nonfinite_mismatch"] > 0
+
+
+@pytest.mark.skipif(not CORPUS, reason="BLOOMREF_CORPUS not set")
+def test_the_articles_floor_with_only_some_stages_captured(tmp_path):
+    """The same on Vulkan with down.1 and output alone read back: the clean chain passes, the
+    copy without the floor still fails at down.1."""
+    scene = os.path.join(CORPUS, "WideColorGamut.exr")
+
+    def partial(d):
+        d["passes"][1]["passes"][0].pop("stage")
+        d["passes"][2]["passes"][0].pop("stage")
+
+    results = {}
+    for name, shader in (("clean", None), ("no-floor", "down")):
+        (tmp_path / name).mkdir()
+        if shader:
+            f = copied(tmp_path / name, "learnopengl-pbb", partial, shader,
+                       "level = max(sum, vec3(0.0001));", "level = sum;")
+        else:
+            f = copied(tmp_path / name, "learnopengl-pbb", partial)
+        code, out, err = run(["check", scene, "--preset", "learnopengl-pbb", "--shaders",
+                              "pipeline", "--pipeline", str(f), "--backend", "vulkan", "--json",
+                              name + ".json", "-q"], tmp_path, timeout=600)
+        vulkan_or_skip(code, err)
+        results[name] = (code, json.loads((tmp_path / (name + ".json")).read_text())["items"][0])
+    code, item = results["clean"]
+    assert code == 0 and item["verdict"] == "PASS"
+    assert [s["stage"] for s in item["stages"]] == ["down.1", "output"]
+    code, item = results["no-floor"]
+    assert code == 1 and item["first_divergent_stage"] == "down.1"
