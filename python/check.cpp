@@ -1,4 +1,4 @@
-// bloomref.check: the check command itself (cli/check/command.h), run in this process on the
+// bloomref.check: the check library (cli/check/check.h) called in this process with the
 // caller's arrays where it will read them: nothing is written to disk for them. Stages given as
 // paths are read as the command reads them; every message and result names what the caller
 // gave (a path, or "stages['blur.1'] (array)").
@@ -12,7 +12,9 @@
 
 #include "arrays.h"
 #include "bloomref/error.h"
+#include "check/check.h"
 #include "check/command.h"
+#include "check/output.h"
 #include "check/stage_images.h"
 #include "escape.h"
 #include "keywords.h"
@@ -22,38 +24,35 @@ namespace py = pybind11;
 namespace bloomref::python {
 namespace {
 
-// What the check is given: the scene and stages as arrays held here (the views point into
-// them), or as paths.
+// What the check is given: the scene and stages as arrays held here (the request's views point
+// into them), or as paths.
 class CheckInputs {
  public:
-  std::vector<std::string> args;
-  cli::InMemoryItem memory;
-  bool in_memory = false;
+  explicit CheckInputs(cli::CheckRequest& request) : request_(request) {}
 
   void scene(const py::object& obj) {
     if (obj.is_none()) return;
     const std::string path = path_string(obj);
     if (!path.empty()) {
-      scene_path_ = path[0] == '-' ? "./" + path : path;
+      request_.scene = path;
       return;
     }
     arrays_.push_back(scene_array(obj, "bloomref.check: scene"));
-    memory.scene = &arrays_.back().view;
-    memory.scene_name = "scene (array)";
-    in_memory = true;
+    request_.scene_image = &arrays_.back().view;
+    request_.scene = "scene (array)";
   }
 
   void stages(const py::object& obj) {
     if (obj.is_none()) return;
     const std::string path = path_string(obj);
     if (!path.empty()) {
-      stages_dir_ = path;
+      request_.stages_dir = path;
       return;
     }
     if (!py::isinstance<py::dict>(obj))
       throw py::value_error("bloomref.check: stages must be a folder, or a dict from stage name "
                             "to an array or an image path");
-    in_memory = true;
+    request_.stages.emplace();
     for (const auto& [key, value] : obj.cast<py::dict>()) {
       const std::string stage = py::str(key);
       if (!cli::looks_like_stage(stage))
@@ -69,52 +68,38 @@ class CheckInputs {
         f.path = "stages['" + stage + "'] (array)";
         f.image = &arrays_.back().view;
       }
-      memory.stages.push_back(std::move(f));
+      request_.stages->push_back(std::move(f));
     }
-  }
-
-  /// The command line: the scene and the stage folder as arguments unless the item is in
-  /// memory, which then holds them.
-  void finish() {
-    if (in_memory) {
-      if (!memory.scene && !scene_path_.empty()) memory.scene_name = scene_path_;
-      memory.stages_dir = stages_dir_;
-      if (!memory.scene && !scene_path_.empty()) args.insert(args.begin(), scene_path_);
-      return;
-    }
-    if (!scene_path_.empty()) args.insert(args.begin(), scene_path_);
-    if (!stages_dir_.empty()) args.push_back("--stages=" + stages_dir_);
   }
 
  private:
+  cli::CheckRequest& request_;
   std::deque<SceneArray> arrays_;  // a deque: the views handed out stay where they are
-  std::string scene_path_, stages_dir_;
 };
 
 }  // namespace
 
 py::dict check(const py::object& scene, const py::object& stages, const py::kwargs& kwargs) {
-  CheckInputs in;
-  in.scene(scene);
-  in.stages(stages);
-  for (std::string& a : option_arguments(kwargs)) in.args.push_back(std::move(a));
-  in.args.push_back("-q");  // results come back as the dict; nothing is printed
-  in.finish();
-  std::string text;
+  nlohmann::ordered_json result;
   try {
+    // The options as the command takes them, then the scene and stages as the caller gave them.
+    cli::CheckRequest request = cli::parse_check_request(option_arguments(kwargs));
+    request.print_results = request.print_notes = false;  // results come back as the dict
+    CheckInputs in(request);
+    in.scene(scene);
+    in.stages(stages);
     py::gil_scoped_release unlocked;
-    text = escape::json_text(cli::check_results(in.args, in.in_memory ? &in.memory : nullptr), -1);
+    result = cli::check_json(cli::check(std::move(request)));
   } catch (const InputError& e) {
     throw py::value_error("bloomref.check: " + std::string(e.what()));
   } catch (const ParamError& e) {
     throw py::value_error("bloomref.check: " + std::string(e.what()));
   }
-  py::dict result = py::module_::import("json").attr("loads")(text);
-  if (result["verdict"].cast<std::string>() == "NOTHING")
+  if (result["verdict"] == "NOTHING")
     throw py::value_error("bloomref.check: nothing compared: no stage image matched (stage "
                           "files are named as --dump-stages names them: bright.exr, blur.1.exr "
                           "... output.exr)");
-  return result;
+  return py::module_::import("json").attr("loads")(escape::json_text(result, -1));
 }
 
 }  // namespace bloomref::python

@@ -36,23 +36,7 @@ namespace fs = std::filesystem;
 namespace bloomref::cli {
 namespace {
 
-struct CheckArgs {
-  std::string scene, stages_dir, manifest, profile = "nvidia";
-  std::string json_path, junit_path, markdown_path, report_dir, expectations;
-  std::string encoding = "auto", origin = "top", channels = "RGBA", raw_format = "f32";
-  std::string artifacts = "fail";
-  DeviceKeys device;
-  bool warn_as_error = false, quiet = false, no_causes = false;
-  double require_sensitivity = 1.05;  ///< the bloom gain a verdict must see (0: not measured)
-  std::string sensitivity = "gain";   ///< what is measured: gain, full (and shift, spread), none
-  PipelineOptions pipeline;
-  ShaderArgs shaders;
-  SequenceOptions sequence;  ///< --frames, --shard (batch/sequence.h)
-  CLI::App* sub = nullptr;
-  const InMemoryItem* memory = nullptr;  ///< check_results' caller's images, in place of files
-};
-
-bool is_profile_file(const CheckArgs& a) {
+bool is_profile_file(const CheckRequest& a) {
   return a.profile.size() > 5 && a.profile.substr(a.profile.size() - 5) == ".json";
 }
 
@@ -85,7 +69,7 @@ std::string strengthening_captures(const Plan& plan, const std::vector<std::stri
   return out;
 }
 
-ItemResult check_item(const CheckItem& item, const CheckArgs& a, const parity::DeviceProfile& profile,
+ItemResult check_item(const CheckItem& item, const CheckRequest& a, const parity::DeviceProfile& profile,
                       bool causes) {
   ItemResult r;
   r.id = item.id;
@@ -250,7 +234,7 @@ void print_item(const ItemResult& r, const parity::DeviceProfile& profile) {
               r.parity.first_divergent_stage ? r.parity.first_divergent_stage->c_str() : "none");
 }
 
-parity::DeviceProfile chosen_profile(const CheckArgs& a) {
+parity::DeviceProfile chosen_profile(const CheckRequest& a) {
   return is_profile_file(a) ? read_profile_file(a.profile) : parity::profile_named(a.profile);
 }
 
@@ -266,15 +250,15 @@ DeviceKeys merged_device(const DeviceKeys& manifest, const DeviceKeys& cli) {
 
 // --shaders: the user's shaders run first (refusals: exit 2, no GL: exit 3); what they drew is
 // then checked as captured stages from the scratch folder.
-CheckItem shaders_item(CheckArgs& a, CheckRun& run, ScratchDir& scratch) {
+CheckItem shaders_item(const CheckRequest& a, CheckRun& run, ScratchDir& scratch) {
   if (!a.report_dir.empty()) require_writable_dir(a.report_dir, "--report");
-  for (const std::string* p : {&a.json_path, &a.junit_path, &a.markdown_path})
+  for (const std::string* p : {&a.outputs.json, &a.outputs.junit, &a.outputs.markdown})
     if (!p->empty()) require_writable_file(*p, "output");
   bool software = false;
   const std::string gl = run_user_shaders_bounded(a.shaders, a.scene, a.pipeline, scratch.path(), software);
   // Without --profile, the device's own: llvmpipe's measured facts, or NVIDIA-like hardware.
   const bool vk = a.shaders.backend == "vulkan";
-  if (a.sub->count("--profile") == 0)
+  if (a.given.count("--profile") == 0)
     run.profile = !software ? parity::profile_nvidia_like()
                   : vk      ? parity::profile_lavapipe()
                             : parity::profile_llvmpipe();
@@ -290,11 +274,14 @@ CheckItem shaders_item(CheckArgs& a, CheckRun& run, ScratchDir& scratch) {
   return item;
 }
 
-CheckItem folder_item(const CheckArgs& a) {
+// One item from a folder, or from stage images one by one (in memory or files).
+CheckItem folder_item(const CheckRequest& a) {
   CheckItem item;
   item.scene = a.scene;
+  item.scene_image = a.scene_image;
   item.stages_dir = a.stages_dir;
-  item.id = folder_item_id(a.stages_dir);
+  if (a.stages) item.files = *a.stages;
+  item.id = a.stages_dir.empty() ? "stages" : folder_item_id(a.stages_dir);
   item.defaults.encoding = parse_encoding(a.encoding);
   item.defaults.origin = parse_origin(a.origin);
   item.defaults.channels = parse_channel_order(a.channels);
@@ -309,7 +296,7 @@ constexpr std::uint64_t kResultBytesPerItem = 8 << 10;
 constexpr std::uint64_t kListBytesPerItem = 1 << 10;  // an item to take: names and paths
 
 // `listed` items, `run` of them taken by this process.
-void require_results_fit(const CheckArgs& a, std::size_t listed, std::size_t run) {
+void require_results_fit(const CheckRequest& a, std::size_t listed, std::size_t run) {
   const std::uint64_t budget = a.pipeline.memory_budget();
   const std::uint64_t need = std::uint64_t(listed) * kListBytesPerItem +
                              std::uint64_t(run) * kResultBytesPerItem;
@@ -322,7 +309,7 @@ void require_results_fit(const CheckArgs& a, std::size_t listed, std::size_t run
 }
 
 // SCENE 'scene.####.exr' --stages 'stages.####/': an item per frame, named by its number.
-std::vector<CheckItem> sequence_items(const CheckArgs& a) {
+std::vector<CheckItem> sequence_items(const CheckRequest& a) {
   const batch::FramePattern scene = batch::FramePattern::parse(a.scene);
   const batch::FramePattern stages = batch::FramePattern::parse(a.stages_dir);
   if (!a.scene.empty() && !scene.has_wildcard())
@@ -349,7 +336,7 @@ std::vector<CheckItem> sequence_items(const CheckArgs& a) {
 
 // Frames, manifests and shards: the items this process takes (in their own order), and the
 // whole list's ids, sorted, for the results.
-ItemSelection select_check_items(const CheckArgs& a, std::vector<CheckItem>& items) {
+ItemSelection select_check_items(const CheckRequest& a, std::vector<CheckItem>& items) {
   std::vector<std::string> ids;
   for (const CheckItem& it : items) ids.push_back(it.id);
   if (!a.manifest.empty()) std::sort(ids.begin(), ids.end());  // frames are sorted already
@@ -360,7 +347,7 @@ ItemSelection select_check_items(const CheckArgs& a, std::vector<CheckItem>& ite
   for (CheckItem& it : items)
     if (mine.count(it.id)) kept.push_back(std::move(it));
   items = std::move(kept);
-  if (!a.quiet && sel.shard)
+  if (a.print_results && sel.shard)
     std::printf("shard %s (%s): %zu of %zu items\n", sel.shard->label().c_str(),
                 sel.shard->source.c_str(), sel.mine.size(), sel.ids.size());
   return sel;
@@ -368,7 +355,7 @@ ItemSelection select_check_items(const CheckArgs& a, std::vector<CheckItem>& ite
 
 // Every item of a batch, one after another: an item that cannot be read (a missing frame) is
 // recorded as an ERROR and the others go on. Returns the batch's exit code (batch_exit_code).
-int check_batch(const CheckArgs& a, const std::vector<CheckItem>& items, CheckRun& run,
+int check_batch(const CheckRequest& a, const std::vector<CheckItem>& items, CheckRun& run,
                 std::vector<Expectation>& expectations, bool& interrupted) {
   std::vector<ItemResult> results(items.size());
   std::vector<std::string> labels;
@@ -376,10 +363,10 @@ int check_batch(const CheckArgs& a, const std::vector<CheckItem>& items, CheckRu
   BatchLoop loop;
   loop.threads = a.pipeline.params.threads;
   loop.progress = a.sequence.progress;
-  loop.quiet = a.quiet;
+  loop.quiet = !a.print_results;
   loop.noun = a.manifest.empty() && !a.stages_dir.empty() && batch::has_frame_wildcard(a.stages_dir) ? "frames" : "items";
   loop.fn = [&](std::size_t i, int) {
-    ItemResult r = check_item(items[i], a, run.profile, !a.no_causes);
+    ItemResult r = check_item(items[i], a, run.profile, a.causes);
     apply_expectations(r, expectations, run.device);
     ItemOutcome o;
     o.status = ItemOutcome::Status::done;
@@ -404,7 +391,7 @@ int check_batch(const CheckArgs& a, const std::vector<CheckItem>& items, CheckRu
 }
 
 // Every destination is checked before any work, and none may be an input.
-void require_destinations(const CheckArgs& a, const std::vector<CheckItem>& items) {
+void require_destinations(const CheckRequest& a, const std::vector<CheckItem>& items) {
   std::vector<std::string> inputs;
   for (const CheckItem& it : items) {
     if (!it.scene.empty()) inputs.push_back(it.scene);
@@ -417,7 +404,7 @@ void require_destinations(const CheckArgs& a, const std::vector<CheckItem>& item
     if (!in->empty()) inputs.push_back(*in);
   if (is_profile_file(a)) inputs.push_back(a.profile);
   const std::pair<const std::string*, const char*> outs[] = {
-      {&a.json_path, "--json"}, {&a.junit_path, "--junit"}, {&a.markdown_path, "--markdown"}};
+      {&a.outputs.json, "--json"}, {&a.outputs.junit, "--junit"}, {&a.outputs.markdown, "--markdown"}};
   std::set<fs::path> seen;
   for (const auto& [path, option] : outs) {
     if (path->empty()) continue;
@@ -452,7 +439,7 @@ void require_destinations(const CheckArgs& a, const std::vector<CheckItem>& item
 // Each output is written or fails on its own: a report that could not be written leaves the
 // JSON, JUnit and Markdown to be written, and the other way round. Any failure: exit 6, each
 // named on stderr (and in the JSON's "output_errors", for those before it).
-void write_outputs(const CheckArgs& a, CheckRun& run) {
+void write_outputs(const CheckRequest& a, CheckRun& run) {
   for (const ItemResult& r : run.items)
     if (!r.report_error.empty())
       run.output_errors.push_back({"--report", a.report_dir, r.id + ": " + r.report_error});
@@ -467,16 +454,18 @@ void write_outputs(const CheckArgs& a, CheckRun& run) {
       run.exit_code = 6;
     }
   };
-  attempt("--json", a.json_path, [&] { save_text(a.json_path, escape::json_text(check_json(run)) + "\n"); });
-  attempt("--junit", a.junit_path, [&] { save_text(a.junit_path, junit_xml(run)); });
-  attempt("--markdown", a.markdown_path, [&] { save_text(a.markdown_path, markdown_summary(run)); });
-  for (const CheckRun::OutputError& e : run.output_errors)
-    std::fprintf(stderr, "bloomref: %s %s was not written: %s\n", e.option.c_str(), e.path.c_str(),
-                 e.why.c_str());
+  const CheckOutputs& o = a.outputs;
+  attempt("--json", o.json, [&] { save_text(o.json, escape::json_text(check_json(run)) + "\n"); });
+  attempt("--junit", o.junit, [&] { save_text(o.junit, junit_xml(run)); });
+  attempt("--markdown", o.markdown, [&] { save_text(o.markdown, markdown_summary(run)); });
+  if (a.print_notes)
+    for (const CheckRun::OutputError& e : run.output_errors)
+      std::fprintf(stderr, "bloomref: %s %s was not written: %s\n", e.option.c_str(),
+                   e.path.c_str(), e.why.c_str());
 }
 
-void print_run(const CheckArgs& a, const CheckRun& run, const std::vector<Expectation>& expectations) {
-  if (a.quiet) return;
+void print_run(const CheckRequest& a, const CheckRun& run, const std::vector<Expectation>& expectations) {
+  if (!a.print_results) return;
   for (const Expectation& e : expectations)
     if (!e.used)
       std::printf("note: expectation (item %s, stage %s) matched no stage\n", e.item.c_str(),
@@ -489,7 +478,15 @@ void print_run(const CheckArgs& a, const CheckRun& run, const std::vector<Expect
     std::printf("%zu items: verdict %s\n", run.items.size(), run.verdict.c_str());
 }
 
-CheckRun check_cmd(CheckArgs& a) {
+}  // namespace
+
+CheckRun check(CheckRequest a) {
+  // --max-memory bounds check by the images it holds: measured at 1920x1080 with every stage
+  // captured, about twelve stage-sized images at once (the oracle's, the capture's, bounds and
+  // deviations); the model of a run keeping every stage (sixteen) is above it.
+  a.pipeline.kept_traces = 1;
+  a.pipeline.gl = a.shaders.any();
+  a.pipeline.finish();
   // Stage-sized buffers are allocated and freed stage after stage. glibc's dynamic mmap
   // threshold rises to the largest block freed (up to 32 MiB), after which images just below
   // it (1920x1080 RGBA float: 31.6 MiB) come from the heap and stay there, fragmented: measured
@@ -503,16 +500,25 @@ CheckRun check_cmd(CheckArgs& a) {
       {std::min<std::size_t>(PixelPolicy::kMostKept, a.pipeline.memory_budget() / 4), true});
   if (a.artifacts != "fail" && a.artifacts != "all" && a.artifacts != "none")
     throw ParamError("--artifacts '" + a.artifacts + "' is not one of: fail, all, none");
-  if (int(!a.stages_dir.empty()) + int(!a.manifest.empty()) + int(a.shaders.any()) +
-          int(a.memory != nullptr) != 1)
-    throw ParamError(a.memory ? "stages are given in memory: no --stages, --manifest or --shaders"
-                              : "give one of --stages DIR, --manifest FILE or --shaders PRESET");
+  const bool listed = !a.stages_dir.empty() || a.stages;
+  if (int(listed) + int(!a.manifest.empty()) + int(a.shaders.any()) != 1 ||
+      (!a.stages_dir.empty() && a.stages))
+    throw ParamError(a.stages
+                         ? "stages are given one by one: no --stages, --manifest or --shaders"
+                         : "give one of --stages DIR, --manifest FILE or --shaders PRESET");
+  if (a.scene_image && !listed)
+    throw ParamError("a scene in memory is judged with its stages (a folder, or images one by "
+                     "one): not with --manifest or --shaders");
+  if (a.shaders.backend != "gl" && a.shaders.preset != "pipeline")
+    throw ParamError("--backend vulkan runs the passes of a pipeline description: it needs "
+                     "--shaders pipeline --pipeline FILE");
   if (!a.shaders.layout.empty() && !a.shaders.any())
     throw ParamError("--layout names what --shaders learnopengl binds: give --shaders too");
   if (!a.manifest.empty() && !a.scene.empty())
     throw ParamError("with --manifest the scenes are the manifest's items; give no SCENE");
-  const bool frames = batch::has_frame_wildcard(a.scene) ||
-                      batch::has_frame_wildcard(a.stages_dir) || !a.sequence.frames.empty();
+  const bool frames = !a.scene_image && !a.stages &&
+                     (batch::has_frame_wildcard(a.scene) || batch::has_frame_wildcard(a.stages_dir) ||
+                      !a.sequence.frames.empty());
   if (frames && a.stages_dir.empty())
     throw ParamError("a frame sequence is checked from stage folders: give --stages "
                      "'stages.####/' (a manifest lists its items itself)");
@@ -525,20 +531,12 @@ CheckRun check_cmd(CheckArgs& a) {
   std::unique_ptr<ScratchDir> scratch;  // --shaders: the passes the user's shaders drew
   std::vector<CheckItem> items;
   if (!a.manifest.empty()) {
-    const Manifest m = read_manifest(a.manifest, *a.sub, a.pipeline);
+    const Manifest m = read_manifest(a.manifest, a.given, a.pipeline);
     items = m.items;
     run.device = a.device.any() ? merged_device(m.device, a.device) : m.device;
   } else if (a.shaders.any()) {
     scratch = std::make_unique<ScratchDir>();
     items.push_back(shaders_item(a, run, *scratch));
-  } else if (a.memory) {
-    CheckItem item;
-    item.scene = a.memory->scene ? a.memory->scene_name : a.scene;
-    item.scene_image = a.memory->scene;
-    item.files = a.memory->stages;
-    item.stages_dir = a.memory->stages_dir;
-    item.id = a.memory->stages_dir.empty() ? "stages" : folder_item_id(a.memory->stages_dir);
-    items.push_back(std::move(item));
   } else if (frames) {
     items = sequence_items(a);
   } else {
@@ -562,7 +560,7 @@ CheckRun check_cmd(CheckArgs& a) {
   bool interrupted = false;
   if (!batch) {
     for (const CheckItem& item : items) {
-      ItemResult r = check_item(item, a, run.profile, !a.no_causes);
+      ItemResult r = check_item(item, a, run.profile, a.causes);
       apply_expectations(r, expectations, run.device);
       run.items.push_back(std::move(r));
     }
@@ -573,34 +571,60 @@ CheckRun check_cmd(CheckArgs& a) {
   finish_run(run);
   if (batch_code == 130 || batch_code == 4) run.exit_code = batch_code;  // over the verdict's
   print_run(a, run, expectations);
-  if (batch && selection.shard && selection.mine.empty())
+  if (!a.print_notes) {
+  } else if (batch && selection.shard && selection.mine.empty())
     std::fprintf(stderr, "bloomref: shard %s has no item (%zu items in %d shards): nothing to do\n",
                  selection.shard->label().c_str(), selection.ids.size(), selection.shard->count);
-  else if (run.verdict == "NOTHING" && !a.memory)  // a caller in this process says it itself
+  else if (run.verdict == "NOTHING")
     std::fprintf(stderr, "bloomref: nothing compared: no stage image matched in %s\n",
-                 a.manifest.empty() ? a.stages_dir.c_str() : a.manifest.c_str());
+                 !a.manifest.empty()   ? a.manifest.c_str()
+                 : a.stages_dir.empty() ? "the stages given"
+                                        : a.stages_dir.c_str());
   write_outputs(a, run);
   return run;
 }
 
-// The subcommand and its options, bound to `args` (the command line's and check_results').
-void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
+namespace {
+
+
+// A check's command line: the request it fills, and what only the command line says.
+struct CheckCommandLine {
+  CheckRequest request;
+  bool quiet = false, no_causes = false;
+  CLI::App* sub = nullptr;
+
+  /// The request once parsed: the options given, and what the flags say.
+  CheckRequest finished() const {
+    CheckRequest r = request;
+    for (const CLI::Option* o : sub->get_options())
+      if (o->count() > 0)
+        for (const std::string& name : o->get_lnames()) r.given.insert("--" + name);
+    r.causes = !no_causes;
+    r.print_results = !quiet;
+    r.print_notes = true;
+    return r;
+  }
+};
+
+// The subcommand and its options, bound to `args` (the command line's and
+// parse_check_request's).
+void add_check_options(CLI::App& app, const std::shared_ptr<CheckCommandLine>& args) {
   CLI::App* sub = app.add_subcommand(
       "check", "judge anyone's bloom, captured as stage images, against the CPU oracle");
   args->sub = sub;
-  sub->add_option("SCENE", args->scene, "the scene the stages were rendered from; none = --scene");
-  sub->add_option("--stages", args->stages_dir,
+  sub->add_option("SCENE", args->request.scene, "the scene the stages were rendered from; none = --scene");
+  sub->add_option("--stages", args->request.stages_dir,
                   "folder of stage images named as --dump-stages names them (any subset)");
-  sub->add_option("--manifest", args->manifest, "JSON manifest of items (docs/check.md)");
+  sub->add_option("--manifest", args->request.manifest, "JSON manifest of items (docs/check.md)");
   sub->add_option_function<std::string>(
       "--shaders",
       [args](const std::string& preset) {
-        args->shaders.preset = preset;
+        args->request.shaders.preset = preset;
         // The preset's pipeline is what the shaders are judged against: its parameters, under
         // any option given beside it (learnopengl keeps bloomref's defaults).
-        if (preset == "learnopengl-pbb" && args->pipeline.preset.empty()) {
+        if (preset == "learnopengl-pbb" && args->request.pipeline.preset.empty()) {
           try {
-            apply_preset(preset, args->pipeline, [args](const std::string& key) {
+            apply_preset(preset, args->request.pipeline, [args](const std::string& key) {
               return args->sub->count("--" + key) > 0;
             });
           } catch (const Error& e) {
@@ -610,119 +634,104 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckArgs>& args) {
       },
       "run your own GLSL headless the way a preset's host code does: learnopengl | "
       "learnopengl-pbb | pipeline (any host code, described in a --pipeline file)");
-  sub->add_option("--pipeline", args->shaders.pipeline,
+  sub->add_option("--pipeline", args->request.shaders.pipeline,
                   "--shaders pipeline: the JSON description of your host code: textures, "
                   "programs, passes (docs/check.md)");
-  sub->add_option("--backend", args->shaders.backend,
+  sub->add_option("--backend", args->request.shaders.backend,
                   "--shaders pipeline: run the passes as GL fragment passes (gl) or as Vulkan "
                   "compute shaders (vulkan)")
       ->check(CLI::IsMember({"gl", "vulkan"}))
       ->capture_default_str();
-  sub->add_option("--downsample-fs", args->shaders.downsample_fs,
+  sub->add_option("--downsample-fs", args->request.shaders.downsample_fs,
                   "--shaders learnopengl-pbb: the downsample fragment shader");
-  sub->add_option("--upsample-fs", args->shaders.upsample_fs,
+  sub->add_option("--upsample-fs", args->request.shaders.upsample_fs,
                   "--shaders learnopengl-pbb: the upsample fragment shader");
-  sub->add_option("--downsample-vs", args->shaders.downsample_vs,
+  sub->add_option("--downsample-vs", args->request.shaders.downsample_vs,
                   "--shaders learnopengl-pbb: the downsample vertex shader (default: a pass-through quad)");
-  sub->add_option("--upsample-vs", args->shaders.upsample_vs,
+  sub->add_option("--upsample-vs", args->request.shaders.upsample_vs,
                   "--shaders learnopengl-pbb: the upsample vertex shader");
-  sub->add_option("--blur-fs", args->shaders.blur_fs, "--shaders: the blur fragment shader");
-  sub->add_option("--final-fs", args->shaders.final_fs, "--shaders: the final (composite) fragment shader");
-  sub->add_option("--blur-vs", args->shaders.blur_vs, "--shaders: the blur vertex shader (default: a pass-through quad)");
-  sub->add_option("--final-vs", args->shaders.final_vs, "--shaders: the final vertex shader");
-  sub->add_option("--bright-fs", args->shaders.bright_fs,
+  sub->add_option("--blur-fs", args->request.shaders.blur_fs, "--shaders: the blur fragment shader");
+  sub->add_option("--final-fs", args->request.shaders.final_fs, "--shaders: the final (composite) fragment shader");
+  sub->add_option("--blur-vs", args->request.shaders.blur_vs, "--shaders: the blur vertex shader (default: a pass-through quad)");
+  sub->add_option("--final-vs", args->request.shaders.final_vs, "--shaders: the final vertex shader");
+  sub->add_option("--bright-fs", args->request.shaders.bright_fs,
                   "--shaders: your bright-pass fragment shader (default: the oracle's bright image)");
-  sub->add_option("--target-format", args->shaders.target_format,
+  sub->add_option("--target-format", args->request.shaders.target_format,
                   "--shaders: render targets RGBA16F | RGB16F | RGBA32F | R11F_G11F_B10F (default: from --storage)");
-  sub->add_option("--filter", args->shaders.filter, "--shaders: texture filter linear | nearest");
-  sub->add_option("--wrap", args->shaders.wrap,
+  sub->add_option("--filter", args->request.shaders.filter, "--shaders: texture filter linear | nearest");
+  sub->add_option("--wrap", args->request.shaders.wrap,
                   "--shaders: texture wrap clamp-to-edge | repeat | mirrored-repeat | clamp-to-border");
-  sub->add_option("--layout", args->shaders.layout,
+  sub->add_option("--layout", args->request.shaders.layout,
                   "--shaders: JSON file of the names your shaders use for the preset's samplers, "
                   "uniforms and attributes (docs/check.md)");
-  sub->add_option("--final-target", args->shaders.final_target,
+  sub->add_option("--final-target", args->request.shaders.final_target,
                   "--shaders: the final pass draws into a target like the others (same) or an "
                   "8-bit one like the tutorial's window (rgba8)")
       ->capture_default_str();
-  sub->add_option("--shader-timeout", args->shaders.timeout_s,
+  sub->add_option("--shader-timeout", args->request.shaders.timeout_s,
                   "--shaders: seconds the passes may take, compiling included, before they are "
                   "stopped (exit 2; default: 120 and 20 per million texels of the scene)")
       ->check(CLI::PositiveNumber);
-  sub->add_option("--shader-memory", args->shaders.max_memory,
+  sub->add_option("--shader-memory", args->request.shaders.max_memory,
                   "--shaders: memory the passes may use, e.g. 2G (exit 2 past it; default: 1 GiB "
                   "and 24 float images of the scene, at most --max-memory)");
-  sub->add_option("--profile", args->profile,
+  sub->add_option("--profile", args->request.profile,
                   "device precision profile: " + parity::profile_names() +
                       ", or a profile file NAME.json (docs/check.md); default nvidia, and with "
                       "--shaders the device's own (llvmpipe on a software renderer)");
-  sub->add_option("--json", args->json_path, "write the results as JSON (version 1)");
-  sub->add_option("--junit", args->junit_path, "write JUnit XML (a testsuite per item)");
-  sub->add_option("--markdown", args->markdown_path, "write a short Markdown summary (CI job summary)");
-  sub->add_option("--report", args->report_dir, "write the HTML report (images, worst values) to DIR");
-  sub->add_option("--artifacts", args->artifacts,
+  sub->add_option("--json", args->request.outputs.json, "write the results as JSON (version 1)");
+  sub->add_option("--junit", args->request.outputs.junit, "write JUnit XML (a testsuite per item)");
+  sub->add_option("--markdown", args->request.outputs.markdown, "write a short Markdown summary (CI job summary)");
+  sub->add_option("--report", args->request.report_dir, "write the HTML report (images, worst values) to DIR");
+  sub->add_option("--artifacts", args->request.artifacts,
                   "with --report: images of the failing stages (fail), of every stage (all), or none")
       ->capture_default_str();
-  sub->add_option("--expectations", args->expectations,
+  sub->add_option("--expectations", args->request.expectations,
                   "JSON file of known deviations (docs/check.md)");
-  sub->add_option("--encoding", args->encoding,
+  sub->add_option("--encoding", args->request.encoding,
                   "--stages files: auto | exr | png-linear | png-srgb | raw")
       ->capture_default_str();
-  sub->add_option("--origin", args->origin, "--stages files: top | bottom (row order)")
+  sub->add_option("--origin", args->request.origin, "--stages files: top | bottom (row order)")
       ->capture_default_str();
-  sub->add_option("--channels", args->channels, "--stages files: RGBA | BGRA | RGB")
+  sub->add_option("--channels", args->request.channels, "--stages files: RGBA | BGRA | RGB")
       ->capture_default_str();
-  sub->add_option("--raw-format", args->raw_format, "--stages raw files: f32 | f16")
+  sub->add_option("--raw-format", args->request.raw_format, "--stages raw files: f32 | f16")
       ->capture_default_str();
-  sub->add_option("--device-api", args->device.api, "recorded: e.g. OpenGL 4.6, Vulkan 1.3");
-  sub->add_option("--device-vendor", args->device.vendor, "recorded: e.g. NVIDIA");
-  sub->add_option("--device-renderer", args->device.renderer, "recorded: e.g. RTX 4090");
-  sub->add_option("--device-driver", args->device.driver, "recorded: e.g. 550.54");
-  sub->add_flag("--warn-as-error", args->warn_as_error, "a WARN stage fails the check (exit 1)");
+  sub->add_option("--device-api", args->request.device.api, "recorded: e.g. OpenGL 4.6, Vulkan 1.3");
+  sub->add_option("--device-vendor", args->request.device.vendor, "recorded: e.g. NVIDIA");
+  sub->add_option("--device-renderer", args->request.device.renderer, "recorded: e.g. RTX 4090");
+  sub->add_option("--device-driver", args->request.device.driver, "recorded: e.g. 550.54");
+  sub->add_flag("--warn-as-error", args->request.warn_as_error, "a WARN stage fails the check (exit 1)");
   sub->add_flag("--no-causes", args->no_causes, "do not test the usual causes of a failure");
-  sub->add_option("--require-sensitivity", args->require_sensitivity,
+  sub->add_option("--require-sensitivity", args->request.require_sensitivity,
                   "the bloom gain a verdict must be able to see; one that cannot is WARN: weak "
                   "verdict (default 1.05; 0: do not measure what the verdict could see)")
       ->check(CLI::Range(0.0, 4.0));
-  sub->add_option("--sensitivity", args->sensitivity,
+  sub->add_option("--sensitivity", args->request.sensitivity,
                   "what a verdict that does not fail measures it could have seen: gain (the "
                   "default), full (also a shift and a wider spread), stages (full, and each "
                   "of them entering at each captured stage: about 7 checks a stage), none")
       ->check(CLI::IsMember({"gain", "full", "stages", "none"}));
   sub->add_flag("-q,--quiet", args->quiet, "print nothing");
-  args->pipeline.add_to(*sub);
-  args->sequence.add_to(*sub, false);
-}
-
-// --max-memory bounds check by the images it holds: measured at 1920x1080 with every stage
-// captured, about twelve stage-sized images at once (the oracle's, the capture's, bounds and
-// deviations); the model of a run keeping every stage (sixteen) is above it.
-void bound_memory(CheckArgs& a) {
-  a.pipeline.kept_traces = 1;
-  a.pipeline.gl = a.shaders.any();
+  args->request.pipeline.add_to(*sub);
+  args->request.sequence.add_to(*sub, false);
 }
 
 }  // namespace
 
 std::function<int()> add_check(CLI::App& app) {
-  auto args = std::make_shared<CheckArgs>();
+  auto args = std::make_shared<CheckCommandLine>();
   add_check_options(app, args);
   return [args]() -> int {
     if (!args->sub->parsed()) return -1;
-    args->pipeline.finish();
-    if (args->shaders.backend != "gl" && args->shaders.preset != "pipeline")
-      throw ParamError("--backend vulkan runs the passes of a pipeline description: it needs "
-                       "--shaders pipeline --pipeline FILE");
-    bound_memory(*args);
-    return check_cmd(*args).exit_code;
+    return check(args->finished()).exit_code;
   };
 }
 
-nlohmann::ordered_json check_results(const std::vector<std::string>& args,
-                                     const InMemoryItem* memory) {
+CheckRequest parse_check_request(const std::vector<std::string>& args) {
   CLI::App app{"bloomref"};
   app.require_subcommand(1);
-  auto a = std::make_shared<CheckArgs>();
-  a->memory = memory;
+  auto a = std::make_shared<CheckCommandLine>();
   add_check_options(app, a);
   std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11's order
   reversed.push_back("check");
@@ -731,9 +740,7 @@ nlohmann::ordered_json check_results(const std::vector<std::string>& args,
   } catch (const CLI::ParseError& e) {
     throw ParamError(e.what());
   }
-  a->pipeline.finish();
-  bound_memory(*a);
-  return check_json(check_cmd(*a));
+  return a->finished();
 }
 
 }  // namespace bloomref::cli

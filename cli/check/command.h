@@ -1,23 +1,17 @@
-// bloomref check in this process, for callers that want its results as data (the Python module).
+// bloomref check's command line: the request it fills (check/check.h), for the command and for
+// callers in this process that take the command's options (the Python module).
 #pragma once
 
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
-#include "check/types.h"
+#include "check/check.h"
 
 namespace bloomref::cli {
 
-/// Runs `bloomref check ARGS` (the arguments after the word "check") and returns what its
-/// --json writes (docs/schemas/check-result.v1.json): "verdict" is NOTHING and "exit_code" 5
-/// when no stage image matched. The files named by --json, --junit, --markdown and --report are
-/// written as the command writes them; the console's lines are printed unless -q is given.
-/// Throws ParamError for a command line that does not parse (CLI11's message), and what the
-/// command throws: InputError and ParamError (exit 2), gpu::GlUnavailable (exit 3).
-/// `memory`, when given, is the one item: its scene and stage images in memory (or paths),
-/// each under the caller's name, in place of SCENE and --stages; nothing is written for them.
-nlohmann::ordered_json check_results(const std::vector<std::string>& args,
-                                     const InMemoryItem* memory = nullptr);
+/// The request `bloomref check ARGS` makes (ARGS: the arguments after the word "check"), with
+/// the options given in `given`, the console quiet or not as -q says, and notes on stderr.
+/// ParamError for a command line that does not parse (CLI11's message).
+CheckRequest parse_check_request(const std::vector<std::string>& args);
 
 }  // namespace bloomref::cli

@@ -48,12 +48,12 @@ void check_version(const std::string& file, const json& j) {
 
 // Applies one manifest parameter to the pipeline options unless given on the command line.
 void apply_param(const std::string& file, const std::string& key, const json& v,
-                 const CLI::App& sub, PipelineOptions& po) {
+                 const std::set<std::string>& given, PipelineOptions& po) {
   std::string option = "--" + key;
   for (char& c : option)
     if (c == '_') c = '-';
-  // The command line wins. A key that names no option (count() would throw) is refused below.
-  if (const CLI::Option* o = sub.get_option_no_throw(option); o && o->count() > 0) return;
+  // The command line wins. A key that names no option is refused below.
+  if (given.count(option)) return;
   const std::string field = "params." + key;
   auto num = [&]() {
     if (!v.is_number()) bad(file, field, "must be a number");
@@ -177,7 +177,8 @@ std::string folder_item_id(const std::string& dir) {
   return id;
 }
 
-Manifest read_manifest(const std::string& path, const CLI::App& sub, PipelineOptions& pipeline) {
+Manifest read_manifest(const std::string& path, const std::set<std::string>& given,
+                       PipelineOptions& pipeline) {
   const json j = read_json(path);
   check_version(path, j);
   static const std::set<std::string> top{"version", "params", "device", "defaults", "aliases", "items"};
@@ -187,7 +188,7 @@ Manifest read_manifest(const std::string& path, const CLI::App& sub, PipelineOpt
   Manifest m;
   if (j.contains("params")) {
     if (!j["params"].is_object()) bad(path, "params", "must be an object");
-    for (const auto& [k, v] : j["params"].items()) apply_param(path, k, v, sub, pipeline);
+    for (const auto& [k, v] : j["params"].items()) apply_param(path, k, v, given, pipeline);
     try {
       pipeline.finish();
     } catch (const ParamError& e) {
@@ -415,8 +416,8 @@ void apply_expectations(ItemResult& r, std::vector<Expectation>& expectations,
     for (Expectation& e : expectations)
       if (fnmatch(e.item.c_str(), r.id.c_str(), 0) == 0 &&
           fnmatch(e.stage.c_str(), s.stage.c_str(), 0) == 0 && device_matches(e)) {
-        o.expectation = &e;
         e.used = true;
+        o.expectation = e;
         break;
       }
     if (o.expectation) {

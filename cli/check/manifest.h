@@ -2,7 +2,7 @@
 // expectations (known deviations), and the verdict once expectations are applied.
 #pragma once
 
-#include <CLI/CLI.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -25,10 +25,11 @@ struct Manifest {
   std::vector<CheckItem> items;
 };
 
-/// Reads a manifest: its "params" are applied to `pipeline` except the options given on the
-/// command line of `sub`, which win. InputError naming the file and the field for anything
+/// Reads a manifest: its "params" are applied to `pipeline` except the options in `given`
+/// ("--name", those the caller set), which win. InputError naming the file and the field for anything
 /// malformed: a missing path, an unknown stage name, a bad encoding.
-Manifest read_manifest(const std::string& path, const CLI::App& sub, PipelineOptions& pipeline);
+Manifest read_manifest(const std::string& path, const std::set<std::string>& given,
+                       PipelineOptions& pipeline);
 
 /// Reads an expectations file: {"version": 1, "expectations": [{"item", "stage", "device",
 /// "reason"}]}. InputError naming the file and the field.

@@ -34,15 +34,6 @@ struct CheckItem {
   const ConstImageView* scene_image = nullptr;
 };
 
-/// What a caller in this process hands check without files (check_results): the scene and stage
-/// images in memory, or paths, each under the caller's name for it.
-struct InMemoryItem {
-  const ConstImageView* scene = nullptr;  ///< null: `scene_name` is a path (or the built-in scene)
-  std::string scene_name;
-  std::vector<StageFile> stages;          ///< image set: in memory; else a file
-  std::string stages_dir;                 ///< or a folder of stage files
-};
-
 /// A known deviation (--expectations): stages matching `stage` in items matching `item`
 /// (shell patterns), on devices whose key contains `device` (empty: any), are expected to fail.
 struct Expectation {
@@ -54,7 +45,7 @@ struct Expectation {
 /// known deviation says), fixed (a known deviation that now passes: reported, not a failure).
 struct StageOutcome {
   std::string status;
-  const Expectation* expectation = nullptr;
+  std::optional<Expectation> expectation;  ///< a copy: the result outlives the list it came from
 };
 
 struct ItemResult {
