@@ -1,7 +1,7 @@
-// libFuzzer target: the writers of check's results (cli/check/output.h) and the escapers they
-// share (cli/escape.h). The input is split at NUL bytes into the fields a user controls: item id,
-// scene, stage folder, error, the four device keys, a stage's reason, a cause's description and
-// an expectation's reason. Findings: a crash, an exception, and any escaped field that breaks
+// libFuzzer target: the writers of check's results (cli/check/output.h, cli/results.h) and the
+// escapers they share (cli/escape.h). The input is split at NUL bytes into the fields a user
+// controls: item id, scene, stage folder, error, the four device keys, a stage's reason, a
+// cause's description and an expectation's reason. Findings: a crash, an exception, and any escaped field that breaks
 // its language's rules -- XML (no markup character, every '&' a reference, no character XML 1.0
 // forbids), HTML (no markup or quote), URL (only unreserved bytes and %XX), a Markdown cell (one
 // line, every '|' escaped), JSON (parses back) -- or a document that is not valid UTF-8.
@@ -12,6 +12,7 @@
 
 #include "check/output.h"
 #include "escape.h"
+#include "results.h"
 
 namespace esc = bloomref::escape;
 using namespace bloomref;
@@ -116,7 +117,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   r.parity.isolated = {s, s};
   r.parity.end_to_end = {s, s};
   r.parity.first_divergent_stage = "blur.1";
-  r.outcomes = {{"fail", nullptr}, {"expected-fail", &expectation}};
+  r.outcomes = {{"fail", std::nullopt}, {"expected-fail", expectation}};
   r.file_of["blur.1"] = f[2] + "/blur.1.exr";
   run.items.push_back(r);
   cli::ItemResult e;
@@ -125,12 +126,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   e.verdict = "ERROR";
   run.items.push_back(e);
 
-  const std::string junit = cli::junit_xml(run);
+  const nlohmann::ordered_json doc = cli::check_json(run);
+  const std::string junit = results::junit(doc);
   require(valid_utf8(junit));
   for (unsigned char c : junit) require(c >= 0x20 || c == '\n');
-  const std::string md = cli::markdown_summary(run);
+  const std::string md = results::markdown(doc);
   require(valid_utf8(md));
-  const std::string json = esc::json_text(cli::check_json(run));
+  (void)results::console(doc);  // the console prints names as they are
+  const std::string json = esc::json_text(doc);
   (void)nlohmann::ordered_json::parse(json);
   return 0;
 }

@@ -7,6 +7,7 @@
 
 #include "bloomref/error.h"
 #include "escape.h"
+#include "results.h"
 
 using nlohmann::ordered_json;
 
@@ -314,107 +315,61 @@ Merged merge_results(const std::vector<ResultsFile>& files) {
   return m;
 }
 
+// check's merged results are written as one run's are (results.h); a run's here.
 std::string merged_junit(const Merged& m) {
   const ordered_json& d = m.doc;
-  const bool check = is_check(d);
-  const std::string tool = check ? "check" : "run";
+  if (is_check(d)) return results::junit(d);
   std::string suites;
-  int tests = 0, failures = 0, errors = 0;
+  int tests = 0, errors = 0;
   for (const ordered_json& it : d["items"]) {
     const std::string id = it["id"].get<std::string>();
-    const std::string cls = "bloomref." + tool + "." + xml(id);
-    std::string cases;
-    int t = 0, f = 0, e = 0;
+    const std::string cls = "bloomref.run." + xml(id);
     const std::string err = str(it, "error");
-    if (!err.empty()) {
-      ++t, ++e;
-      cases += "    <testcase classname=\"" + cls + "\" name=\"" + (check ? "stages" : "frame") +
-               "\"><error message=\"" + xml(err) + "\" type=\"input\"/></testcase>\n";
-    } else if (check && it.contains("stages")) {
-      for (const ordered_json& s : it["stages"]) {
-        const std::string st = str(s, "status");
-        ++t;
-        cases += "    <testcase classname=\"" + cls + "\" name=\"" + xml(str(s, "stage")) + "\">";
-        if (st == "fail" || (st == "warn" && d.value("warn_as_error", false))) {
-          ++f;
-          const std::string reason = s.contains("isolated") ? str(s["isolated"], "reason") : "";
-          // The cause check named, as its own JUnit says it.
-          std::string cause;
-          if (s.contains("cause") && s["cause"].is_object()) {
-            cause = "; cause: " + str(s["cause"], "description");
-            if (!str(s["cause"], "detail").empty()) cause += " (" + str(s["cause"], "detail") + ")";
-          }
-          cases += "<failure message=\"" + xml(str(s, "stage") + " " + st + ": " + reason + cause) +
-                   "\" type=\"" + xml(st) + "\"/>";
-        } else if (st == "expected-fail") {
-          cases += "<skipped message=\"expected failure\"/>";
-        }
-        cases += "</testcase>\n";
-      }
-    } else {
-      ++t;
-      cases += "    <testcase classname=\"" + cls + "\" name=\"frame\"/>\n";
-    }
-    tests += t, failures += f, errors += e;
-    suites += "  <testsuite name=\"" + xml(id) + "\" tests=\"" + std::to_string(t) +
-              "\" failures=\"" + std::to_string(f) + "\" errors=\"" + std::to_string(e) + "\">\n" +
+    ++tests;
+    errors += !err.empty();
+    suites += "  <testsuite name=\"" + xml(id) + "\" tests=\"1\" failures=\"0\" errors=\"" +
+              std::to_string(!err.empty()) + "\">\n" +
               "    <properties><property name=\"shard\" value=\"" + xml(str(it, "shard")) +
-              "\"/></properties>\n" + cases + "  </testsuite>\n";
-  }
-  for (const std::string& id : m.missing) {
-    ++tests, ++errors;
-    suites += "  <testsuite name=\"" + xml(id) +
-              "\" tests=\"1\" failures=\"0\" errors=\"1\">\n"
-              "    <testcase classname=\"bloomref." +
-              tool + "." + xml(id) + "\" name=\"" + (check ? "stages" : "frame") +
-              "\"><error message=\"missing: no shard's results have "
-              "this item\" type=\"missing\"/></testcase>\n  </testsuite>\n";
-  }
-  for (const std::string& id : m.duplicates) {
-    ++tests, ++errors;
-    suites += "  <testsuite name=\"" + xml(id) +
-              " (run twice)\" tests=\"1\" failures=\"0\" errors=\"1\">\n"
-              "    <testcase classname=\"bloomref." +
-              tool + "." + xml(id) +
-              "\" name=\"once\">"
-              "<error message=\"run by more than one shard\" type=\"duplicate\"/></testcase>\n"
+              "\"/></properties>\n    <testcase classname=\"" + cls + "\" name=\"frame\"" +
+              (err.empty() ? "/>\n"
+                           : "><error message=\"" + xml(err) + "\" type=\"input\"/></testcase>\n") +
               "  </testsuite>\n";
   }
-  return "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"bloomref " + tool +
-         " (merged)\" tests=\"" + std::to_string(tests) + "\" failures=\"" +
-         std::to_string(failures) + "\" errors=\"" + std::to_string(errors) + "\">\n" + suites +
-         "</testsuites>\n";
+  auto error_suite = [&](const std::string& name, const std::string& id, const std::string& test,
+                         const std::string& message, const std::string& type) {
+    ++tests, ++errors;
+    suites += "  <testsuite name=\"" + xml(name) + "\" tests=\"1\" failures=\"0\" errors=\"1\">\n"
+              "    <testcase classname=\"bloomref.run." + xml(id) + "\" name=\"" + test +
+              "\"><error message=\"" + message + "\" type=\"" + type + "\"/></testcase>\n  </testsuite>\n";
+  };
+  for (const std::string& id : m.missing)
+    error_suite(id, id, "frame", "missing: no shard's results have this item", "missing");
+  for (const std::string& id : m.duplicates)
+    error_suite(id + " (run twice)", id, "once", "run by more than one shard", "duplicate");
+  return "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"bloomref run (merged)\" tests=\"" +
+         std::to_string(tests) + "\" failures=\"0\" errors=\"" + std::to_string(errors) + "\">\n" +
+         suites + "</testsuites>\n";
 }
 
 std::string merged_markdown(const Merged& m) {
   const ordered_json& d = m.doc;
-  const bool check = is_check(d);
+  if (is_check(d)) return results::markdown(d);
   const std::string verdict = !m.problems.empty()            ? "INCOMPLETE"
-                              : check                        ? str(d, "verdict")
                               : d.value("exit_code", 0) == 0 ? "OK"
                                                              : "FAILED";
-  std::string out = "### bloomref " + std::string(check ? "check" : "run") +
-                    " (merged): " + escape::markdown_cell(verdict) + "\n\n" +
+  std::string out = "### bloomref run (merged): " + escape::markdown_cell(verdict) + "\n\n" +
                     std::to_string(d["batch"]["items_total"].get<std::size_t>()) + " items from " +
                     std::to_string(d["batch"]["shards"].size()) + " results file(s); exit code " +
                     std::to_string(m.exit_code) + ".\n\n";
   for (const std::string& p : m.problems) out += "- :x: " + escape::markdown_cell(p) + "\n";
   std::string rows;
   for (const ordered_json& it : d["items"]) {
-    const std::string v = check ? str(it, "verdict") : str(it, "status");
-    if (v == "PASS" || v == "WARN" || v == "done" || v == "resumed") continue;
-    std::string why = str(it, "error");
-    if (why.empty() && it.contains("first_divergent_stage") &&
-        it["first_divergent_stage"].is_string())
-      why = "first divergent stage " + it["first_divergent_stage"].get<std::string>();
-    if (it.contains("first_divergent_cause") && it["first_divergent_cause"].is_object())
-      why += "; cause: " + str(it["first_divergent_cause"], "description");
+    const std::string v = str(it, "status");
+    if (v == "done" || v == "resumed") continue;
     rows += "| " + escape::markdown_cell(str(it, "id")) + " | " + escape::markdown_cell(v) + " | " +
-            escape::markdown_cell(why) + " | " + escape::markdown_cell(str(it, "shard")) + " |\n";
+            escape::markdown_cell(str(it, "error")) + " | " + escape::markdown_cell(str(it, "shard")) + " |\n";
   }
-  if (!rows.empty())
-    out += "\n| item | " + std::string(check ? "verdict" : "status") +
-           " | why | shard |\n|---|---|---|---|\n" + rows;
+  if (!rows.empty()) out += "\n| item | status | why | shard |\n|---|---|---|---|\n" + rows;
   return out;
 }
 

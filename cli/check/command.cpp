@@ -30,6 +30,7 @@
 #include "commands.h"
 #include "options.h"
 #include "report.h"
+#include "results.h"
 
 namespace fs = std::filesystem;
 
@@ -181,57 +182,6 @@ ItemResult check_item(const CheckItem& item, const CheckRequest& a, const parity
     }
   }
   return r;
-}
-
-void print_item(const ItemResult& r, const parity::DeviceProfile& profile) {
-  if (!r.error.empty()) {
-    std::printf("%s: ERROR, not judged: %s\n", r.id.c_str(), r.error.c_str());
-    return;
-  }
-  std::printf("%s: %s %dx%d, profile %s, %zu stage image(s)%s%s\n", r.id.c_str(), r.source.c_str(),
-              r.width, r.height, profile.name.c_str(), r.file_of.size(),
-              r.stages_from.empty() ? "" : " from ", r.stages_from.c_str());
-  if (!r.ignored.empty()) {
-    std::printf("  ignored (not a stage name):");
-    for (const std::string& f : r.ignored) std::printf(" %s", f.c_str());
-    std::printf("\n");
-  }
-  if (r.parity.isolated.empty()) return;
-  std::printf("  %-10s %-13s %-10s %-8s %-10s %s\n", "stage", "isolated", "err/bound", "end2end",
-              "err/bound", "file");
-  for (std::size_t i = 0; i < r.parity.isolated.size(); ++i) {
-    const auto& s = r.parity.isolated[i];
-    const auto& e = r.parity.end_to_end[i];
-    std::string status = i < r.outcomes.size() ? r.outcomes[i].status : parity::to_string(s.verdict);
-    status = status == "expected-fail" ? "XFAIL (known)" : status == "fixed" ? "FIXED (known)" : status;
-    for (char& ch : status)
-      if (ch >= 'a' && ch <= 'z') ch = static_cast<char>(ch - 'a' + 'A');
-    const auto f = r.file_of.find(s.stage);
-    std::printf("  %-10s %-13s %-10.3g %-8s %-10.3g %s\n", s.stage.c_str(), status.c_str(),
-                s.max_ratio, parity::to_string(e.verdict).c_str(), e.max_ratio,
-                f == r.file_of.end() ? "" : fs::path(f->second).filename().c_str());
-    if (s.verdict != parity::Verdict::pass) {
-      std::printf("             %s\n", r.first_line(i, action_line(s)).c_str());
-      std::printf("             %s\n", s.reason.c_str());
-      const std::string cause = cause_line(s);
-      if (!cause.empty() && r.follows_from(i).empty()) std::printf("             %s\n", cause.c_str());
-    }
-  }
-  if (const std::string nf = r.first_nonfinite(); !nf.empty())
-    for (const auto& s : r.parity.isolated)
-      if (s.stage == nf)
-        std::printf("  NaN/Inf first stand against finite values at %s (%llu values): the stages "
-                    "after it inherit them\n",
-                    nf.c_str(), static_cast<unsigned long long>(s.nonfinite_mismatch));
-  if (r.sensitivity) {
-    std::printf("  could see: %s\n", sensitivity_line(r).c_str());
-    if (!r.sensitivity->stages.empty()) std::printf("  could see, of an error entering at:\n");
-    for (const parity::StageSensitivity& st : r.sensitivity->stages)
-      std::printf("    %-10s %s\n", st.stage.c_str(), stage_sensitivity_line(st).c_str());
-  }
-  std::printf("  verdict %s%s; first divergent stage: %s\n", r.verdict.c_str(),
-              r.weak() ? (": weak verdict: " + weak_line(r)).c_str() : "",
-              r.parity.first_divergent_stage ? r.parity.first_divergent_stage->c_str() : "none");
 }
 
 parity::DeviceProfile chosen_profile(const CheckRequest& a) {
@@ -456,26 +406,14 @@ void write_outputs(const CheckRequest& a, CheckRun& run) {
   };
   const CheckOutputs& o = a.outputs;
   attempt("--json", o.json, [&] { save_text(o.json, escape::json_text(check_json(run)) + "\n"); });
-  attempt("--junit", o.junit, [&] { save_text(o.junit, junit_xml(run)); });
-  attempt("--markdown", o.markdown, [&] { save_text(o.markdown, markdown_summary(run)); });
+  // JUnit and Markdown say what the JSON says: written from it, as merge writes them.
+  const nlohmann::ordered_json doc = check_json(run);
+  attempt("--junit", o.junit, [&] { save_text(o.junit, results::junit(doc)); });
+  attempt("--markdown", o.markdown, [&] { save_text(o.markdown, results::markdown(doc)); });
   if (a.print_notes)
     for (const CheckRun::OutputError& e : run.output_errors)
       std::fprintf(stderr, "bloomref: %s %s was not written: %s\n", e.option.c_str(),
                    e.path.c_str(), e.why.c_str());
-}
-
-void print_run(const CheckRequest& a, const CheckRun& run, const std::vector<Expectation>& expectations) {
-  if (!a.print_results) return;
-  for (const Expectation& e : expectations)
-    if (!e.used)
-      std::printf("note: expectation (item %s, stage %s) matched no stage\n", e.item.c_str(),
-                  e.stage.c_str());
-  for (const ItemResult& r : run.items) print_item(r, run.profile);
-  if (run.verdict == "NOTHING")
-    std::printf("nothing compared: no stage image found (names as --dump-stages writes them: "
-                "bright.exr, blur.1.exr ... output.exr)\n");
-  else if (run.items.size() > 1)
-    std::printf("%zu items: verdict %s\n", run.items.size(), run.verdict.c_str());
 }
 
 }  // namespace
@@ -570,7 +508,9 @@ CheckRun check(CheckRequest a) {
   if (batch) run.batch = selection.json(!interrupted, interrupted);
   finish_run(run);
   if (batch_code == 130 || batch_code == 4) run.exit_code = batch_code;  // over the verdict's
-  print_run(a, run, expectations);
+  for (const Expectation& e : expectations)
+    if (!e.used) run.unused_expectations.push_back(e);
+  if (a.print_results) std::fputs(results::console(check_json(run)).c_str(), stdout);
   if (!a.print_notes) {
   } else if (batch && selection.shard && selection.mine.empty())
     std::fprintf(stderr, "bloomref: shard %s has no item (%zu items in %d shards): nothing to do\n",

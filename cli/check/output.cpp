@@ -95,12 +95,20 @@ ordered_json cause_json(const parity::CauseFit& c) {
                          : ordered_json(nullptr)}};
 }
 
+ordered_json text_or_null(const std::string& s) { return s.empty() ? ordered_json(nullptr) : ordered_json(s); }
+
+// The report's images of a stage that did not pass (--report, when it holds them).
+ordered_json report_images(const CheckRun& run, const ItemResult& r, const parity::StageComparison& s) {
+  ordered_json images = ordered_json::array();
+  if (s.verdict == parity::Verdict::pass || s.oracle.empty() || run.report_dir.empty()) return images;
+  for (const char* image : {".ratio.png", ".diff.png", ".mask.png"})
+    images.push_back((fs::path(run.report_dir) / r.id / (s.stage + image)).string());
+  return images;
+}
+
 ordered_json device_json(const DeviceKeys& d) {
   return {{"api", d.api}, {"vendor", d.vendor}, {"renderer", d.renderer}, {"driver", d.driver}};
 }
-
-using escape::xml;
-using escape::markdown_cell;
 
 // The cause of an item's first divergent stage, if one was found.
 const parity::StageComparison* first_divergent(const ItemResult& r) {
@@ -150,6 +158,8 @@ ordered_json check_json(const CheckRun& run) {
            {"status", o.status},
            {"follows_from", r.follows_from(i).empty() ? ordered_json(nullptr)
                                                        : ordered_json(r.follows_from(i))},
+           {"action", text_or_null(r.first_line(i, action_line(s)))},
+           {"explanation", text_or_null(cause_line(s))},
            {"expectation", o.expectation ? ordered_json({{"item", o.expectation->item},
                                                          {"stage", o.expectation->stage},
                                                          {"device", o.expectation->device},
@@ -160,7 +170,8 @@ ordered_json check_json(const CheckRun& run) {
            {"cause", s.causes.empty() ? ordered_json(nullptr) : cause_json(s.causes.front())},
            {"causes", causes},
            {"residual", s.residual.empty() ? ordered_json(nullptr) : ordered_json(s.residual)},
-           {"sensitivity", stage_sensitivity_json(r, s.stage)}});
+           {"sensitivity", stage_sensitivity_json(r, s.stage)},
+           {"report_images", report_images(run, r, s)}});
     }
     const parity::StageComparison* first = first_divergent(r);
     items.push_back(
@@ -197,6 +208,12 @@ ordered_json check_json(const CheckRun& run) {
           {"device", device_json(run.device)},
           {"expectations_file", run.expectations_file ? ordered_json(*run.expectations_file)
                                                       : ordered_json(nullptr)},
+          {"unused_expectations", [&run] {
+             ordered_json e = ordered_json::array();
+             for (const Expectation& x : run.unused_expectations)
+               e.push_back({{"item", x.item}, {"stage", x.stage}, {"device", x.device}, {"reason", x.reason}});
+             return e;
+           }()},
           {"peak_rss_bytes", [] {
              rusage u{};
              getrusage(RUSAGE_SELF, &u);
@@ -213,179 +230,6 @@ ordered_json check_json(const CheckRun& run) {
              return e;
            }()},
           {"items", items}};
-}
-
-std::string junit_xml(const CheckRun& run) {
-  const Counts n = count(run);
-  auto failed = [&](const std::string& status) {
-    return status == "fail" || (status == "warn" && run.warn_as_error);
-  };
-  std::string out = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
-  out += "<testsuites name=\"bloomref check\" tests=\"" + std::to_string(n.stages + n.errors) +
-         "\" failures=\"" + std::to_string(n.fail + (run.warn_as_error ? n.warn : 0)) +
-         "\" errors=\"" + std::to_string(n.errors) + "\" skipped=\"" + std::to_string(n.expected) +
-         "\">\n";
-  for (const ItemResult& r : run.items) {
-    if (!r.error.empty()) {
-      out += "  <testsuite name=\"" + xml(r.id) + "\" tests=\"1\" failures=\"0\" errors=\"1\" "
-             "skipped=\"0\" time=\"0\">\n    <testcase classname=\"bloomref.check." + xml(r.id) +
-             "\" name=\"stages\"><error message=\"" + xml(r.error) +
-             "\" type=\"input\"/></testcase>\n  </testsuite>\n";
-      continue;
-    }
-    int fails = 0, skipped = 0;
-    for (const StageOutcome& o : r.outcomes) {
-      fails += failed(o.status);
-      skipped += o.status == "expected-fail";
-    }
-    const double seconds = (r.load_ms + r.oracle_ms + r.judge_ms) / 1000;
-    out += "  <testsuite name=\"" + xml(r.id) + "\" tests=\"" + std::to_string(r.outcomes.size()) +
-           "\" failures=\"" + std::to_string(fails) + "\" errors=\"0\" skipped=\"" +
-           std::to_string(skipped) + "\" time=\"" + std::to_string(seconds) + "\">\n";
-    out += "    <properties>\n";
-    const std::pair<const char*, std::string> props[] = {
-        {"scene", r.source},         {"profile", run.profile.name},
-        {"device.api", run.device.api}, {"device.vendor", run.device.vendor},
-        {"device.renderer", run.device.renderer}, {"device.driver", run.device.driver}};
-    for (const auto& [k, v] : props)  // device keys nobody declared are left out
-      if (!v.empty())
-        out += "      <property name=\"" + std::string(k) + "\" value=\"" + xml(v) + "\"/>\n";
-    if (r.sensitivity) {
-      out += "      <property name=\"sensitivity\" value=\"" + xml(sensitivity_line(r)) + "\"/>\n";
-      if (r.weak())
-        out += "      <property name=\"weak-verdict\" value=\"" + xml(weak_line(r)) + "\"/>\n";
-      for (const parity::StageSensitivity& st : r.sensitivity->stages)
-        out += "      <property name=\"sensitivity." + xml(st.stage) + "\" value=\"" +
-               xml(stage_sensitivity_line(st)) + "\"/>\n";
-    }
-    out += "    </properties>\n";
-    if (r.outcomes.empty()) {
-      out += "    <testcase classname=\"bloomref.check." + xml(r.id) +
-             "\" name=\"stages\"><failure message=\"nothing compared: no stage image\" "
-             "type=\"nothing\"/></testcase>\n";
-    }
-    for (std::size_t i = 0; i < r.outcomes.size(); ++i) {
-      const auto& s = r.parity.isolated[i];
-      const StageOutcome& o = r.outcomes[i];
-      out += "    <testcase classname=\"bloomref.check." + xml(r.id) + "\" name=\"" + xml(s.stage) +
-             "\">";
-      const std::string cause = cause_line(s);
-      const std::string line = r.first_line(i, action_line(s)) + "; " + s.reason +
-                               (cause.empty() || !r.follows_from(i).empty() ? "" : "; " + cause);
-      if (failed(o.status)) {
-        out += "\n      <failure message=\"" + xml(line) + "\" type=\"" +
-               parity::to_string(s.verdict) + "\">" +
-               xml("end to end: " + r.parity.end_to_end[i].reason) + "</failure>";
-      } else if (o.status == "expected-fail") {
-        out += "\n      <skipped message=\"" + xml("expected failure: " + o.expectation->reason +
-                                                    " (" + line + ")") + "\"/>";
-      }
-      // One <system-out> per testcase: a WARN's or a fixed deviation's note, then one
-      // attachment line per image of a failing stage (the Jenkins JUnit attachments convention).
-      std::string system_out;
-      if (o.status == "warn") system_out = line + "\n";
-      if (o.status == "pass") {  // the margin a passing stage had
-        char b[128];
-        std::snprintf(b, sizeof b, "largest error / bound: %.3g isolated, %.3g end to end\n",
-                      s.max_ratio, r.parity.end_to_end[i].max_ratio);
-        system_out = b;
-      }
-      if (o.status == "fixed")
-        system_out = "a known deviation (" + o.expectation->reason +
-                     ") now passes: remove the expectation\n";
-      if (s.verdict != parity::Verdict::pass && !s.oracle.empty() && !run.report_dir.empty())
-        for (const char* image : {".ratio.png", ".diff.png", ".mask.png"})
-          system_out += "[[ATTACHMENT|" +
-                        (fs::path(run.report_dir) / r.id / (s.stage + image)).string() + "]]\n";
-      if (!system_out.empty()) out += "\n      <system-out>" + xml(system_out) + "</system-out>";
-      out += "</testcase>\n";
-    }
-    out += "  </testsuite>\n";
-  }
-  return out + "</testsuites>\n";
-}
-
-namespace {
-
-// One figure of a sensitivity ladder in words: `fmt` with the amount and the stage that failed
-// it, or `none` when nothing of the ladder failed.
-std::string seen_part(double v, const char* fmt, const char* none, const std::string& stage) {
-  if (v <= 0) return none;
-  char buf[160];
-  std::snprintf(buf, sizeof buf, fmt, v);
-  return std::string(buf) + " (at " + stage + ")";
-}
-
-std::string shape_parts(double shift, const std::string& shift_stage, bool spread_measured,
-                        double spread, const std::string& spread_stage) {
-  std::string out =
-      ", " + seen_part(shift, "a shift of %g texel(s)", "no shift up to 8 texels", shift_stage);
-  if (spread_measured)
-    out += ", " + seen_part(spread > 0 ? 100 * (spread - 1) : 0, "a spread %.3g%% wider",
-                            "no wider spread up to 50%", spread_stage);
-  return out;
-}
-
-}  // namespace
-
-std::string sensitivity_line(const ItemResult& r) {
-  if (!r.sensitivity) return "not measured";
-  const parity::Sensitivity& s = *r.sensitivity;
-  std::string out = seen_part(s.gain, s.gain_at_most ? "a bloom gain of %.3gx or less" : "a bloom gain of %.3gx",
-                              "no bloom gain up to 4x", s.gain_stage);
-  if (!s.shape) return out;
-  return out + shape_parts(s.shift, s.shift_stage, s.spread_measured, s.spread, s.spread_stage);
-}
-
-std::string stage_sensitivity_line(const parity::StageSensitivity& s) {
-  return seen_part(s.gain, "a gain of %.3gx", "no gain up to 4x", s.gain_stage) +
-         shape_parts(s.shift, s.shift_stage, s.spread_measured, s.spread, s.spread_stage);
-}
-
-std::string weak_line(const ItemResult& r) {
-  char buf[200];
-  std::snprintf(buf, sizeof buf, "a bloom %.3gx too strong would not have failed", r.required_gain);
-  std::string out = buf;
-  if (!r.strengthen.empty()) out += "; " + r.strengthen + " to see more";
-  return out;
-}
-
-std::string markdown_summary(const CheckRun& run) {
-  const Counts n = count(run);
-  const char* icon = run.verdict == "PASS" ? ":white_check_mark:" : run.verdict == "WARN" ? ":warning:" : ":x:";
-  std::string out = "### bloomref check: " + std::string(icon) + " " + run.verdict + "\n\n";
-  out += std::to_string(run.items.size()) + " item(s), " + std::to_string(n.stages) +
-         " stage(s): " + std::to_string(n.pass) + " pass, " + std::to_string(n.warn) + " warn, " +
-         std::to_string(n.fail) + " fail";
-  if (n.expected) out += ", " + std::to_string(n.expected) + " expected failure(s)";
-  if (n.fixed) out += ", " + std::to_string(n.fixed) + " known deviation(s) now passing";
-  if (n.errors) out += ", " + std::to_string(n.errors) + " item(s) not read";
-  out += ". Profile " + escape::markdown_code(run.profile.name);
-  if (run.device.any()) {
-    std::string d;
-    for (const std::string& k : {run.device.api, run.device.vendor, run.device.renderer, run.device.driver})
-      if (!k.empty()) d += (d.empty() ? "" : ", ") + k;
-    out += ", device " + markdown_cell(d);
-  }
-  out += ".\n\n| item | verdict | first divergent stage | cause |\n|---|---|---|---|\n";
-  for (const ItemResult& r : run.items) {
-    const parity::StageComparison* first = first_divergent(r);
-    out += "| " + markdown_cell(r.id) + " | " + markdown_cell(r.verdict) + (r.weak() ? " (weak verdict: " + markdown_cell(weak_line(r)) + ")" : "") + " | " +
-           (r.parity.first_divergent_stage ? escape::markdown_code(*r.parity.first_divergent_stage) : "-") +
-           " | " + (first ? markdown_cell(action_line(*first)) : !r.error.empty() ? markdown_cell(r.error) : "-") + " |\n";
-  }
-  // What each verdict could have seen: the bloom's, then an error entering at each stage.
-  bool heading = false;
-  for (const ItemResult& r : run.items) {
-    if (!r.sensitivity) continue;
-    if (!heading) out += "\n| item | error entering at | could see |\n|---|---|---|\n";
-    heading = true;
-    out += "| " + markdown_cell(r.id) + " | the bloom | " + markdown_cell(sensitivity_line(r)) + " |\n";
-    for (const parity::StageSensitivity& st : r.sensitivity->stages)
-      out += "| " + markdown_cell(r.id) + " | " + escape::markdown_code(st.stage) + " | " +
-             markdown_cell(stage_sensitivity_line(st)) + " |\n";
-  }
-  return out;
 }
 
 }  // namespace bloomref::cli

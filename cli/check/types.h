@@ -110,6 +110,7 @@ struct CheckRun {
   /// (ItemSelection::json); null for one item.
   nlohmann::ordered_json batch;
   std::optional<std::string> expectations_file;
+  std::vector<Expectation> unused_expectations;  ///< known deviations that matched no stage
   std::string report_dir;  ///< --report, where the failing stages' images are
   /// Outputs that could not be written (option, path, why); the others were written.
   struct OutputError {

@@ -87,6 +87,9 @@ TEST_CASE("bloomref's own dumped stages pass, results are written", "[check-cli]
   INFO(r.out << r.err);
   REQUIRE(r.code == 0);
   CHECK(r.out.find("verdict PASS") != std::string::npos);
+  // The console's table: a line per stage, and nothing more said of a stage that passed.
+  CHECK(count(r.out, "PASS") == 2 * 15 + 1);
+  CHECK(r.out.find("within its bound") == std::string::npos);
   const json j = read_json(dir / "r.json");
   CHECK(j["version"] == 1);
   CHECK(j["verdict"] == "PASS");

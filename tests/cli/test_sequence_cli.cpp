@@ -13,6 +13,8 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <regex>
+#include <sstream>
 #include <nlohmann/json.hpp>
 
 #include "bloomref/io.h"
@@ -400,7 +402,8 @@ TEST_CASE("check over frames: an item per frame, a missing folder an error, shar
   TempDir dir;
   write_frames(dir, 3);
   REQUIRE(run_cli(dir, "run 'in.####.exr' --plan full --dump-stages 'st.####/' -q").code == 0);
-  const CliResult all = run_cli(dir, "check 'in.####.exr' --stages 'st.####/' --json c.json -q");
+  const CliResult all =
+      run_cli(dir, "check 'in.####.exr' --stages 'st.####/' --json c.json --junit c.xml -q");
   INFO(all.out << all.err);
   REQUIRE(all.code == 0);
   const json c = read_json(dir / "c.json");
@@ -416,6 +419,22 @@ TEST_CASE("check over frames: an item per frame, a missing folder an error, shar
   CHECK(m.code == 0);
   CHECK(read_json(dir / "cm.json")["verdict"] == "PASS");
   CHECK(read_json(dir / "cm.json")["summary"]["items"] == 3);
+  // The merged JUnit is the one run's, but for its name, the shards and the times.
+  auto normalised = [](const std::string& xml) {
+    std::istringstream in(xml);
+    std::string out, line;
+    while (std::getline(in, line)) {
+      if (line.find("<propert") != std::string::npos || line.find("</properties>") != std::string::npos)
+        continue;
+      line = std::regex_replace(line, std::regex(" time=\"[^\"]*\""), "");
+      out += std::regex_replace(line, std::regex(" \\(merged\\)"), "") + "\n";
+    }
+    return out;
+  };
+  const std::string one = bloomref::test::read_bytes(dir / "c.xml");
+  CHECK_THAT(one, Catch::Contains("largest error / bound:"));
+  CHECK(std::count(one.begin(), one.end(), '\n') > 40);
+  CHECK(normalised(bloomref::test::read_bytes(dir / "cm.xml")) == normalised(one));
 
   fs::remove_all(dir / "st.0002");
   const CliResult missing = run_cli(dir,
