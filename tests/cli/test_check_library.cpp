@@ -158,7 +158,8 @@ TEST_CASE("check as a library: a known deviation's reason outlives the request, 
   fs::copy_file(dir / "stages/blur.2.exr", dir / "stages/blur.3.exr",
                 fs::copy_options::overwrite_existing);
   std::ofstream(dir / "known.json") << R"({"version": 1, "expectations": [
-    {"item": "*", "stage": "blur.3", "reason": "pass 3 is skipped on this device"}]})";
+    {"item": "*", "stage": "blur.3", "reason": "pass 3 is skipped on this device"},
+    {"item": "*", "stage": "up.1", "reason": "no such stage in this pipeline"}]})";
   nlohmann::ordered_json ours;
   {
     cli::CheckRequest r = quiet_request();
@@ -170,10 +171,13 @@ TEST_CASE("check as a library: a known deviation's reason outlives the request, 
   const auto& blur3 = stage_of(ours["items"][0], "blur.3");
   CHECK(blur3["status"] == "expected-fail");
   CHECK(blur3["expectation"]["reason"] == "pass 3 is skipped on this device");
+  REQUIRE(ours["unused_expectations"].size() == 1);
+  CHECK(ours["unused_expectations"][0]["stage"] == "up.1");
 
   const test::CliResult cmd = test::run_cli(
       "check scene.exr --stages stages --expectations known.json --require-sensitivity 0 "
-      "--json r.json -q", "", dir.path());
+      "--json r.json", "", dir.path());
+  CHECK_THAT(cmd.out, Catch::Contains("note: expectation (item *, stage up.1) matched no stage"));
   // The later passes, judged from the copied capture, fail: the verdict is FAIL either way.
   CHECK(cmd.code == 1);
   CHECK(ours["exit_code"] == 1);
