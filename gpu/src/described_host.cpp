@@ -120,11 +120,7 @@ class DescribedHost {
 
   void make_textures() {
     const int w = scene_.width, h = scene_.height;
-    Image sanitized(w, h);
-    out_.trace.nonfinite = sanitize(scene_, sanitized.view(), p_.nonfinite, Storage::f32, p_.threads);
-    if (p_.nonfinite == NonFinite::error && out_.trace.nonfinite.total() > 0)
-      throw ParamError("the scene holds " + std::to_string(out_.trace.nonfinite.total()) +
-                       " NaN or infinite values, refused under --nonfinite error");
+    const Image sanitized = sanitized_scene(scene_, p_, out_.trace.nonfinite);
     const std::vector<std::pair<int, int>> sizes = texture_sizes(d_, w, h);
     for (std::size_t i = 0; i < d_.textures.size(); ++i) {
       const DescribedTexture& t = d_.textures[i];
@@ -159,35 +155,12 @@ class DescribedHost {
   }
 
   void set_uniform(const UserProgram& prog, const std::string& name, const DescribedUniform& u) {
-    switch (u.kind) {
-      case DescribedUniform::number:
-        if (u.values.size() == 1) prog.set_number(name, u.values[0]);
-        else prog.set_vector(name, u.values);
-        return;
-      case DescribedUniform::integer: prog.set_integer(name, u.integer_value); return;
-      case DescribedUniform::flag: prog.set_flag(name, u.integer_value != 0); return;
-      case DescribedUniform::size:
-      case DescribedUniform::texel: {
-        const Texture& t = textures_.at(u.texture);
-        const float sx = static_cast<float>(t.width), sy = static_cast<float>(t.height);
-        if (u.kind == DescribedUniform::size) prog.set_vector(name, {sx, sy});
-        else prog.set_vector(name, {1.0f / sx, 1.0f / sy});
-        return;
-      }
-      case DescribedUniform::width:
-      case DescribedUniform::height: {
-        const Texture& t = textures_.at(u.texture);
-        prog.set_number(name, static_cast<float>(u.kind == DescribedUniform::width ? t.width : t.height));
-        return;
-      }
-      case DescribedUniform::halved: {
-        const Texture& t = textures_.at(u.texture);
-        float sx = static_cast<float>(t.width), sy = static_cast<float>(t.height);
-        for (int i = 0; i < u.times; ++i) sx *= 0.5f, sy *= 0.5f;
-        prog.set_vector(name, {sx, sy});
-        return;
-      }
-    }
+    if (u.kind == DescribedUniform::integer) return prog.set_integer(name, u.integer_value);
+    if (u.kind == DescribedUniform::flag) return prog.set_flag(name, u.integer_value != 0);
+    const Texture* t = u.texture.empty() ? nullptr : &textures_.at(u.texture);
+    const std::vector<float> v = uniform_values(u, t ? t->width : 0, t ? t->height : 0);
+    if (v.size() == 1) prog.set_number(name, v[0]);
+    else prog.set_vector(name, v);
   }
 
   void draw(std::size_t i) {
@@ -231,6 +204,34 @@ class DescribedHost {
 };
 
 }  // namespace
+
+Image sanitized_scene(ConstImageView scene, const BloomParams& p, NonFiniteCounts& counts) {
+  Image sanitized(scene.width, scene.height);
+  counts = sanitize(scene, sanitized.view(), p.nonfinite, Storage::f32, p.threads);
+  if (p.nonfinite == NonFinite::error && counts.total() > 0)
+    throw ParamError("the scene holds " + std::to_string(counts.total()) +
+                     " NaN or infinite values, refused under --nonfinite error");
+  return sanitized;
+}
+
+std::vector<float> uniform_values(const DescribedUniform& u, int width, int height) {
+  const float sx = static_cast<float>(width), sy = static_cast<float>(height);
+  switch (u.kind) {
+    case DescribedUniform::number: return u.values;
+    case DescribedUniform::integer:
+    case DescribedUniform::flag: return {static_cast<float>(u.integer_value)};
+    case DescribedUniform::width: return {sx};
+    case DescribedUniform::height: return {sy};
+    case DescribedUniform::size: return {sx, sy};
+    case DescribedUniform::texel: return {1.0f / sx, 1.0f / sy};
+    case DescribedUniform::halved: {
+      float hx = sx, hy = sy;
+      for (int k = 0; k < u.times; ++k) hx *= 0.5f, hy *= 0.5f;
+      return {hx, hy};
+    }
+  }
+  return {};
+}
 
 Image texture_content(const DescribedTexture& t, ConstImageView sanitized, const BloomParams& p) {
   Image img(sanitized.width, sanitized.height);

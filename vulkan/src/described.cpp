@@ -265,11 +265,7 @@ class DescribedRunner {
 
   void make_textures() {
     const int w = scene_.width, h = scene_.height;
-    Image sanitized(w, h);
-    trace_.nonfinite = sanitize(scene_, sanitized.view(), p_.nonfinite, Storage::f32, p_.threads);
-    if (p_.nonfinite == NonFinite::error && trace_.nonfinite.total() > 0)
-      throw ParamError("the scene holds " + std::to_string(trace_.nonfinite.total()) +
-                       " NaN or infinite values, refused under --nonfinite error");
+    const Image sanitized = gpu::sanitized_scene(scene_, p_, trace_.nonfinite);
     const std::vector<std::pair<int, int>> sizes = gpu::texture_sizes(d_, w, h);
     for (std::size_t i = 0; i < d_.textures.size(); ++i) {
       const DescribedTexture& t = d_.textures[i];
@@ -384,26 +380,8 @@ class DescribedRunner {
   }
 
   std::vector<float> values(const DescribedUniform& u) const {
-    switch (u.kind) {
-      case DescribedUniform::number: return u.values;
-      case DescribedUniform::integer:
-      case DescribedUniform::flag: return {static_cast<float>(u.integer_value)};
-      case DescribedUniform::width:
-        return {static_cast<float>(textures_.at(u.texture).image->width)};
-      case DescribedUniform::height:
-        return {static_cast<float>(textures_.at(u.texture).image->height)};
-      case DescribedUniform::size:
-      case DescribedUniform::texel:
-      case DescribedUniform::halved: {
-        const Image2D& t = *textures_.at(u.texture).image;
-        float sx = static_cast<float>(t.width), sy = static_cast<float>(t.height);
-        if (u.kind == DescribedUniform::texel) return {1.0f / sx, 1.0f / sy};
-        if (u.kind == DescribedUniform::halved)
-          for (int k = 0; k < u.times; ++k) sx *= 0.5f, sy *= 0.5f;
-        return {sx, sy};
-      }
-    }
-    return {};
+    const Image2D* t = u.texture.empty() ? nullptr : textures_.at(u.texture).image.get();
+    return gpu::uniform_values(u, t ? t->width : 0, t ? t->height : 0);
   }
 
   void draw(std::size_t i) {

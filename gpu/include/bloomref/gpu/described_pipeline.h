@@ -102,6 +102,16 @@ std::vector<std::pair<int, int>> texture_sizes(const PipelineDescription& d, int
 /// threshold of `params`), stored in the texture's format.
 Image texture_content(const DescribedTexture& t, ConstImageView sanitized, const BloomParams& params);
 
+/// The scene as the passes' textures start from it: NaN and infinities replaced as
+/// `params.nonfinite` says (counted in `counts`); ParamError when the policy is `error` and
+/// there are any.
+Image sanitized_scene(ConstImageView scene, const BloomParams& params, NonFiniteCounts& counts);
+
+/// The value(s) a host sets uniform `u` to, as floats: its numbers, its integer, or the size of
+/// its texture (`width` x `height`) as the kind says (the size, a texel, halved `times` times,
+/// one side).
+std::vector<float> uniform_values(const DescribedUniform& u, int width, int height);
+
 /// The blend factors by GL name ("GL_ONE", "GL_ONE_MINUS_CONSTANT_COLOR", ...) or short name
 /// ("one", "one_minus_constant_color"); ParamError listing the known ones otherwise.
 unsigned blend_factor(const std::string& name);
