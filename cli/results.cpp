@@ -370,12 +370,13 @@ std::string markdown(const ordered_json& doc) {
   if (n.errors) out += ", " + std::to_string(n.errors) + " item(s) not read";
   out += ". Profile " + markdown_code(str(field(doc, "profile"), "name"));
   if (const std::string d = device_line(doc); !d.empty()) out += ", device " + markdown_cell(d);
-  out += std::string(".\n\n| item | verdict | first divergent stage | cause |") +
+  out += std::string(".\n\n| item | verdict | divergent stage | cause |") +
          (merged ? " shard |\n|---|---|---|---|---|\n" : "\n|---|---|---|---|\n");
   for (const ordered_json& r : list(doc, "items")) {
     const ordered_json& sens = field(r, "sensitivity");
     const ordered_json* first = first_divergent(r);
     const std::string first_stage = str(r, "first_divergent_stage");
+    const std::string shard = merged ? " " + markdown_cell(str(r, "shard")) + " |" : "";
     std::string why = "-";
     if (first) why = markdown_cell(field(*first, "action").is_string() ? action(*first)
                                    : field(r, "first_divergent_cause").is_object()
@@ -384,8 +385,18 @@ std::string markdown(const ordered_json& doc) {
     else if (const std::string err = str(r, "error"); !err.empty()) why = markdown_cell(err);
     out += "| " + markdown_cell(str(r, "id")) + " | " + markdown_cell(str(r, "verdict")) +
            (weak(sens) ? " (weak verdict: " + markdown_cell(weak_line(sens)) + ")" : "") + " | " +
-           (first_stage.empty() ? "-" : markdown_code(first_stage)) + " | " + why + " |" +
-           (merged ? " " + markdown_cell(str(r, "shard")) + " |" : "") + "\n";
+           (first_stage.empty() ? "-" : markdown_code(first_stage)) + " | " + why + " |" + shard + "\n";
+    // Every later stage that diverges on its own (not only because it was judged from an
+    // earlier wrong capture): a second bug is not hidden behind the first.
+    bool after = false;
+    for (const ordered_json& s : list(r, "stages")) {
+      if (first && &s == first) after = true;
+      if (!after || &s == first || str(field(s, "isolated"), "verdict") == "PASS" ||
+          !str(s, "follows_from").empty())
+        continue;
+      out += "| " + markdown_cell(str(r, "id")) + " | also | " + markdown_code(str(s, "stage")) +
+             " | " + markdown_cell(action(s)) + " |" + shard + "\n";
+    }
   }
   // What each verdict could have seen: the bloom's, then an error entering at each stage.
   bool heading = false;

@@ -156,6 +156,24 @@ TEST_CASE("a stage judged from an earlier wrong capture says it follows from it"
   CHECK(bloomref::test::read_bytes(dir / "r.xml").find("follows from blur.3") != std::string::npos);
 }
 
+TEST_CASE("a second, independent bug is listed in the Markdown beside the first", "[check-cli]") {
+  // A pass too few (blur.3), and an output gamma of 1.8 where 2.2 is specified: two bugs. blur.4
+  // follows from the first and is not listed; the output diverges on its own.
+  TempDir dir;
+  dump(dir, "d");
+  dump(dir, "g", "--gamma 1.8");
+  fs::copy_file(dir / "d/blur.2.exr", dir / "d/blur.3.exr", fs::copy_options::overwrite_existing);
+  fs::copy_file(dir / "g/output.exr", dir / "d/output.exr", fs::copy_options::overwrite_existing);
+  const CliResult r = run_cli(dir, "check " + kSize + " --stages d --markdown r.md -q");
+  CHECK(r.code == 1);
+  const std::string md = bloomref::test::read_bytes(dir / "r.md");
+  INFO(md);
+  CHECK(md.find("| d | FAIL | `blur.3` | blur.3: FAIL") != std::string::npos);
+  CHECK(md.find("| d | also | `output` | output: FAIL") != std::string::npos);
+  CHECK(md.find("`blur.4`") == std::string::npos);
+  CHECK(count(md, "| d |") == 2);
+}
+
 TEST_CASE("where NaN first enters a capture is named", "[check-cli]") {
   // overte-org/overte#2297: one non-finite texel spreads through every later stage. Planted at
   // blur.3 and (as a pass spreads it) in blur.4 and blur.5 around it.
