@@ -57,6 +57,10 @@ void PipelineOptions::add_to(CLI::App& app) {
   app.add_flag("--karis", p.karis, "mip: Karis average on the first downsample");
   app.add_option("--composite", composite, "before-tonemap | after-tonemap (after: as the mip-chain tutorial)")
       ->capture_default_str();
+  app.add_option("--first-axis", first_axis,
+                 "gaussian: the first blur pass's axis, horizontal (the seeds') | vertical; the "
+                 "passes then alternate")
+      ->capture_default_str();
   app.add_option("--composite-mode", composite_mode,
                  "add (image + strength * bloom) | mix (mix(image, bloom, strength))")
       ->capture_default_str();
@@ -152,6 +156,7 @@ void PipelineOptions::finish() {
   params.blur = parse_blur_impl(blur);
   params.composite = parse_composite_order(composite);
   params.composite_mode = parse_composite_mode(composite_mode);
+  params.first_axis = parse_first_axis(first_axis);
   params.prefilter = parse_prefilter(prefilter);
   params.karis_form = parse_karis_form(karis_form);
   params.texel_step = parse_texel_step(texel_step);

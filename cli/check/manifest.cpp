@@ -82,11 +82,12 @@ void apply_param(const std::string& file, const std::string& key, const json& v,
     if (!v.is_boolean()) bad(file, field, "must be true or false");
     p.karis = v.get<bool>();
   } else if (key == "composite") po.composite = str();
+  else if (key == "first_axis") po.first_axis = str();
   else if (key == "threads") p.threads = integer();
   else
     bad(file, field,
         "is not a pipeline parameter (method, threshold, exposure, gamma, strength, passes, "
-        "kernel, storage, nonfinite, levels, karis, composite, threads)");
+        "kernel, storage, nonfinite, levels, karis, composite, first_axis, threads)");
 }
 
 fs::path resolve_path(const fs::path& base, const std::string& p) {

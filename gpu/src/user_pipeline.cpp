@@ -296,6 +296,7 @@ UserPipelineOptions options_for(const BloomParams& params) {
   UserPipelineOptions opt;
   opt.format = params.storage == Storage::f16 ? TargetFormat::rgba16f : TargetFormat::rgba32f;
   opt.passes = params.passes;
+  opt.first_horizontal = params.first_axis == FirstAxis::horizontal;
   opt.exposure = params.exposure;
   opt.threshold = params.threshold;
   opt.nonfinite = params.nonfinite;
@@ -414,7 +415,7 @@ class LearnOpenGLHost {
   const Texture* blur_passes() {
     ping_[0] = target();
     ping_[1] = target();
-    bool horizontal = true;
+    bool horizontal = opt_.first_horizontal;
     for (int k = 1; k <= opt_.passes; ++k) {
       const Texture& src = k == 1 ? bright_tex_ : ping_[horizontal ? 0 : 1];
       const PresetLayout& l = opt_.layout;

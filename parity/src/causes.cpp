@@ -67,7 +67,7 @@ struct Hypothesis {
                               // texels hold whatever the target held (the capture's values)
   bool nonfinite = false;     // NaN/Inf made at the target stage (the capture's, where the
                               // oracle's value is finite)
-  bool vertical_first = false;  // the blur starts with a vertical pass: every pass's axis swapped
+  bool axes_swapped = false;  // the blur starts on the other axis: every pass's axis swapped
   std::string source;         // a mip stage reads this level where its first input is specified
   int params = 0;             // how many numbers were fitted to the capture
   bool sampled() const { return !sampling.is_default(); }
@@ -82,7 +82,7 @@ struct Hypothesis {
            !texel_step &&
            !pow_negative_karis &&
            flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored &&
-           !vertical_first && source.empty();
+           !axes_swapped && source.empty();
   }
 };
 
@@ -95,7 +95,7 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
     case StageKind::bright:
       return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold) || h.encoded_luma;
     case StageKind::blur:
-      return h.sampled() || h.kernel || h.clamp_blur || h.vertical_first ||
+      return h.sampled() || h.kernel || h.clamp_blur || h.axes_swapped ||
              (is_target && (!h.weights.empty() || h.stale || h.along_x || h.spacing != 1.0f)) ||
              h.f16;
     case StageKind::down:
@@ -298,7 +298,8 @@ class Evaluator {
   }
 
   Axis axis_of(int pass) const {
-    return (pass % 2 == 1) != h_.vertical_first ? Axis::horizontal : Axis::vertical;
+    const bool declared = (pass % 2 == 1) == (p_.first_axis == FirstAxis::horizontal);
+    return declared != h_.axes_swapped ? Axis::horizontal : Axis::vertical;
   }
 
   // The bloom of a plan with one pass fewer or more: from the last captured pass (or bright).
@@ -1178,8 +1179,14 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     h = add("pass-added", "one blur pass too many");
     h->pass_delta = 1;
     if (count) h->detail = "--passes " + std::to_string(p.passes + 1) + " declares it";
-    add("vertical-first", "the blur starts with a vertical pass (each pass's axis is the other one)")
-        ->vertical_first = true;
+    if (p.first_axis == FirstAxis::horizontal) {
+      h = add("vertical-first", "the blur starts with a vertical pass (each pass's axis is the other one)");
+      h->detail = "--first-axis vertical declares it";
+    } else {
+      h = add("horizontal-first", "the blur starts with a horizontal pass (each pass's axis is the other one)");
+      h->detail = "--first-axis horizontal declares it";
+    }
+    h->axes_swapped = true;
   }
   if (has(StageKind::bright)) {
     add("threshold-ge", "`>=` instead of `>` at the threshold")->ge = true;

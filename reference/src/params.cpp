@@ -42,6 +42,8 @@ constexpr std::pair<const char*, CompositeOrder> kOrders[] = {
     {"after-tonemap", CompositeOrder::after_tonemap}};
 constexpr std::pair<const char*, CompositeMode> kModes[] = {{"add", CompositeMode::add},
                                                             {"mix", CompositeMode::mix}};
+constexpr std::pair<const char*, FirstAxis> kAxes[] = {{"horizontal", FirstAxis::horizontal},
+                                                       {"vertical", FirstAxis::vertical}};
 constexpr std::pair<const char*, Prefilter> kPrefilters[] = {
     {"per-lookup", Prefilter::per_lookup}, {"bright", Prefilter::bright}, {"none", Prefilter::none},
     {"soft-knee", Prefilter::soft_knee}};
@@ -132,6 +134,8 @@ void validate(const BloomParams& p) {
   require(std::isfinite(p.upsample_radius) && p.upsample_radius >= 0 && p.upsample_radius < 1,
           "--upsample-radius must be in [0, 1) (texture coordinates; 0 = one texel), got " +
               str(p.upsample_radius));
+  require(p.first_axis == FirstAxis::horizontal || p.method == Method::gaussian,
+          "--first-axis vertical needs --method gaussian (the mip chain has no blur passes)");
   require(p.composite_mode == CompositeMode::add || p.strength <= 1,
           "--composite-mode mix needs --strength in [0, 1], got " + str(p.strength));
   require(std::isfinite(p.threshold), "--threshold must be finite, got " + str(p.threshold));
@@ -159,6 +163,7 @@ std::string to_string(PlanMode v) { return name_of(v, kPlans); }
 std::string to_string(BlurImpl v) { return name_of(v, kBlurs); }
 std::string to_string(CompositeOrder v) { return name_of(v, kOrders); }
 std::string to_string(CompositeMode v) { return name_of(v, kModes); }
+std::string to_string(FirstAxis v) { return name_of(v, kAxes); }
 std::string to_string(Prefilter v) { return name_of(v, kPrefilters); }
 std::string to_string(KarisForm v) { return name_of(v, kKarisForms); }
 std::string to_string(TexelStep v) { return name_of(v, kTexelSteps); }
@@ -189,6 +194,7 @@ LevelCombine parse_level_combine(const std::string& s) {
 LevelWeights parse_level_weights(const std::string& s) {
   return parse_enum("--level-weights", s, kWeights);
 }
+FirstAxis parse_first_axis(const std::string& s) { return parse_enum("--first-axis", s, kAxes); }
 CompositeMode parse_composite_mode(const std::string& s) {
   return parse_enum("--composite-mode", s, kModes);
 }

@@ -164,9 +164,10 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
 
   plan.stages.push_back({"input", StageKind::input});
   plan.stages.push_back({"bright", StageKind::bright});
+  const bool first_horizontal = params.first_axis == FirstAxis::horizontal;
   for (int k = 1; k <= params.passes; ++k) {
     StageSpec s{"blur." + std::to_string(k), StageKind::blur, k,
-                k % 2 == 1 ? Axis::horizontal : Axis::vertical, skip_blur};
+                (k % 2 == 1) == first_horizontal ? Axis::horizontal : Axis::vertical, skip_blur};
     plan.stages.push_back(s);
   }
   plan.stages.push_back({"composite", StageKind::composite});

@@ -33,6 +33,9 @@ enum class CompositeOrder { before_tonemap, after_tonemap };
 /// `mix` (GLSL mix(image, bloom, strength) = image * (1 - strength) + bloom * strength, as
 /// LearnOpenGL's "Physically Based Bloom" article, 6.bloom_final.fs, does).
 enum class CompositeMode { add, mix };
+/// The axis of the gaussian method's first blur pass; the passes then alternate. Seed 000's
+/// host starts horizontal (`bool horizontal = true`); some engines start vertical.
+enum class FirstAxis { horizontal, vertical };
 
 // The mip chain's variants (docs/design.md, "Mip-chain variants"). The defaults are seed 002's
 // chain; preset learnopengl-pbb sets the article's (src/8.guest/2022/6.physically_based_bloom).
@@ -114,6 +117,7 @@ struct BloomParams {
   bool karis = false;       ///< Karis average on the first downsample
   CompositeOrder composite = CompositeOrder::before_tonemap;
   CompositeMode composite_mode = CompositeMode::add;
+  FirstAxis first_axis = FirstAxis::horizontal;
   Prefilter prefilter = Prefilter::per_lookup;
   KarisForm karis_form = KarisForm::per_tap;
   TexelStep texel_step = TexelStep::texture;
@@ -171,6 +175,7 @@ std::string to_string(PlanMode m);
 std::string to_string(BlurImpl b);
 std::string to_string(CompositeOrder c);
 std::string to_string(CompositeMode c);
+std::string to_string(FirstAxis a);
 std::string to_string(Prefilter p);
 std::string to_string(KarisForm k);
 std::string to_string(TexelStep t);
@@ -191,6 +196,7 @@ PlanMode parse_plan_mode(const std::string& s);
 BlurImpl parse_blur_impl(const std::string& s);
 CompositeOrder parse_composite_order(const std::string& s);
 CompositeMode parse_composite_mode(const std::string& s);
+FirstAxis parse_first_axis(const std::string& s);
 Prefilter parse_prefilter(const std::string& s);
 KarisForm parse_karis_form(const std::string& s);
 TexelStep parse_texel_step(const std::string& s);

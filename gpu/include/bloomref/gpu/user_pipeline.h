@@ -158,6 +158,8 @@ struct UserPipelineOptions {
   TextureWrap wrap = TextureWrap::clamp_to_edge;
   std::array<float, 4> clear_colour = {0.0f, 0.0f, 0.0f, 1.0f};
   int passes = 10;        ///< the tutorial's `amount`
+  /// The tutorial's `bool horizontal = true` before its loop; false: the first pass is vertical.
+  bool first_horizontal = true;
   float exposure = 1.0f;  ///< uniform `exposure`
   bool bloom = true;      ///< uniform `bloom`
   /// The oracle's bright pass (luminance > threshold), and the user's bright shader's
