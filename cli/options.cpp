@@ -57,6 +57,10 @@ void PipelineOptions::add_to(CLI::App& app) {
   app.add_flag("--karis", p.karis, "mip: Karis average on the first downsample");
   app.add_option("--composite", composite, "before-tonemap | after-tonemap (after: as the mip-chain tutorial)")
       ->capture_default_str();
+  app.add_option("--luma", luma,
+                 "the luminance the threshold (and seed 002's per-tap Karis weight) reads: rec709 "
+                 "(0.2126, 0.7152, 0.0722: the seeds') | rec601 (0.299, 0.587, 0.114)")
+      ->capture_default_str();
   app.add_option("--first-axis", first_axis,
                  "gaussian: the first blur pass's axis, horizontal (the seeds') | vertical; the "
                  "passes then alternate")
@@ -157,6 +161,7 @@ void PipelineOptions::finish() {
   params.composite = parse_composite_order(composite);
   params.composite_mode = parse_composite_mode(composite_mode);
   params.first_axis = parse_first_axis(first_axis);
+  params.luma = parse_luma(luma);
   params.prefilter = parse_prefilter(prefilter);
   params.karis_form = parse_karis_form(karis_form);
   params.texel_step = parse_texel_step(texel_step);

@@ -83,11 +83,12 @@ void apply_param(const std::string& file, const std::string& key, const json& v,
     p.karis = v.get<bool>();
   } else if (key == "composite") po.composite = str();
   else if (key == "first_axis") po.first_axis = str();
+  else if (key == "luma") po.luma = str();
   else if (key == "threads") p.threads = integer();
   else
     bad(file, field,
         "is not a pipeline parameter (method, threshold, exposure, gamma, strength, passes, "
-        "kernel, storage, nonfinite, levels, karis, composite, first_axis, threads)");
+        "kernel, storage, nonfinite, levels, karis, composite, first_axis, luma, threads)");
 }
 
 fs::path resolve_path(const fs::path& base, const std::string& p) {

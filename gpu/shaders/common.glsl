@@ -11,10 +11,15 @@ float sanitize_value(float v, int policy, float storage_max) {
   return v > 0.0 ? storage_max : -storage_max;
 }
 
-// Rec. 709 luminance, summed left to right (seed 000). `precise` (GLSL 4.00+) forbids
-// reordering and fusing, so the threshold decision is bit-exact with the CPU's and a pixel
-// exactly at the threshold is a real tie (parity can then catch `>=` for `>`).
+// Rec. 709 luminance (seed 000), or Rec. 601's weights with --luma rec601, summed left to
+// right. `precise` (GLSL 4.00+) forbids reordering and fusing, so the threshold decision is
+// bit-exact with the CPU's and a pixel exactly at the threshold is a real tie (parity can then
+// catch `>=` for `>`).
 float luminance(vec3 c) {
+#ifdef LUMA_REC601
+  precise float l = c.r * 0.299 + c.g * 0.587 + c.b * 0.114;
+#else
   precise float l = c.r * 0.2126 + c.g * 0.7152 + c.b * 0.0722;
+#endif
   return l;
 }

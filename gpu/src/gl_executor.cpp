@@ -18,6 +18,7 @@ std::vector<std::string> defines_for(const BloomParams& p, GLenum format) {
   std::vector<std::string> d;
   d.push_back(std::string("STORAGE_FORMAT ") + (format == GL_RGBA16F ? "rgba16f" : "rgba32f"));
   if (p.kernel == KernelName::linear5) d.push_back("KERNEL_LINEAR5 1");
+  if (p.luma == Luma::rec601) d.push_back("LUMA_REC601 1");
   return d;
 }
 
@@ -352,8 +353,9 @@ class GlExecutor {
   // sanitising only removes what fails it anyway).
   void input(const StageSpec& s, Clock::time_point t0) {
     runner_.run(progs_.extract, {&tex_.raw}, tex_.scene, &tex_.bright);
-    mip_dark_ = sched_.may_skip_mip && mip_nothing_bright(scene_, 0.5 * double(p_.threshold), 0) &&
-                mip_nothing_bright(to_image(tex_.scene).cview(), double(p_.threshold), 0);
+    mip_dark_ = sched_.may_skip_mip &&
+                mip_nothing_bright(scene_, 0.5 * double(p_.threshold), 0, p_.luma) &&
+                mip_nothing_bright(to_image(tex_.scene).cview(), double(p_.threshold), 0, p_.luma);
     finish(s.name, tex_.scene, t0);
   }
 

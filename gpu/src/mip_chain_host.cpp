@@ -141,7 +141,8 @@ class MipChainHost {
       throw ParamError("the scene holds " + std::to_string(out_.run.trace.nonfinite.total()) +
                        " NaN or infinite values, refused under --nonfinite error");
     Image bright(w_, h_);
-    extract_bright(sanitized.cview(), bright.view(), opt_.threshold, opt_.threads);
+    extract_bright(sanitized.cview(), bright.view(), opt_.threshold, opt_.threads, false, nullptr,
+                   nullptr, opt_.luma);
     store(sanitized.view(), st, opt_.half_rounding, opt_.threads);
     store(bright.view(), st, opt_.half_rounding, opt_.threads);
     scene_tex_ = upload_image(sanitized);
@@ -224,6 +225,7 @@ MipChainOptions mip_chain_options_for(const BloomParams& p) {
   o.filter_radius = p.upsample_radius;
   o.exposure = p.exposure;
   o.threshold = p.threshold;
+  o.luma = p.luma;
   o.nonfinite = p.nonfinite;
   o.threads = p.threads;
   return o;

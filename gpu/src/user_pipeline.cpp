@@ -299,6 +299,7 @@ UserPipelineOptions options_for(const BloomParams& params) {
   opt.first_horizontal = params.first_axis == FirstAxis::horizontal;
   opt.exposure = params.exposure;
   opt.threshold = params.threshold;
+  opt.luma = params.luma;
   opt.nonfinite = params.nonfinite;
   opt.threads = params.threads;
   return opt;
@@ -391,7 +392,8 @@ class LearnOpenGLHost {
     if (!prog_.bright) {
       const auto t0 = Clock::now();
       Image bright(w_, h_);
-      extract_bright(sanitized_.cview(), bright.view(), opt_.threshold, opt_.threads);
+      extract_bright(sanitized_.cview(), bright.view(), opt_.threshold, opt_.threads, false,
+                     nullptr, nullptr, opt_.luma);
       store(bright.view(), storage_of(opt_.format), opt_.half_rounding, opt_.threads);
       bright_tex_ = upload(bright);
       sample(bright_tex_);

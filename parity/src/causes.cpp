@@ -68,6 +68,7 @@ struct Hypothesis {
   bool nonfinite = false;     // NaN/Inf made at the target stage (the capture's, where the
                               // oracle's value is finite)
   bool axes_swapped = false;  // the blur starts on the other axis: every pass's axis swapped
+  bool other_luma = false;    // the luminance with the other weights (Rec. 601 for 709, or back)
   std::string source;         // a mip stage reads this level where its first input is specified
   int params = 0;             // how many numbers were fitted to the capture
   bool sampled() const { return !sampling.is_default(); }
@@ -82,7 +83,7 @@ struct Hypothesis {
            !texel_step &&
            !pow_negative_karis &&
            flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored &&
-           !axes_swapped && source.empty();
+           !axes_swapped && !other_luma && source.empty();
   }
 };
 
@@ -93,14 +94,15 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
   switch (k) {
     case StageKind::input: return h.f16;
     case StageKind::bright:
-      return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold) || h.encoded_luma;
+      return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold) || h.encoded_luma ||
+             h.other_luma;
     case StageKind::blur:
       return h.sampled() || h.kernel || h.clamp_blur || h.axes_swapped ||
              (is_target && (!h.weights.empty() || h.stale || h.along_x || h.spacing != 1.0f)) ||
              h.f16;
     case StageKind::down:
       return h.sampled() || h.ge || h.f16 || h.texel_step || !std::isnan(h.threshold) ||
-             (is_target && !h.source.empty());
+             h.other_luma || (is_target && !h.source.empty());
     case StageKind::up:
       return h.sampled() || h.f16 ||
              (is_target && (!h.source.empty() || !std::isnan(h.level_weight)));
@@ -297,6 +299,12 @@ class Evaluator {
     return out;
   }
 
+  // The luminance's weights: the declared, or the other under the hypothesis.
+  Luma luma() const {
+    if (!h_.other_luma) return p_.luma;
+    return p_.luma == Luma::rec709 ? Luma::rec601 : Luma::rec709;
+  }
+
   Axis axis_of(int pass) const {
     const bool declared = (pass % 2 == 1) == (p_.first_axis == FirstAxis::horizontal);
     return declared != h_.axes_swapped ? Axis::horizontal : Axis::vertical;
@@ -341,7 +349,9 @@ class Evaluator {
           scene = stored_scene.cview();
         }
         const float threshold = std::isnan(h_.threshold) ? p_.threshold : h_.threshold;
+        const Luma luma = this->luma();
         if (h_.encoded_luma) {
+          const LumaWeights<float> lw = luma_weights<float>(luma);
           // The colour encoded before its luminance is taken (a threshold set in gamma space):
           // the texel itself is kept as it is.
           auto encode = [this](float v) {
@@ -353,7 +363,7 @@ class Evaluator {
             for (int x = 0; x < out.width(); ++x) {
               const float* sc = scene.pixel(x, y);
               float* o = out.pixel(x, y);
-              const bool bright = luminance(encode(sc[0]), encode(sc[1]), encode(sc[2])) > threshold;
+              const bool bright = luminance(encode(sc[0]), encode(sc[1]), encode(sc[2]), lw) > threshold;
               for (int c = 0; c < 3; ++c) o[c] = bright ? sc[c] : 0.0f;
               o[3] = 1.0f;
             }
@@ -361,9 +371,9 @@ class Evaluator {
         }
         if (h_.ge || h_.clamp_bright)
           extract_bright_variant(scene, out.view(), threshold, h_.ge, h_.clamp_bright,
-                                 threads);
+                                 threads, luma);
         else
-          extract_bright(scene, out.view(), threshold, threads);
+          extract_bright(scene, out.view(), threshold, threads, false, nullptr, nullptr, luma);
         return out;
       }
       case StageKind::blur: {
@@ -404,12 +414,13 @@ class Evaluator {
         if ((h_.sampled() || h_.ge) && p_.mip_variant()) throw NotApplicable{};
         if (h_.sampled() || h_.ge)
           downsample_variant(in[0], out.view(), first, p_.threshold, p_.karis && first, !h_.ge,
-                             smp, threads);
+                             smp, threads, luma());
         else
         {
           BloomParams q = p_;
           if (h_.texel_step) q.texel_step = *h_.texel_step;
           if (!std::isnan(h_.threshold)) q.threshold = h_.threshold;
+          q.luma = luma();
           downsample(in[0], out.view(),
                      downsample_options(q, spec.pass, ctx_.sanitized.width,
                                         ctx_.sanitized.height, ctx_.profile.subtexel_bits),
@@ -691,11 +702,12 @@ std::optional<std::pair<float, float>> fit_threshold(const CauseContext& ctx, co
   const ConstImageView user = ctx.view(target.name), scene = ctx.sanitized;
   if (!user.data || user.width != scene.width || user.height != scene.height) return std::nullopt;
   float dark = -INFINITY, kept = INFINITY;
+  const LumaWeights<float> lw = luma_weights<float>(ctx.plan.params.luma);
   for (int y = 0; y < user.height; ++y)
     for (int x = 0; x < user.width; ++x) {
       const float* u = user.pixel(x, y);
       const float* s = scene.pixel(x, y);
-      const float l = luminance(s[0], s[1], s[2]);
+      const float l = luminance(s[0], s[1], s[2], lw);
       if (!std::isfinite(l)) continue;
       if (u[0] == 0 && u[1] == 0 && u[2] == 0) dark = std::max(dark, l);
       else kept = std::min(kept, l);
@@ -877,7 +889,8 @@ Unwritten unwritten_signature(const CauseContext& ctx, const StageSpec& target) 
   const ConstImageView cap = ctx.view(target.name), scene = ctx.sanitized;
   if (!cap.data || cap.width != scene.width || cap.height != scene.height) return Unwritten::no;
   Image oracle(scene.width, scene.height);
-  extract_bright(scene, oracle.view(), ctx.plan.params.threshold, ctx.threads);
+  extract_bright(scene, oracle.view(), ctx.plan.params.threshold, ctx.threads, false, nullptr,
+                 nullptr, ctx.plan.params.luma);
   const Image& bound = *ctx.target_bound;
   std::uint64_t lit = 0, foreign = 0, coloured = 0, own = 0;
   for (int y = 0; y < scene.height; ++y)
@@ -1107,6 +1120,18 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     to.push_back(h);
     return &to.back();
   };
+  // The luminance with the other weights: Rec. 601 luma where Rec. 709 is specified (the
+  // weights of many shipped blooms), or the other way round.
+  auto add_other_luma = [&] {
+    const bool declared709 = p.luma == Luma::rec709;
+    Hypothesis* h = add("luma-weights", declared709
+                                            ? "the luminance with Rec. 601's weights (0.299, 0.587, "
+                                              "0.114) where Rec. 709's are specified"
+                                            : "the luminance with Rec. 709's weights (0.2126, "
+                                              "0.7152, 0.0722) where Rec. 601's are specified");
+    h->other_luma = true;
+    h->detail = declared709 ? "--luma rec601 declares it" : "--luma rec709 declares it";
+  };
   // A stage written to a storage format holds only values it can hold: a capture of the target
   // in float that does not (1% of values allowed: an edge case of the format) rules it out.
   const ConstImageView target_cap = ctx.captured(target.name) ? ctx.view(target.name) : ConstImageView{};
@@ -1196,6 +1221,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
         ->encoded_luma = 1;
     add("threshold-color-space", "the threshold compared with the luminance of gamma-encoded colour")
         ->encoded_luma = 2;
+    add_other_luma();
     if (const Unwritten u = unwritten_signature(ctx, target); u != Unwritten::no) {
       // Foreign values are taken from the capture, a value per dark texel: counted as many
       // parameters, so that any cause that explains as much is named first. The texels' own
@@ -1212,6 +1238,9 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   } else if (std::find(names.begin(), names.end(), "down.1") != names.end()) {
     add("threshold-ge", "threshold tie on the other side (`>` where the specification keeps ties)")
         ->ge = true;
+    // The first level's luminance: its lookups' threshold, or seed 002's per-tap Karis weight.
+    if (p.prefilter == Prefilter::per_lookup || (p.karis && p.karis_form == KarisForm::per_tap))
+      add_other_luma();
   }
   if (want("f16-storage") && p.storage == Storage::f32 && stored_as(f16_holds)) {
     Hypothesis* h = add("f16-storage", "f16 storage where f32 was declared");

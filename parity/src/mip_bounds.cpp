@@ -91,6 +91,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
     return gaussian_down_bounds(src, oracle, error, opt, ctx);
   const bool first = opt.first && opt.threshold_taps;  // the taps are thresholded
   const float threshold = opt.threshold;
+  const LumaWeights<float> lw = luma_weights<float>(opt.luma);
   const bool karis = opt.first && opt.karis;
   const bool group_linear = karis && opt.karis_form == KarisForm::group_linear;
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
@@ -137,7 +138,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
             qs[i][k] = q[k];
           }
           dq[i] = dmax;
-          lum[i] = luminance(q[0], q[1], q[2]);
+          lum[i] = luminance(q[0], q[1], q[2], lw);
           lum_err[i] = dmax + 4 * U * std::fabs(lum[i]);  // the weights sum to 1
           if (first && std::fabs(lum[i] - threshold) <= lum_err[i])
             thresh += taps[i].weight * qmax[i];

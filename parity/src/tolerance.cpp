@@ -113,7 +113,9 @@ std::uint64_t new_owner() {
 }  // namespace
 
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,
-                                           BoundContext ctx) {
+                                           BoundContext ctx, Luma luma) {
+  const LumaWeights<double> wd = luma_weights<double>(luma);
+  const LumaWeights<float> wf = luma_weights<float>(luma);
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   // A bright pass of the user's reads the scene with texture() at its interpolated texture
   // coordinate: each value may be off by a blend of its neighbours, and its luminance with it.
@@ -126,13 +128,13 @@ std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float thres
       [=](int x, int y, int c) {
         const float* s = sanitized.pixel(x, y);
         // luminance: 3 products and 2 sums, fused or not: |dL| <= 4u sum |w_i c_i|.
-        const double mags = std::fabs(0.2126 * s[0]) + std::fabs(0.7152 * s[1]) +
-                            std::fabs(0.0722 * s[2]);
-        const double l = luminance(s[0], s[1], s[2]);
+        const double mags = std::fabs(wd.r * s[0]) + std::fabs(wd.g * s[1]) +
+                            std::fabs(wd.b * s[2]);
+        const double l = luminance(s[0], s[1], s[2], wf);
         static constexpr double none[3] = {0, 0, 0};
         const double* read =
             dx > 0 || dy > 0 ? texel_reads(owner, sanitized, x, y, dx, dy) : none;
-        const double read_l = 0.2126 * read[0] + 0.7152 * read[1] + 0.0722 * read[2];
+        const double read_l = wd.r * read[0] + wd.g * read[1] + wd.b * read[2];
         const double band = (ctx.profile->precise_luminance ? 0.0 : 4 * U * mags) + read_l;
         const bool tie = (band > 0 || !ctx.profile->precise_luminance) &&
                          std::fabs(l - threshold) <= band + denormal_floor(*ctx.profile);

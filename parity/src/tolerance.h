@@ -139,7 +139,7 @@ struct BoundContext {
 
 std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ctx);
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,
-                                           BoundContext ctx);
+                                           BoundContext ctx, Luma luma = Luma::rec709);
 std::unique_ptr<StageBounds> blur_bounds(ConstImageView src, ConstImageView oracle, Axis axis,
                                          const Kernel& k, BoundContext ctx);
 std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageView bloom,

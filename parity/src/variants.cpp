@@ -133,7 +133,8 @@ void mip_sample(ConstImageView src, int x, int y, int tw, int th, int ox, int oy
 }  // namespace
 
 void downsample_variant(ConstImageView src, ImageView dst, bool first, float threshold,
-                        bool karis, bool tie_kept, const Sampling& smp, int threads) {
+                        bool karis, bool tie_kept, const Sampling& smp, int threads, Luma luma) {
+  const LumaWeights<float> lw = luma_weights<float>(luma);
   const auto& taps = downsample_taps();
   const auto& groups = karis_groups();
   const auto& gw = karis_group_weights();
@@ -145,14 +146,14 @@ void downsample_variant(ConstImageView src, ImageView dst, bool first, float thr
         for (int i = 0; i < n; ++i) {
           float* qi = &q[std::size_t(i) * 3];
           mip_sample(src, x, y, dst.width, dst.height, taps[i].ox, taps[i].oy, smp, qi);
-          const float l = luminance(qi[0], qi[1], qi[2]);
+          const float l = luminance(qi[0], qi[1], qi[2], lw);
           if (first && (tie_kept ? l < threshold : l <= threshold)) qi[0] = qi[1] = qi[2] = 0.0f;
         }
         float r[3] = {0, 0, 0};
         if (first && karis) {
           for (int i = 0; i < n; ++i) {
             const float* qi = &q[std::size_t(i) * 3];
-            w[i] = 1.0f / (1.0f + std::max(luminance(qi[0], qi[1], qi[2]), 0.0f));
+            w[i] = 1.0f / (1.0f + std::max(luminance(qi[0], qi[1], qi[2], lw), 0.0f));
           }
           for (std::size_t g = 0; g < groups.size(); ++g) {
             float s = 0.0f;
@@ -194,13 +195,14 @@ void upsample_variant(ConstImageView small, ConstImageView current, ImageView ds
 }
 
 void extract_bright_variant(ConstImageView src, ImageView dst, float threshold, bool ge,
-                            bool clamp01, int threads) {
+                            bool clamp01, int threads, Luma luma) {
+  const LumaWeights<float> lw = luma_weights<float>(luma);
   parallel_rows(src.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y)
       for (int x = 0; x < src.width; ++x) {
         const float* s = src.pixel(x, y);
         float* d = dst.pixel(x, y);
-        const float l = luminance(s[0], s[1], s[2]);
+        const float l = luminance(s[0], s[1], s[2], lw);
         const bool bright = ge ? l >= threshold : l > threshold;
         for (int c = 0; c < 3; ++c) {
           const float v = bright ? s[c] : 0.0f;

@@ -268,6 +268,7 @@ DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int
   DownsampleOptions o;
   o.first = k == 1;
   o.threshold = p.threshold;
+  o.luma = p.luma;
   o.karis = p.karis && k == 1;
   o.subtexel_bits = subtexel_bits;
   o.threshold_taps = p.prefilter == Prefilter::per_lookup;  // the others: no tap threshold
@@ -474,6 +475,7 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
   if (opt.first && opt.first_filter == FirstDownsample::bilinear)
     return downsample_bilinear(src, dst, opt, threads);
   const T threshold = static_cast<T>(opt.threshold);
+  const LumaWeights<T> lw = luma_weights<T>(opt.luma);
   const bool thresholded = opt.first && opt.threshold_taps;
   const bool karis = opt.first && opt.karis;
   const Step sx{opt.step_width > 0 ? opt.step_width : float(src.width), 0.0f};
@@ -489,7 +491,7 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
         T q[kDownTaps][3];
         for (int i = 0; i < kDownTaps; ++i) {
           lookups.sample(src, x, y, kDownOffset[i][0], kDownOffset[i][1], q[i]);
-          if (thresholded && luminance(q[i][0], q[i][1], q[i][2]) < threshold)
+          if (thresholded && luminance(q[i][0], q[i][1], q[i][2], lw) < threshold)
             q[i][0] = q[i][1] = q[i][2] = T(0);
         }
         T r[3] = {0, 0, 0};
@@ -502,7 +504,7 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
           // Karis weight 1 / (1 + L): negative L (out-of-gamut input) would make it grow
           // without bound and divide by zero at L = -1; the weight uses max(L, 0) (at most 1).
           for (int i = 0; i < kDownTaps; ++i)
-            w[i] = T(1) / (T(1) + std::max(luminance(q[i][0], q[i][1], q[i][2]), T(0)));
+            w[i] = T(1) / (T(1) + std::max(luminance(q[i][0], q[i][1], q[i][2], lw), T(0)));
           for (int g = 0; g < 5; ++g) {
             T s = T(0);
             for (int j = 0; j < 4; ++j) s = s + w[kGroups[g][j]];
@@ -581,15 +583,16 @@ void upscale_bilinear(BasicView<const T> small, BasicView<T> dst, int subtexel_b
 }
 
 template <class T>
-bool mip_nothing_bright(BasicView<const T> scene, double threshold, int threads) {
+bool mip_nothing_bright(BasicView<const T> scene, double threshold, int threads, Luma luma) {
   if (!(threshold > 0.0)) return false;
+  const LumaWeights<double> w = luma_weights<double>(luma);
   std::vector<std::uint8_t> bright(scene.height, 0);
   parallel_rows(scene.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       const T* p = scene.row(y);
       for (int x = 0; x < scene.width && !bright[y]; ++x, p += kChannels) {
         const double r = p[0], g = p[1], b = p[2];
-        const double l = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+        const double l = w.r * r + w.g * g + w.b * b;
         const double m = std::fabs(r) + std::fabs(g) + std::fabs(b);
         // !(a < b) also catches NaN and Inf.
         bright[y] = !(l + 1e-4 * m < threshold);
@@ -670,8 +673,8 @@ template void downsample_gaussian_h<float>(BasicView<const float>, BasicView<flo
                                            const DownsampleOptions&, int);
 template void downsample_gaussian_h<double>(BasicView<const double>, BasicView<double>,
                                             const DownsampleOptions&, int);
-template bool mip_nothing_bright<float>(BasicView<const float>, double, int);
-template bool mip_nothing_bright<double>(BasicView<const double>, double, int);
+template bool mip_nothing_bright<float>(BasicView<const float>, double, int, Luma);
+template bool mip_nothing_bright<double>(BasicView<const double>, double, int, Luma);
 template std::size_t mip_support<float>(const std::uint8_t*, int, int, const std::uint8_t*, int,
                                         int, int, int, std::uint8_t*, int);
 template std::size_t mip_support<double>(const std::uint8_t*, int, int, const std::uint8_t*,

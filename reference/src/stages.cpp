@@ -105,7 +105,7 @@ namespace {
 /// The luminance of the four RGBA pixels at p, one a lane: the pixels transposed into R, G and
 /// B lanes, then luminance() on the lanes (built with -ffp-contract=off: no fused multiply-add),
 /// so each lane's value, and any comparison of it, is the scalar one.
-inline v4f luminance4(const float* p) {
+inline v4f luminance4(const float* p, const LumaWeights<float>& w) {
   const v4f a = load<v4f>(p), b = load<v4f>(p + 4), c = load<v4f>(p + 8), d = load<v4f>(p + 12);
   const v4f rg01 = BLOOMREF_SHUFFLE2(v4i, a, b, 0, 4, 1, 5);  // r0 r1 g0 g1
   const v4f rg23 = BLOOMREF_SHUFFLE2(v4i, c, d, 0, 4, 1, 5);
@@ -113,7 +113,7 @@ inline v4f luminance4(const float* p) {
   const v4f b23 = BLOOMREF_SHUFFLE2(v4i, c, d, 2, 6, 3, 7);
   return luminance<v4f, float>(BLOOMREF_SHUFFLE2(v4i, rg01, rg23, 0, 1, 4, 5),
                                BLOOMREF_SHUFFLE2(v4i, rg01, rg23, 2, 3, 6, 7),
-                               BLOOMREF_SHUFFLE2(v4i, b01, b23, 0, 1, 4, 5));
+                               BLOOMREF_SHUFFLE2(v4i, b01, b23, 0, 1, 4, 5), w);
 }
 }  // namespace
 }  // namespace detail
@@ -121,15 +121,17 @@ inline v4f luminance4(const float* p) {
 // Whether any of the four RGBA pixels at p has luminance > threshold (luminance4: each lane's
 // comparison is the scalar one).
 namespace {
-inline bool any_bright4(const float* p, float threshold) {
-  const detail::v4i bright = detail::luminance4(p) > threshold;
+inline bool any_bright4(const float* p, float threshold, const LumaWeights<float>& w) {
+  const detail::v4i bright = detail::luminance4(p, w) > threshold;
   return (bright[0] | bright[1] | bright[2] | bright[3]) != 0;
 }
 }  // namespace
 
 template <class T>
 void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
-                    bool dst_zeroed, std::uint8_t* nonzero, const std::uint8_t* bright_rows) {
+                    bool dst_zeroed, std::uint8_t* nonzero, const std::uint8_t* bright_rows,
+                    Luma luma) {
+  const LumaWeights<T> w = luma_weights<T>(luma);
   parallel_rows(src.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       if (dst_zeroed && bright_rows && !bright_rows[y]) continue;  // nothing to write
@@ -137,7 +139,7 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
         for (int x = 0; x < src.width; ++x) {
           const T* s = src.pixel(x, y);
           T* d = dst.pixel(x, y);
-          const bool bright = luminance(s[0], s[1], s[2]) > threshold;
+          const bool bright = luminance(s[0], s[1], s[2], w) > threshold;
           for (int c = 0; c < 3; ++c) d[c] = bright ? s[c] : T(0);
           d[3] = T(1);
         }
@@ -146,7 +148,7 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
       std::uint8_t* nz = nonzero ? nonzero + std::size_t(y) * src.width : nullptr;
       auto one = [&](int x) {
         const T* s = src.pixel(x, y);
-        const bool bright = luminance(s[0], s[1], s[2]) > threshold;
+        const bool bright = luminance(s[0], s[1], s[2], w) > threshold;
         if (nz) nz[x] = bright && rgb_not_plus_zero(s);  // nonzero_support's test on what is written
         if (dst_zeroed && !bright) return;  // +0 already; the page may stay unwritten
         T* d = dst.pixel(x, y);
@@ -161,7 +163,7 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
         // the sparse sweep's time was the per-pixel branches).
         if (dst_zeroed)
           for (; x + 4 <= src.width; x += 4) {
-            if (!any_bright4(src.pixel(x, y), threshold)) {
+            if (!any_bright4(src.pixel(x, y), threshold, w)) {
               if (nz) std::memset(nz + x, 0, 4);
               continue;
             }
@@ -174,13 +176,14 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
 }
 
 namespace detail {
-void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold) {
+void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold, Luma luma) {
+  const LumaWeights<float> w = luma_weights<float>(luma);
   int x = 0;
   // Four pixels at a time: each lane's luminance and test are the scalar ones (luminance4); a
   // pixel's RGB kept or zeroed by its lane's mask, then packed into three vectors of RGB.
   for (; x + 4 <= n; x += 4) {
     const float* s = rgba + std::size_t(x) * kChannels;
-    const v4i bright = luminance4(s) > threshold;
+    const v4i bright = luminance4(s, w) > threshold;
     const auto kept = [&](int i) {  // pixel i's RGBA, all bits kept or all cleared
       return reinterpret_cast<v4i>(load<v4f>(s + 4 * i)) & (v4i{} + bright[i]);
     };
@@ -192,7 +195,7 @@ void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold) {
   }
   for (; x < n; ++x) {
     const float* s = rgba + std::size_t(x) * kChannels;
-    const bool bright = luminance(s[0], s[1], s[2]) > threshold;
+    const bool bright = luminance(s[0], s[1], s[2], w) > threshold;
     for (int c = 0; c < 3; ++c) rgb[std::size_t(x) * 3 + c] = bright ? s[c] : 0.0f;
   }
 }
@@ -325,7 +328,7 @@ std::uint8_t quantize_8bit(float x) {
   template NonFiniteCounts sanitize<T>(BasicView<const T>, BasicView<T>, NonFinite, Storage,     \
                                        int);                                                      \
   template void extract_bright<T>(BasicView<const T>, BasicView<T>, T, int, bool,              \
-                                  std::uint8_t*, const std::uint8_t*);                            \
+                                  std::uint8_t*, const std::uint8_t*, Luma);                      \
   template void composite<T>(BasicView<const T>, BasicView<const T>, BasicView<T>, T, int);      \
   template void composite_mix<T>(BasicView<const T>, BasicView<const T>, BasicView<T>, T, int);  \
   template void tonemap<T>(BasicView<const T>, BasicView<T>, T, int);                            \

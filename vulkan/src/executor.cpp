@@ -27,6 +27,7 @@ class VulkanExecutor {
         sampler_(ctx_, VK_FILTER_LINEAR), blur_sampler_(ctx_, VK_FILTER_LINEAR, faults.repeat_wrap) {
     std::vector<std::string> defs = {std::string("STORAGE_FORMAT ") + (f16_ ? "rgba16f" : "rgba32f")};
     if (p_.kernel == KernelName::linear5) defs.push_back("KERNEL_LINEAR5 1");
+    if (p_.luma == Luma::rec601) defs.push_back("LUMA_REC601 1");
     extract_ = std::make_unique<StageProgram>(ctx_, "extract_bright.glsl", defs, edit);
     blur_ = std::make_unique<StageProgram>(ctx_, "blur_pass.glsl", defs, edit);
     composite_ = std::make_unique<StageProgram>(ctx_, "composite.glsl", defs, edit);

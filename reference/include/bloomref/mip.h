@@ -101,6 +101,7 @@ struct DownsampleOptions {
   /// The size whose reciprocal is the texel step (TexelStep::halved_float: the host's float
   /// size); 0: the source texture's.
   float step_width = 0.0f, step_height = 0.0f;
+  Luma luma = Luma::rec709;  ///< the weights of the tap threshold's and per-tap Karis luminance
 };
 
 /// The options of stage down.k of a w x h scene under `p` (its variant), sampling with
@@ -174,7 +175,8 @@ void upscale_bilinear(BasicView<const T> small, BasicView<T> dst, int subtexel_b
 /// so its luminance in float is at most the largest texel's plus a few ULPs of the channel
 /// magnitudes: 1e-4 is a margin of ~1000x. Then every tap is zeroed by the threshold.
 template <class T>
-bool mip_nothing_bright(BasicView<const T> scene, double threshold, int threads);
+bool mip_nothing_bright(BasicView<const T> scene, double threshold, int threads,
+                        Luma luma = Luma::rec709);
 
 /// The adaptive plan's support of a chain stage: the texels of a tw x th target whose lookups
 /// (offsets -reach..reach source texels: 2 for down.k, 1 for up.k and the bloom) read a texel

@@ -36,6 +36,11 @@ enum class CompositeMode { add, mix };
 /// The axis of the gaussian method's first blur pass; the passes then alternate. Seed 000's
 /// host starts horizontal (`bool horizontal = true`); some engines start vertical.
 enum class FirstAxis { horizontal, vertical };
+/// The weights of the luminance the threshold (and seed 002's per-tap Karis weight) reads:
+/// Rec. 709, (0.2126, 0.7152, 0.0722) as seed 000's shaders; or Rec. 601 luma, (0.299, 0.587,
+/// 0.114), as many shipped blooms take it (ITU-R BT.601). The group forms of the Karis average
+/// keep their own (KarisForm).
+enum class Luma { rec709, rec601 };
 
 // The mip chain's variants (docs/design.md, "Mip-chain variants"). The defaults are seed 002's
 // chain; preset learnopengl-pbb sets the article's (src/8.guest/2022/6.physically_based_bloom).
@@ -118,6 +123,7 @@ struct BloomParams {
   CompositeOrder composite = CompositeOrder::before_tonemap;
   CompositeMode composite_mode = CompositeMode::add;
   FirstAxis first_axis = FirstAxis::horizontal;
+  Luma luma = Luma::rec709;
   Prefilter prefilter = Prefilter::per_lookup;
   KarisForm karis_form = KarisForm::per_tap;
   TexelStep texel_step = TexelStep::texture;
@@ -176,6 +182,7 @@ std::string to_string(BlurImpl b);
 std::string to_string(CompositeOrder c);
 std::string to_string(CompositeMode c);
 std::string to_string(FirstAxis a);
+std::string to_string(Luma l);
 std::string to_string(Prefilter p);
 std::string to_string(KarisForm k);
 std::string to_string(TexelStep t);
@@ -197,6 +204,7 @@ BlurImpl parse_blur_impl(const std::string& s);
 CompositeOrder parse_composite_order(const std::string& s);
 CompositeMode parse_composite_mode(const std::string& s);
 FirstAxis parse_first_axis(const std::string& s);
+Luma parse_luma(const std::string& s);
 Prefilter parse_prefilter(const std::string& s);
 KarisForm parse_karis_form(const std::string& s);
 TexelStep parse_texel_step(const std::string& s);

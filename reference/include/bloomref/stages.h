@@ -55,6 +55,25 @@ inline T luminance(T r, T g, T b) {
   return r * S(0.2126) + g * S(0.7152) + b * S(0.0722);
 }
 
+/// A luminance's three weights in the scalar type S: S(0.2126) ... for Rec. 709, S(0.299) ...
+/// for Rec. 601 (BloomParams::luma).
+template <class S>
+struct LumaWeights {
+  S r, g, b;
+};
+template <class S>
+LumaWeights<S> luma_weights(Luma l) {
+  return l == Luma::rec601 ? LumaWeights<S>{S(0.299), S(0.587), S(0.114)}
+                           : LumaWeights<S>{S(0.2126), S(0.7152), S(0.0722)};
+}
+
+/// The luminance with weights w, summed left to right: with Rec. 709's, luminance(r, g, b)'s
+/// bits.
+template <class T, class S = T>
+inline T luminance(T r, T g, T b, const LumaWeights<S>& w) {
+  return r * w.r + g * w.g + b * w.b;
+}
+
 /// The largest value a stage stores: 65504 for f16, kRangeGuard (2^120) for f32; what
 /// `clamp` maps +Inf to.
 double storage_max(Storage s);
@@ -102,16 +121,17 @@ NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite pol
 /// With `nonzero` (width x height), also what nonzero_support(dst) would give, without reading
 /// dst again. With dst_zeroed and `bright_rows` (one entry a row, SceneFacts::bright_rows), a
 /// row whose entry is 0 holds no bright pixel and is not read: its `nonzero` row must then be 0
-/// already.
+/// already. The luminance has `luma`'s weights.
 template <class T>
 void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
                     bool dst_zeroed = false, std::uint8_t* nonzero = nullptr,
-                    const std::uint8_t* bright_rows = nullptr);
+                    const std::uint8_t* bright_rows = nullptr, Luma luma = Luma::rec709);
 
 namespace detail {
 /// Stage bright's RGB of n RGBA texels of one row, packed as RGB (extract_bright's test and
 /// values: its bits): what blur_bright_fused's first pass stores.
-void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold);
+void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold,
+                    Luma luma = Luma::rec709);
 }  // namespace detail
 
 enum class Axis { horizontal, vertical };

@@ -1,0 +1,113 @@
+"""--luma rec601: the threshold's luminance with Rec. 601's weights (0.299, 0.587, 0.114).
+
+- Against numpy: the gaussian method's bright stage is the input where 0.299 r + 0.587 g +
+  0.114 b > 1, on a scene where Rec. 601 and Rec. 709 disagree on many texels; the article's
+  pipeline (learnopengl-pbb), computed in numpy with the bright image by Rec. 601, equals
+  bloomref's in f64 stage by stage (test_variants_numpy's pipeline with its weights swapped).
+- The adaptive plan gives the full plan's bits (its fast paths test Rec. 709's luminance and
+  step aside).
+- A capture with the other weights fails at its first thresholded stage, naming `luma-weights`
+  and the --luma that declares it, both ways and for both methods.
+- GL and Vulkan run it (compare passes for both methods). Skipped without a device unless
+  BLOOMREF_REQUIRE_GL=1 / BLOOMREF_REQUIRE_VULKAN=1.
+"""
+import json
+import os
+import subprocess
+import tempfile
+
+import numpy as np
+import pytest
+
+import test_variants_numpy as tv
+from cli_support import run
+from test_variants_numpy import bloomref_exe, read_rgb, write_exr
+
+REC601 = np.array([0.299, 0.587, 0.114])
+REC709 = np.array([0.2126, 0.7152, 0.0722])
+
+
+def scene(w=48, h=36, seed=11):
+    """Texels up to 2 with a few of 5 to 50; no luminance (either weights) within 1e-3 of 1."""
+    rng = np.random.default_rng(seed)
+    img = rng.uniform(0.0, 2.0, size=(h, w, 3))
+    n = w * h // 50
+    img[rng.integers(0, h, n), rng.integers(0, w, n)] = rng.uniform(5.0, 50.0, size=(n, 3))
+    for _ in range(4):
+        near = (np.abs(img @ REC601 - 1) < 1e-3) | (np.abs(img @ REC709 - 1) < 1e-3)
+        img[near] *= 1.01
+    return img.astype(np.float32)
+
+
+def dump(rgb, *extra):
+    with tempfile.TemporaryDirectory(prefix="luma_") as tmp:
+        src = os.path.join(tmp, "in.exr")
+        write_exr(src, rgb)
+        out = os.path.join(tmp, "stages")
+        cmd = [bloomref_exe(), "run", src, *extra, "--dump-stages", out, "-q"]
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+        assert res.returncode == 0, res.stderr
+        return {f[:-4]: read_rgb(os.path.join(out, f)) for f in os.listdir(out) if f.endswith(".exr")}
+
+
+def test_the_bright_stage_thresholds_rec601_luma():
+    img = scene()
+    x = img.astype(np.float64)
+    want = np.where((x @ REC601 > 1.0)[..., None], x, 0.0)
+    disagree = int(np.sum((x @ REC601 > 1.0) != (x @ REC709 > 1.0)))
+    assert disagree > 50  # the weights are told apart on this scene
+    got = dump(img, "--plan", "full", "--luma", "rec601")["bright"]
+    assert np.array_equal(got, want)
+
+
+def test_the_articles_pipeline_with_rec601_equals_numpy(monkeypatch):
+    img = scene(37, 29, 3)
+    monkeypatch.setattr(tv, "LUMA709", REC601)  # the numpy pipeline's bright pass
+    want = tv.pipeline(img.astype(np.float64), 3)
+    got = tv.run_bloomref(img, 3, ["--precision", "f64", "--luma", "rec601"])
+    tv.check_stages(got, want, 3, True, "pbb rec601 f64")
+
+
+@pytest.mark.parametrize("method", ["gaussian", "mip"])
+def test_the_adaptive_plan_keeps_the_full_plans_bits(method):
+    img = np.zeros((120, 160, 3), dtype=np.float32)  # sparse: the adaptive plan's fast paths
+    img[30:34, 40:44] = (0.2, 3.0, 0.2)                # bright by either weights
+    img[80:83, 100:104] = (4.0, 0.1, 0.1)              # 601: 1.21, 709: 0.93
+    full = dump(img, "--method", method, "--plan", "full", "--luma", "rec601")
+    adaptive = dump(img, "--method", method, "--plan", "adaptive", "--luma", "rec601")
+    assert np.array_equal(full["output"], adaptive["output"])
+    seven = dump(img, "--method", method, "--plan", "adaptive")
+    assert not np.array_equal(full["output"], seven["output"])
+
+
+@pytest.mark.parametrize("method,stage", [("gaussian", "bright"), ("mip", "down.1")])
+@pytest.mark.parametrize("dumped,declared", [("rec601", "rec709"), ("rec709", "rec601")])
+def test_a_capture_with_the_other_weights_is_named(tmp_path, method, stage, dumped, declared):
+    size = ["--scene", "demo", "--size", "160x96", "--method", method]
+    assert run(["run", *size, "--plan", "full", "--luma", dumped, "--dump-stages", "d", "-q"],
+               tmp_path)[0] == 0
+    code, out, err = run(["check", *size, "--stages", "d", "--luma", declared, "--json", "r.json",
+                          "-q"], tmp_path)
+    assert code == 1, out + err
+    item = json.loads((tmp_path / "r.json").read_text())["items"][0]
+    assert item["first_divergent_stage"] == stage
+    cause = item["first_divergent_cause"]
+    assert cause["id"] == "luma-weights" and cause["likely"], cause
+    assert cause["detail"] == f"--luma {dumped} declares it"
+    # Declared as dumped, the same captures pass.
+    code, out, err = run(["check", *size, "--stages", "d", "--luma", dumped, "-q"], tmp_path)
+    assert code == 0, out + err
+
+
+@pytest.mark.parametrize("backend", ["gl", "vulkan"])
+@pytest.mark.parametrize("method", ["gaussian", "mip"])
+def test_gl_and_vulkan_run_rec601(tmp_path, backend, method):
+    code, out, err = run(["compare", "--scene", "demo", "--size", "160x96", "--method", method,
+                          "--luma", "rec601", "--backend", backend], tmp_path)
+    if code == 3:
+        require = "BLOOMREF_REQUIRE_GL" if backend == "gl" else "BLOOMREF_REQUIRE_VULKAN"
+        if os.environ.get(require) == "1":
+            pytest.fail(f"no {backend} device although {require}=1: {err}")
+        pytest.skip(f"no {backend} device: {err.strip()}")
+    assert code == 0, out + err
+    assert "verdict PASS" in out
