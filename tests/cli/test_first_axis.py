@@ -15,6 +15,7 @@ import json
 import os
 import subprocess
 import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -106,45 +107,14 @@ def test_gl_passes_and_a_capture_on_the_other_axis_is_named(tmp_path):
     assert "--first-axis horizontal" in cause["detail"]
 
 
-# A blur and a final pass in the layout of LearnOpenGL's bloom (src/5.advanced_lighting/7.bloom),
-# written here: `horizontal` is the host's to set.
-BLUR_FS = """#version 330 core
-in vec2 TexCoords;
-out vec4 colour;
-uniform sampler2D image;
-uniform bool horizontal;
-uniform float w[5] = float[](0.227027, 0.1945946, 0.1216216, 0.054054, 0.016216);
-void main() {
-  vec2 texel = 1.0 / vec2(textureSize(image, 0));
-  vec2 d = horizontal ? vec2(texel.x, 0.0) : vec2(0.0, texel.y);
-  vec3 sum = texture(image, TexCoords).rgb * w[0];
-  for (int i = 1; i < 5; ++i) {
-    sum += texture(image, TexCoords + d * float(i)).rgb * w[i];
-    sum += texture(image, TexCoords - d * float(i)).rgb * w[i];
-  }
-  colour = vec4(sum, 1.0);
-}
-"""
-FINAL_FS = """#version 330 core
-in vec2 TexCoords;
-out vec4 colour;
-uniform sampler2D scene;
-uniform sampler2D bloomBlur;
-uniform bool bloom;
-uniform float exposure;
-void main() {
-  vec3 hdr = texture(scene, TexCoords).rgb;
-  if (bloom) hdr += texture(bloomBlur, TexCoords).rgb;
-  vec3 mapped = 1.0 - exp(-hdr * exposure);
-  colour = vec4(pow(max(mapped, 0.0), vec3(1.0 / 2.2)), 1.0);
-}
-"""
+# bloomref's own shaders in the layout of LearnOpenGL's bloom (the bug corpus's): `horizontal`
+# is the host's to set.
+SHADERS = Path(__file__).resolve().parents[2] / "data" / "bugs" / "shaders"
 
 
 def test_the_tutorials_host_starts_a_users_blur_on_the_declared_axis(tmp_path):
-    (tmp_path / "blur.fs").write_text(BLUR_FS)
-    (tmp_path / "final.fs").write_text(FINAL_FS)
-    shaders = ["--shaders", "learnopengl", "--blur-fs", "blur.fs", "--final-fs", "final.fs"]
+    shaders = ["--shaders", "learnopengl", "--blur-fs", str(SHADERS / "blur.fs"), "--final-fs",
+               str(SHADERS / "final.fs")]
     code, out, err = run(["check", "--scene", "demo", "--size", "96x64", *shaders,
                           "--first-axis", "vertical", "--json", "r.json", "-q"], tmp_path)
     gl_or_skip(code, err)
