@@ -75,11 +75,15 @@ Counts count(const ordered_json& doc) {
   return c;
 }
 
-// What a person acts on first, for a stage that did not pass (its "action"; from an older
-// document, the stage and its verdict).
+// What a person acts on first, for a stage that did not pass: its "action"; for a stage that
+// fails only end to end (it has none), that; from an older document, the stage and its verdict.
 std::string action(const ordered_json& s) {
-  const std::string a = str(s, "action");
-  return a.empty() ? str(s, "stage") + ": " + str(field(s, "isolated"), "verdict") : a;
+  if (const std::string a = str(s, "action"); !a.empty()) return a;
+  const ordered_json& iso = field(s, "isolated");
+  if (field(s, "action").is_null() && s.contains("action") && str(iso, "verdict") == "PASS")
+    return str(s, "stage") + ": " + str(field(s, "end_to_end"), "verdict") +
+           " end to end \u2014 " + str(field(s, "end_to_end"), "reason");
+  return str(s, "stage") + ": " + str(iso, "verdict");
 }
 
 // The best-supported cause in one line (its "explanation"; from an older document, the cause's
@@ -97,6 +101,12 @@ std::string explanation(const ordered_json& s) {
 std::string stage_line(const ordered_json& s) {
   const std::string cause = explanation(s);
   return action(s) + "; " + str(field(s, "isolated"), "reason") + (cause.empty() ? "" : "; " + cause);
+}
+
+// A count or size: 0 where the document has none.
+int whole(const ordered_json& j, const char* key) {
+  const double v = num(j, key);
+  return std::isfinite(v) && std::fabs(v) < 1e9 ? static_cast<int>(v) : 0;
 }
 
 const ordered_json* first_divergent(const ordered_json& item) {
@@ -169,8 +179,8 @@ std::string console(const ordered_json& doc) {
     }
     const ordered_json& stages = list(r, "stages");
     const std::string from = str(r, "stages_from");
-    o += id + ": " + str(r, "scene") + " " + std::to_string(int(num(r, "width"))) + "x" +
-         std::to_string(int(num(r, "height"))) + ", profile " + profile + ", " +
+    o += id + ": " + str(r, "scene") + " " + std::to_string(whole(r, "width")) + "x" +
+         std::to_string(whole(r, "height")) + ", profile " + profile + ", " +
          std::to_string(stages.size()) + " stage image(s)" + (from.empty() ? "" : " from " + from) + "\n";
     if (!list(r, "ignored_files").empty()) {
       o += "  ignored (not a stage name):";
@@ -189,11 +199,11 @@ std::string console(const ordered_json& doc) {
         if (ch >= 'a' && ch <= 'z') ch = static_cast<char>(ch - 'a' + 'A');
       const ordered_json& iso = field(s, "isolated");
       const ordered_json& e2e = field(s, "end_to_end");
-      std::snprintf(line, sizeof line, "  %-10s %-13s %-10.3g %-8s %-10.3g %s\n",
-                    str(s, "stage").c_str(), status.c_str(), num(iso, "max_error_over_bound"),
-                    str(e2e, "verdict").c_str(), num(e2e, "max_error_over_bound"),
-                    std::filesystem::path(str(s, "file")).filename().c_str());
-      o += line;
+      std::snprintf(line, sizeof line, "  %-10s %-13s %-10.3g %-8s %-10.3g ",
+                    str(s, "stage").substr(0, 64).c_str(), status.c_str(),
+                    num(iso, "max_error_over_bound"), str(e2e, "verdict").c_str(),
+                    num(e2e, "max_error_over_bound"));
+      o += line + std::filesystem::path(str(s, "file")).filename().string() + "\n";
       if (str(iso, "verdict") == "PASS") continue;
       o += "             " + action(s) + "\n";
       o += "             " + str(iso, "reason") + "\n";
@@ -335,10 +345,12 @@ std::string junit(const ordered_json& doc) {
       error_suite(id.get<std::string>() + " (run twice)", id.get<std::string>(), "once", "run by more than one shard",
                   "duplicate");
   const Counts n = count(doc);
-  const int errors = n.errors + int(missing.size() + twice.size());
+  int errors = n.errors;
+  for (const ordered_json* ids : {&missing, &twice})
+    for (const ordered_json& id : *ids) errors += id.is_string();
   return "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"bloomref check" +
          std::string(merged ? " (merged)" : "") + "\" tests=\"" +
-         std::to_string(tests + int(missing.size() + twice.size())) +
+         std::to_string(tests + errors - n.errors) +
          "\" failures=\"" + std::to_string(failures) + "\" errors=\"" + std::to_string(errors) +
          "\" skipped=\"" + std::to_string(n.expected) + "\">\n" + suites + "</testsuites>\n";
 }
@@ -372,7 +384,18 @@ std::string markdown(const ordered_json& doc) {
   if (const std::string d = device_line(doc); !d.empty()) out += ", device " + markdown_cell(d);
   out += std::string(".\n\n| item | verdict | divergent stage | cause |") +
          (merged ? " shard |\n|---|---|---|---|---|\n" : "\n|---|---|---|---|\n");
+  // Past kListedItems items, only those that did not pass cleanly: a CI page has room for a
+  // summary (GitHub's step summary holds 1 MiB), the JSON for every item.
+  constexpr int kListedItems = 50;
+  auto listed = [&](const ordered_json& r) {
+    return n.items <= kListedItems || str(r, "verdict") != "PASS" || weak(field(r, "sensitivity"));
+  };
+  int unlisted = 0;
   for (const ordered_json& r : list(doc, "items")) {
+    if (!listed(r)) {
+      ++unlisted;
+      continue;
+    }
     const ordered_json& sens = field(r, "sensitivity");
     const ordered_json* first = first_divergent(r);
     const std::string first_stage = str(r, "first_divergent_stage");
@@ -398,11 +421,13 @@ std::string markdown(const ordered_json& doc) {
              " | " + markdown_cell(action(s)) + " |" + shard + "\n";
     }
   }
+  if (unlisted)
+    out += "\n" + std::to_string(unlisted) + " item(s) that passed are not listed.\n";
   // What each verdict could have seen: the bloom's, then an error entering at each stage.
   bool heading = false;
   for (const ordered_json& r : list(doc, "items")) {
     const ordered_json& sens = field(r, "sensitivity");
-    if (!sens.is_object()) continue;
+    if (!sens.is_object() || !listed(r)) continue;
     if (!heading) out += "\n| item | error entering at | could see |\n|---|---|---|\n";
     heading = true;
     const std::string id = markdown_cell(str(r, "id"));

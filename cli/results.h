@@ -1,8 +1,8 @@
 // check's results in every form they are written: from the one JSON document of a run
 // (docs/schemas/check-result.v1.json), or of sharded runs merged (batch/merge.h), to the
 // console's table, JUnit XML (a testsuite per item, a testcase per stage) and a Markdown summary
-// for a CI job's page. The command, the Python module and `merge` write through these; every
-// name from a user is escaped by escape.h.
+// for a CI job's page. The command and `merge` write through these (the Python module returns
+// the document itself); every name from a user is escaped by escape.h.
 //
 // A document from another version, or a merge of hand-edited files, may lack fields or hold
 // them with other types: what is not there is left out, never an error.

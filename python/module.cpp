@@ -57,7 +57,7 @@ options: `bloomref check`'s options, named as its long options with underscores:
 
 Returns the result as `check --json` writes it (docs/schemas/check-result.v1.json): verdict,
 exit_code, items with their stages' verdicts, errors, bounds and likely causes. Arrays are
-written to a scratch folder as float EXR (lossless) and named by their key in the result
+read in memory, nothing written for them, and named by their key in the result
 (stages['blur.3']). Raises ValueError for bad input or options, and when no stage was compared.)";
 
 constexpr const char* kLoadDoc = R"(load(path)

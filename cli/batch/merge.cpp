@@ -300,6 +300,20 @@ Merged merge_results(const std::vector<ResultsFile>& files) {
 
   ordered_json doc = first.doc;
   doc["items"] = std::move(items);
+  // A known deviation is unused when no shard used it: the shards' lists in common.
+  if (doc.contains("unused_expectations")) {
+    ordered_json common = ordered_json::array();
+    for (const ordered_json& e : doc["unused_expectations"]) {
+      bool everywhere = true;
+      for (const ResultsFile& f : files) {
+        const auto it = f.doc.find("unused_expectations");
+        everywhere = everywhere && it != f.doc.end() && it->is_array() &&
+                     std::find(it->begin(), it->end(), e) != it->end();
+      }
+      if (everywhere) common.push_back(e);
+    }
+    doc["unused_expectations"] = std::move(common);
+  }
   doc["batch"] = {{"items_total", ids.size()},  {"item_ids", ids},
                   {"shards", shards},           {"missing", m.missing},
                   {"duplicates", m.duplicates}, {"complete", m.problems.empty()}};

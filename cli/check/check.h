@@ -17,7 +17,7 @@
 
 namespace bloomref::cli {
 
-/// The files a check writes its results to once judged (check/output.h's writers); empty: not
+/// The files a check writes its results to once judged (results.h's writers); empty: not
 /// written. Every one is checked before any work: writable, and none of them an input.
 struct CheckOutputs {
   std::string json, junit, markdown;
@@ -37,7 +37,9 @@ struct CheckRequest {
   std::string manifest;           ///< a manifest file (docs/check.md)
   ShaderArgs shaders;             ///< --shaders: the user's shaders and how to run them
 
-  /// The pipeline the stages are judged against (the command line's strings; check parses them).
+  /// The pipeline the stages are judged against: numbers in `pipeline.params`, named choices
+  /// (method, storage, luma, ...) in the strings as the command line gives them, which check
+  /// parses into `params` (a choice set in `params` directly is replaced by its string's).
   PipelineOptions pipeline;
   /// Options the caller set itself, as "--name": they win over a manifest's "params", and a
   /// given "--profile" over the device's own profile with --shaders.

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <set>
 
 #include "batch/sequence.h"
@@ -406,10 +407,15 @@ void write_outputs(const CheckRequest& a, CheckRun& run) {
   };
   const CheckOutputs& o = a.outputs;
   attempt("--json", o.json, [&] { save_text(o.json, escape::json_text(check_json(run)) + "\n"); });
-  // JUnit and Markdown say what the JSON says: written from it, as merge writes them.
-  const nlohmann::ordered_json doc = check_json(run);
-  attempt("--junit", o.junit, [&] { save_text(o.junit, results::junit(doc)); });
-  attempt("--markdown", o.markdown, [&] { save_text(o.markdown, results::markdown(doc)); });
+  // JUnit and Markdown say what the JSON says: written from it, as merge writes them, the
+  // document made once and only when one of them is asked for.
+  std::optional<nlohmann::ordered_json> doc;
+  auto document = [&]() -> const nlohmann::ordered_json& {
+    if (!doc) doc = check_json(run);
+    return *doc;
+  };
+  attempt("--junit", o.junit, [&] { save_text(o.junit, results::junit(document())); });
+  attempt("--markdown", o.markdown, [&] { save_text(o.markdown, results::markdown(document())); });
   if (a.print_notes)
     for (const CheckRun::OutputError& e : run.output_errors)
       std::fprintf(stderr, "bloomref: %s %s was not written: %s\n", e.option.c_str(),

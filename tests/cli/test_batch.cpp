@@ -8,6 +8,7 @@
 #include "batch/merge.h"
 #include "batch/progress.h"
 #include "batch/shard.h"
+#include "results.h"
 #include "bloomref/error.h"
 
 using bloomref::ParamError;
@@ -504,4 +505,60 @@ TEST_CASE("merge refuses a field of another type than it reads, naming file and 
   c["items"][0]["stages"][0]["isolated"] = "r";
   CHECK_THAT(input_error_of([&] { merge_results({{"c.json", c}}); }),
              Catch::Contains("c.json: item \"a\": stage: \"isolated\" is not an object"));
+}
+
+TEST_CASE("merge: a known deviation is unused only when no shard used it", "[batch]") {
+  const ordered_json a = {{"item", "*"}, {"stage", "blur.3"}, {"device", ""}, {"reason", "a"}};
+  const ordered_json b = {{"item", "*"}, {"stage", "up.1"}, {"device", ""}, {"reason", "b"}};
+  ordered_json one = check_doc({check_item("a", "PASS", {"pass"})});
+  ordered_json two = check_doc({check_item("b", "PASS", {"pass"})});
+  one["unused_expectations"] = {a, b};  // shard 1 used neither
+  two["unused_expectations"] = {b};     // shard 2 used a
+  const Merged m = merge_results({{"1.json", one}, {"2.json", two}});
+  CHECK(m.doc["unused_expectations"] == ordered_json({b}));
+}
+
+TEST_CASE("results: a stage that fails only end to end says so", "[batch]") {
+  ordered_json item = check_item("a", "FAIL", {"fail"});
+  ordered_json& s = item["stages"][0];
+  s["action"] = nullptr;  // it passes in isolation
+  s["isolated"] = {{"verdict", "PASS"}, {"reason", "every value within its bound"}};
+  s["end_to_end"] = {{"verdict", "FAIL"}, {"reason", "12 values exceed 4x their bound"}};
+  const std::string junit = bloomref::results::junit(check_doc({item}));
+  CHECK_THAT(junit, Catch::Contains("message=\"blur.1: FAIL end to end \u2014 12 values exceed"));
+}
+
+TEST_CASE("results: past 50 items the Markdown lists those that did not pass", "[batch]") {
+  ordered_json items = ordered_json::array();
+  for (int i = 0; i < 54; ++i) items.push_back(check_item("p" + std::to_string(i), "PASS", {"pass"}));
+  items.push_back(check_item("bad", "FAIL", {"fail"}));
+  const std::string md = bloomref::results::markdown(check_doc(items));
+  CHECK_THAT(md, Catch::Contains("| bad | FAIL |"));
+  CHECK_THAT(md, !Catch::Contains("| p0 |"));
+  CHECK_THAT(md, Catch::Contains("54 item(s) that passed are not listed."));
+  items.erase(items.begin() + 10, items.begin() + 54);  // 11 items: every one listed
+  CHECK_THAT(bloomref::results::markdown(check_doc(items)), Catch::Contains("| p0 | PASS |"));
+}
+
+TEST_CASE("results: documents with missing fields or other types are written, not thrown",
+          "[batch]") {
+  using bloomref::results::console;
+  using bloomref::results::junit;
+  using bloomref::results::markdown;
+  const char* odd[] = {
+      R"({})",
+      R"({"items": 5, "batch": "x", "profile": 1})",
+      R"({"items": [1, "a", null]})",
+      R"({"items": [{"id": 7, "width": "wide", "height": 1e300, "stages": "x"}]})",
+      R"({"items": [{"stages": [{"status": 3, "isolated": 2, "action": 1,
+                                 "report_images": [1, "x"], "sensitivity": {"gain": 4}}],
+                     "sensitivity": {"gain": {"smallest_failed": "big"}}}],
+          "batch": {"shards": 1, "missing": [1, "m"], "duplicates": "d"}})"};
+  for (const char* text : odd) {
+    INFO(text);
+    const ordered_json d = ordered_json::parse(text);
+    CHECK_NOTHROW(console(d));
+    CHECK_NOTHROW(junit(d));
+    CHECK_NOTHROW(markdown(d));
+  }
 }

@@ -105,6 +105,8 @@ def test_gl_passes_and_a_capture_on_the_other_axis_is_named(tmp_path):
     cause = item["first_divergent_cause"]
     assert cause["id"] == "horizontal-first" and cause["likely"]
     assert "--first-axis horizontal" in cause["detail"]
+    schema = Path(__file__).resolve().parents[2] / "docs" / "schemas" / "check-result.v1.json"
+    assert cause["id"] in json.loads(schema.read_text())["$defs"]["cause"]["properties"]["id"]["enum"]
 
 
 # bloomref's own shaders in the layout of LearnOpenGL's bloom (the bug corpus's): `horizontal`

@@ -23,6 +23,7 @@ import test_variants_numpy as tv
 from cli_support import run
 from test_variants_numpy import bloomref_exe, read_rgb, write_exr
 
+SCHEMAS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "docs", "schemas")
 REC601 = np.array([0.299, 0.587, 0.114])
 REC709 = np.array([0.2126, 0.7152, 0.0722])
 
@@ -94,6 +95,8 @@ def test_a_capture_with_the_other_weights_is_named(tmp_path, method, stage, dump
     cause = item["first_divergent_cause"]
     assert cause["id"] == "luma-weights" and cause["likely"], cause
     assert cause["detail"] == f"--luma {dumped} declares it"
+    with open(os.path.join(SCHEMAS, "check-result.v1.json")) as f:  # the results' schema names it
+        assert cause["id"] in json.load(f)["$defs"]["cause"]["properties"]["id"]["enum"]
     # Declared as dumped, the same captures pass.
     code, out, err = run(["check", *size, "--stages", "d", "--luma", dumped, "-q"], tmp_path)
     assert code == 0, out + err
@@ -111,3 +114,19 @@ def test_gl_and_vulkan_run_rec601(tmp_path, backend, method):
         pytest.skip(f"no {backend} device: {err.strip()}")
     assert code == 0, out + err
     assert "verdict PASS" in out
+
+
+def test_a_manifest_declares_it(tmp_path):
+    size = ["--scene", "demo", "--size", "160x96"]
+    assert run(["run", *size, "--plan", "full", "--luma", "rec601", "--dump-stages", "d", "-q"],
+               tmp_path)[0] == 0
+    assert run(["scenes", "demo", "--size", "160x96", "-o", "scene.exr"], tmp_path)[0] == 0
+    manifest = {"version": 1, "params": {"luma": "rec601"},
+                "items": [{"id": "demo", "scene": "scene.exr", "stages": "d"}]}
+    (tmp_path / "m.json").write_text(json.dumps(manifest))
+    code, out, err = run(["check", "--manifest", "m.json", "-q"], tmp_path)
+    assert code == 0, out + err
+    with open(os.path.join(SCHEMAS, "check-manifest.v1.json")) as f:  # and its schema allows it
+        params = json.load(f)["properties"]["params"]["properties"]
+    assert params["luma"]["enum"] == ["rec709", "rec601"]
+    assert params["first_axis"]["enum"] == ["horizontal", "vertical"]
