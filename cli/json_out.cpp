@@ -31,6 +31,7 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
           {"composite", to_string(p.composite)}, {"composite_mode", to_string(p.composite_mode)},
           {"first_axis", to_string(p.first_axis)},
           {"luma", to_string(p.luma)},
+          {"luma_space", to_string(p.luma_space)},
           {"prefilter", to_string(p.prefilter)}, {"karis_form", to_string(p.karis_form)},
           {"texel_step", to_string(p.texel_step)}, {"upsample_radius", shortest(p.upsample_radius)},
           {"bloom_upscale", to_string(p.bloom_upscale)},

@@ -61,6 +61,10 @@ void PipelineOptions::add_to(CLI::App& app) {
                  "the luminance the threshold (and seed 002's per-tap Karis weight) reads: rec709 "
                  "(0.2126, 0.7152, 0.0722: the seeds') | rec601 (0.299, 0.587, 0.114)")
       ->capture_default_str();
+  app.add_option("--luma-space", luma_space,
+                 "the colour the threshold's luminance is taken of: linear (the seeds') | srgb "
+                 "(max(c, 0) by IEC 61966-2-1's curve) | gamma (max(c, 0)^(1 / --gamma))")
+      ->capture_default_str();
   app.add_option("--first-axis", first_axis,
                  "gaussian: the first blur pass's axis, horizontal (the seeds') | vertical; the "
                  "passes then alternate")
@@ -162,6 +166,7 @@ void PipelineOptions::finish() {
   params.composite_mode = parse_composite_mode(composite_mode);
   params.first_axis = parse_first_axis(first_axis);
   params.luma = parse_luma(luma);
+  params.luma_space = parse_luma_space(luma_space);
   params.prefilter = parse_prefilter(prefilter);
   params.karis_form = parse_karis_form(karis_form);
   params.texel_step = parse_texel_step(texel_step);

@@ -15,7 +15,7 @@ struct PipelineOptions {
   std::string method = "gaussian", kernel = "discrete9", storage = "f32", precision = "f32",
               nonfinite = "zero", plan = "adaptive", blur = "fast",
               composite = "before-tonemap", composite_mode = "add", prefilter = "per-lookup",
-              first_axis = "horizontal", luma = "rec709",
+              first_axis = "horizontal", luma = "rec709", luma_space = "linear",
               karis_form = "per-tap", texel_step = "texture", bloom_upscale = "tent",
               level_combine = "add", level_weights = "one", knee_form = "bevy",
               first_downsample = "13-tap", downsample = "13-tap", upsample = "tent",

@@ -76,6 +76,7 @@ const std::map<std::string, Setter>& setters() {
        [](PipelineOptions& o, const nlohmann::json& v) { o.composite_mode = text_of(v); }},
       {"first-axis", [](PipelineOptions& o, const nlohmann::json& v) { o.first_axis = text_of(v); }},
       {"luma", [](PipelineOptions& o, const nlohmann::json& v) { o.luma = text_of(v); }},
+      {"luma-space", [](PipelineOptions& o, const nlohmann::json& v) { o.luma_space = text_of(v); }},
       {"prefilter", [](PipelineOptions& o, const nlohmann::json& v) { o.prefilter = text_of(v); }},
       {"karis-form", [](PipelineOptions& o, const nlohmann::json& v) { o.karis_form = text_of(v); }},
       {"texel-step", [](PipelineOptions& o, const nlohmann::json& v) { o.texel_step = text_of(v); }},

@@ -84,11 +84,13 @@ void apply_param(const std::string& file, const std::string& key, const json& v,
   } else if (key == "composite") po.composite = str();
   else if (key == "first_axis") po.first_axis = str();
   else if (key == "luma") po.luma = str();
+  else if (key == "luma_space") po.luma_space = str();
   else if (key == "threads") p.threads = integer();
   else
     bad(file, field,
         "is not a pipeline parameter (method, threshold, exposure, gamma, strength, passes, "
-        "kernel, storage, nonfinite, levels, karis, composite, first_axis, luma, threads)");
+        "kernel, storage, nonfinite, levels, karis, composite, first_axis, luma, luma_space, "
+        "threads)");
 }
 
 fs::path resolve_path(const fs::path& base, const std::string& p) {

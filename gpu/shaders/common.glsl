@@ -23,3 +23,19 @@ float luminance(vec3 c) {
 #endif
   return l;
 }
+
+// The luminance the threshold compares (--luma-space): of linear colour, or of max(c, 0)
+// encoded by pow(., 1 / gamma) (LUMA_GAMMA, luma_gamma the run's gamma) or by IEC 61966-2-1's
+// curve (LUMA_SRGB). Mirrors stages.h threshold_luminance.
+uniform float luma_gamma;
+float threshold_luminance(vec3 c) {
+#if defined(LUMA_GAMMA)
+  return luminance(pow(max(c, vec3(0.0)), vec3(1.0 / luma_gamma)));
+#elif defined(LUMA_SRGB)
+  vec3 x = max(c, vec3(0.0));
+  vec3 curve = 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055;
+  return luminance(mix(curve, 12.92 * x, lessThanEqual(x, vec3(0.0031308))));
+#else
+  return luminance(c);
+#endif
+}

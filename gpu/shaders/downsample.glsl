@@ -22,7 +22,7 @@ void run_stage(vec2 frag_coord) {
   for (int i = 0; i < 13; ++i) {
     vec2 o = vec2(down_offset[i]);
     q[i] = texture(src, uv + o * texel).rgb;
-    if (first_level && luminance(q[i]) < threshold) q[i] = vec3(0.0);
+    if (first_level && threshold_luminance(q[i]) < threshold) q[i] = vec3(0.0);
   }
   vec3 r = vec3(0.0);
   if (first_level && karis) {

@@ -10,6 +10,6 @@ void run_stage(vec2 frag_coord) {
   v = vec4(sanitize_value(v.r, policy, storage_max), sanitize_value(v.g, policy, storage_max),
            sanitize_value(v.b, policy, storage_max), sanitize_value(v.a, policy, storage_max));
   emit0(v);
-  bool bright = luminance(v.rgb) > threshold;
+  bool bright = threshold_luminance(v.rgb) > threshold;
   emit1(bright ? vec4(v.rgb, 1.0) : vec4(0.0, 0.0, 0.0, 1.0));
 }

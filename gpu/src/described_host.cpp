@@ -240,7 +240,8 @@ Image texture_content(const DescribedTexture& t, ConstImageView sanitized, const
       std::copy(sanitized.row(y), sanitized.row(y) + std::size_t(sanitized.width) * kChannels,
                 img.view().row(y));
   else
-    extract_bright(sanitized, img.view(), p.threshold, p.threads, false, nullptr, nullptr, p.luma);
+    extract_bright(sanitized, img.view(), p.threshold, p.threads, false, nullptr, nullptr,
+                   luma_rule(p));
   store(img.view(), storage_of(t.format), HalfRounding::nearest_even_saturate, p.threads);
   return img;
 }

@@ -19,6 +19,8 @@ std::vector<std::string> defines_for(const BloomParams& p, GLenum format) {
   d.push_back(std::string("STORAGE_FORMAT ") + (format == GL_RGBA16F ? "rgba16f" : "rgba32f"));
   if (p.kernel == KernelName::linear5) d.push_back("KERNEL_LINEAR5 1");
   if (p.luma == Luma::rec601) d.push_back("LUMA_REC601 1");
+  if (p.luma_space == LumaSpace::srgb) d.push_back("LUMA_SRGB 1");
+  if (p.luma_space == LumaSpace::gamma) d.push_back("LUMA_GAMMA 1");
   return d;
 }
 
@@ -192,6 +194,7 @@ StagePrograms build_programs(GlContext& ctx, const BloomParams& p, const GlSched
     g.down.set("src", 0);
     g.down.set("karis", p.karis ? 1 : 0);
     g.down.set("threshold", p.threshold);
+    g.down.set("luma_gamma", p.gamma);
     g.up.set("small", 0);
     g.up.set("current", 1);
   }
@@ -199,6 +202,7 @@ StagePrograms build_programs(GlContext& ctx, const BloomParams& p, const GlSched
 
   g.extract.set("raw", 0);
   g.extract.set("threshold", p.threshold);
+  g.extract.set("luma_gamma", p.gamma);
   g.extract.set("policy", nonfinite_code(p.nonfinite));
   const bool f16 = s.format == GL_RGBA16F;
   g.extract.set("storage_max", static_cast<float>(storage_max(f16 ? Storage::f16 : Storage::f32)));
@@ -354,8 +358,9 @@ class GlExecutor {
   void input(const StageSpec& s, Clock::time_point t0) {
     runner_.run(progs_.extract, {&tex_.raw}, tex_.scene, &tex_.bright);
     mip_dark_ = sched_.may_skip_mip &&
-                mip_nothing_bright(scene_, 0.5 * double(p_.threshold), 0, p_.luma) &&
-                mip_nothing_bright(to_image(tex_.scene).cview(), double(p_.threshold), 0, p_.luma);
+                mip_nothing_bright(scene_, 0.5 * double(p_.threshold), 0, luma_rule(p_)) &&
+                mip_nothing_bright(to_image(tex_.scene).cview(), double(p_.threshold), 0,
+                                   luma_rule(p_));
     finish(s.name, tex_.scene, t0);
   }
 

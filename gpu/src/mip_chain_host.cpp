@@ -225,7 +225,7 @@ MipChainOptions mip_chain_options_for(const BloomParams& p) {
   o.filter_radius = p.upsample_radius;
   o.exposure = p.exposure;
   o.threshold = p.threshold;
-  o.luma = p.luma;
+  o.luma = luma_rule(p);
   o.nonfinite = p.nonfinite;
   o.threads = p.threads;
   return o;

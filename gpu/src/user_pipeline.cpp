@@ -299,7 +299,7 @@ UserPipelineOptions options_for(const BloomParams& params) {
   opt.first_horizontal = params.first_axis == FirstAxis::horizontal;
   opt.exposure = params.exposure;
   opt.threshold = params.threshold;
-  opt.luma = params.luma;
+  opt.luma = luma_rule(params);
   opt.nonfinite = params.nonfinite;
   opt.threads = params.threads;
   return opt;

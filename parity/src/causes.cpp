@@ -61,8 +61,7 @@ struct Hypothesis {
   bool r11g11b10 = false;     // every stage stored in R11F_G11F_B10F (packed unsigned floats)
   bool packed_toward_zero = false;  // ... rounded toward zero (llvmpipe), not to the nearest
   bool scene_stored = false;  // the scene texture too, which the bright pass reads
-  int encoded_luma = 0;       // the threshold compared with the luminance of encoded colour:
-                              // 1 sRGB (IEC 61966-2-1), 2 x^(1 / gamma)
+  std::optional<LumaSpace> space;  // the threshold's luminance taken of colour in this space
   bool unwritten = false;     // the bright output left unwritten below the threshold: those
                               // texels hold whatever the target held (the capture's values)
   bool nonfinite = false;     // NaN/Inf made at the target stage (the capture's, where the
@@ -82,7 +81,7 @@ struct Hypothesis {
            std::isnan(add_amount) && tent_gain == 1.0f && std::isnan(level_weight) &&
            !texel_step &&
            !pow_negative_karis &&
-           flip_input < 0 && !rgba8 && !r11g11b10 && encoded_luma == 0 && !scene_stored &&
+           flip_input < 0 && !rgba8 && !r11g11b10 && !space && !scene_stored &&
            !axes_swapped && !other_luma && source.empty();
   }
 };
@@ -94,7 +93,7 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
   switch (k) {
     case StageKind::input: return h.f16;
     case StageKind::bright:
-      return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold) || h.encoded_luma ||
+      return h.ge || h.clamp_bright || h.f16 || !std::isnan(h.threshold) || h.space ||
              h.other_luma;
     case StageKind::blur:
       return h.sampled() || h.kernel || h.clamp_blur || h.axes_swapped ||
@@ -102,7 +101,7 @@ bool changes(const Hypothesis& h, StageKind k, bool is_target) {
              h.f16;
     case StageKind::down:
       return h.sampled() || h.ge || h.f16 || h.texel_step || !std::isnan(h.threshold) ||
-             h.other_luma || (is_target && !h.source.empty());
+             h.other_luma || h.space || (is_target && !h.source.empty());
     case StageKind::up:
       return h.sampled() || h.f16 ||
              (is_target && (!h.source.empty() || !std::isnan(h.level_weight)));
@@ -299,10 +298,12 @@ class Evaluator {
     return out;
   }
 
-  // The luminance's weights: the declared, or the other under the hypothesis.
-  Luma luma() const {
-    if (!h_.other_luma) return p_.luma;
-    return p_.luma == Luma::rec709 ? Luma::rec601 : Luma::rec709;
+  // The threshold's luminance: the declared, or its other weights or space under the hypothesis.
+  LumaRule luma() const {
+    LumaRule r = luma_rule(p_);
+    if (h_.other_luma) r.weights = r.weights == Luma::rec709 ? Luma::rec601 : Luma::rec709;
+    if (h_.space) r.space = *h_.space;
+    return r;
   }
 
   Axis axis_of(int pass) const {
@@ -349,26 +350,8 @@ class Evaluator {
           scene = stored_scene.cview();
         }
         const float threshold = std::isnan(h_.threshold) ? p_.threshold : h_.threshold;
-        const Luma luma = this->luma();
-        if (h_.encoded_luma) {
-          const LumaWeights<float> lw = luma_weights<float>(luma);
-          // The colour encoded before its luminance is taken (a threshold set in gamma space):
-          // the texel itself is kept as it is.
-          auto encode = [this](float v) {
-            const double x = std::max(double(v), 0.0);
-            if (h_.encoded_luma == 2) return static_cast<float>(std::pow(x, 1.0 / p_.gamma));
-            return static_cast<float>(x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1 / 2.4) - 0.055);
-          };
-          for (int y = 0; y < out.height(); ++y)
-            for (int x = 0; x < out.width(); ++x) {
-              const float* sc = scene.pixel(x, y);
-              float* o = out.pixel(x, y);
-              const bool bright = luminance(encode(sc[0]), encode(sc[1]), encode(sc[2]), lw) > threshold;
-              for (int c = 0; c < 3; ++c) o[c] = bright ? sc[c] : 0.0f;
-              o[3] = 1.0f;
-            }
-          return out;
-        }
+        // The colour's space (a threshold set in gamma space): the texel itself is kept as it is.
+        const LumaRule luma = this->luma();
         if (h_.ge || h_.clamp_bright)
           extract_bright_variant(scene, out.view(), threshold, h_.ge, h_.clamp_bright,
                                  threads, luma);
@@ -420,7 +403,8 @@ class Evaluator {
           BloomParams q = p_;
           if (h_.texel_step) q.texel_step = *h_.texel_step;
           if (!std::isnan(h_.threshold)) q.threshold = h_.threshold;
-          q.luma = luma();
+          q.luma = luma().weights;
+          q.luma_space = luma().space;
           downsample(in[0], out.view(),
                      downsample_options(q, spec.pass, ctx_.sanitized.width,
                                         ctx_.sanitized.height, ctx_.profile.subtexel_bits),
@@ -702,12 +686,12 @@ std::optional<std::pair<float, float>> fit_threshold(const CauseContext& ctx, co
   const ConstImageView user = ctx.view(target.name), scene = ctx.sanitized;
   if (!user.data || user.width != scene.width || user.height != scene.height) return std::nullopt;
   float dark = -INFINITY, kept = INFINITY;
-  const LumaWeights<float> lw = luma_weights<float>(ctx.plan.params.luma);
+  const LumaRule rule = luma_rule(ctx.plan.params);
   for (int y = 0; y < user.height; ++y)
     for (int x = 0; x < user.width; ++x) {
       const float* u = user.pixel(x, y);
       const float* s = scene.pixel(x, y);
-      const float l = luminance(s[0], s[1], s[2], lw);
+      const float l = threshold_luminance(s[0], s[1], s[2], rule);
       if (!std::isfinite(l)) continue;
       if (u[0] == 0 && u[1] == 0 && u[2] == 0) dark = std::max(dark, l);
       else kept = std::min(kept, l);
@@ -890,7 +874,7 @@ Unwritten unwritten_signature(const CauseContext& ctx, const StageSpec& target) 
   if (!cap.data || cap.width != scene.width || cap.height != scene.height) return Unwritten::no;
   Image oracle(scene.width, scene.height);
   extract_bright(scene, oracle.view(), ctx.plan.params.threshold, ctx.threads, false, nullptr,
-                 nullptr, ctx.plan.params.luma);
+                 nullptr, luma_rule(ctx.plan.params));
   const Image& bound = *ctx.target_bound;
   std::uint64_t lit = 0, foreign = 0, coloured = 0, own = 0;
   for (int y = 0; y < scene.height; ++y)
@@ -1132,6 +1116,20 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     h->other_luma = true;
     h->detail = declared709 ? "--luma rec601 declares it" : "--luma rec709 declares it";
   };
+  // The threshold's luminance taken of colour in another space than the declared one.
+  auto add_other_spaces = [&] {
+    static const std::pair<LumaSpace, const char*> spaces[] = {
+        {LumaSpace::srgb, "sRGB-encoded colour"},
+        {LumaSpace::gamma, "gamma-encoded colour"},
+        {LumaSpace::linear, "linear colour"}};
+    for (const auto& [space, words] : spaces) {
+      if (space == p.luma_space) continue;
+      Hypothesis* h = add("threshold-color-space",
+                          std::string("the threshold compared with the luminance of ") + words);
+      h->space = space;
+      h->detail = "--luma-space " + to_string(space) + " declares it";
+    }
+  };
   // A stage written to a storage format holds only values it can hold: a capture of the target
   // in float that does not (1% of values allowed: an edge case of the format) rules it out.
   const ConstImageView target_cap = ctx.captured(target.name) ? ctx.view(target.name) : ConstImageView{};
@@ -1217,10 +1215,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     add("threshold-ge", "`>=` instead of `>` at the threshold")->ge = true;
     add("bright-clamped", "bright pass clamped to [0, 1] (an 8-bit target or saturate())")
         ->clamp_bright = true;
-    add("threshold-color-space", "the threshold compared with the luminance of sRGB-encoded colour")
-        ->encoded_luma = 1;
-    add("threshold-color-space", "the threshold compared with the luminance of gamma-encoded colour")
-        ->encoded_luma = 2;
+    add_other_spaces();
     add_other_luma();
     if (const Unwritten u = unwritten_signature(ctx, target); u != Unwritten::no) {
       // Foreign values are taken from the capture, a value per dark texel: counted as many
@@ -1241,6 +1236,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     // The first level's luminance: its lookups' threshold, or seed 002's per-tap Karis weight.
     if (p.prefilter == Prefilter::per_lookup || (p.karis && p.karis_form == KarisForm::per_tap))
       add_other_luma();
+    if (p.prefilter == Prefilter::per_lookup) add_other_spaces();
   }
   if (want("f16-storage") && p.storage == Storage::f32 && stored_as(f16_holds)) {
     Hypothesis* h = add("f16-storage", "f16 storage where f32 was declared");
@@ -1737,8 +1733,11 @@ std::vector<CauseFit> try_causes(const CauseContext& ctx, const StageSpec& targe
     // It must bring within bound a tenth of what the oracle as specified leaves out: a change
     // that moves a few values (f16 rounding near a large error) explains nothing.
     if (!(f > oracle_within) || f - oracle_within < 0.1 * (1 - oracle_within)) continue;
-    // Two hypotheses of one id (the half-texel shift's two signs): keep the better.
-    auto same = std::find_if(fits.begin(), fits.end(), [&](const CauseFit& c) { return c.id == h.id; });
+    // Two hypotheses of one id (the half-texel shift's two signs): keep the better. The colour
+    // spaces of the threshold are different causes: two that explain as much are both said.
+    auto same = std::find_if(fits.begin(), fits.end(), [&](const CauseFit& c) {
+      return c.id == h.id && (!h.space || c.description == h.description);
+    });
     if (same != fits.end()) {
       if (f > same->within) {
         *same = {h.id, h.description, h.detail, f, oracle_within, h.params};
@@ -1784,7 +1783,8 @@ std::vector<CauseFit> try_causes(const CauseContext& ctx, const StageSpec& targe
     for (std::size_t i = 1; i < fits.size(); ++i) {
       const CauseFit& c = fits.front();
       CauseFit& o = fits[i];
-      o.as_likely = o.likely() && o.id != c.id && o.within >= c.within - 0.0005 &&
+      o.as_likely = o.likely() && (o.id != c.id || o.description != c.description) &&
+                    o.within >= c.within - 0.0005 &&
                     o.params <= c.params + 1 && o.id != "wrong-weights";
     }
   return fits;

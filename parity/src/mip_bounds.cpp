@@ -91,7 +91,8 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
     return gaussian_down_bounds(src, oracle, error, opt, ctx);
   const bool first = opt.first && opt.threshold_taps;  // the taps are thresholded
   const float threshold = opt.threshold;
-  const LumaWeights<float> lw = luma_weights<float>(opt.luma);
+  const LumaWeights<float> lw = luma_weights<float>(opt.luma.weights);
+  const bool encoded = opt.luma.space != LumaSpace::linear;
   const bool karis = opt.first && opt.karis;
   const bool group_linear = karis && opt.karis_form == KarisForm::group_linear;
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
@@ -140,7 +141,15 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
           dq[i] = dmax;
           lum[i] = luminance(q[0], q[1], q[2], lw);
           lum_err[i] = dmax + 4 * U * std::fabs(lum[i]);  // the weights sum to 1
-          if (first && std::fabs(lum[i] - threshold) <= lum_err[i])
+          // The threshold's luminance: this one, or under an encoded --luma-space that of the
+          // encoded tap, its band carried through the encode.
+          double tl = lum[i], tl_err = lum_err[i];
+          if (first && encoded) {
+            const double v[3] = {q[0], q[1], q[2]}, d[3] = {dmax, dmax, dmax};
+            tl = threshold_luminance(q[0], q[1], q[2], opt.luma);
+            tl_err = encoded_threshold_band(v, d, opt.luma, *ctx.profile);
+          }
+          if (first && std::fabs(tl - threshold) <= tl_err)
             thresh += taps[i].weight * qmax[i];
         }
         double kterm = 0;

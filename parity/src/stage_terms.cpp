@@ -123,7 +123,8 @@ Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanit
       return copy_of(sanitized, pool);
     case StageKind::bright:
       out = pool.take(sanitized.width, sanitized.height);
-      extract_bright(sanitized, out.view(), p.threshold, threads, false, nullptr, nullptr, p.luma);
+      extract_bright(sanitized, out.view(), p.threshold, threads, false, nullptr, nullptr,
+                     luma_rule(p));
       break;
     case StageKind::blur:
       out = pool.take(in[0].width, in[0].height);
@@ -215,7 +216,7 @@ StageTerms point_terms(const StageSpec& spec, const std::vector<std::string>& in
   const ConstImageView o = t.oracle.cview();
   if (spec.kind == StageKind::input || spec.kind == StageKind::bright) {
     t.bound = spec.kind == StageKind::input ? input_bounds(o, at.ctx)
-                                            : bright_bounds(at.sanitized, p.threshold, at.ctx, p.luma);
+                                            : bright_bounds(at.sanitized, p.threshold, at.ctx, luma_rule(p));
     t.end_to_end = [w = o.width](int y0, int y1, const float* b, float* out) {
       std::copy(b, b + std::size_t(y1 - y0) * w * kChannels, out);
     };

@@ -112,10 +112,45 @@ std::uint64_t new_owner() {
 
 }  // namespace
 
+double encoded_threshold_band(const double v[3], const double d[3], const LumaRule& rule,
+                              const DeviceProfile& p) {
+  const double U = p.unit_roundoff;
+  const LumaWeights<double> w = luma_weights<double>(rule.weights);
+  const double g = rule.space == LumaSpace::gamma ? 1.0 / rule.gamma : 1.0 / 2.4;
+  const double wc[3] = {w.r, w.g, w.b};
+  double band = 0, mags = 0;
+  for (int c = 0; c < 3; ++c) {
+    const double x = std::max(v[c], 0.0);
+    const double e = luma_encode(x, rule);
+    // The reads' errors through the encode (monotonic): the larger move either way.
+    const double spread = std::max(luma_encode(x + d[c], rule) - e,
+                                   e - luma_encode(std::max(x - d[c], 0.0), rule));
+    // The device's pow(x, g) = exp2(g log2 x): log2 3 ULP (2^-21 absolute in [0.5, 2]), the
+    // product's rounding, exp2 (3 + 2|t|) ULP; at 0 or a denormal (flushed), up to 2^(-126 g).
+    double dev;
+    if (rule.space == LumaSpace::srgb && x <= 0.0031308) {
+      dev = 2 * U * 12.92 * x;
+    } else if (!(x > 0) || (p.flush_denormals && x < 0x1p-126)) {
+      dev = std::pow(0x1p-126, g);
+    } else {
+      const double l = std::log2(x), t = g * l, o = std::exp2(t);
+      const double dl = (x >= 0.5 && x <= 2.0) ? std::ldexp(1.0, -21) * (U / kU) : 3 * 2 * U * std::fabs(l);
+      dev = o * std::log(2.0) * g * dl + o * std::log(2.0) * std::fabs(t) * (1 + p.division_ulps) * U +
+            o * (3 + 2 * std::fabs(t)) * 2 * U;
+      // sRGB: times 1.055, then the product's and the difference's rounding (fused or not).
+      if (rule.space == LumaSpace::srgb) dev = 1.055 * dev + 2 * U * (1.055 * o + 0.055);
+    }
+    band += wc[c] * (spread + dev);
+    mags += std::fabs(wc[c] * e);
+  }
+  return band + 4 * U * mags;  // the luminance's 3 products and 2 sums
+}
+
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,
-                                           BoundContext ctx, Luma luma) {
-  const LumaWeights<double> wd = luma_weights<double>(luma);
-  const LumaWeights<float> wf = luma_weights<float>(luma);
+                                           BoundContext ctx, const LumaRule& luma) {
+  const LumaWeights<double> wd = luma_weights<double>(luma.weights);
+  const LumaWeights<float> wf = luma_weights<float>(luma.weights);
+  const bool encoded = luma.space != LumaSpace::linear;
   const double U = ctx.profile->unit_roundoff;  // one operation's rounding
   // A bright pass of the user's reads the scene with texture() at its interpolated texture
   // coordinate: each value may be off by a blend of its neighbours, and its luminance with it.
@@ -130,12 +165,17 @@ std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float thres
         // luminance: 3 products and 2 sums, fused or not: |dL| <= 4u sum |w_i c_i|.
         const double mags = std::fabs(wd.r * s[0]) + std::fabs(wd.g * s[1]) +
                             std::fabs(wd.b * s[2]);
-        const double l = luminance(s[0], s[1], s[2], wf);
+        const double l = encoded ? threshold_luminance(s[0], s[1], s[2], luma)
+                                 : luminance(s[0], s[1], s[2], wf);
         static constexpr double none[3] = {0, 0, 0};
         const double* read =
             dx > 0 || dy > 0 ? texel_reads(owner, sanitized, x, y, dx, dy) : none;
         const double read_l = wd.r * read[0] + wd.g * read[1] + wd.b * read[2];
-        const double band = (ctx.profile->precise_luminance ? 0.0 : 4 * U * mags) + read_l;
+        double band = (ctx.profile->precise_luminance ? 0.0 : 4 * U * mags) + read_l;
+        if (encoded) {
+          const double v[3] = {s[0], s[1], s[2]};
+          band = encoded_threshold_band(v, read, luma, *ctx.profile);
+        }
         const bool tie = (band > 0 || !ctx.profile->precise_luminance) &&
                          std::fabs(l - threshold) <= band + denormal_floor(*ctx.profile);
         const double v = s[c];

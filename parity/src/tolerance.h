@@ -31,6 +31,13 @@ double storage_term(double v, Storage s, const DeviceProfile& p, int channel = 2
 /// Denormal flush floor: results below 2^-126 may become 0 in shader arithmetic.
 double denormal_floor(const DeviceProfile& p);
 
+/// Under an encoded --luma-space, the band around the threshold within which either side is
+/// right, for the threshold's luminance of v (values each off by at most d from what the device
+/// read): the reads' errors carried through the encode, the device's pow (GLSL's bounds, as
+/// output_bounds takes them) and the luminance's rounding.
+double encoded_threshold_band(const double v[3], const double d[3], const LumaRule& rule,
+                              const DeviceProfile& p);
+
 /// The rows a band of a stage works on: RGBA rows of `width` texels packed one after the other
 /// (alpha unused), row y0 first. The bounds below fill such rows band by band, so that a stage's
 /// bound is never held whole unless a caller asks for it (fill).
@@ -139,7 +146,7 @@ struct BoundContext {
 
 std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ctx);
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,
-                                           BoundContext ctx, Luma luma = Luma::rec709);
+                                           BoundContext ctx, const LumaRule& luma = {});
 std::unique_ptr<StageBounds> blur_bounds(ConstImageView src, ConstImageView oracle, Axis axis,
                                          const Kernel& k, BoundContext ctx);
 std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageView bloom,

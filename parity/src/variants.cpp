@@ -133,8 +133,9 @@ void mip_sample(ConstImageView src, int x, int y, int tw, int th, int ox, int oy
 }  // namespace
 
 void downsample_variant(ConstImageView src, ImageView dst, bool first, float threshold,
-                        bool karis, bool tie_kept, const Sampling& smp, int threads, Luma luma) {
-  const LumaWeights<float> lw = luma_weights<float>(luma);
+                        bool karis, bool tie_kept, const Sampling& smp, int threads,
+                        const LumaRule& luma) {
+  const LumaWeights<float> lw = luma_weights<float>(luma.weights);
   const auto& taps = downsample_taps();
   const auto& groups = karis_groups();
   const auto& gw = karis_group_weights();
@@ -146,7 +147,7 @@ void downsample_variant(ConstImageView src, ImageView dst, bool first, float thr
         for (int i = 0; i < n; ++i) {
           float* qi = &q[std::size_t(i) * 3];
           mip_sample(src, x, y, dst.width, dst.height, taps[i].ox, taps[i].oy, smp, qi);
-          const float l = luminance(qi[0], qi[1], qi[2], lw);
+          const float l = threshold_luminance(qi[0], qi[1], qi[2], luma);
           if (first && (tie_kept ? l < threshold : l <= threshold)) qi[0] = qi[1] = qi[2] = 0.0f;
         }
         float r[3] = {0, 0, 0};
@@ -195,14 +196,13 @@ void upsample_variant(ConstImageView small, ConstImageView current, ImageView ds
 }
 
 void extract_bright_variant(ConstImageView src, ImageView dst, float threshold, bool ge,
-                            bool clamp01, int threads, Luma luma) {
-  const LumaWeights<float> lw = luma_weights<float>(luma);
+                            bool clamp01, int threads, const LumaRule& luma) {
   parallel_rows(src.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y)
       for (int x = 0; x < src.width; ++x) {
         const float* s = src.pixel(x, y);
         float* d = dst.pixel(x, y);
-        const float l = luminance(s[0], s[1], s[2], lw);
+        const float l = threshold_luminance(s[0], s[1], s[2], luma);
         const bool bright = ge ? l >= threshold : l > threshold;
         for (int c = 0; c < 3; ++c) {
           const float v = bright ? s[c] : 0.0f;

@@ -268,7 +268,7 @@ DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int
   DownsampleOptions o;
   o.first = k == 1;
   o.threshold = p.threshold;
-  o.luma = p.luma;
+  o.luma = luma_rule(p);
   o.karis = p.karis && k == 1;
   o.subtexel_bits = subtexel_bits;
   o.threshold_taps = p.prefilter == Prefilter::per_lookup;  // the others: no tap threshold
@@ -475,7 +475,7 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
   if (opt.first && opt.first_filter == FirstDownsample::bilinear)
     return downsample_bilinear(src, dst, opt, threads);
   const T threshold = static_cast<T>(opt.threshold);
-  const LumaWeights<T> lw = luma_weights<T>(opt.luma);
+  const LumaWeights<T> lw = luma_weights<T>(opt.luma.weights);
   const bool thresholded = opt.first && opt.threshold_taps;
   const bool karis = opt.first && opt.karis;
   const Step sx{opt.step_width > 0 ? opt.step_width : float(src.width), 0.0f};
@@ -491,7 +491,7 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
         T q[kDownTaps][3];
         for (int i = 0; i < kDownTaps; ++i) {
           lookups.sample(src, x, y, kDownOffset[i][0], kDownOffset[i][1], q[i]);
-          if (thresholded && luminance(q[i][0], q[i][1], q[i][2], lw) < threshold)
+          if (thresholded && threshold_luminance(q[i][0], q[i][1], q[i][2], opt.luma) < threshold)
             q[i][0] = q[i][1] = q[i][2] = T(0);
         }
         T r[3] = {0, 0, 0};
@@ -583,15 +583,19 @@ void upscale_bilinear(BasicView<const T> small, BasicView<T> dst, int subtexel_b
 }
 
 template <class T>
-bool mip_nothing_bright(BasicView<const T> scene, double threshold, int threads, Luma luma) {
+bool mip_nothing_bright(BasicView<const T> scene, double threshold, int threads,
+                        const LumaRule& luma) {
   if (!(threshold > 0.0)) return false;
-  const LumaWeights<double> w = luma_weights<double>(luma);
+  const LumaWeights<double> w = luma_weights<double>(luma.weights);
+  const bool linear = luma.space == LumaSpace::linear;
   std::vector<std::uint8_t> bright(scene.height, 0);
   parallel_rows(scene.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       const T* p = scene.row(y);
       for (int x = 0; x < scene.width && !bright[y]; ++x, p += kChannels) {
-        const double r = p[0], g = p[1], b = p[2];
+        const double r = linear ? p[0] : luma_encode(double(p[0]), luma),
+                     g = linear ? p[1] : luma_encode(double(p[1]), luma),
+                     b = linear ? p[2] : luma_encode(double(p[2]), luma);
         const double l = w.r * r + w.g * g + w.b * b;
         const double m = std::fabs(r) + std::fabs(g) + std::fabs(b);
         // !(a < b) also catches NaN and Inf.
@@ -673,8 +677,8 @@ template void downsample_gaussian_h<float>(BasicView<const float>, BasicView<flo
                                            const DownsampleOptions&, int);
 template void downsample_gaussian_h<double>(BasicView<const double>, BasicView<double>,
                                             const DownsampleOptions&, int);
-template bool mip_nothing_bright<float>(BasicView<const float>, double, int, Luma);
-template bool mip_nothing_bright<double>(BasicView<const double>, double, int, Luma);
+template bool mip_nothing_bright<float>(BasicView<const float>, double, int, const LumaRule&);
+template bool mip_nothing_bright<double>(BasicView<const double>, double, int, const LumaRule&);
 template std::size_t mip_support<float>(const std::uint8_t*, int, int, const std::uint8_t*, int,
                                         int, int, int, std::uint8_t*, int);
 template std::size_t mip_support<double>(const std::uint8_t*, int, int, const std::uint8_t*,

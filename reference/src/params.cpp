@@ -45,6 +45,8 @@ constexpr std::pair<const char*, CompositeMode> kModes[] = {{"add", CompositeMod
 constexpr std::pair<const char*, FirstAxis> kAxes[] = {{"horizontal", FirstAxis::horizontal},
                                                        {"vertical", FirstAxis::vertical}};
 constexpr std::pair<const char*, Luma> kLumas[] = {{"rec709", Luma::rec709}, {"rec601", Luma::rec601}};
+constexpr std::pair<const char*, LumaSpace> kLumaSpaces[] = {
+    {"linear", LumaSpace::linear}, {"srgb", LumaSpace::srgb}, {"gamma", LumaSpace::gamma}};
 constexpr std::pair<const char*, Prefilter> kPrefilters[] = {
     {"per-lookup", Prefilter::per_lookup}, {"bright", Prefilter::bright}, {"none", Prefilter::none},
     {"soft-knee", Prefilter::soft_knee}};
@@ -166,6 +168,7 @@ std::string to_string(CompositeOrder v) { return name_of(v, kOrders); }
 std::string to_string(CompositeMode v) { return name_of(v, kModes); }
 std::string to_string(FirstAxis v) { return name_of(v, kAxes); }
 std::string to_string(Luma v) { return name_of(v, kLumas); }
+std::string to_string(LumaSpace v) { return name_of(v, kLumaSpaces); }
 std::string to_string(Prefilter v) { return name_of(v, kPrefilters); }
 std::string to_string(KarisForm v) { return name_of(v, kKarisForms); }
 std::string to_string(TexelStep v) { return name_of(v, kTexelSteps); }
@@ -198,6 +201,9 @@ LevelWeights parse_level_weights(const std::string& s) {
 }
 FirstAxis parse_first_axis(const std::string& s) { return parse_enum("--first-axis", s, kAxes); }
 Luma parse_luma(const std::string& s) { return parse_enum("--luma", s, kLumas); }
+LumaSpace parse_luma_space(const std::string& s) {
+  return parse_enum("--luma-space", s, kLumaSpaces);
+}
 CompositeMode parse_composite_mode(const std::string& s) {
   return parse_enum("--composite-mode", s, kModes);
 }

@@ -130,8 +130,13 @@ inline bool any_bright4(const float* p, float threshold, const LumaWeights<float
 template <class T>
 void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
                     bool dst_zeroed, std::uint8_t* nonzero, const std::uint8_t* bright_rows,
-                    Luma luma) {
-  const LumaWeights<T> w = luma_weights<T>(luma);
+                    const LumaRule& luma) {
+  const LumaWeights<T> w = luma_weights<T>(luma.weights);
+  const bool linear = luma.space == LumaSpace::linear;
+  // The threshold's luminance: the weighted sum of linear colour, or of encoded colour.
+  auto lum = [&](const T* s) {
+    return linear ? luminance(s[0], s[1], s[2], w) : threshold_luminance(s[0], s[1], s[2], luma);
+  };
   parallel_rows(src.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y) {
       if (dst_zeroed && bright_rows && !bright_rows[y]) continue;  // nothing to write
@@ -139,7 +144,7 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
         for (int x = 0; x < src.width; ++x) {
           const T* s = src.pixel(x, y);
           T* d = dst.pixel(x, y);
-          const bool bright = luminance(s[0], s[1], s[2], w) > threshold;
+          const bool bright = lum(s) > threshold;
           for (int c = 0; c < 3; ++c) d[c] = bright ? s[c] : T(0);
           d[3] = T(1);
         }
@@ -148,7 +153,7 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
       std::uint8_t* nz = nonzero ? nonzero + std::size_t(y) * src.width : nullptr;
       auto one = [&](int x) {
         const T* s = src.pixel(x, y);
-        const bool bright = luminance(s[0], s[1], s[2], w) > threshold;
+        const bool bright = lum(s) > threshold;
         if (nz) nz[x] = bright && rgb_not_plus_zero(s);  // nonzero_support's test on what is written
         if (dst_zeroed && !bright) return;  // +0 already; the page may stay unwritten
         T* d = dst.pixel(x, y);
@@ -161,7 +166,7 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
         // luminance of each in one lane (the same operations, so the same test), and only a
         // group with a bright pixel taken pixel by pixel (StarField.exr, 0.03% bright: most of
         // the sparse sweep's time was the per-pixel branches).
-        if (dst_zeroed)
+        if (dst_zeroed && linear)  // the lanes weigh linear colour
           for (; x + 4 <= src.width; x += 4) {
             if (!any_bright4(src.pixel(x, y), threshold, w)) {
               if (nz) std::memset(nz + x, 0, 4);
@@ -176,12 +181,13 @@ void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int t
 }
 
 namespace detail {
-void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold, Luma luma) {
-  const LumaWeights<float> w = luma_weights<float>(luma);
+void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold, const LumaRule& luma) {
+  const LumaWeights<float> w = luma_weights<float>(luma.weights);
+  const bool linear = luma.space == LumaSpace::linear;
   int x = 0;
   // Four pixels at a time: each lane's luminance and test are the scalar ones (luminance4); a
   // pixel's RGB kept or zeroed by its lane's mask, then packed into three vectors of RGB.
-  for (; x + 4 <= n; x += 4) {
+  for (; linear && x + 4 <= n; x += 4) {
     const float* s = rgba + std::size_t(x) * kChannels;
     const v4i bright = luminance4(s, w) > threshold;
     const auto kept = [&](int i) {  // pixel i's RGBA, all bits kept or all cleared
@@ -195,7 +201,7 @@ void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold, Luma 
   }
   for (; x < n; ++x) {
     const float* s = rgba + std::size_t(x) * kChannels;
-    const bool bright = luminance(s[0], s[1], s[2], w) > threshold;
+    const bool bright = threshold_luminance(s[0], s[1], s[2], luma) > threshold;
     for (int c = 0; c < 3; ++c) rgb[std::size_t(x) * 3 + c] = bright ? s[c] : 0.0f;
   }
 }
@@ -328,7 +334,7 @@ std::uint8_t quantize_8bit(float x) {
   template NonFiniteCounts sanitize<T>(BasicView<const T>, BasicView<T>, NonFinite, Storage,     \
                                        int);                                                      \
   template void extract_bright<T>(BasicView<const T>, BasicView<T>, T, int, bool,              \
-                                  std::uint8_t*, const std::uint8_t*, Luma);                      \
+                                  std::uint8_t*, const std::uint8_t*, const LumaRule&);           \
   template void composite<T>(BasicView<const T>, BasicView<const T>, BasicView<T>, T, int);      \
   template void composite_mix<T>(BasicView<const T>, BasicView<const T>, BasicView<T>, T, int);  \
   template void tonemap<T>(BasicView<const T>, BasicView<T>, T, int);                            \

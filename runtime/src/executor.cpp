@@ -169,7 +169,7 @@ bool may_box(const Plan& plan, const ExecuteOptions& opt) {
   return p.plan == PlanMode::adaptive && p.method == Method::gaussian &&
          p.composite_mode == CompositeMode::add && p.precision == Precision::f32 && p.storage == Storage::f32 &&
          p.blur == BlurImpl::fast && !opt.keep_all && !plan.sanitize && !plan.dense_scene &&
-         !plan.small_scene && p.luma == Luma::rec709 &&  // the boxes' bright test is Rec. 709's
+         !plan.small_scene && p.seed_luma() &&  // the boxes' bright test is the seeds' luminance
          p.passes > 0 && blurs_from_pass_1(plan) && plan.facts.bright_pixels * 100 <= pixels;
 }
 
@@ -235,9 +235,9 @@ Schedule choose_schedule(const Plan& plan, const ExecuteOptions& opt, bool boxed
     // The bright image is then one more full-size image, faulted in, written and read once.
     const bool dense =
         !adaptive || plan.dense_scene || plan.small_scene || p.blur == BlurImpl::approx;
-    // The fused bright pass tests Rec. 709's luminance; other weights make the bright image first.
-    s.blur = dense && blurs_from_pass_1(plan) && p.luma == Luma::rec709 ? BlurPath::fused_from_bright
-                                                                         : BlurPath::fused_once_dense;
+    // The fused bright pass tests the seeds' luminance; another makes the bright image first.
+    s.blur = dense && blurs_from_pass_1(plan) && p.seed_luma() ? BlurPath::fused_from_bright
+                                                                : BlurPath::fused_once_dense;
   }
   if (boxed) s.blur = BlurPath::boxed;
   s.track_support = adaptive && s.blur != BlurPath::fused_from_bright && s.blur != BlurPath::boxed;
@@ -441,7 +441,7 @@ class Executor {
             : nullptr;
     extract_bright(scene_source(), bright_.view(), static_cast<T>(p_.threshold), threads_,
                    /*dst_zeroed=*/sched_.sparse_bright, nonzero.empty() ? nullptr : nonzero.data(),
-                   rows, p_.luma);
+                   rows, luma_rule(p_));
     if (!nonzero.empty()) support_.start(std::move(nonzero), threads_, rows);
   }
 
@@ -662,7 +662,7 @@ class Executor {
     if (tracked && k > 1) {
       o.active = mip_mask(stage.name, src, dst, 2, BasicImage<T>());
     } else if (tracked && sched_.track_support &&
-               mip_nothing_bright(src.cview(), double(p_.threshold), threads_, p_.luma)) {
+               mip_nothing_bright(src.cview(), double(p_.threshold), threads_, luma_rule(p_))) {
       mip_active_.assign(dst.pixel_count(), 0);  // every tap thresholded to zero
       o.active = mip_active_.data();
       trace_.skipped_fraction.emplace_back(stage.name, 1.0);

@@ -24,17 +24,17 @@ namespace {
 template <class T>
 void scan_row(const float* s, int width, const BloomParams& p, detail::ScanKernel kernel,
               NonFiniteCounts& c, std::uint64_t& bright) {
-  if constexpr (std::is_same_v<T, float>)  // the row kernel's weights are Rec. 709's
-    if (p.luma == Luma::rec709 && kernel(s, width, static_cast<float>(p.threshold), bright)) return;
+  if constexpr (std::is_same_v<T, float>)  // the row kernel tests the seeds' luminance
+    if (p.seed_luma() && kernel(s, width, static_cast<float>(p.threshold), bright)) return;
   const T threshold = static_cast<T>(p.threshold);
-  const LumaWeights<T> w = luma_weights<T>(p.luma);
+  const LumaRule rule = luma_rule(p);
   const bool any = count_nonfinite_values(s, width * kChannels, c);
   for (int x = 0; x < width; ++x, s += kChannels) {
     T v[3];
     for (int k = 0; k < 3; ++k)
       v[k] = any ? sanitize_value(static_cast<T>(s[k]), p.nonfinite, p.storage)
                  : static_cast<T>(s[k]);
-    bright += luminance(v[0], v[1], v[2], w) > threshold;
+    bright += threshold_luminance(v[0], v[1], v[2], rule) > threshold;
   }
 }
 

@@ -1,4 +1,5 @@
-"""--luma rec601: the threshold's luminance with Rec. 601's weights (0.299, 0.587, 0.114).
+"""--luma rec601: the threshold's luminance with Rec. 601's weights (0.299, 0.587, 0.114);
+--luma-space srgb|gamma: taken of max(c, 0) encoded by IEC 61966-2-1's curve or by x^(1/gamma).
 
 - Against numpy: the gaussian method's bright stage is the input where 0.299 r + 0.587 g +
   0.114 b > 1, on a scene where Rec. 601 and Rec. 709 disagree on many texels; the article's
@@ -10,6 +11,10 @@
   and the --luma that declares it, both ways and for both methods.
 - GL and Vulkan run it (compare passes for both methods). Skipped without a device unless
   BLOOMREF_REQUIRE_GL=1 / BLOOMREF_REQUIRE_VULKAN=1.
+- The encoded spaces the same way: the bright mask against numpy's encode (f64, texels kept
+  clear of the threshold), adaptive against full bits, a capture in another space named
+  `threshold-color-space` with the --luma-space that declares it (or one as likely), GL and
+  Vulkan on the demo and on a corpus image (BLOOMREF_CORPUS).
 """
 import json
 import os
@@ -130,3 +135,84 @@ def test_a_manifest_declares_it(tmp_path):
         params = json.load(f)["properties"]["params"]["properties"]
     assert params["luma"]["enum"] == ["rec709", "rec601"]
     assert params["first_axis"]["enum"] == ["horizontal", "vertical"]
+
+
+def encode(x, space, gamma=2.2):
+    x = np.maximum(x, 0.0)
+    if space == "gamma":
+        return x ** (1.0 / gamma)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1.0 / 2.4) - 0.055)
+
+
+def encoded_scene(space, w=48, h=36, seed=13):
+    rng = np.random.default_rng(seed)
+    img = rng.uniform(0.0, 1.5, size=(h, w, 3))
+    for _ in range(6):  # every luminance clear of the threshold in both spaces
+        near = ((np.abs(encode(img, space) @ REC709 - 1) < 2e-3) | (np.abs(img @ REC709 - 1) < 2e-3))
+        img[near] *= 1.02
+    return img.astype(np.float32)
+
+
+@pytest.mark.parametrize("space", ["srgb", "gamma"])
+def test_the_bright_stage_thresholds_encoded_luminance(space):
+    img = encoded_scene(space)
+    x = img.astype(np.float64)
+    mask = encode(x, space) @ REC709 > 1.0
+    assert int(np.sum(mask != (x @ REC709 > 1.0))) > 40  # the spaces are told apart
+    got = dump(img, "--plan", "full", "--luma-space", space)["bright"]
+    assert np.array_equal(got, np.where(mask[..., None], x, 0.0))
+
+
+@pytest.mark.parametrize("space", ["srgb", "gamma"])
+@pytest.mark.parametrize("method", ["gaussian", "mip"])
+def test_an_encoded_space_keeps_the_full_plans_bits(space, method):
+    img = np.zeros((120, 160, 3), dtype=np.float32)
+    img[30:34, 40:44] = (3.0, 3.0, 3.0)  # bright in every space
+    img[80:83, 100:104] = (0.0, 1.5, 0.0)  # bright only linear (0.86 of the threshold encoded)
+    full = dump(img, "--method", method, "--plan", "full", "--luma-space", space)
+    adaptive = dump(img, "--method", method, "--plan", "adaptive", "--luma-space", space)
+    assert np.array_equal(full["output"], adaptive["output"])
+    linear = dump(img, "--method", method, "--plan", "adaptive")
+    assert not np.array_equal(full["output"], linear["output"])
+
+
+@pytest.mark.parametrize("method,stage", [("gaussian", "bright"), ("mip", "down.1")])
+@pytest.mark.parametrize("dumped,declared", [("gamma", "linear"), ("srgb", "linear"),
+                                             ("linear", "gamma")])
+def test_a_capture_in_another_space_is_named(tmp_path, method, stage, dumped, declared):
+    size = ["--scene", "demo", "--size", "160x96", "--method", method]
+    assert run(["run", *size, "--plan", "full", "--luma-space", dumped, "--dump-stages", "d",
+                "-q"], tmp_path)[0] == 0
+    code, out, err = run(["check", *size, "--stages", "d", "--luma-space", declared, "--json",
+                          "r.json", "-q"], tmp_path)
+    assert code == 1, out + err
+    item = json.loads((tmp_path / "r.json").read_text())["items"][0]
+    assert item["first_divergent_stage"] == stage
+    first = item["first_divergent_cause"]
+    assert first["id"] == "threshold-color-space" and first["likely"], first
+    # The space dumped is named first, or as likely as the one named (sRGB's curve and gamma
+    # 2.2 may pick the same texels).
+    causes = [s for s in item["stages"] if s["stage"] == stage][0]["causes"]
+    truth = [c for c in causes if c["detail"] == f"--luma-space {dumped} declares it"]
+    assert truth and (truth[0]["detail"] == first["detail"] or truth[0]["as_likely"]), causes
+    code, out, err = run(["check", *size, "--stages", "d", "--luma-space", dumped, "-q"], tmp_path)
+    assert code == 0, out + err
+
+
+@pytest.mark.parametrize("backend", ["gl", "vulkan"])
+@pytest.mark.parametrize("space", ["srgb", "gamma"])
+@pytest.mark.parametrize("method", ["gaussian", "mip"])
+def test_gl_and_vulkan_run_an_encoded_space(tmp_path, backend, space, method):
+    args = ["compare", "--scene", "demo", "--size", "160x96"]
+    corpus = os.environ.get("BLOOMREF_CORPUS", "")
+    if corpus and method == "gaussian" and space == "gamma":  # a real image's edges too
+        args = ["compare", os.path.join(corpus, "GoldenGate.exr")]
+    code, out, err = run([*args, "--method", method, "--luma-space", space, "--backend", backend],
+                         tmp_path)
+    if code == 3:
+        require = "BLOOMREF_REQUIRE_GL" if backend == "gl" else "BLOOMREF_REQUIRE_VULKAN"
+        if os.environ.get(require) == "1":
+            pytest.fail(f"no {backend} device although {require}=1: {err}")
+        pytest.skip(f"no {backend} device: {err.strip()}")
+    assert code == 0, out + err
+    assert "verdict PASS" in out

@@ -28,12 +28,15 @@ class VulkanExecutor {
     std::vector<std::string> defs = {std::string("STORAGE_FORMAT ") + (f16_ ? "rgba16f" : "rgba32f")};
     if (p_.kernel == KernelName::linear5) defs.push_back("KERNEL_LINEAR5 1");
     if (p_.luma == Luma::rec601) defs.push_back("LUMA_REC601 1");
+    if (p_.luma_space == LumaSpace::srgb) defs.push_back("LUMA_SRGB 1");
+    if (p_.luma_space == LumaSpace::gamma) defs.push_back("LUMA_GAMMA 1");
     extract_ = std::make_unique<StageProgram>(ctx_, "extract_bright.glsl", defs, edit);
     blur_ = std::make_unique<StageProgram>(ctx_, "blur_pass.glsl", defs, edit);
     composite_ = std::make_unique<StageProgram>(ctx_, "composite.glsl", defs, edit);
     tonemap_ = std::make_unique<StageProgram>(ctx_, "tonemap.glsl", defs, edit);
     encode_ = std::make_unique<StageProgram>(ctx_, "encode_output.glsl", defs, edit);
     extract_->set("threshold", p_.threshold);
+    extract_->set("luma_gamma", p_.gamma);
     extract_->set_int("policy", nonfinite_code(p_.nonfinite));
     extract_->set("storage_max", float(storage_max(f16_ ? Storage::f16 : Storage::f32)));
     for (StageProgram* s : {extract_.get(), blur_.get(), composite_.get(), tonemap_.get(),
@@ -48,6 +51,7 @@ class VulkanExecutor {
       for (StageProgram* s : {down_.get(), up_.get()}) s->set("range_guard", float(kRangeGuard));
       down_->set_int("karis", p_.karis ? 1 : 0);
       down_->set("threshold", p_.threshold);
+      down_->set("luma_gamma", p_.gamma);
     }
   }
 

@@ -15,6 +15,7 @@
 #include "bloomref/half.h"
 #include "bloomref/image.h"
 #include "bloomref/params.h"
+#include "bloomref/stages.h"
 
 namespace bloomref {
 
@@ -101,7 +102,8 @@ struct DownsampleOptions {
   /// The size whose reciprocal is the texel step (TexelStep::halved_float: the host's float
   /// size); 0: the source texture's.
   float step_width = 0.0f, step_height = 0.0f;
-  Luma luma = Luma::rec709;  ///< the weights of the tap threshold's and per-tap Karis luminance
+  /// The tap threshold's luminance (its weights also the per-tap Karis weight's, on linear colour).
+  LumaRule luma;
 };
 
 /// The options of stage down.k of a w x h scene under `p` (its variant), sampling with
@@ -176,7 +178,7 @@ void upscale_bilinear(BasicView<const T> small, BasicView<T> dst, int subtexel_b
 /// magnitudes: 1e-4 is a margin of ~1000x. Then every tap is zeroed by the threshold.
 template <class T>
 bool mip_nothing_bright(BasicView<const T> scene, double threshold, int threads,
-                        Luma luma = Luma::rec709);
+                        const LumaRule& luma = {});
 
 /// The adaptive plan's support of a chain stage: the texels of a tw x th target whose lookups
 /// (offsets -reach..reach source texels: 2 for down.k, 1 for up.k and the bloom) read a texel

@@ -41,6 +41,10 @@ enum class FirstAxis { horizontal, vertical };
 /// 0.114), as many shipped blooms take it (ITU-R BT.601). The group forms of the Karis average
 /// keep their own (KarisForm).
 enum class Luma { rec709, rec601 };
+/// The colour the threshold's luminance is taken of: linear (the seeds'), or max(c, 0) encoded
+/// by IEC 61966-2-1's sRGB curve, or by pow(., 1 / gamma) with the run's gamma, as blooms
+/// whose threshold is set in an encoded space do (Unity-Technologies/PostProcessing#629).
+enum class LumaSpace { linear, srgb, gamma };
 
 // The mip chain's variants (docs/design.md, "Mip-chain variants"). The defaults are seed 002's
 // chain; preset learnopengl-pbb sets the article's (src/8.guest/2022/6.physically_based_bloom).
@@ -124,6 +128,9 @@ struct BloomParams {
   CompositeMode composite_mode = CompositeMode::add;
   FirstAxis first_axis = FirstAxis::horizontal;
   Luma luma = Luma::rec709;
+  LumaSpace luma_space = LumaSpace::linear;
+  /// The seeds' luminance: Rec. 709's weights on linear colour (what the vector fast paths test).
+  bool seed_luma() const { return luma == Luma::rec709 && luma_space == LumaSpace::linear; }
   Prefilter prefilter = Prefilter::per_lookup;
   KarisForm karis_form = KarisForm::per_tap;
   TexelStep texel_step = TexelStep::texture;
@@ -183,6 +190,7 @@ std::string to_string(CompositeOrder c);
 std::string to_string(CompositeMode c);
 std::string to_string(FirstAxis a);
 std::string to_string(Luma l);
+std::string to_string(LumaSpace s);
 std::string to_string(Prefilter p);
 std::string to_string(KarisForm k);
 std::string to_string(TexelStep t);
@@ -205,6 +213,7 @@ CompositeOrder parse_composite_order(const std::string& s);
 CompositeMode parse_composite_mode(const std::string& s);
 FirstAxis parse_first_axis(const std::string& s);
 Luma parse_luma(const std::string& s);
+LumaSpace parse_luma_space(const std::string& s);
 Prefilter parse_prefilter(const std::string& s);
 KarisForm parse_karis_form(const std::string& s);
 TexelStep parse_texel_step(const std::string& s);

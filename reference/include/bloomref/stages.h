@@ -74,6 +74,42 @@ inline T luminance(T r, T g, T b, const LumaWeights<S>& w) {
   return r * w.r + g * w.g + b * w.b;
 }
 
+/// How the threshold's luminance is formed: its weights and the space of the colour it is
+/// taken of (BloomParams::luma, luma_space; gamma for LumaSpace::gamma).
+struct LumaRule {
+  Luma weights = Luma::rec709;
+  LumaSpace space = LumaSpace::linear;
+  float gamma = 2.2f;
+  bool seed() const { return weights == Luma::rec709 && space == LumaSpace::linear; }
+};
+inline LumaRule luma_rule(const BloomParams& p) { return {p.luma, p.luma_space, p.gamma}; }
+
+float oracle_pow(float x, float y);  // below
+
+/// One channel encoded as `rule.space` says, as common.glsl's luma_encode: max(x, 0) (maxNum,
+/// as the devices' max), then pow(x, 1 / gamma), or IEC 61966-2-1's curve (12.92 x up to
+/// 0.0031308, else 1.055 x^(1 / 2.4) - 0.055). f32: the shader's float operations with the
+/// oracle's pow; f64: exact.
+template <class T>
+inline T luma_encode(T x, const LumaRule& rule) {
+  x = std::fmax(x, T(0));
+  const T inv = rule.space == LumaSpace::gamma ? T(1) / T(rule.gamma) : T(1) / T(2.4);
+  T p;
+  if constexpr (std::is_same_v<T, float>) p = oracle_pow(x, inv);
+  else p = std::pow(x, inv);
+  if (rule.space == LumaSpace::gamma) return p;
+  return x <= T(0.0031308) ? T(12.92) * x : T(1.055) * p - T(0.055);
+}
+
+/// The luminance the threshold compares: of (r, g, b) encoded as rule.space says, weighted as
+/// rule.weights says; linear with Rec. 709's weights, luminance(r, g, b)'s bits.
+template <class T>
+inline T threshold_luminance(T r, T g, T b, const LumaRule& rule) {
+  const LumaWeights<T> w = luma_weights<T>(rule.weights);
+  if (rule.space == LumaSpace::linear) return luminance(r, g, b, w);
+  return luminance(luma_encode(r, rule), luma_encode(g, rule), luma_encode(b, rule), w);
+}
+
 /// The largest value a stage stores: 65504 for f16, kRangeGuard (2^120) for f32; what
 /// `clamp` maps +Inf to.
 double storage_max(Storage s);
@@ -125,13 +161,13 @@ NonFiniteCounts sanitize(BasicView<const T> src, BasicView<T> dst, NonFinite pol
 template <class T>
 void extract_bright(BasicView<const T> src, BasicView<T> dst, T threshold, int threads,
                     bool dst_zeroed = false, std::uint8_t* nonzero = nullptr,
-                    const std::uint8_t* bright_rows = nullptr, Luma luma = Luma::rec709);
+                    const std::uint8_t* bright_rows = nullptr, const LumaRule& luma = {});
 
 namespace detail {
 /// Stage bright's RGB of n RGBA texels of one row, packed as RGB (extract_bright's test and
 /// values: its bits): what blur_bright_fused's first pass stores.
 void bright_rgb_row(const float* rgba, float* rgb, int n, float threshold,
-                    Luma luma = Luma::rec709);
+                    const LumaRule& luma = {});
 }  // namespace detail
 
 enum class Axis { horizontal, vertical };

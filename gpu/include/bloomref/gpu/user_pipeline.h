@@ -165,7 +165,7 @@ struct UserPipelineOptions {
   /// The oracle's bright pass (luminance > threshold), and the user's bright shader's
   /// `threshold` uniform when it has one.
   float threshold = 1.0f;
-  Luma luma = Luma::rec709;  ///< the oracle's bright pass's luminance
+  LumaRule luma;  ///< the oracle's bright pass's luminance
   /// The scene's non-finite policy, applied on the CPU before upload (the oracle's `input`).
   NonFinite nonfinite = NonFinite::zero;
   /// How the scene and the oracle's bright image are rounded to binary16 for a half target
@@ -257,7 +257,7 @@ struct MipChainOptions {
   float exposure = 1.0f;
   int program_choice = 3;       ///< 6.bloom_final.fs: 3 = the mip-chain bloom
   float threshold = 1.0f;       ///< the bright image: luminance > threshold
-  Luma luma = Luma::rec709;     ///< that luminance's weights
+  LumaRule luma;                ///< that luminance
   NonFinite nonfinite = NonFinite::zero;
   HalfRounding half_rounding = HalfRounding::nearest_even_saturate;
   RowOrder rows = RowOrder::same;

@@ -49,7 +49,7 @@ void blur_pass_variant(ConstImageView src, ImageView dst, Axis axis,
 /// arithmetic.
 void downsample_variant(ConstImageView src, ImageView dst, bool first, float threshold,
                         bool karis, bool tie_kept, const Sampling& smp, int threads,
-                        Luma luma = Luma::rec709);
+                        const LumaRule& luma = {});
 
 /// Stage up.k / bloom with `smp`: upsample_tent<float>'s arithmetic.
 void upsample_variant(ConstImageView small, ConstImageView current, ImageView dst,
@@ -57,7 +57,7 @@ void upsample_variant(ConstImageView small, ConstImageView current, ImageView ds
 
 /// Stage bright with `>=` in place of `>` (ge), and/or its values clamped to [0, 1].
 void extract_bright_variant(ConstImageView src, ImageView dst, float threshold, bool ge,
-                            bool clamp01, int threads, Luma luma = Luma::rec709);
+                            bool clamp01, int threads, const LumaRule& luma = {});
 
 /// Capture transforms (each its own inverse): rows in reverse order; R and B exchanged.
 void flip_vertically(Image& img);
