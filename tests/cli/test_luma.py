@@ -45,6 +45,16 @@ def scene(w=48, h=36, seed=11):
     return img.astype(np.float32)
 
 
+def device_or_skip(code, err, backend):
+    """Exit 3 (no device) skips, or fails under BLOOMREF_REQUIRE_GL / _VULKAN=1."""
+    if code != 3:
+        return
+    require = "BLOOMREF_REQUIRE_GL" if backend == "gl" else "BLOOMREF_REQUIRE_VULKAN"
+    if os.environ.get(require) == "1":
+        pytest.fail(f"no {backend} device although {require}=1: {err}")
+    pytest.skip(f"no {backend} device: {err.strip()}")
+
+
 def dump(rgb, *extra):
     with tempfile.TemporaryDirectory(prefix="luma_") as tmp:
         src = os.path.join(tmp, "in.exr")
@@ -112,11 +122,7 @@ def test_a_capture_with_the_other_weights_is_named(tmp_path, method, stage, dump
 def test_gl_and_vulkan_run_rec601(tmp_path, backend, method):
     code, out, err = run(["compare", "--scene", "demo", "--size", "160x96", "--method", method,
                           "--luma", "rec601", "--backend", backend], tmp_path)
-    if code == 3:
-        require = "BLOOMREF_REQUIRE_GL" if backend == "gl" else "BLOOMREF_REQUIRE_VULKAN"
-        if os.environ.get(require) == "1":
-            pytest.fail(f"no {backend} device although {require}=1: {err}")
-        pytest.skip(f"no {backend} device: {err.strip()}")
+    device_or_skip(code, err, backend)
     assert code == 0, out + err
     assert "verdict PASS" in out
 
@@ -209,10 +215,30 @@ def test_gl_and_vulkan_run_an_encoded_space(tmp_path, backend, space, method):
         args = ["compare", os.path.join(corpus, "GoldenGate.exr")]
     code, out, err = run([*args, "--method", method, "--luma-space", space, "--backend", backend],
                          tmp_path)
-    if code == 3:
-        require = "BLOOMREF_REQUIRE_GL" if backend == "gl" else "BLOOMREF_REQUIRE_VULKAN"
-        if os.environ.get(require) == "1":
-            pytest.fail(f"no {backend} device although {require}=1: {err}")
-        pytest.skip(f"no {backend} device: {err.strip()}")
+    device_or_skip(code, err, backend)
     assert code == 0, out + err
     assert "verdict PASS" in out
+
+
+@pytest.mark.parametrize("option,dumped,declared,cause", [
+    ("--luma", "rec601", "rec709", "luma-weights"),
+    ("--luma-space", "gamma", "linear", "threshold-color-space")])
+def test_only_the_last_pass_and_output_captured(tmp_path, option, dumped, declared, cause):
+    """With blur.10 and output alone, the other luminance still fails where it is first seen,
+    the cause named; declared as dumped, the same two captures pass."""
+    size = ["--scene", "demo", "--size", "160x96"]
+    assert run(["run", *size, "--plan", "full", option, dumped, "--dump-stages", "d", "-q"],
+               tmp_path)[0] == 0
+    (tmp_path / "some").mkdir()
+    for stage in ("blur.10", "output"):
+        (tmp_path / "d" / f"{stage}.exr").rename(tmp_path / "some" / f"{stage}.exr")
+    code, out, err = run(["check", *size, "--stages", "some", option, declared, "--json",
+                          "r.json", "-q"], tmp_path)
+    assert code == 1, out + err
+    item = json.loads((tmp_path / "r.json").read_text())["items"][0]
+    assert item["first_divergent_stage"] == "blur.10"
+    assert item["first_divergent_cause"]["id"] == cause and item["first_divergent_cause"]["likely"]
+    code, out, err = run(["check", *size, "--stages", "some", option, dumped, "--json", "c.json",
+                          "-q"], tmp_path)
+    assert code == 0, out + err
+    assert json.loads((tmp_path / "c.json").read_text())["verdict"] == "PASS"
