@@ -145,7 +145,7 @@ void PipelineOptions::add_to(CLI::App& app) {
                  "mip, --level-weights bevy: high_pass_frequency, in (0, 1]")
       ->capture_default_str();
   app.add_option("--chain-storage", chain_storage,
-                 "mip: how the levels are stored: f32 | f16 | r11g11b10 (default: --storage)");
+                 "mip: how the levels are stored: f32 | f16 | r11g11b10 | rgba8 (default: --storage)");
   app.add_option("--scene", scene, "built-in scene used when no IN is given")
       ->capture_default_str();
   app.add_option("--size", size, "WxH of the built-in scene (default: the scene's own)");

@@ -218,6 +218,7 @@ MipChainOptions mip_chain_options_for(const BloomParams& p) {
   o.format = p.storage == Storage::f32 ? TargetFormat::rgba32f : TargetFormat::rgba16f;
   const Storage levels = p.level_storage();
   o.level_format = levels == Storage::r11g11b10 ? TargetFormat::r11f_g11f_b10f
+                   : levels == Storage::rgba8   ? TargetFormat::rgba8
                    : levels == Storage::f16     ? TargetFormat::rgba16f
                                                 : TargetFormat::rgba32f;
   o.levels = p.levels;

@@ -18,6 +18,7 @@ TargetFormat format_of(Storage s) {
     case Storage::f32: return TargetFormat::rgba32f;
     case Storage::f16: return TargetFormat::rgba16f;
     case Storage::r11g11b10: return TargetFormat::r11f_g11f_b10f;
+    case Storage::rgba8: return TargetFormat::rgba8;
   }
   return TargetFormat::rgba32f;
 }

@@ -38,6 +38,8 @@ GLenum gl_format(TargetFormat f) {
       return GL_RGBA32F;
     case TargetFormat::r11f_g11f_b10f:
       return GL_R11F_G11F_B10F;
+    case TargetFormat::rgba8:
+      return GL_RGBA8;
   }
   return GL_RGBA32F;
 }
@@ -77,7 +79,10 @@ UserProgram own_program(const char* name, const char* file, const std::vector<Ho
 }
 
 GLenum storage_format(Storage s) {
-  return s == Storage::r11g11b10 ? GL_R11F_G11F_B10F : s == Storage::f16 ? GL_RGBA16F : GL_RGBA32F;
+  return s == Storage::r11g11b10 ? GL_R11F_G11F_B10F
+         : s == Storage::rgba8   ? GL_RGBA8
+         : s == Storage::f16     ? GL_RGBA16F
+                                 : GL_RGBA32F;
 }
 
 void require_fits(ConstImageView scene) {

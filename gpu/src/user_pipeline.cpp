@@ -37,7 +37,8 @@ constexpr Named<TargetFormat> kFormats[] = {{TargetFormat::rgba16f, "rgba16f", "
                                             {TargetFormat::rgb16f, "rgb16f", "GL_RGB16F"},
                                             {TargetFormat::rgba32f, "rgba32f", "GL_RGBA32F"},
                                             {TargetFormat::r11f_g11f_b10f, "r11f_g11f_b10f",
-                                             "GL_R11F_G11F_B10F"}};
+                                             "GL_R11F_G11F_B10F"},
+                                            {TargetFormat::rgba8, "rgba8", "GL_RGBA8"}};
 constexpr Named<TextureFilter> kFilters[] = {{TextureFilter::linear, "linear", "GL_LINEAR"},
                                              {TextureFilter::nearest, "nearest", "GL_NEAREST"}};
 constexpr Named<TextureWrap> kWraps[] = {
@@ -259,7 +260,9 @@ FinalTarget parse_final_target(const std::string& s) {
 }
 
 Storage storage_of(TargetFormat f) {
-  return f == TargetFormat::rgba32f ? Storage::f32 : Storage::f16;
+  return f == TargetFormat::rgba32f ? Storage::f32
+         : f == TargetFormat::rgba8 ? Storage::rgba8
+                                    : Storage::f16;
 }
 
 ShaderSource load_shader(const std::string& path) {

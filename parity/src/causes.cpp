@@ -272,7 +272,7 @@ class Evaluator {
   // (GL 4.6, 2.3.5.2: clamped to [0, 1], the nearest of the 255ths; NaN as 0), a packed float's
   // (packed), or the value itself.
   float written(float v, int c) const {
-    if (h_.rgba8) return std::isnan(v) ? 0.0f : std::round(std::min(std::max(v, 0.0f), 1.0f) * 255.0f) / 255.0f;
+    if (h_.rgba8) return round_to_unorm8(v);
     if (h_.r11g11b10) return packed(v, c == 2 ? 5 : 6, h_.packed_toward_zero);
     return v;
   }

@@ -66,12 +66,12 @@ struct Tap {
 // tap). The coordinate error `delta` is in texels (both axes together).
 Values taps_terms(const Window2D& win, const Window2D* ewin, const std::vector<Tap>& taps,
                   int x, int y, int tw, int th, int sw, int sh, int c, double delta, double U,
-                  int ops) {
+                  int ops, double read8) {
   double coord = 0, arith = 0, input = 0;
   for (const Tap& t : taps) {
     const int bx = base_texel(x, tw, sw, t.ox), by = base_texel(y, th, sh, t.oy);
     const double w = std::fabs(t.weight);
-    coord += w * delta * win.range.pixel(bx, by)[c];
+    coord += w * (delta * win.range.pixel(bx, by)[c] + read8);
     arith += w * ops * U * win.magnitude.pixel(bx, by)[c];
     if (ewin) input += w * ewin->magnitude.pixel(bx, by)[c];
   }
@@ -102,6 +102,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
                        coordinate_error(src.height, *ctx.profile);
   const int tw = oracle.width, th = oracle.height;
   const bool use_karis = karis;
+  const double read8 = ctx.unorm8_reads ? unorm8_read_term : 0.0;
   // The value before the soft threshold (Prefilter::soft_knee): the stage without it.
   std::shared_ptr<Image> before;
   if (opt.soft_knee) {
@@ -124,7 +125,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
           const int by = base_texel(y, th, src.height, taps[i].oy);
           const double r = win->range.pixel(bx, by)[c], m = win->magnitude.pixel(bx, by)[c];
           const double e = ewin ? ewin->magnitude.pixel(bx, by)[c] : 0.0;
-          coord += taps[i].weight * (delta * r + e);
+          coord += taps[i].weight * (delta * r + e + read8);
           arith += taps[i].weight * (3 + 2 * 13 + (use_karis ? 10 : 0)) * U * m;
           // This tap's value and its error on every channel (for luminance and Karis).
           float q[3];
@@ -261,6 +262,10 @@ std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImage
   const double dv = coordinate_error(tw, *ctx.profile) + coordinate_error(th, *ctx.profile) +
                     2 * (tw + th) * U;
   const Window2D win = window4x4(src, ctx.threads);
+  // The horizontal pass reads the level above; the vertical one the horizontal pass, stored as
+  // the levels are.
+  const double read8 = ctx.unorm8_reads ? unorm8_read_term : 0.0;
+  const double read8h = opt.intermediate == Storage::rgba8 ? unorm8_read_term : 0.0;
   std::unique_ptr<Window2D> ewin;
   if (error) ewin = std::make_unique<Window2D>(window4x4(error->cview(), ctx.threads));
   Image h(tw, th);
@@ -272,7 +277,7 @@ std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImage
       for (int x = 0; x < tw; ++x)
         for (int c = 0; c < 3; ++c) {
           const Values v = taps_terms(win, ewin.get(), htaps, x, y, tw, th, sw, sh, c, dh, U,
-                                      3 + 2 * 9);
+                                      3 + 2 * 9, read8);
           eh.pixel(x, y)[c] = static_cast<float>(
               (v[0] + v[1] + v[2]) * (1 + 4 * U) +
               storage_term(h.pixel(x, y)[c], opt.intermediate, *ctx.profile, c) +
@@ -286,7 +291,7 @@ std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImage
        "the horizontal pass's error, stored (through the vertical taps)", "storage and denormals"},
       [=](int x, int y, int c) {
         const Values v = taps_terms(*hwin, ehwin.get(), vtaps, x, y, tw, th, tw, th, c, dv, U,
-                                    3 + 2 * 5);
+                                    3 + 2 * 5, read8h);
         return Values{v[0], v[1], v[2],
                       storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile, c) +
                           denormal_floor(*ctx.profile),
@@ -312,6 +317,7 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
   const double delta = coordinate_error(small.width, *ctx.profile) +
                        coordinate_error(small.height, *ctx.profile);
   const int tw = oracle.width, th = oracle.height;
+  const double read8 = ctx.unorm8_reads ? unorm8_read_term : 0.0;
   // Unity's upsample reads the current level with a lookup at its own texel centres (not through
   // the blend unit): a coordinate off by its error mixes in a fraction of the neighbours.
   std::shared_ptr<Window2D> cwin;
@@ -329,14 +335,16 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
         for (const MipTap& t : filter == UpsampleFilter::bilinear ? kCentre : tent_taps()) {
           const int bx = base_texel(x, tw, small.width, t.ox);
           const int by = base_texel(y, th, small.height, t.oy);
-          coord += t.weight * (delta * win->range.pixel(bx, by)[c] +
+          coord += t.weight * (delta * win->range.pixel(bx, by)[c] + read8 +
                                (ewin ? ewin->magnitude.pixel(bx, by)[c] : 0.0));
           arith += t.weight * (3 + 2 * 9) * U * win->magnitude.pixel(bx, by)[c];
           tent_mag += t.weight * win->magnitude.pixel(bx, by)[c];
         }
         const double cur = current.empty() ? 0.0 : std::fabs(current.pixel(x, y)[c]);
         coord *= tent_w;
-        if (cwin) coord += keep * cdelta * cwin->range.pixel(x, y)[c];
+        if (cwin) coord += keep * (cdelta * cwin->range.pixel(x, y)[c] + read8);
+        // Blended into an 8-bit level (not Unity's lerp, which is a lookup).
+        if (ctx.unorm8_reads && !current.empty() && !lerp) coord += unorm8_blend_term;
         arith = arith * tent_w + 9 * U * cur;
         if (!plain) arith += 4 * U * (std::fabs(oracle.pixel(x, y)[c]) + keep * cur);
         // lerp: t - d, times C, plus d; or a GPU's other forms of it (d (1 - C) + t C, a fused

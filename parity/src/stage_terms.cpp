@@ -179,6 +179,10 @@ StageTerms with_oracle(const StageSpec& spec, const std::vector<ConstImageView>&
                        const TermInputs& at) {
   StageTerms t;
   t.oracle = oracle_stage(at.plan, spec, at.sanitized, cin, at.profile.subtexel_bits, at.pool);
+  // An 8-bit level clamps every value above 1 (most of an HDR level): compared as stored, so
+  // that what the clamp removes is not reported as an error within its bound (tolerance.cpp).
+  if (stage_storage(at.plan.params, spec) == Storage::rgba8)
+    store(t.oracle.view(), Storage::rgba8, HalfRounding::nearest_even, at.ctx.threads);
   return t;
 }
 
@@ -294,16 +298,19 @@ StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in,
   const std::vector<ConstImageView> cin = isolated_inputs(in, at);
   StageTerms t = with_oracle(spec, cin, at);
   const ConstImageView o = t.oracle.cview(), none{};
+  // Every stage here reads levels but the first downsample (the scene).
+  BoundContext ctx = at.ctx;
+  ctx.unorm8_reads = p.level_storage() == Storage::rgba8 && !(down && spec.pass == 1);
   auto bounds = [&](ConstImageView a, ConstImageView b, ConstImageView out, const Image* ea,
                     const Image* eb) -> std::unique_ptr<StageBounds> {
     if (down)
       return down_bounds(a, out, ea,
                          downsample_options(p, spec.pass, at.sanitized.width, at.sanitized.height,
                                             at.profile.subtexel_bits),
-                         at.ctx);
+                         ctx);
     return up_bounds(a, up ? b : none, out, ea, up ? eb : nullptr,
                      up ? level_blend(p, spec.pass, int(at.plan.levels.size())) : LevelBlend{},
-                     at.ctx, up ? p.upsample : UpsampleFilter::tent);
+                     ctx, up ? p.upsample : UpsampleFilter::tent);
   };
   t.bound = bounds(cin[0], up ? cin[1] : none, o, nullptr, nullptr);
   const Image* es = at.carried(in[0]);

@@ -47,6 +47,14 @@ double storage_term(double v, Storage s, const DeviceProfile& p, int channel) {
     std::frexp(v, &e);
     return std::ldexp(1.0, std::max(e - 1, -14) - (channel == 2 ? 5 : 6));
   }
+  if (s == Storage::rgba8) {
+    // GL 4.6, 2.3.5.2 lets a write take either of the two 255ths nearest to the value: from
+    // the oracle's nearest, one and a half 255ths where the device's value is its own by up to
+    // the bound (floor or ceil of it against the nearest of the oracle's). The oracle's value
+    // is compared stored (stage_terms.cpp, with_oracle); beyond [0, 1], the distance to it.
+    const double out = v < 0 ? -v : v > 1 ? v - 1 : 0.0;
+    return 1.5 / 255.0 + out;
+  }
   // Toward zero loses up to one ULP; nearest-even half of one.
   return (p.half_toward_zero ? 1.0 : 0.5) * ulp16(v);
 }

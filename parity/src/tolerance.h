@@ -25,7 +25,8 @@ constexpr double kU = 5.9604644775390625e-08;  // 2^-24, the f32 unit roundoff
 /// for toward-zero, half for nearest-even; f32: nothing).
 /// What storing `v` may change it by: up to one ULP of the format (half of one when the profile
 /// rounds to the nearest only). R11F_G11F_B10F: one quantum of channel `channel`'s mantissa (6
-/// bits for R and G, 5 for B; the coarser where the channel is not known).
+/// bits for R and G, 5 for B; the coarser where the channel is not known). RGBA8: 1.5 255ths
+/// (either of the two nearest against the oracle's nearest) plus any distance outside [0, 1].
 double storage_term(double v, Storage s, const DeviceProfile& p, int channel = 2);
 
 /// Denormal flush floor: results below 2^-126 may become 0 in shader arithmetic.
@@ -142,7 +143,19 @@ struct BoundContext {
   int threads;
   bool direct_exp = false;          // CompareOptions::direct_exp_tonemap
   bool interpolated_reads = false;  // CompareOptions::interpolated_reads
+  /// The stage's lookups read 8-bit normalised levels (--chain-storage rgba8): each filtered
+  /// lookup may be off by unorm8_read_term (a filter in 8-bit fixed point), and a stage
+  /// blended into such a level by unorm8_blend_term (the blend unit's 8-bit arithmetic).
+  bool unorm8_reads = false;
 };
+
+/// What one GL_LINEAR lookup of an 8-bit normalised texture may be off by, per unit of its
+/// weight: its result rounded to a 255th and its weights to 8 bits (llvmpipe filters RGBA8 in
+/// 8-bit fixed point), two 255ths. docs/design.md, "8-bit levels".
+constexpr double unorm8_read_term = 2.0 / 255.0;
+/// What blending into an 8-bit normalised level may add: the source and the constant factors
+/// converted to 8 bits before the blend equation, three 255ths.
+constexpr double unorm8_blend_term = 3.0 / 255.0;
 
 std::unique_ptr<StageBounds> input_bounds(ConstImageView oracle, BoundContext ctx);
 std::unique_ptr<StageBounds> bright_bounds(ConstImageView sanitized, float threshold,

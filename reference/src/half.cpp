@@ -62,4 +62,18 @@ double round_to_packed(double v, int mantissa_bits, bool toward_zero) {
   return std::min(n * q, top);
 }
 
+namespace {
+
+template <class T>
+T unorm8(T x) {
+  if (!(x > T(0))) return T(0);  // also NaN
+  if (x >= T(1)) return T(1);
+  return std::round(x * T(255)) / T(255);
+}
+
+}  // namespace
+
+float round_to_unorm8(float x) { return unorm8(x); }
+double round_to_unorm8(double x) { return unorm8(x); }
+
 }  // namespace bloomref

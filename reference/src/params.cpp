@@ -74,7 +74,8 @@ constexpr std::pair<const char*, UpsampleFilter> kUpsamples[] = {
 constexpr std::pair<const char*, LevelCount> kLevelCounts[] = {{"fixed", LevelCount::fixed},
                                                                 {"unity", LevelCount::unity}};
 constexpr std::pair<const char*, Storage> kChainStorages[] = {
-    {"f32", Storage::f32}, {"f16", Storage::f16}, {"r11g11b10", Storage::r11g11b10}};
+    {"f32", Storage::f32}, {"f16", Storage::f16}, {"r11g11b10", Storage::r11g11b10},
+    {"rgba8", Storage::rgba8}};
 constexpr std::pair<const char*, PlanMode> kPlans[] = {{"adaptive", PlanMode::adaptive},
                                                        {"full", PlanMode::full}};
 constexpr std::pair<const char*, BlurImpl> kBlurs[] = {{"fast", BlurImpl::fast},
@@ -98,8 +99,9 @@ void validate(const BloomParams& p) {
   require(p.levels >= 1 && p.levels <= 16,
           "--levels must be in [1, 16], got " + std::to_string(p.levels));
   require(!p.karis || p.method == Method::mip, "--karis applies to --method mip only");
-  require(p.storage != Storage::r11g11b10,
-          "--storage r11g11b10 is for the mip chain's levels only (--chain-storage)");
+  require(p.storage != Storage::r11g11b10 && p.storage != Storage::rgba8,
+          "--storage " + to_string(p.storage) +
+              " is for the mip chain's levels only (--chain-storage)");
   require(p.method == Method::mip || !p.mip_variant(),
           "--prefilter, --karis-form, --texel-step, --upsample-radius, --bloom-upscale, "
           "--chain-storage, --first-level-height, --level-combine, --level-weights, "

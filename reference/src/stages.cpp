@@ -70,7 +70,10 @@ int nonfinite_code(NonFinite n) {
 }
 
 double storage_max(Storage s) {
-  return s == Storage::f16 ? kHalfMax : s == Storage::r11g11b10 ? 65024.0 : kRangeGuard;
+  return s == Storage::f16         ? kHalfMax
+         : s == Storage::r11g11b10 ? 65024.0
+         : s == Storage::rgba8     ? 1.0
+                                   : kRangeGuard;
 }
 
 // One sweep: each row counted, then rewritten while it is in cache. A row with nothing to count
@@ -312,6 +315,15 @@ void store(BasicView<T> img, Storage storage, HalfRounding rounding, int threads
             p[c] = static_cast<T>(round_to_packed(double(p[c]), c == 2 ? 5 : 6, toward_zero));
           p[3] = T(1);  // no alpha: read back as 1
         }
+      }
+    });
+    return;
+  }
+  if (storage == Storage::rgba8) {
+    parallel_rows(img.height, threads, [&](int y0, int y1) {
+      for (int y = y0; y < y1; ++y) {
+        T* p = img.row(y);
+        for (int i = 0; i < img.width * kChannels; ++i) p[i] = round_to_unorm8(p[i]);
       }
     });
     return;

@@ -36,6 +36,7 @@ VkFormat vk_format(TargetFormat f) {
     case TargetFormat::rgba16f:
     case TargetFormat::rgb16f: return VK_FORMAT_R16G16B16A16_SFLOAT;
     case TargetFormat::r11f_g11f_b10f: return VK_FORMAT_B10G11R11_UFLOAT_PACK32;
+    case TargetFormat::rgba8: return VK_FORMAT_R8G8B8A8_UNORM;
   }
   return VK_FORMAT_R32G32B32A32_SFLOAT;
 }
@@ -44,6 +45,7 @@ const char* qualifier(VkFormat f) {
   switch (f) {
     case VK_FORMAT_R16G16B16A16_SFLOAT: return "rgba16f";
     case VK_FORMAT_B10G11R11_UFLOAT_PACK32: return "r11f_g11f_b10f";
+    case VK_FORMAT_R8G8B8A8_UNORM: return "rgba8";
     default: return "rgba32f";
   }
 }

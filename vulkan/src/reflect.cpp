@@ -21,6 +21,7 @@ std::string format_name(SpvImageFormat f) {
     case SpvImageFormatRgba32f: return "rgba32f";
     case SpvImageFormatRgba16f: return "rgba16f";
     case SpvImageFormatR11fG11fB10f: return "r11f_g11f_b10f";
+    case SpvImageFormatRgba8: return "rgba8";
     case SpvImageFormatUnknown: return "";
     default: return "format " + std::to_string(int(f));
   }

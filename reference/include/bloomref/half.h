@@ -30,4 +30,10 @@ double round_to_half(double x, HalfRounding mode = HalfRounding::nearest_even);
 /// or, `toward_zero`, truncated (llvmpipe, measured: 2.0234375 is stored as 2 in R).
 double round_to_packed(double v, int mantissa_bits, bool toward_zero);
 
+/// One channel of an RGBA8 write (GL 4.6, 2.3.5.2): clamped to [0, 1], then the nearest of the
+/// 255ths (GL allows either of the two nearest; the bound allows for both, tolerance.cpp); NaN
+/// becomes 0. Computed in x's own type.
+float round_to_unorm8(float x);
+double round_to_unorm8(double x);
+
 }  // namespace bloomref

@@ -71,7 +71,8 @@ class UserShaderError : public InputError {
 
 /// Internal formats of every texture and render target of the user's pipeline.
 /// r11f_g11f_b10f: packed unsigned floats (no alpha, no sign), as engines store HDR colour.
-enum class TargetFormat { rgba16f, rgb16f, rgba32f, r11f_g11f_b10f };
+/// rgba8: 8-bit unsigned normalised (clamped to [0, 1], 255ths), as LDR targets store colour.
+enum class TargetFormat { rgba16f, rgb16f, rgba32f, r11f_g11f_b10f, rgba8 };
 enum class TextureFilter { linear, nearest };
 enum class TextureWrap { clamp_to_edge, repeat, mirrored_repeat, clamp_to_border };
 enum class RowOrder { same, flipped };
@@ -92,7 +93,7 @@ TextureWrap parse_texture_wrap(const std::string& s);
 RowOrder parse_row_order(const std::string& s);
 FinalTarget parse_final_target(const std::string& s);
 /// f16 for the half formats (and the packed R11F_G11F_B10F, whose values f16 holds exactly),
-/// f32 for RGBA32F: the storage the oracle must be run with.
+/// f32 for RGBA32F, rgba8 for RGBA8: the storage the oracle must be run with.
 Storage storage_of(TargetFormat f);
 
 /// One shader's text and the file it came from (named in every error about it).
