@@ -603,7 +603,7 @@ void add_check_options(CLI::App& app, const std::shared_ptr<CheckCommandLine>& a
   sub->add_option("--bright-fs", args->request.shaders.bright_fs,
                   "--shaders: your bright-pass fragment shader (default: the oracle's bright image)");
   sub->add_option("--target-format", args->request.shaders.target_format,
-                  "--shaders: render targets RGBA16F | RGB16F | RGBA32F | R11F_G11F_B10F (default: from --storage)");
+                  "--shaders: render targets RGBA16F | RGB16F | RGBA32F | R11F_G11F_B10F | RGBA8 (default: from --storage)");
   sub->add_option("--filter", args->request.shaders.filter, "--shaders: texture filter linear | nearest");
   sub->add_option("--wrap", args->request.shaders.wrap,
                   "--shaders: texture wrap clamp-to-edge | repeat | mirrored-repeat | clamp-to-border");
