@@ -20,6 +20,8 @@ double shortest(float v) {
 }  // namespace
 
 nlohmann::ordered_json params_json(const BloomParams& p) {
+  std::vector<double> factors;
+  for (float f : p.level_factors) factors.push_back(shortest(f));
   return {{"method", to_string(p.method)},       {"threshold", shortest(p.threshold)},
           {"exposure", shortest(p.exposure)},              {"gamma", shortest(p.gamma)},
           {"strength", shortest(p.strength)},              {"passes", p.passes},
@@ -46,7 +48,12 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
           {"first_downsample", to_string(p.first_downsample)},
           {"downsample", to_string(p.downsample)},
           {"upsample", to_string(p.upsample)},
-          {"level_count", to_string(p.level_count)}};
+          {"level_count", to_string(p.level_count)},
+          {"smooth_width", shortest(p.smooth_width)},
+          {"level_kernels", p.level_kernels},
+          {"level_factors", factors},
+          {"level_radius", shortest(p.level_radius)},
+          {"level_strength", shortest(p.level_strength)}};
 }
 
 std::string cpu_renderer(const BloomParams& p) {

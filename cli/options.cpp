@@ -76,7 +76,7 @@ void PipelineOptions::add_to(CLI::App& app) {
                  "mip: per-lookup (the first downsample thresholds each tap) | bright (a bright "
                  "stage, luminance > threshold, before the chain) | none (the chain reads the "
                  "scene) | soft-knee (the first level scaled by Bevy's and Unity's soft "
-                 "threshold)")
+                 "threshold) | smoothstep (three.js's high pass)")
       ->capture_default_str();
   app.add_option("--karis-form", karis_form,
                  "mip, with --karis: per-tap (1 / (1 + L) per tap, normalised per group) | "
@@ -115,22 +115,45 @@ void PipelineOptions::add_to(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--downsample", downsample,
                  "mip: the other levels by 13-tap (seed 003) | gaussian (Unity's 9-tap "
-                 "horizontal 2x downsample, then 5 bilinear taps vertical)")
+                 "horizontal 2x downsample, then 5 bilinear taps vertical) | separable "
+                 "(three.js's Gaussian of --level-kernels, along x then y)")
       ->capture_default_str();
   app.add_option("--upsample", upsample,
                  "mip: what up.k reads of the level below: tent (3x3) | bilinear (one lookup)")
       ->capture_default_str();
   app.add_option("--level-count", level_count,
                  "mip: fixed (--levels) | unity (URP's floor(log2(max(w, h) / 2)) - 1, at most "
-                 "--levels)")
+                 "--levels) | threejs (a high pass at round(n / 2), then --levels blurred mips)")
       ->capture_default_str();
   app.add_option("--level-combine", level_combine,
                  "mip: up.k = down.k + C tent (add) | C tent + (1 - C) down.k (mix) | "
-                 "down.k + (tent - down.k) C (lerp)")
+                 "down.k + (tent - down.k) C (lerp) | sum (one up.1: the blurred levels times "
+                 "--level-factors, three.js's)")
       ->capture_default_str();
   app.add_option("--level-weights", level_weights,
                  "mip: the constants C per level: one | bevy (Bevy's compute_blend_factor, "
                  "intensity = --strength) | constant (--level-weight)")
+      ->capture_default_str();
+  app.add_option("--smooth-width", p.smooth_width,
+                 "mip, --prefilter smoothstep: the smoothstep's width above the threshold "
+                 "(three.js's smoothWidth)")
+      ->capture_default_str();
+  app.add_option("--level-kernels", p.level_kernels,
+                 "mip, --downsample separable: each blurred level's kernel radius R, comma "
+                 "separated (three.js's kernelSizeArray; sigma R / 3)")
+      ->delimiter(',')
+      ->capture_default_str();
+  app.add_option("--level-factors", p.level_factors,
+                 "mip, --level-combine sum: each blurred level's factor, comma separated "
+                 "(three.js's bloomFactors)")
+      ->delimiter(',')
+      ->capture_default_str();
+  app.add_option("--level-radius", p.level_radius,
+                 "mip, --level-combine sum: mirrors the factors about 0.6, in [0, 1] (three.js's "
+                 "radius)")
+      ->capture_default_str();
+  app.add_option("--level-strength", p.level_strength,
+                 "mip, --level-combine sum: the sum's multiplier (three.js's strength)")
       ->capture_default_str();
   app.add_option("--level-weight", p.level_weight,
                  "mip, --level-weights constant: C at every level, in [0, 1] (Unity's scatter)")

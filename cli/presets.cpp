@@ -64,6 +64,14 @@ T number_of(const nlohmann::json& v) {
   return v.get<T>();
 }
 
+template <class T>
+std::vector<T> numbers_of(const nlohmann::json& v) {
+  if (!v.is_array()) throw ParamError("is not an array of numbers");
+  std::vector<T> out;
+  for (const nlohmann::json& e : v) out.push_back(number_of<T>(e));
+  return out;
+}
+
 // Each key a preset may set: the CLI option of the same name, and what setting it does.
 using Setter = std::function<void(PipelineOptions&, const nlohmann::json&)>;
 const std::map<std::string, Setter>& setters() {
@@ -105,6 +113,24 @@ const std::map<std::string, Setter>& setters() {
       {"level-weight",
        [](PipelineOptions& o, const nlohmann::json& v) {
          o.params.level_weight = number_of<float>(v);
+       }},
+      {"smooth-width",
+       [](PipelineOptions& o, const nlohmann::json& v) {
+         o.params.smooth_width = number_of<float>(v);
+       }},
+      {"level-kernels",
+       [](PipelineOptions& o, const nlohmann::json& v) { o.params.level_kernels = numbers_of<int>(v); }},
+      {"level-factors",
+       [](PipelineOptions& o, const nlohmann::json& v) {
+         o.params.level_factors = numbers_of<float>(v);
+       }},
+      {"level-radius",
+       [](PipelineOptions& o, const nlohmann::json& v) {
+         o.params.level_radius = number_of<float>(v);
+       }},
+      {"level-strength",
+       [](PipelineOptions& o, const nlohmann::json& v) {
+         o.params.level_strength = number_of<float>(v);
        }},
       {"low-frequency-boost",
        [](PipelineOptions& o, const nlohmann::json& v) {

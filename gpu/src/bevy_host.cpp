@@ -142,7 +142,8 @@ bool unity_free(const BloomParams& p) {
   return p.first_downsample == FirstDownsample::taps13 && p.downsample == DownsampleFilter::taps13 &&
          p.upsample == UpsampleFilter::tent && p.level_combine != LevelCombine::lerp &&
          p.level_weights != LevelWeights::constant && p.knee_form == KneeForm::bevy &&
-         p.clamp_max == 0.0f && p.level_count == LevelCount::fixed;
+         p.clamp_max == 0.0f && p.level_count == LevelCount::fixed &&
+         p.level_combine != LevelCombine::sum && p.prefilter != Prefilter::smoothstep;
 }
 
 bool bevy_layout(const BloomParams& p) {

@@ -262,11 +262,12 @@ bool article_layout(const BloomParams& p) {
 StageTrace execute_gl_mip_chain(GlContext& ctx, const BloomParams& p, ConstImageView scene) {
   if (bevy_layout(p)) return execute_gl_bevy(ctx, p, scene);
   if (unity_layout(p)) return execute_gl_unity(ctx, p, scene);
+  if (threejs_layout(p)) return execute_gl_threejs(ctx, p, scene);
   if (!article_layout(p))
     throw ParamError(
         "bloomref's GL shaders run seed 002's chain (--method mip), the article's "
         "(--preset learnopengl-pbb, whose shaders take gamma 2.2 and the other options as "
-        "they are), Bevy's (--preset bevy) and Unity URP's (--preset unity-urp); this combination of variant options has no GL "
+        "they are), Bevy's (--preset bevy), Unity URP's (--preset unity-urp) and three.js's (--preset threejs); this combination of variant options has no GL "
         "shaders: judge yours with check --shaders");
   auto own = [](const char* name) {
     return ShaderSource{std::string("bloomref's ") + name, shader_sources().at(name)};

@@ -235,15 +235,81 @@ PipelineDescription unity(const BloomParams& p, int w, int h) {
   return b.take();
 }
 
+// threejs_host.cpp: BloomNode.js's updateBefore: the high pass into the bright target, per mip
+// a horizontal pass into its horizontal target and a vertical pass into its vertical one (the
+// first reading the bright target, each next the vertical target before it), the composite of
+// the vertical targets; then the bloom added to the scene (unity_uber.frag's arithmetic: the
+// scene plus one lookup of the bloom times the strength) and the tone map and gamma.
+PipelineDescription threejs(const BloomParams& p, int w, int h) {
+  Builder b("threejs", w, h);
+  b.program("highpass", "threejs_highpass.frag");
+  b.program("blur", "threejs_blur.frag");
+  b.program("composite", "threejs_composite.frag");
+  b.program("add", "unity_uber.frag");
+  b.program("finish", "bevy_finish.frag");
+  b.scene_texture("view", p.storage, DescribedTexture::scene, "input");
+  const std::vector<LevelSize> sizes = chain_levels(p, w, h);
+  const Storage ls = p.level_storage();
+  b.texture("bright", sizes[0].width, sizes[0].height, ls);
+  for (std::size_t k = 1; k < sizes.size(); ++k) {
+    b.texture(level("h", k), sizes[k].width, sizes[k].height, ls);
+    b.texture(level("v", k), sizes[k].width, sizes[k].height, ls);
+  }
+  b.texture("sum", sizes[0].width, sizes[0].height, ls);
+  b.scene_texture("comp", p.storage, DescribedTexture::clear, "");
+  b.scene_texture("out", p.storage, DescribedTexture::clear, "");
+  DescribedPass& hp = b.pass("highpass", "bright", {{"srcTexture", "view"}}, "down.1");
+  hp.uniforms["threshold"] = number({p.threshold});
+  hp.uniforms["smoothWidth"] = number({p.smooth_width});
+  const LumaWeights<float> lw = luma_weights<float>(p.luma);
+  hp.uniforms["lumaWeights"] = number({lw.r, lw.g, lw.b});
+  for (std::size_t k = 1; k < sizes.size(); ++k) {
+    const int radius = p.level_kernels[k - 1];
+    std::vector<float> c = separable_coefficients(radius);
+    c.resize(24, 0.0f);
+    const std::string in = k == 1 ? "bright" : level("v", k - 1);
+    for (int axis = 0; axis < 2; ++axis) {
+      const std::string target = level(axis == 0 ? "h" : "v", k);
+      DescribedPass& bp =
+          b.pass("blur", target, {{"colorTexture", axis == 0 ? in : level("h", k)}},
+                 axis == 0 ? "" : level("down.", k + 1));
+      bp.uniforms["invSize"] = of_texture(DescribedUniform::texel, target);
+      bp.uniforms["direction"] = number({axis == 0 ? 1.0f : 0.0f, axis == 0 ? 0.0f : 1.0f});
+      bp.uniforms["kernelRadius"] = integer(radius);
+      for (std::size_t j = 0; j < 6; ++j)
+        bp.uniforms["coefficients" + std::to_string(j)] =
+            number({c[4 * j], c[4 * j + 1], c[4 * j + 2], c[4 * j + 3]});
+    }
+  }
+  const int mips = static_cast<int>(sizes.size()) - 1;
+  std::vector<std::pair<std::string, std::string>> blurs;
+  for (int i = 1; i <= 5; ++i)
+    blurs.push_back({"blurTexture" + std::to_string(i), level("v", std::size_t(std::min(i, mips)))});
+  std::vector<float> f(5, 0.0f);
+  for (int i = 0; i < mips; ++i) f[std::size_t(i)] = p.level_factors[std::size_t(i)];
+  DescribedPass& cp = b.pass("composite", "sum", blurs, "up.1");
+  cp.uniforms["mips"] = integer(mips);
+  cp.uniforms["bloomFactors"] = number({f[0], f[1], f[2], f[3]});
+  cp.uniforms["bloomFactor5"] = number({f[4]});
+  cp.uniforms["bloomRadius"] = number({p.level_radius});
+  cp.uniforms["bloomStrength"] = number({p.level_strength});
+  b.pass("add", "comp", {{"srcTexture", "view"}, {"bloomTexture", "sum"}}, "composite")
+      .uniforms["intensity"] = number({p.strength});
+  finish(b, "comp", p);
+  return b.take();
+}
+
 }  // namespace
 
 PipelineDescription preset_description(const BloomParams& p, int width, int height) {
   if (bevy_layout(p)) return bevy(p, width, height);
   if (unity_layout(p)) return unity(p, width, height);
+  if (threejs_layout(p)) return threejs(p, width, height);
   if (article_layout(p)) return article(p, width, height);
   throw ParamError(
       "bloomref's shaders draw seed 002's chain (--method mip), the article's (--preset "
-      "learnopengl-pbb), Bevy's (--preset bevy) and Unity URP's (--preset unity-urp); this "
+      "learnopengl-pbb), Bevy's (--preset bevy), Unity URP's (--preset unity-urp) and three.js's "
+      "(--preset threejs); this "
       "combination of variant options has none: judge yours with check --shaders");
 }
 

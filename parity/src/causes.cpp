@@ -413,6 +413,14 @@ class Evaluator {
         return out;
       }
       case StageKind::up:
+        if (p_.level_combine == LevelCombine::sum) {  // three.js's sum of the blurred levels
+          if (h_.sampled()) throw NotApplicable{};
+          Image out(ctx_.plan.levels[0].width, ctx_.plan.levels[0].height);
+          sum_levels(in, out.view(), p_.level_factors, p_.level_radius, p_.level_strength,
+                     ctx_.profile.subtexel_bits, threads);
+          return out;
+        }
+        [[fallthrough]];
       case StageKind::bloom: {
         const bool up = spec.kind == StageKind::up;
         const ConstImageView cur = up ? in[1] : ConstImageView{};
@@ -1438,7 +1446,9 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       hy->detail = b;
     }
   }
-  if ((target.kind == StageKind::down || target.kind == StageKind::up) && target.pass >= 1) {
+  const bool summed = target.kind == StageKind::up && p.level_combine == LevelCombine::sum;
+  if ((target.kind == StageKind::down || target.kind == StageKind::up) && target.pass >= 1 &&
+      !summed) {
     // A level read from the wrong place in the chain (an index off by one): the level one
     // further along it (the source's own source), or, for an upsample, its own level's
     // downsample where the next level's result is specified.
@@ -1455,7 +1465,7 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
       h->detail = target.name + " reads " + o + " where " + in[0] + " is specified";
     }
   }
-  if (target.kind == StageKind::up && oracle.width()) {
+  if (target.kind == StageKind::up && oracle.width() && !summed) {
     // up.k = down.k + tent: the tent's part scaled (weights summing to g, or added g times).
     // The tent computed afresh, unrounded: the stored level less down.k would hold the
     // level's rounding, which biases a least-squares slope toward 0.

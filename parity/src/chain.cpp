@@ -16,9 +16,15 @@ std::vector<std::string> stage_inputs(const Plan& plan, const StageSpec& spec) {
     case StageKind::down:
       if (spec.pass > 1) return {level("down", spec.pass - 1)};
       return {p.prefilter == Prefilter::bright ? "bright" : "input"};
-    case StageKind::up:
+    case StageKind::up: {
+      if (p.level_combine == LevelCombine::sum) {  // the blurred levels, in order
+        std::vector<std::string> in;
+        for (int k = 2; k <= top; ++k) in.push_back(level("down", k));
+        return in;
+      }
       return {spec.pass + 1 == top ? level("down", top) : level("up", spec.pass + 1),
               level("down", spec.pass)};
+    }
     case StageKind::bloom:
       return {top == 1 ? level("down", 1) : "up.1"};
     case StageKind::composite:

@@ -87,7 +87,7 @@ std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImage
 std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView oracle,
                                          const Image* error, const DownsampleOptions& opt,
                                          BoundContext ctx) {
-  if (!opt.first && opt.filter == DownsampleFilter::gaussian)
+  if (!opt.first && opt.filter != DownsampleFilter::taps13)
     return gaussian_down_bounds(src, oracle, error, opt, ctx);
   const bool first = opt.first && opt.threshold_taps;  // the taps are thresholded
   const float threshold = opt.threshold;
@@ -105,9 +105,11 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
   const double read8 = ctx.unorm8_reads ? unorm8_read_term : 0.0;
   // The value before the soft threshold (Prefilter::soft_knee): the stage without it.
   std::shared_ptr<Image> before;
-  if (opt.soft_knee) {
+  const bool scaled = opt.soft_knee || opt.smoothstep;  // the first level times a factor
+  if (scaled) {
     DownsampleOptions o = opt;
     o.soft_knee = false;
+    o.smoothstep = false;
     before = std::make_shared<Image>(tw, th);
     downsample(src, before->view(), o, ctx.threads);
   }
@@ -202,7 +204,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
     return storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile, c) +
            denormal_floor(*ctx.profile);
   };
-  if (!opt.soft_knee)
+  if (!scaled)
     return make_bounds(
         {"coordinate rounding (x local range)", "filter and sum rounding",
          "threshold within the tap's error (kept or dropped)",
@@ -217,9 +219,16 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
   // 1-Lipschitz and g <= b: |dh| <= min(1, 2 Eb / max(b - Eb, 1e-5)), Eb the largest channel's
   // error. So out_c moves by at most E_c (its own error, times h <= 1) + |r_c| |dh|, plus the
   // product's and the factor's rounding. The three channels' terms at once: each needs Eb.
+  // Prefilter::smoothstep: h = smoothstep(e0, e1, L) is monotone in L, so a luminance off by at
+  // most dL (its weights times the channels' errors, on linear colour) moves it by at most
+  // h(L + dL) - h(L - dL): nothing where the whole interval lies above the ramp (most of a
+  // bright scene), up to 1 across it. An encoded luminance: any h.
+  const LumaWeights<double> lwd = luma_weights<double>(opt.luma.weights);
+  const double width = double(opt.threshold + opt.smooth_width) - double(opt.threshold);
   return make_bounds(
       {"coordinate rounding (x local range)", "filter and sum rounding",
-       "soft threshold: the brightness's error through its slope",
+       opt.smoothstep ? "smoothstep: the luminance's error through its slope"
+                      : "soft threshold: the brightness's error through its slope",
        "Karis weights (dL / (1 + L) x group range)", "storage and denormals"},
       [=](int x, int y) {
         std::array<Values, 3> v;
@@ -232,7 +241,28 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
         }
         const float* r = before->pixel(x, y);
         const double b = std::max({double(r[0]), double(r[1]), double(r[2])});
-        const double dh = std::isfinite(eb) ? std::min(1.0, 2 * eb / std::max(b - eb, 1e-5)) : 1.0;
+        double dh = std::isfinite(eb) ? std::min(1.0, 2 * eb / std::max(b - eb, 1e-5)) : 1.0;
+        if (opt.smoothstep) {
+          double dl = 0, mag = 0;
+          const double lw[3] = {lwd.r, lwd.g, lwd.b};
+          for (int k = 0; k < 3; ++k) {
+            const Values& t = v[std::size_t(k)];
+            dl += lw[k] * (t[0] + t[1] + t[2] + t[3]);
+            mag += lw[k] * std::fabs(double(r[k]));
+          }
+          dl += 4 * U * mag;  // the dot product's own rounding
+          const bool linear = opt.luma.space == LumaSpace::linear;
+          const double l = lwd.r * r[0] + lwd.g * r[1] + lwd.b * r[2];
+          if (linear && std::isfinite(dl) && std::isfinite(l) && width > 0) {
+            auto h = [&](double x) { return smoothstep_factor(x, opt.threshold, opt.smooth_width); };
+            // The shader's own arithmetic of h: a few roundings of its products, where it is not
+            // exactly 0 or 1.
+            const double hl = h(l - dl), hh = h(l + dl);
+            dh = std::min(1.0, hh - hl + ((hl > 0 && hl < 1) || (hh > 0 && hh < 1) ? 16 * U : 0.0));
+          } else {
+            dh = 1.0;
+          }
+        }
         for (int k = 0; k < 3; ++k) {
           Values& t = v[std::size_t(k)];
           const double rk = std::fabs(double(r[k]));
@@ -254,8 +284,21 @@ std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImage
   const double U = ctx.profile->unit_roundoff;
   const int tw = oracle.width, th = oracle.height, sw = src.width, sh = src.height;
   std::vector<Tap> htaps, vtaps;
-  for (const GaussianTap& t : gaussian_down_h_taps()) htaps.push_back({2.0 * t.offset, 0.0, t.weight});
-  for (const GaussianTap& t : gaussian_down_v_taps()) vtaps.push_back({0.0, t.offset, t.weight});
+  if (opt.filter == DownsampleFilter::separable) {
+    // three.js's: taps one texel of the level apart along x (sw / tw source texels), then along
+    // y on the stored horizontal pass; each pair's sum rounded before its product.
+    const std::vector<float> c = separable_coefficients(opt.kernel_radius);
+    const double sx = double(sw) / tw;
+    for (int i = 1 - opt.kernel_radius; i < opt.kernel_radius; ++i) {
+      const double w = c[std::size_t(std::abs(i))];
+      htaps.push_back({i * sx, 0.0, w});
+      vtaps.push_back({0.0, double(i), w});
+    }
+  } else {
+    for (const GaussianTap& t : gaussian_down_h_taps()) htaps.push_back({2.0 * t.offset, 0.0, t.weight});
+    for (const GaussianTap& t : gaussian_down_v_taps()) vtaps.push_back({0.0, t.offset, t.weight});
+  }
+  const int hops = 3 + 2 * int(htaps.size()), vops = 3 + 2 * int(vtaps.size());
   // The step's product with the offset and the lookup's two more roundings: 2 more per axis.
   const double dh = coordinate_error(sw, *ctx.profile) + coordinate_error(sh, *ctx.profile) +
                     2 * (sw + sh) * U;
@@ -277,7 +320,7 @@ std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImage
       for (int x = 0; x < tw; ++x)
         for (int c = 0; c < 3; ++c) {
           const Values v = taps_terms(win, ewin.get(), htaps, x, y, tw, th, sw, sh, c, dh, U,
-                                      3 + 2 * 9, read8);
+                                      hops, read8);
           eh.pixel(x, y)[c] = static_cast<float>(
               (v[0] + v[1] + v[2]) * (1 + 4 * U) +
               storage_term(h.pixel(x, y)[c], opt.intermediate, *ctx.profile, c) +
@@ -291,7 +334,7 @@ std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImage
        "the horizontal pass's error, stored (through the vertical taps)", "storage and denormals"},
       [=](int x, int y, int c) {
         const Values v = taps_terms(*hwin, ehwin.get(), vtaps, x, y, tw, th, tw, th, c, dv, U,
-                                    3 + 2 * 5, read8h);
+                                    vops, read8h);
         return Values{v[0], v[1], v[2],
                       storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile, c) +
                           denormal_floor(*ctx.profile),
@@ -354,6 +397,58 @@ std::unique_ptr<StageBounds> up_bounds(ConstImageView small, ConstImageView curr
         const double v = oracle.pixel(x, y)[c];
         return Values{coord, arith, ecur,
                       storage_term(v, ctx.storage, *ctx.profile, c) + denormal_floor(*ctx.profile), 0};
+      },
+      tw, ctx.threads);
+}
+
+std::unique_ptr<StageBounds> sum_bounds(const std::vector<ConstImageView>& levels,
+                                        ConstImageView oracle,
+                                        const std::vector<const Image*>& errors,
+                                        const BloomParams& p, BoundContext ctx) {
+  const double U = ctx.profile->unit_roundoff;
+  const int tw = oracle.width, th = oracle.height;
+  const double read8 = ctx.unorm8_reads ? unorm8_read_term : 0.0;
+  struct Level {
+    std::shared_ptr<Window2D> win, ewin;
+    double delta, factor, factor_err;
+    int w, h;
+  };
+  std::vector<Level> ls;
+  for (std::size_t i = 0; i < levels.size(); ++i) {
+    Level l;
+    l.win = std::make_shared<Window2D>(window4x4(levels[i], ctx.threads));
+    if (i < errors.size() && errors[i])
+      l.ewin = std::make_shared<Window2D>(window4x4(errors[i]->cview(), ctx.threads));
+    l.delta = coordinate_error(levels[i].width, *ctx.profile) +
+              coordinate_error(levels[i].height, *ctx.profile);
+    const float f = p.level_factors[i];
+    l.factor = std::fabs(double(sum_factor(f, p.level_radius)));
+    // mix(f, 1.2 - f, r) in another of its forms (f + (m - f) r, a fused multiply-add): a few
+    // roundings of f and 1.2 - f.
+    l.factor_err = 6 * U * (std::fabs(double(f)) + std::fabs(1.2 - double(f)));
+    l.w = levels[i].width;
+    l.h = levels[i].height;
+    ls.push_back(l);
+  }
+  const double s = std::fabs(double(p.level_strength));
+  const int n = static_cast<int>(levels.size());
+  return make_bounds(
+      {"coordinate rounding (x local range)", "product and sum rounding", "the levels' own error",
+       "storage and denormals"},
+      [=](int x, int y, int c) {
+        double coord = 0, arith = 0, input = 0;
+        for (const Level& l : ls) {
+          const int bx = base_texel(x, tw, l.w, 0), by = base_texel(y, th, l.h, 0);
+          const double m = l.win->magnitude.pixel(bx, by)[c];
+          coord += l.factor * (l.delta * l.win->range.pixel(bx, by)[c] + read8);
+          // the lerps (3), the product, the sum (n terms) and the factor's own error
+          arith += (l.factor * (4 + n) * U + l.factor_err) * m;
+          if (l.ewin) input += l.factor * l.ewin->magnitude.pixel(bx, by)[c];
+        }
+        const double v = oracle.pixel(x, y)[c];
+        return Values{s * coord, s * arith + 2 * U * std::fabs(v), s * input,
+                      storage_term(v, ctx.storage, *ctx.profile, c) + denormal_floor(*ctx.profile),
+                      0};
       },
       tw, ctx.threads);
 }

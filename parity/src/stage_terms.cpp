@@ -139,6 +139,13 @@ Image oracle_stage(const Plan& plan, const StageSpec& spec, ConstImageView sanit
       break;
     }
     case StageKind::up:
+      if (p.level_combine == LevelCombine::sum) {
+        out = pool.take(plan.levels[0].width, plan.levels[0].height);
+        sum_levels(in, out.view(), p.level_factors, p.level_radius, p.level_strength,
+                   subtexel_bits, threads);
+        break;
+      }
+      [[fallthrough]];
     case StageKind::bloom: {
       const bool up = spec.kind == StageKind::up;
       out = up ? pool.take(in[1].width, in[1].height)
@@ -291,10 +298,47 @@ StageTerms blur_terms(const StageSpec& spec, const std::vector<std::string>& in,
 // down.k, up.k, bloom: every tap's window on the level it reads. The carried error enters each
 // tap (and the threshold's band): the bound with it, less the bound without, is what it adds.
 // The end-to-end bound is the same bound on the full run with the inputs' end-to-end bounds.
+// up.1 under LevelCombine::sum: every blurred level's lookup.
+StageTerms sum_terms(const StageSpec& spec, const std::vector<std::string>& in,
+                     const TermInputs& at) {
+  const BloomParams& p = at.plan.params;
+  const std::vector<ConstImageView> cin = isolated_inputs(in, at);
+  StageTerms t = with_oracle(spec, cin, at);
+  const ConstImageView o = t.oracle.cview();
+  BoundContext ctx = at.ctx;
+  ctx.unorm8_reads = p.level_storage() == Storage::rgba8;
+  t.bound = sum_bounds(cin, o, {}, p, ctx);
+  std::vector<const Image*> carried;
+  bool any = false;
+  for (const std::string& n : in) {
+    carried.push_back(at.carried(n));
+    any = any || carried.back();
+  }
+  const int w = o.width;
+  if (any) {
+    std::shared_ptr<StageBounds> with = sum_bounds(cin, o, carried, p, ctx);
+    t.inherited = [with, w](int y0, int y1, const float* b, float* out) {
+      with->rows(y0, y1, out, nullptr);
+      for (std::size_t i = 0; i < std::size_t(y1 - y0) * w * kChannels; ++i)
+        out[i] += static_cast<float>(-1.0 * b[i]);
+    };
+  }
+  std::vector<ConstImageView> full;
+  std::vector<const Image*> e2e;
+  for (const std::string& n : in) {
+    full.push_back(at.full(n));
+    e2e.push_back(at.end_to_end(n).image);
+  }
+  std::shared_ptr<StageBounds> e = sum_bounds(full, at.full(spec.name), e2e, p, ctx);
+  t.end_to_end = [e](int y0, int y1, const float*, float* out) { e->rows(y0, y1, out, nullptr); };
+  return t;
+}
+
 StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in,
                      const TermInputs& at) {
   const BloomParams& p = at.plan.params;
   const bool down = spec.kind == StageKind::down, up = spec.kind == StageKind::up;
+  if (up && p.level_combine == LevelCombine::sum) return sum_terms(spec, in, at);
   const std::vector<ConstImageView> cin = isolated_inputs(in, at);
   StageTerms t = with_oracle(spec, cin, at);
   const ConstImageView o = t.oracle.cview(), none{};

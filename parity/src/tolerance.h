@@ -171,6 +171,12 @@ std::unique_ptr<StageBounds> output_bounds(ConstImageView mapped, ConstImageView
                                            float gamma, BoundContext ctx);
 
 /// Mip chain (mip_bounds.cpp). `error` images (end to end) may be null (isolated).
+/// up.1 under LevelCombine::sum: the levels it adds (down.2 .. down.K), their errors (null or
+/// one per level), the factors, radius and strength of `p`.
+std::unique_ptr<StageBounds> sum_bounds(const std::vector<ConstImageView>& levels,
+                                        ConstImageView oracle,
+                                        const std::vector<const Image*>& errors,
+                                        const BloomParams& p, BoundContext ctx);
 /// `opt`: the stage's own options (downsample_options): its threshold and Karis form.
 std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView oracle,
                                          const Image* error, const DownsampleOptions& opt,

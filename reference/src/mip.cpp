@@ -204,7 +204,113 @@ void downsample_gaussian(BasicView<const T> src, BasicView<T> dst, const Downsam
   });
 }
 
+// One pass of three.js's separable blur into `dst` (its uniform invSize is 1 / dst's size; the
+// taps one texel of dst apart along `horizontal`'s axis), unrounded.
+template <class T>
+void separable_pass(BasicView<const T> src, BasicView<T> dst, int radius, bool horizontal,
+                    int bits, int threads) {
+  const int tw = dst.width, th = dst.height;
+  const std::vector<float> c = separable_coefficients(radius);
+  // uvOffset = direction * invSize * x: the step (exact times 1 or 0), then times i; the lookups
+  // at uv + uvOffset and uv - uvOffset.
+  const int n = horizontal ? tw : th;
+  const float inv = 1.0f / static_cast<float>(n);
+  std::vector<float> o32 = {0.0f};
+  std::vector<double> o64 = {0.0};
+  for (int i = 1; i < radius; ++i) {
+    const float o = inv * static_cast<float>(i);
+    o32.insert(o32.end(), {o, -o});
+    o64.insert(o64.end(), {double(i) / n, -double(i) / n});
+  }
+  const OffsetTable<T> along(n, horizontal ? src.width : src.height, o32, o64, bits);
+  const OffsetTable<T> across(horizontal ? th : tw, horizontal ? src.height : src.width, {0.0f},
+                              {0.0}, bits);
+  parallel_rows(th, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < tw; ++x) {
+        const int a = horizontal ? x : y, b = horizontal ? y : x;
+        auto sample = [&](std::size_t i, T out[3]) {
+          if (horizontal) sample_rgb(src, along.at(a, i), across.at(b, 0), out);
+          else sample_rgb(src, across.at(b, 0), along.at(a, i), out);
+        };
+        T r[3] = {}, q[3] = {}, m[3] = {};
+        sample(0, q);
+        for (int ch = 0; ch < 3; ++ch) r[ch] = q[ch] * static_cast<T>(c[0]);
+        for (int i = 1; i < radius; ++i) {
+          sample(std::size_t(2 * i - 1), q);
+          sample(std::size_t(2 * i), m);
+          const T w = static_cast<T>(c[std::size_t(i)]);
+          for (int ch = 0; ch < 3; ++ch) r[ch] = r[ch] + (q[ch] + m[ch]) * w;
+        }
+        write_rgb1(dst.pixel(x, y), r);
+      }
+  });
+}
+
+// three.js's blurred mip: along x into the level's size, stored as `opt.intermediate`, then
+// along y.
+template <class T>
+void downsample_separable(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
+                          int threads) {
+  BasicImage<T> h(dst.width, dst.height);
+  separable_pass(src, h.view(), opt.kernel_radius, true, opt.subtexel_bits, threads);
+  store(h.view(), opt.intermediate, opt.rounding, threads);
+  separable_pass(h.cview(), dst, opt.kernel_radius, false, opt.subtexel_bits, threads);
+}
+
 }  // namespace
+
+std::vector<float> separable_coefficients(int radius) {
+  std::vector<float> c;
+  const double sigma = radius / 3.0;
+  for (int i = 0; i < radius; ++i)
+    c.push_back(static_cast<float>(0.39894 * std::exp(-0.5 * i * i / (sigma * sigma)) / sigma));
+  return c;
+}
+
+template <class T>
+T smoothstep_factor(T luminance, float threshold, float width) {
+  const float e1 = threshold + width;
+  const T t = std::clamp((luminance - T(threshold)) / (T(e1) - T(threshold)), T(0), T(1));
+  return t * t * (T(3) - T(2) * t);
+}
+template float smoothstep_factor<float>(float, float, float);
+template double smoothstep_factor<double>(double, float, float);
+
+float sum_factor(float f, float radius) {
+  const float mirror = 1.2f - f;
+  return f * (1.0f - radius) + mirror * radius;
+}
+
+template <class T>
+void sum_levels(const std::vector<BasicView<const T>>& levels, BasicView<T> dst,
+                const std::vector<float>& factors, float radius, float strength, int subtexel_bits,
+                int threads) {
+  std::vector<Lookups<T>> lookups;
+  std::vector<T> f;
+  for (std::size_t i = 0; i < levels.size(); ++i) {
+    lookups.emplace_back(levels[i], dst.width, dst.height, 0, subtexel_bits);
+    f.push_back(static_cast<T>(sum_factor(factors[i], radius)));
+  }
+  const T s = static_cast<T>(strength);
+  parallel_rows(dst.height, threads, [&](int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < dst.width; ++x) {
+        T r[3] = {0, 0, 0};
+        for (std::size_t i = 0; i < levels.size(); ++i) {
+          T q[3] = {};
+          lookups[i].sample(levels[i], x, y, 0, 0, q);
+          for (int c = 0; c < 3; ++c) r[c] = i == 0 ? f[i] * q[c] : r[c] + f[i] * q[c];
+        }
+        for (int c = 0; c < 3; ++c) r[c] = r[c] * s;
+        write_rgb1(dst.pixel(x, y), r);
+      }
+  });
+}
+template void sum_levels<float>(const std::vector<BasicView<const float>>&, BasicView<float>,
+                                const std::vector<float>&, float, float, int, int);
+template void sum_levels<double>(const std::vector<BasicView<const double>>&, BasicView<double>,
+                                 const std::vector<float>&, float, float, int, int);
 
 const std::vector<MipTap>& downsample_taps() {
   static const std::vector<MipTap> t = [] {
@@ -280,6 +386,11 @@ DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int
   o.clamp_max = k == 1 ? p.clamp_max : 0.0f;
   o.filter = p.downsample;
   o.intermediate = p.level_storage();
+  o.smoothstep = p.prefilter == Prefilter::smoothstep && k == 1;
+  o.smooth_width = p.smooth_width;
+  if (p.downsample == DownsampleFilter::separable && k >= 2 &&
+      std::size_t(k - 2) < p.level_kernels.size())
+    o.kernel_radius = p.level_kernels[std::size_t(k - 2)];
   if (p.texel_step == TexelStep::halved_float) {
     o.step_width = halved_size(width, k - 1);
     o.step_height = halved_size(height, k - 1);
@@ -311,6 +422,18 @@ std::vector<LevelSize> mip_levels(int width, int height, int levels) {
 }
 
 std::vector<LevelSize> chain_levels(const BloomParams& p, int width, int height) {
+  if (p.level_count == LevelCount::threejs) {
+    // BloomNode.js setSize: resx = Math.round(width / 2) (halves round up), the bright target
+    // and mip 0 at it, each next mip Math.round(resx / 2); nMips blurred mips.
+    auto half = [](int n) { return (n + 1) / 2; };
+    std::vector<LevelSize> out = {{half(width), half(height)}};
+    LevelSize l = out.front();
+    for (int k = 0; k < p.levels; ++k) {
+      out.push_back(l);
+      l = {half(l.width), half(l.height)};
+    }
+    return out;
+  }
   if (p.level_count == LevelCount::unity) {
     // PostProcessPass.SetupBloom: tw = width >> 1, th = height >> 1; iterations =
     // FloorToInt(Mathf.Log(max(tw, th), 2f) - 1) (Math.Log in double, then float); mipCount =
@@ -449,6 +572,12 @@ void finish_first(T r[3], const DownsampleOptions& opt) {
     const T f = soft_knee_factor(r, opt.threshold, opt.knee, opt.knee_form);
     for (int c = 0; c < 3; ++c) r[c] = r[c] * f;
   }
+  if (opt.smoothstep) {
+    // mix(vec4(0), texel, alpha): 0 (1 - alpha) + texel alpha, the product alone.
+    const T a = smoothstep_factor(threshold_luminance(r[0], r[1], r[2], opt.luma), opt.threshold,
+                                  opt.smooth_width);
+    for (int c = 0; c < 3; ++c) r[c] = r[c] * a;
+  }
 }
 
 // Unity URP's FragPrefilter: one lookup at the target texel's centre.
@@ -472,6 +601,8 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
                 int threads) {
   if (!opt.first && opt.filter == DownsampleFilter::gaussian)
     return downsample_gaussian(src, dst, opt, threads);
+  if (!opt.first && opt.filter == DownsampleFilter::separable)
+    return downsample_separable(src, dst, opt, threads);
   if (opt.first && opt.first_filter == FirstDownsample::bilinear)
     return downsample_bilinear(src, dst, opt, threads);
   const T threshold = static_cast<T>(opt.threshold);
@@ -669,7 +800,10 @@ template void upscale_bilinear<double>(BasicView<const double>, BasicView<double
 template <class T>
 void downsample_gaussian_h(BasicView<const T> src, BasicView<T> h, const DownsampleOptions& opt,
                            int threads) {
-  gaussian_h_pass(src, h, opt, threads);
+  if (opt.filter == DownsampleFilter::separable)
+    separable_pass(src, h, opt.kernel_radius, true, opt.subtexel_bits, threads);
+  else
+    gaussian_h_pass(src, h, opt, threads);
   store(h, opt.intermediate, opt.rounding, threads);
 }
 

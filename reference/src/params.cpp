@@ -49,7 +49,7 @@ constexpr std::pair<const char*, LumaSpace> kLumaSpaces[] = {
     {"linear", LumaSpace::linear}, {"srgb", LumaSpace::srgb}, {"gamma", LumaSpace::gamma}};
 constexpr std::pair<const char*, Prefilter> kPrefilters[] = {
     {"per-lookup", Prefilter::per_lookup}, {"bright", Prefilter::bright}, {"none", Prefilter::none},
-    {"soft-knee", Prefilter::soft_knee}};
+    {"soft-knee", Prefilter::soft_knee}, {"smoothstep", Prefilter::smoothstep}};
 constexpr std::pair<const char*, KarisForm> kKarisForms[] = {
     {"per-tap", KarisForm::per_tap},
     {"group-srgb", KarisForm::group_srgb},
@@ -60,7 +60,8 @@ constexpr std::pair<const char*, TexelStep> kTexelSteps[] = {
 constexpr std::pair<const char*, BloomUpscale> kUpscales[] = {
     {"tent", BloomUpscale::tent}, {"bilinear", BloomUpscale::bilinear}};
 constexpr std::pair<const char*, LevelCombine> kCombines[] = {
-    {"add", LevelCombine::add}, {"mix", LevelCombine::mix}, {"lerp", LevelCombine::lerp}};
+    {"add", LevelCombine::add}, {"mix", LevelCombine::mix}, {"lerp", LevelCombine::lerp},
+    {"sum", LevelCombine::sum}};
 constexpr std::pair<const char*, LevelWeights> kWeights[] = {
     {"one", LevelWeights::one}, {"bevy", LevelWeights::bevy}, {"constant", LevelWeights::constant}};
 constexpr std::pair<const char*, KneeForm> kKneeForms[] = {{"bevy", KneeForm::bevy},
@@ -68,11 +69,13 @@ constexpr std::pair<const char*, KneeForm> kKneeForms[] = {{"bevy", KneeForm::be
 constexpr std::pair<const char*, FirstDownsample> kFirstDownsamples[] = {
     {"13-tap", FirstDownsample::taps13}, {"bilinear", FirstDownsample::bilinear}};
 constexpr std::pair<const char*, DownsampleFilter> kDownsamples[] = {
-    {"13-tap", DownsampleFilter::taps13}, {"gaussian", DownsampleFilter::gaussian}};
+    {"13-tap", DownsampleFilter::taps13}, {"gaussian", DownsampleFilter::gaussian},
+    {"separable", DownsampleFilter::separable}};
 constexpr std::pair<const char*, UpsampleFilter> kUpsamples[] = {
     {"tent", UpsampleFilter::tent}, {"bilinear", UpsampleFilter::bilinear}};
 constexpr std::pair<const char*, LevelCount> kLevelCounts[] = {{"fixed", LevelCount::fixed},
-                                                                {"unity", LevelCount::unity}};
+                                                                {"unity", LevelCount::unity},
+                                                                {"threejs", LevelCount::threejs}};
 constexpr std::pair<const char*, Storage> kChainStorages[] = {
     {"f32", Storage::f32}, {"f16", Storage::f16}, {"r11g11b10", Storage::r11g11b10},
     {"rgba8", Storage::rgba8}};
@@ -144,6 +147,38 @@ void validate(const BloomParams& p) {
   require(p.composite_mode == CompositeMode::add || p.strength <= 1,
           "--composite-mode mix needs --strength in [0, 1], got " + str(p.strength));
   require(std::isfinite(p.threshold), "--threshold must be finite, got " + str(p.threshold));
+  // three.js's chain (preset threejs): its pieces need each other.
+  const bool threejs = p.level_count == LevelCount::threejs;
+  require(p.level_combine != LevelCombine::sum || threejs,
+          "--level-combine sum adds the blurred mips after the high pass: --level-count threejs");
+  require(!threejs || p.first_downsample == FirstDownsample::bilinear,
+          "--level-count threejs starts with the high pass, one lookup at half size: "
+          "--first-downsample bilinear");
+  require(p.prefilter != Prefilter::smoothstep || p.first_downsample == FirstDownsample::bilinear,
+          "--prefilter smoothstep is three.js's high pass on one lookup: --first-downsample "
+          "bilinear");
+  require(std::isfinite(p.smooth_width) && p.smooth_width > 0,
+          "--smooth-width must be finite and > 0, got " + str(p.smooth_width));
+  const int blurred = threejs ? p.levels : p.levels - 1;
+  if (p.downsample == DownsampleFilter::separable) {
+    require(int(p.level_kernels.size()) >= blurred,
+            "--level-kernels needs a radius for each of the " + std::to_string(blurred) +
+                " blurred levels, got " + std::to_string(p.level_kernels.size()));
+    for (int r : p.level_kernels)
+      require(r >= 1 && r <= 64, "--level-kernels: each radius must be in [1, 64], got " +
+                                     std::to_string(r));
+  }
+  if (p.level_combine == LevelCombine::sum) {
+    require(int(p.level_factors.size()) >= p.levels,
+            "--level-factors needs a factor for each of the " + std::to_string(p.levels) +
+                " blurred levels, got " + std::to_string(p.level_factors.size()));
+    for (float f : p.level_factors)
+      require(std::isfinite(f), "--level-factors must be finite, got " + str(f));
+    require(p.level_radius >= 0 && p.level_radius <= 1,
+            "--level-radius must be in [0, 1], got " + str(p.level_radius));
+    require(std::isfinite(p.level_strength) && p.level_strength >= 0,
+            "--level-strength must be finite and >= 0, got " + str(p.level_strength));
+  }
   require(std::isfinite(p.exposure) && p.exposure > 0,
           "--exposure must be finite and > 0, got " + str(p.exposure));
   require(std::isfinite(p.gamma) && p.gamma > 0,

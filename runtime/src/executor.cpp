@@ -682,6 +682,17 @@ class Executor {
   // variant blends them (level_blend).
   void up(const StageSpec& stage, Clock::time_point t0) {
     const int k = stage.pass, top = static_cast<int>(plan_.levels.size());
+    if (p_.level_combine == LevelCombine::sum) {
+      std::vector<BasicView<const T>> levels;
+      for (int i = 2; i <= top; ++i) levels.push_back(down_[i].cview());
+      BasicImage<T>& dst = up_[1];
+      dst = BasicImage<T>(down_[1].width(), down_[1].height());
+      sum_levels(levels, dst.view(), p_.level_factors, p_.level_radius, p_.level_strength,
+                 p_.subtexel_bits, threads_);
+      store_level(dst);
+      record(stage.name, dst, ms_since(t0), false);
+      return;
+    }
     const BasicImage<T>& small = k + 1 == top ? down_[top] : up_[k + 1];
     BasicImage<T>& dst = up_[k];
     dst = BasicImage<T>(down_[k].width(), down_[k].height());

@@ -84,7 +84,10 @@ std::vector<StageSpec> mip_stages(const BloomParams& p, std::size_t k) {
   std::vector<StageSpec> s = {{"input", StageKind::input}};
   if (p.prefilter == Prefilter::bright) s.push_back({"bright", StageKind::bright});
   for (std::size_t i = 1; i <= k; ++i) s.push_back({"down." + std::to_string(i), StageKind::down, int(i)});
-  for (std::size_t i = k; i-- > 1;) s.push_back({"up." + std::to_string(i), StageKind::up, int(i)});
+  // LevelCombine::sum: one stage up.1 adds the blurred levels (down.2 .. down.K) at once.
+  if (p.level_combine == LevelCombine::sum) s.push_back({"up.1", StageKind::up, 1});
+  else
+    for (std::size_t i = k; i-- > 1;) s.push_back({"up." + std::to_string(i), StageKind::up, int(i)});
   s.push_back({"bloom", StageKind::bloom});
   if (p.composite == CompositeOrder::after_tonemap)
     s.insert(s.end(), {{"tonemap", StageKind::tonemap}, {"composite", StageKind::composite}});

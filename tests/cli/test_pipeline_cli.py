@@ -194,7 +194,7 @@ def test_the_presets_as_descriptions_give_their_hosts_images(tmp_path, preset):
     assert a["verdict"] == "PASS"
 
 
-@pytest.mark.parametrize("preset", ["learnopengl-pbb", "bevy", "unity-urp"])
+@pytest.mark.parametrize("preset", ["learnopengl-pbb", "bevy", "unity-urp", "threejs"])
 def test_describe_writes_a_description_that_gives_the_hosts_images(tmp_path, preset):
     """bloomref describe --preset P: the preset's host code as a description with bloomref's
     shaders beside it. Read back by check --shaders pipeline, it gives the errors compare's

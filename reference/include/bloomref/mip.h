@@ -31,7 +31,9 @@ std::vector<LevelSize> mip_levels(int width, int height, int levels);
 /// (round(width x r), round(height x r)) at least 1, r = first_level_height / height in f32 (Bevy's
 /// prepare_bloom_textures), and each next level its size >> 1 (at least 1), at most p.levels, no
 /// 1x1 repeated; with p.level_count unity, the number of levels Unity URP's SetupBloom draws
-/// (at most p.levels), each floor(n / 2) of the one above.
+/// (at most p.levels), each floor(n / 2) of the one above; with p.level_count threejs, the high
+/// pass's size (round(width / 2), round(height / 2)) and p.levels blurred mips, the first of
+/// the same size, each next round(n / 2) (LevelCount::threejs).
 std::vector<LevelSize> chain_levels(const BloomParams& p, int width, int height);
 
 /// Bevy's soft_threshold (bloom.wesl) of one texel, in f32 as the shader computes it with the
@@ -104,7 +106,36 @@ struct DownsampleOptions {
   float step_width = 0.0f, step_height = 0.0f;
   /// The tap threshold's luminance (its weights also the per-tap Karis weight's, on linear colour).
   LumaRule luma;
+  /// Prefilter::smoothstep (the first level): its result times smoothstep(threshold, threshold +
+  /// smooth_width, L), L its luminance under `luma`.
+  bool smoothstep = false;
+  float smooth_width = 0.01f;
+  /// DownsampleFilter::separable: the level's kernel radius (taps i < radius either side).
+  int kernel_radius = 0;
 };
+
+/// three.js's separable blur coefficients for a kernel radius R (BloomNode.js,
+/// _getSeparableBlurMaterial): c_i = 0.39894 exp(-0.5 i^2 / s^2) / s for i in [0, R), s = R / 3,
+/// in double as JavaScript computes them, rounded to float as the uniform array holds them.
+std::vector<float> separable_coefficients(int radius);
+
+/// The first level's factor under Prefilter::smoothstep: smoothstep(threshold, threshold + width,
+/// L) in the shader's f32 order (GLSL 4.60, 8.3: t = clamp((L - e0) / (e1 - e0), 0, 1), t t (3 -
+/// 2 t)), e1 = threshold + width computed in f32.
+template <class T>
+T smoothstep_factor(T luminance, float threshold, float width);
+
+/// The mip factor F_k of LevelCombine::sum for factor f (three.js's lerpBloomFactor): mix(f, 1.2
+/// - f, radius) in f32 as the shader computes it, f (1 - radius) + (1.2 - f) radius.
+float sum_factor(float f, float radius);
+
+/// Stage up.1 under LevelCombine::sum: dst (the first level's size) = strength x (F_1
+/// lookup(levels[0]) + F_2 lookup(levels[1]) + ...) in that order, each a GL_LINEAR lookup at the
+/// texel's centre, F_i = sum_factor(factors[i], radius). Alpha 1.
+template <class T>
+void sum_levels(const std::vector<BasicView<const T>>& levels, BasicView<T> dst,
+                const std::vector<float>& factors, float radius, float strength, int subtexel_bits,
+                int threads);
 
 /// The options of stage down.k of a w x h scene under `p` (its variant), sampling with
 /// `subtexel_bits`.
@@ -131,6 +162,10 @@ float halved_size(int n, int k);
 /// 0.05405405, 0.12162162, 0.19459459, 0.22702703 (symmetric), stored as `intermediate`; then
 /// r = sum_j lookup_h(uv + (0, s o_j)) v_j, s = 1 / height, o = -3.23076923, -1.38461538, 0,
 /// 1.38461538, 3.23076923, v = 0.07027027, 0.31621622, 0.22702703 (symmetric).
+/// DownsampleFilter::separable (three.js's blurred mips): h = lookup(uv) c_0 + sum_i (lookup(uv +
+/// (t i, 0)) + lookup(uv - (t i, 0))) c_i for i = 1 .. R-1 in order, t = 1 / the level's width,
+/// stored as `intermediate`; then the same along y on h, t = 1 / the level's height.
+/// Prefilter::smoothstep (FirstDownsample::bilinear): r = the lookup times smoothstep_factor.
 template <class T>
 void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
                 int threads);
@@ -160,8 +195,8 @@ struct GaussianTap {
 };
 const std::vector<GaussianTap>& gaussian_down_h_taps();
 const std::vector<GaussianTap>& gaussian_down_v_taps();
-/// The Gaussian pyramid's horizontal pass alone into `h` (the level's size), stored as
-/// opt.intermediate: what the vertical pass of downsample reads.
+/// The Gaussian pyramid's (or DownsampleFilter::separable's) horizontal pass alone into `h` (the
+/// level's size), stored as opt.intermediate: what the vertical pass of downsample reads.
 template <class T>
 void downsample_gaussian_h(BasicView<const T> src, BasicView<T> h, const DownsampleOptions& opt,
                            int threads);

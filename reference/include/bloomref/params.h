@@ -57,8 +57,10 @@ enum class LumaSpace { linear, srgb, gamma };
 /// the scene and the first downsample's result is scaled by Bevy's soft_threshold (Unity's form,
 /// catlikecoding.com/unity/tutorials/advanced-rendering/bloom, 3.4): with knee = threshold x
 /// softness, contribution max(b - threshold, clamp(b - threshold + knee, 0, 2 knee)^2 / (4 knee +
-/// 0.00004)) / max(b, 0.00001), b the largest channel.
-enum class Prefilter { per_lookup, bright, none, soft_knee };
+/// 0.00004)) / max(b, 0.00001), b the largest channel; or smoothstep: three.js's luminosity high
+/// pass (mrdoob/three.js examples/jsm/tsl/display/BloomNode.js, luminosityHighPass): the first
+/// level's lookup c times smoothstep(threshold, threshold + smooth_width, L), L its luminance.
+enum class Prefilter { per_lookup, bright, none, soft_knee, smoothstep };
 /// The first downsample's Karis average: `per_tap` (seed 002: each tap weighted 1 / (1 + L),
 /// normalised within its group) or `group_srgb` (the article's 6.new_downsample.fs: each group
 /// of four scaled by 1 / (1 + luma / 4), luma = Rec. 601 weights of pow(group, 1 / 2.2), not
@@ -78,8 +80,11 @@ enum class BloomUpscale { tent, bilinear };
 /// How up.k combines down.k with the tent of the level below it: `add` (down.k + C_k tent, the
 /// blend GL_ONE / GL_ONE when C_k is 1) or `mix` (tent C_k + down.k (1 - C_k): the blend
 /// constant / one-minus-constant, Bevy's energy-conserving mode) or `lerp` (HLSL's
-/// lerp(down.k, tent, C_k) = down.k + (tent - down.k) C_k in the shader, Unity URP's Upsample).
-enum class LevelCombine { add, mix, lerp };
+/// lerp(down.k, tent, C_k) = down.k + (tent - down.k) C_k in the shader, Unity URP's Upsample);
+/// or sum: no chain of upsamples, one stage up.1 at the first level's size = level_strength x
+/// (F_2 lookup(down.2) + ... + F_K lookup(down.K)), F_k = mix(f, 1.2 - f, level_radius) with f
+/// the level's --level-factors entry (three.js's composite pass, BloomNode.js compositePass).
+enum class LevelCombine { add, mix, lerp, sum };
 /// The per-level constants C_k: `one` (every C_k 1), or `bevy` (bloom/mod.rs,
 /// compute_blend_factor, in f32: (strength + boost) x high-pass, boost = (1 - (1 - k / K)^(1 / (1 -
 /// curvature))) x low_frequency_boost, times 1 - strength under LevelCombine::mix; K the last
@@ -96,14 +101,21 @@ enum class FirstDownsample { taps13, bilinear };
 /// The other levels' filter: seed 003's 13 taps, or Unity URP's Gaussian pyramid (Bloom.shader,
 /// FragBlurH then FragBlurV): nine lookups two source texels apart along x into the level's
 /// size, stored as the level is, then five lookups at 0, +-1.38461538 and +-3.23076923 texels
-/// along y.
-enum class DownsampleFilter { taps13, gaussian };
+/// along y; or separable: three.js's blurred mips (BloomNode.js, _getSeparableBlurMaterial): a
+/// pass along x into the level's size, stored, then one along y, each sum_i c_i (lookup(uv + i d)
+/// + lookup(uv - i d)) for i < R (the centre once, times c_0), d one texel of the level drawn,
+/// c_i = 0.39894 exp(-0.5 i^2 / s^2) / s in double rounded to float, s = R / 3, not normalised;
+/// R the level's --level-kernels entry.
+enum class DownsampleFilter { taps13, gaussian, separable };
 /// What up.k reads of the level below: the 3x3 tent, or one bilinear lookup (Unity URP's
 /// Upsample without _BLOOM_HQ).
 enum class UpsampleFilter { tent, bilinear };
 /// How many levels: `fixed` (--levels, fewer when the image ends) or `unity` (URP's
-/// PostProcessPass.SetupBloom: clamp(floor(log2(max(w >> 1, h >> 1)) - 1), 1, --levels)).
-enum class LevelCount { fixed, unity };
+/// PostProcessPass.SetupBloom: clamp(floor(log2(max(w >> 1, h >> 1)) - 1), 1, --levels)), or
+/// `threejs`: down.1 (the high pass) at (round(w / 2), round(h / 2)) as JavaScript's Math.round
+/// rounds, then --levels blurred mips, the first at that size, each next round(n / 2) of the one
+/// before (BloomNode.js, setSize; 1x1 repeats as it does there).
+enum class LevelCount { fixed, unity, threejs };
 
 struct BloomParams {
   Method method = Method::gaussian;
@@ -162,6 +174,16 @@ struct BloomParams {
   DownsampleFilter downsample = DownsampleFilter::taps13;
   UpsampleFilter upsample = UpsampleFilter::tent;
   LevelCount level_count = LevelCount::fixed;
+  /// Prefilter::smoothstep: the width of the smoothstep above the threshold (three.js's
+  /// smoothWidth).
+  float smooth_width = 0.01f;
+  /// DownsampleFilter::separable: each blurred mip's kernel radius R (taps i < R either side).
+  std::vector<int> level_kernels = {6, 10, 14, 18, 22};
+  /// LevelCombine::sum: each blurred mip's factor, the radius that mirrors them about 0.6, and
+  /// the sum's multiplier (three.js's bloomFactors, radius and strength).
+  std::vector<float> level_factors = {1.0f, 0.8f, 0.6f, 0.4f, 0.2f};
+  float level_radius = 0.0f;
+  float level_strength = 1.0f;
   /// The storage of the chain's levels (chain_storage when set, else storage).
   Storage level_storage() const { return chain_storage_set ? chain_storage : storage; }
   /// Whether any mip-chain choice differs from seed 002's chain.

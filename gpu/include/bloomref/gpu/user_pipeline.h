@@ -323,4 +323,13 @@ bool unity_layout(const BloomParams& params);
 /// `composite` and `output`. Throws ParamError unless unity_layout(params).
 StageTrace execute_gl_unity(GlContext& ctx, const BloomParams& params, ConstImageView scene);
 
+/// Whether `params` is a chain three.js's BloomNode draws (preset threejs and its overrides).
+bool threejs_layout(const BloomParams& params);
+
+/// bloomref's own shaders for three.js's bloom (gpu/shaders/threejs_*.frag) in BloomNode's order,
+/// run from its description (preset_description): the trace holds `input`, `down.1` (the high
+/// pass), `down.2` .. `down.K` (the blurred mips), `up.1` (their composite), `composite` and
+/// `output`. Throws ParamError unless threejs_layout(params).
+StageTrace execute_gl_threejs(GlContext& ctx, const BloomParams& params, ConstImageView scene);
+
 }  // namespace bloomref::gpu
