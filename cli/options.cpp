@@ -111,12 +111,13 @@ void PipelineOptions::add_to(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--first-downsample", first_downsample,
                  "mip: the first level by 13-tap (seed 003) | bilinear (one lookup, Unity's "
-                 "prefilter)")
+                 "prefilter) | box4 (four lookups at +-1 texel)")
       ->capture_default_str();
   app.add_option("--downsample", downsample,
                  "mip: the other levels by 13-tap (seed 003) | gaussian (Unity's 9-tap "
                  "horizontal 2x downsample, then 5 bilinear taps vertical) | separable "
-                 "(three.js's Gaussian of --level-kernels, along x then y)")
+                 "(three.js's Gaussian of --level-kernels, along x then y) | box4 (four lookups "
+                 "at +-1 texel)")
       ->capture_default_str();
   app.add_option("--upsample", upsample,
                  "mip: what up.k reads of the level below: tent (3x3) | bilinear (one lookup)")

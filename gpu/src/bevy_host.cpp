@@ -30,6 +30,7 @@ class BevyHost {
         down_(own_program("downsample", "bevy_downsample.frag",
                           {{"srcTexture", HostUniform::sampler, true, "texture unit 0"},
                            {"firstDownsample", HostUniform::integer, true, "1 on the first level"},
+                           {"box4", HostUniform::integer, true, "1: the 4-tap box"},
                            {"softThreshold", HostUniform::integer, true, "1: the soft threshold"},
                            {"thresholdPrecomputations", HostUniform::vector, true,
                             "Bevy's threshold_precomputations", 4}})),
@@ -78,6 +79,7 @@ class BevyHost {
     }
     for (std::size_t k = 0; k < mips_.size(); ++k) {
       down_.set_integer("firstDownsample", k == 0 && p_.karis ? 1 : 0);
+      down_.set_integer("box4", box4(p_, int(k)) ? 1 : 0);
       down_.set_integer("softThreshold", k == 0 && p_.prefilter == Prefilter::soft_knee ? 1 : 0);
       const std::string name = "down." + std::to_string(k + 1);
       const double ms = quad_.draw(ctx_, down_, {k == 0 ? &view_ : &mips_[k - 1]}, mips_[k],
@@ -138,8 +140,13 @@ class BevyHost {
 
 }  // namespace
 
+bool box4(const BloomParams& p, int k) {
+  return k == 0 ? p.first_downsample == FirstDownsample::box4 : p.downsample == DownsampleFilter::box4;
+}
+
 bool unity_free(const BloomParams& p) {
-  return p.first_downsample == FirstDownsample::taps13 && p.downsample == DownsampleFilter::taps13 &&
+  return p.first_downsample != FirstDownsample::bilinear &&
+         (p.downsample == DownsampleFilter::taps13 || p.downsample == DownsampleFilter::box4) &&
          p.upsample == UpsampleFilter::tent && p.level_combine != LevelCombine::lerp &&
          p.level_weights != LevelWeights::constant && p.knee_form == KneeForm::bevy &&
          p.clamp_max == 0.0f && p.level_count == LevelCount::fixed &&

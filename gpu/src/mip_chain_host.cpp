@@ -256,7 +256,8 @@ bool article_layout(const BloomParams& p) {
          (!p.karis || p.karis_form == KarisForm::group_srgb) &&
          p.texel_step == TexelStep::halved_float && p.upsample_radius > 0 &&
          p.bloom_upscale == BloomUpscale::bilinear && p.composite_mode == CompositeMode::mix &&
-         p.composite == CompositeOrder::before_tonemap && p.gamma == 2.2f && unity_free(p);
+         p.composite == CompositeOrder::before_tonemap && p.gamma == 2.2f && unity_free(p) &&
+         p.first_downsample == FirstDownsample::taps13 && p.downsample == DownsampleFilter::taps13;
 }
 
 StageTrace execute_gl_mip_chain(GlContext& ctx, const BloomParams& p, ConstImageView scene) {

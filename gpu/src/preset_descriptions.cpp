@@ -166,6 +166,7 @@ PipelineDescription bevy(const BloomParams& p, int w, int h) {
                               {{"srcTexture", k == 0 ? "view" : level("mip", k - 1)}},
                               level("down.", k + 1));
     d.uniforms["firstDownsample"] = integer(k == 0 && p.karis ? 1 : 0);
+    d.uniforms["box4"] = integer(box4(p, int(k)) ? 1 : 0);
     d.uniforms["softThreshold"] = integer(k == 0 && p.prefilter == Prefilter::soft_knee ? 1 : 0);
     d.uniforms["thresholdPrecomputations"] = number(pre);
   }

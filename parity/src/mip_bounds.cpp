@@ -87,7 +87,8 @@ std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImage
 std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView oracle,
                                          const Image* error, const DownsampleOptions& opt,
                                          BoundContext ctx) {
-  if (!opt.first && opt.filter != DownsampleFilter::taps13)
+  if (!opt.first && (opt.filter == DownsampleFilter::gaussian ||
+                     opt.filter == DownsampleFilter::separable))
     return gaussian_down_bounds(src, oracle, error, opt, ctx);
   const bool first = opt.first && opt.threshold_taps;  // the taps are thresholded
   const float threshold = opt.threshold;
@@ -116,10 +117,12 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
   // One bilinear lookup (FirstDownsample::bilinear) or seed 003's 13 taps.
   static const std::vector<MipTap> kCentre = {{0, 0, 1.0f}};
   const bool single = opt.first && opt.first_filter == FirstDownsample::bilinear;
+  const bool box = opt.first ? opt.first_filter == FirstDownsample::box4
+                             : opt.filter == DownsampleFilter::box4;
   // Every term but storage, of one channel, before any soft threshold (a clamp, min(C, r), moves
   // no value further than r moves).
   auto pre = [=](int x, int y, int c) {
-        const auto& taps = single ? kCentre : downsample_taps();
+        const auto& taps = single ? kCentre : box ? box4_taps() : downsample_taps();
         double coord = 0, arith = 0, thresh = 0;
         double dq[13], lum_err[13], qmax[13], lum[13], qs[13][3];
         for (std::size_t i = 0; i < taps.size(); ++i) {

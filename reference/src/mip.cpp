@@ -312,6 +312,12 @@ template void sum_levels<float>(const std::vector<BasicView<const float>>&, Basi
 template void sum_levels<double>(const std::vector<BasicView<const double>>&, BasicView<double>,
                                  const std::vector<float>&, float, float, int, int);
 
+const std::vector<MipTap>& box4_taps() {
+  static const std::vector<MipTap> t = {{-1, -1, 0.25f}, {1, -1, 0.25f}, {-1, 1, 0.25f},
+                                        {1, 1, 0.25f}};
+  return t;
+}
+
 const std::vector<MipTap>& downsample_taps() {
   static const std::vector<MipTap> t = [] {
     std::vector<MipTap> v;
@@ -612,11 +618,29 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
   const Step sx{opt.step_width > 0 ? opt.step_width : float(src.width), 0.0f};
   const Step sy{opt.step_height > 0 ? opt.step_height : float(src.height), 0.0f};
   const Lookups<T> lookups(src, dst.width, dst.height, 2, opt.subtexel_bits, sx, sy);
+  // The 4-tap box: its four taps in order, each times 0.25 (a power of two: the same bits as
+  // the shaders' sum of the four times 0.25).
+  const bool box = opt.first ? opt.first_filter == FirstDownsample::box4
+                             : opt.filter == DownsampleFilter::box4;
+  const std::vector<MipTap>& box_taps = box4_taps();
   parallel_rows(dst.height, threads, [&](int y0, int y1) {
     for (int y = y0; y < y1; ++y)
       for (int x = 0; x < dst.width; ++x) {
         if (opt.active && !opt.active[std::size_t(y) * dst.width + x]) {
           write_zero(dst.pixel(x, y));
+          continue;
+        }
+        if (box) {
+          T r[3] = {0, 0, 0};
+          for (const MipTap& t : box_taps) {
+            T q[3];
+            lookups.sample(src, x, y, t.ox, t.oy, q);
+            if (thresholded && threshold_luminance(q[0], q[1], q[2], opt.luma) < threshold)
+              q[0] = q[1] = q[2] = T(0);
+            for (int c = 0; c < 3; ++c) r[c] = r[c] + q[c] * static_cast<T>(t.weight);
+          }
+          finish_first(r, opt);
+          write_rgb1(dst.pixel(x, y), r);
           continue;
         }
         T q[kDownTaps][3];

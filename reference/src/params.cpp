@@ -67,10 +67,11 @@ constexpr std::pair<const char*, LevelWeights> kWeights[] = {
 constexpr std::pair<const char*, KneeForm> kKneeForms[] = {{"bevy", KneeForm::bevy},
                                                             {"unity", KneeForm::unity}};
 constexpr std::pair<const char*, FirstDownsample> kFirstDownsamples[] = {
-    {"13-tap", FirstDownsample::taps13}, {"bilinear", FirstDownsample::bilinear}};
+    {"13-tap", FirstDownsample::taps13}, {"bilinear", FirstDownsample::bilinear},
+    {"box4", FirstDownsample::box4}};
 constexpr std::pair<const char*, DownsampleFilter> kDownsamples[] = {
     {"13-tap", DownsampleFilter::taps13}, {"gaussian", DownsampleFilter::gaussian},
-    {"separable", DownsampleFilter::separable}};
+    {"separable", DownsampleFilter::separable}, {"box4", DownsampleFilter::box4}};
 constexpr std::pair<const char*, UpsampleFilter> kUpsamples[] = {
     {"tent", UpsampleFilter::tent}, {"bilinear", UpsampleFilter::bilinear}};
 constexpr std::pair<const char*, LevelCount> kLevelCounts[] = {{"fixed", LevelCount::fixed},
@@ -131,11 +132,13 @@ void validate(const BloomParams& p) {
           "--clamp-max must be finite and >= 0 (0 = no clamp), got " + str(p.clamp_max));
   require(!p.karis || p.first_downsample == FirstDownsample::taps13,
           "--karis needs --first-downsample 13-tap (the Karis average weights its 13 taps)");
-  require(p.first_downsample == FirstDownsample::taps13 || p.prefilter != Prefilter::per_lookup,
+  require(p.first_downsample != FirstDownsample::bilinear || p.prefilter != Prefilter::per_lookup,
           "--first-downsample bilinear has no taps to threshold: use --prefilter soft-knee, "
           "bright or none");
-  require(p.downsample == DownsampleFilter::taps13 || p.texel_step == TexelStep::texture,
-          "--downsample gaussian steps by the source texture's size: --texel-step texture");
+  require(p.downsample == DownsampleFilter::taps13 || p.downsample == DownsampleFilter::box4 ||
+              p.texel_step == TexelStep::texture,
+          "--downsample " + to_string(p.downsample) +
+              " steps by the source texture's size: --texel-step texture");
   require(p.upsample == UpsampleFilter::tent ||
               (p.upsample_radius == 0.0f && p.texel_step == TexelStep::texture),
           "--upsample bilinear reads one texel centre: --upsample-radius 0, --texel-step texture");

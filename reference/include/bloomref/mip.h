@@ -65,6 +65,9 @@ struct MipTap {
 /// Seed 003's 13 downsample taps (centre, inner four, outer eight) and their groups of four
 /// for the Karis average (tap indices, group weights 0.5, 0.125 x 4).
 const std::vector<MipTap>& downsample_taps();
+/// The 4-tap box's taps (FirstDownsample::box4, DownsampleFilter::box4): (-1, -1), (1, -1),
+/// (-1, 1), (1, 1), each 0.25, summed in that order.
+const std::vector<MipTap>& box4_taps();
 const std::vector<std::vector<int>>& karis_groups();
 const std::vector<float>& karis_group_weights();
 /// The 3x3 tent (1-2-1 / 16) in seed 003's order.

@@ -96,8 +96,10 @@ enum class LevelWeights { one, bevy, constant };
 /// FragPrefilter: clamp(b - threshold + knee, 0, 2 knee)^2 / (4 knee + 1e-4), max(b, 1e-4)).
 enum class KneeForm { bevy, unity };
 /// The first level's filter: seed 003's 13 taps, or one bilinear lookup at the target texel's
-/// centre (Unity URP's FragPrefilter).
-enum class FirstDownsample { taps13, bilinear };
+/// centre (Unity URP's FragPrefilter), or the 4-tap box: four lookups at (+-1, +-1) texels of
+/// the source, each the mean of a 2x2 block, summed and times 0.25 (the 4x4 box, Kawase's and
+/// catlikecoding.com's Unity bloom tutorial's downsample).
+enum class FirstDownsample { taps13, bilinear, box4 };
 /// The other levels' filter: seed 003's 13 taps, or Unity URP's Gaussian pyramid (Bloom.shader,
 /// FragBlurH then FragBlurV): nine lookups two source texels apart along x into the level's
 /// size, stored as the level is, then five lookups at 0, +-1.38461538 and +-3.23076923 texels
@@ -106,7 +108,8 @@ enum class FirstDownsample { taps13, bilinear };
 /// + lookup(uv - i d)) for i < R (the centre once, times c_0), d one texel of the level drawn,
 /// c_i = 0.39894 exp(-0.5 i^2 / s^2) / s in double rounded to float, s = R / 3, not normalised;
 /// R the level's --level-kernels entry.
-enum class DownsampleFilter { taps13, gaussian, separable };
+/// box4: the 4-tap box, as FirstDownsample::box4.
+enum class DownsampleFilter { taps13, gaussian, separable, box4 };
 /// What up.k reads of the level below: the 3x3 tent, or one bilinear lookup (Unity URP's
 /// Upsample without _BLOOM_HQ).
 enum class UpsampleFilter { tent, bilinear };

@@ -312,8 +312,12 @@ bool bevy_layout(const BloomParams& params);
 StageTrace execute_gl_bevy(GlContext& ctx, const BloomParams& params, ConstImageView scene);
 
 /// Whether `params` uses none of the choices only Unity URP's layout has (its filters, lerp,
-/// constant weights, its soft threshold's arithmetic, clamp and level count).
+/// constant weights, its soft threshold's arithmetic, clamp and level count), nor three.js's.
 bool unity_free(const BloomParams& params);
+
+/// Whether level k (0: the first) of Bevy's layout is the 4-tap box (--first-downsample box4,
+/// --downsample box4), which bloomref's Bevy downsample shader also draws.
+bool box4(const BloomParams& params, int k);
 
 /// Whether `params` is a chain Unity URP's SetupBloom draws (preset unity-urp and its overrides).
 bool unity_layout(const BloomParams& params);
