@@ -22,6 +22,8 @@ double shortest(float v) {
 nlohmann::ordered_json params_json(const BloomParams& p) {
   std::vector<double> factors;
   for (float f : p.level_factors) factors.push_back(shortest(f));
+  std::vector<double> sigmas;
+  for (float s : p.level_sigmas) sigmas.push_back(shortest(s));
   return {{"method", to_string(p.method)},       {"threshold", shortest(p.threshold)},
           {"exposure", shortest(p.exposure)},              {"gamma", shortest(p.gamma)},
           {"strength", shortest(p.strength)},              {"passes", p.passes},
@@ -51,6 +53,7 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
           {"level_count", to_string(p.level_count)},
           {"smooth_width", shortest(p.smooth_width)},
           {"level_kernels", p.level_kernels},
+          {"level_sigmas", sigmas},
           {"level_factors", factors},
           {"level_radius", shortest(p.level_radius)},
           {"level_strength", shortest(p.level_strength)}};

@@ -144,6 +144,10 @@ void PipelineOptions::add_to(CLI::App& app) {
                  "separated (three.js's kernelSizeArray; sigma R / 3)")
       ->delimiter(',')
       ->capture_default_str();
+  app.add_option("--level-sigmas", p.level_sigmas,
+                 "mip, --downsample separable: each blurred level's sigma, comma separated "
+                 "(default: its radius / 3, three.js's)")
+      ->delimiter(',');
   app.add_option("--level-factors", p.level_factors,
                  "mip, --level-combine sum: each blurred level's factor, comma separated "
                  "(three.js's bloomFactors)")

@@ -120,6 +120,8 @@ const std::map<std::string, Setter>& setters() {
        }},
       {"level-kernels",
        [](PipelineOptions& o, const nlohmann::json& v) { o.params.level_kernels = numbers_of<int>(v); }},
+      {"level-sigmas",
+       [](PipelineOptions& o, const nlohmann::json& v) { o.params.level_sigmas = numbers_of<float>(v); }},
       {"level-factors",
        [](PipelineOptions& o, const nlohmann::json& v) {
          o.params.level_factors = numbers_of<float>(v);

@@ -207,10 +207,10 @@ void downsample_gaussian(BasicView<const T> src, BasicView<T> dst, const Downsam
 // One pass of three.js's separable blur into `dst` (its uniform invSize is 1 / dst's size; the
 // taps one texel of dst apart along `horizontal`'s axis), unrounded.
 template <class T>
-void separable_pass(BasicView<const T> src, BasicView<T> dst, int radius, bool horizontal,
-                    int bits, int threads) {
+void separable_pass(BasicView<const T> src, BasicView<T> dst, int radius, double sigma,
+                    bool horizontal, int bits, int threads) {
   const int tw = dst.width, th = dst.height;
-  const std::vector<float> c = separable_coefficients(radius);
+  const std::vector<float> c = separable_coefficients(radius, sigma);
   // uvOffset = direction * invSize * x: the step (exact times 1 or 0), then times i; the lookups
   // at uv + uvOffset and uv - uvOffset.
   const int n = horizontal ? tw : th;
@@ -253,19 +253,26 @@ template <class T>
 void downsample_separable(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
                           int threads) {
   BasicImage<T> h(dst.width, dst.height);
-  separable_pass(src, h.view(), opt.kernel_radius, true, opt.subtexel_bits, threads);
+  separable_pass(src, h.view(), opt.kernel_radius, opt.kernel_sigma, true, opt.subtexel_bits,
+                 threads);
   store(h.view(), opt.intermediate, opt.rounding, threads);
-  separable_pass(h.cview(), dst, opt.kernel_radius, false, opt.subtexel_bits, threads);
+  separable_pass(h.cview(), dst, opt.kernel_radius, opt.kernel_sigma, false, opt.subtexel_bits,
+                 threads);
 }
 
 }  // namespace
 
-std::vector<float> separable_coefficients(int radius) {
+std::vector<float> separable_coefficients(int radius, double given_sigma) {
   std::vector<float> c;
-  const double sigma = radius / 3.0;
+  const double sigma = given_sigma > 0 ? given_sigma : radius / 3.0;
   for (int i = 0; i < radius; ++i)
     c.push_back(static_cast<float>(0.39894 * std::exp(-0.5 * i * i / (sigma * sigma)) / sigma));
   return c;
+}
+
+double level_sigma(const BloomParams& p, int k) {
+  const std::size_t i = std::size_t(k - 2);
+  return k >= 2 && i < p.level_sigmas.size() ? double(p.level_sigmas[i]) : 0.0;
 }
 
 template <class T>
@@ -397,6 +404,7 @@ DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int
   if (p.downsample == DownsampleFilter::separable && k >= 2 &&
       std::size_t(k - 2) < p.level_kernels.size())
     o.kernel_radius = p.level_kernels[std::size_t(k - 2)];
+  o.kernel_sigma = level_sigma(p, k);
   if (p.texel_step == TexelStep::halved_float) {
     o.step_width = halved_size(width, k - 1);
     o.step_height = halved_size(height, k - 1);
@@ -825,7 +833,7 @@ template <class T>
 void downsample_gaussian_h(BasicView<const T> src, BasicView<T> h, const DownsampleOptions& opt,
                            int threads) {
   if (opt.filter == DownsampleFilter::separable)
-    separable_pass(src, h, opt.kernel_radius, true, opt.subtexel_bits, threads);
+    separable_pass(src, h, opt.kernel_radius, opt.kernel_sigma, true, opt.subtexel_bits, threads);
   else
     gaussian_h_pass(src, h, opt, threads);
   store(h, opt.intermediate, opt.rounding, threads);

@@ -170,6 +170,9 @@ void validate(const BloomParams& p) {
     for (int r : p.level_kernels)
       require(r >= 1 && r <= 64, "--level-kernels: each radius must be in [1, 64], got " +
                                      std::to_string(r));
+    for (float s : p.level_sigmas)
+      require(std::isfinite(s) && s > 0 && s <= 64,
+              "--level-sigmas: each sigma must be in (0, 64], got " + str(s));
   }
   if (p.level_combine == LevelCombine::sum) {
     require(int(p.level_factors.size()) >= p.levels,

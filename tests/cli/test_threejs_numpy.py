@@ -45,10 +45,10 @@ def level_sizes(w, h, mips=5):
     return out
 
 
-def coefficients(radius):
-    """_getSeparableBlurMaterial: 0.39894 * exp(-0.5 i^2 / sigma^2) / sigma, sigma = R / 3, as
-    float32 uniforms."""
-    sigma = radius / 3
+def coefficients(radius, sigma=None):
+    """_getSeparableBlurMaterial: 0.39894 * exp(-0.5 i^2 / sigma^2) / sigma, sigma = R / 3 (or
+    the one given), as float32 uniforms."""
+    sigma = radius / 3 if sigma is None else sigma
     return [float(F32(0.39894 * math.exp(-0.5 * i * i / (sigma * sigma)) / sigma))
             for i in range(radius)]
 
@@ -62,9 +62,9 @@ def high_pass(img, tw, th, threshold=THRESHOLD):
     return texel * (t * t * (3.0 - 2.0 * t))[..., None]
 
 
-def blur(src, tw, th, radius, horizontal):
+def blur(src, tw, th, radius, horizontal, sigma=None):
     """One separable pass into a tw x th target: taps at +-i / (the target's size)."""
-    c = coefficients(radius)
+    c = coefficients(radius, sigma)
     s, t = centres(tw), centres(th)
 
     def tap(i):
@@ -82,15 +82,16 @@ def factor(f, radius=RADIUS):
     return float(f * (F32(1) - r) + (F32(1.2) - f) * r)
 
 
-def pipeline(img, threshold=THRESHOLD):
+def pipeline(img, threshold=THRESHOLD, sigmas=None):
     hgt, wid, _ = img.shape
     sizes = level_sizes(wid, hgt)
     st = {"input": img, "down.1": high_pass(img, *sizes[0], threshold)}
     prev = st["down.1"]
     for k in range(1, len(sizes)):
         tw, th = sizes[k]
-        h = blur(prev, tw, th, KERNELS[k - 1], True)
-        prev = blur(h, tw, th, KERNELS[k - 1], False)
+        sigma = sigmas[k - 1] if sigmas else None
+        h = blur(prev, tw, th, KERNELS[k - 1], True, sigma)
+        prev = blur(h, tw, th, KERNELS[k - 1], False, sigma)
         st[f"down.{k + 1}"] = prev
     s0 = sizes[0]
     up = sum(factor(FACTORS[i]) * lookup(st[f"down.{i + 2}"], centres(s0[0]), centres(s0[1]))
@@ -170,3 +171,14 @@ def test_radius_and_strength_are_what_is_tested():
     assert factor(1.0, 1.0) == pytest.approx(0.2, abs=1e-7)
     assert np.allclose(got["up.1"], mirrored * 0.5, rtol=1e-6, atol=1e-12)
     assert not np.allclose(got["up.1"], want["up.1"], rtol=1e-2)
+
+
+def test_given_sigmas_equal_numpy():
+    """--level-sigmas: a sigma per mip instead of R / 3 (a blur of a given sigma)."""
+    img = random_hdr(37, 29, 13)
+    sigmas = [1.0, 2.5, 3.0, 4.0, 9.0]
+    got = run_bloomref(img, ["--precision", "f64", "--level-sigmas", ",".join(map(str, sigmas))])
+    want = pipeline(img.astype(np.float64), sigmas=sigmas)
+    check_images(got, want, sorted(want), True, "sigmas")
+    default = pipeline(img.astype(np.float64))
+    assert not np.allclose(want["down.2"], default["down.2"], rtol=1e-3)

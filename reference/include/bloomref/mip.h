@@ -113,14 +113,20 @@ struct DownsampleOptions {
   /// smooth_width, L), L its luminance under `luma`.
   bool smoothstep = false;
   float smooth_width = 0.01f;
-  /// DownsampleFilter::separable: the level's kernel radius (taps i < radius either side).
+  /// DownsampleFilter::separable: the level's kernel radius (taps i < radius either side) and
+  /// sigma (0: radius / 3).
   int kernel_radius = 0;
+  double kernel_sigma = 0.0;
 };
 
 /// three.js's separable blur coefficients for a kernel radius R (BloomNode.js,
-/// _getSeparableBlurMaterial): c_i = 0.39894 exp(-0.5 i^2 / s^2) / s for i in [0, R), s = R / 3,
-/// in double as JavaScript computes them, rounded to float as the uniform array holds them.
-std::vector<float> separable_coefficients(int radius);
+/// _getSeparableBlurMaterial): c_i = 0.39894 exp(-0.5 i^2 / s^2) / s for i in [0, R), s = R / 3
+/// (or `sigma` when it is > 0), in double as JavaScript computes them, rounded to float as the
+/// uniform array holds them.
+std::vector<float> separable_coefficients(int radius, double sigma = 0.0);
+
+/// The sigma of stage down.k's separable blur under `p`: its --level-sigmas entry, else 0 (R / 3).
+double level_sigma(const BloomParams& p, int k);
 
 /// The first level's factor under Prefilter::smoothstep: smoothstep(threshold, threshold + width,
 /// L) in the shader's f32 order (GLSL 4.60, 8.3: t = clamp((L - e0) / (e1 - e0), 0, 1), t t (3 -

@@ -182,6 +182,8 @@ struct BloomParams {
   float smooth_width = 0.01f;
   /// DownsampleFilter::separable: each blurred mip's kernel radius R (taps i < R either side).
   std::vector<int> level_kernels = {6, 10, 14, 18, 22};
+  /// Each blurred mip's sigma; empty (or a mip beyond its length): R / 3, three.js's.
+  std::vector<float> level_sigmas;
   /// LevelCombine::sum: each blurred mip's factor, the radius that mirrors them about 0.6, and
   /// the sum's multiplier (three.js's bloomFactors, radius and strength).
   std::vector<float> level_factors = {1.0f, 0.8f, 0.6f, 0.4f, 0.2f};
