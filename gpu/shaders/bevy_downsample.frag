@@ -4,15 +4,12 @@
 // docs/design.md, "Mip-chain variants"): 13 bilinear taps at 0, +-1 and +-2 texels of what it
 // reads; on the first level each group of four is scaled by its weight, then by
 // 1 / (1 + L / 4), L its Rec. 709 luminance, the sum clamped to [0.0001, 3.40282347e37], then
-// the soft threshold when the host asks for it. With box4 1 (--first-downsample box4 or
-// --downsample box4): the 4-tap box instead, the four lookups at (+-1, +-1) texels summed and
-// times 0.25.
+// the soft threshold when the host asks for it.
 // bloomref's own: `compare` runs it for preset bevy.
 in vec2 texCoord;
 layout(location = 0) out vec3 level;
 uniform sampler2D srcTexture;
 uniform int firstDownsample;
-uniform int box4;
 // The soft threshold on the first level (softThreshold 1): the host's precomputed threshold,
 // threshold - knee, 2 knee and 0.25 / (knee + 0.00001), as Bevy's BloomUniforms.
 uniform int softThreshold;
@@ -42,9 +39,7 @@ void main() {
   vec3 g = tap(vec2(-2.0, -2.0)), h = tap(vec2(0.0, -2.0)), i = tap(vec2(2.0, -2.0));
   vec3 j = tap(vec2(-1.0, 1.0)), k = tap(vec2(1.0, 1.0));
   vec3 l = tap(vec2(-1.0, -1.0)), m = tap(vec2(1.0, -1.0));
-  if (box4 == 1) {
-    level = (l + m + j + k) * 0.25;
-  } else if (firstDownsample == 1) {
+  if (firstDownsample == 1) {
     vec3 sum = weighted((a + b + d + e) * (0.125 / 4.0)) + weighted((b + c + e + f) * (0.125 / 4.0)) +
                weighted((d + e + g + h) * (0.125 / 4.0)) + weighted((e + f + h + i) * (0.125 / 4.0)) +
                weighted((j + k + l + m) * (0.5 / 4.0));

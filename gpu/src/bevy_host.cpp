@@ -30,21 +30,27 @@ class BevyHost {
         down_(own_program("downsample", "bevy_downsample.frag",
                           {{"srcTexture", HostUniform::sampler, true, "texture unit 0"},
                            {"firstDownsample", HostUniform::integer, true, "1 on the first level"},
-                           {"box4", HostUniform::integer, true, "1: the 4-tap box"},
                            {"softThreshold", HostUniform::integer, true, "1: the soft threshold"},
                            {"thresholdPrecomputations", HostUniform::vector, true,
                             "Bevy's threshold_precomputations", 4}})),
+        box_(own_program("box4-downsample", "box4_downsample.frag",
+                         {{"srcTexture", HostUniform::sampler, true, "texture unit 0"},
+                          {"softThreshold", HostUniform::integer, true, "1: the soft threshold"},
+                          {"thresholdPrecomputations", HostUniform::vector, true,
+                           "Bevy's threshold_precomputations", 4}})),
         up_(own_program("upsample", "bevy_upsample.frag",
                         {{"srcTexture", HostUniform::sampler, true, "texture unit 0"}})),
         finish_(own_program("finish", "bevy_finish.frag",
                             {{"srcTexture", HostUniform::sampler, true, "texture unit 0"},
                              {"exposure", HostUniform::number, true, "exposure"},
                              {"gamma", HostUniform::number, true, "gamma"}})) {
-    down_.set_sampler("srcTexture", 0);
     // settings.rs, extract_component: knee = threshold x softness, in f32.
     const float knee = p.threshold * std::clamp(p.knee, 0.0f, 1.0f);
-    down_.set_vector("thresholdPrecomputations",
-                     {p.threshold, p.threshold - knee, 2.0f * knee, 0.25f / (knee + 0.00001f)});
+    for (UserProgram* d : {&down_, &box_}) {
+      d->set_sampler("srcTexture", 0);
+      d->set_vector("thresholdPrecomputations",
+                    {p.threshold, p.threshold - knee, 2.0f * knee, 0.25f / (knee + 0.00001f)});
+    }
     up_.set_sampler("srcTexture", 0);
     finish_.set_sampler("srcTexture", 0);
     finish_.set_number("exposure", p.exposure);
@@ -78,11 +84,12 @@ class BevyHost {
       mips_.back().set_sampling(GL_LINEAR, GL_CLAMP_TO_EDGE);
     }
     for (std::size_t k = 0; k < mips_.size(); ++k) {
-      down_.set_integer("firstDownsample", k == 0 && p_.karis ? 1 : 0);
-      down_.set_integer("box4", box4(p_, int(k)) ? 1 : 0);
-      down_.set_integer("softThreshold", k == 0 && p_.prefilter == Prefilter::soft_knee ? 1 : 0);
+      // The 4-tap box where the level asks for it (box4_downsample.frag), else Bevy's 13 taps.
+      UserProgram& prog = box4(p_, int(k)) ? box_ : down_;
+      if (&prog == &down_) down_.set_integer("firstDownsample", k == 0 && p_.karis ? 1 : 0);
+      prog.set_integer("softThreshold", k == 0 && p_.prefilter == Prefilter::soft_knee ? 1 : 0);
       const std::string name = "down." + std::to_string(k + 1);
-      const double ms = quad_.draw(ctx_, down_, {k == 0 ? &view_ : &mips_[k - 1]}, mips_[k],
+      const double ms = quad_.draw(ctx_, prog, {k == 0 ? &view_ : &mips_[k - 1]}, mips_[k],
                                    nullptr, nullptr, "the downsample pass " + name);
       add(name, mips_[k], ms);
     }
@@ -131,7 +138,7 @@ class BevyHost {
   const BloomParams& p_;
   ConstImageView scene_;
   int w_, h_;
-  UserProgram down_, up_, finish_;
+  UserProgram down_, box_, up_, finish_;
   host::QuadState quad_;
   Texture view_;
   std::vector<Texture> mips_;

@@ -154,6 +154,10 @@ PipelineDescription bevy(const BloomParams& p, int w, int h) {
   b.program("finish", "bevy_finish.frag");
   b.scene_texture("view", p.storage, DescribedTexture::scene, "input");
   const std::vector<LevelSize> sizes = chain_levels(p, w, h);
+  // The 4-tap box's levels (--first-downsample box4, --downsample box4) by their own program.
+  bool any_box = false;
+  for (std::size_t k = 0; k < sizes.size(); ++k) any_box = any_box || box4(p, int(k));
+  if (any_box) b.program("box", "box4_downsample.frag");
   for (std::size_t k = 0; k < sizes.size(); ++k)
     b.texture(level("mip", k), sizes[k].width, sizes[k].height, p.level_storage());
   b.scene_texture("out", p.storage, DescribedTexture::clear, "");
@@ -162,11 +166,10 @@ PipelineDescription bevy(const BloomParams& p, int w, int h) {
   const std::vector<float> pre = {p.threshold, p.threshold - knee, 2.0f * knee,
                                   0.25f / (knee + 0.00001f)};
   for (std::size_t k = 0; k < sizes.size(); ++k) {
-    DescribedPass& d = b.pass("down", level("mip", k),
+    DescribedPass& d = b.pass(box4(p, int(k)) ? "box" : "down", level("mip", k),
                               {{"srcTexture", k == 0 ? "view" : level("mip", k - 1)}},
                               level("down.", k + 1));
-    d.uniforms["firstDownsample"] = integer(k == 0 && p.karis ? 1 : 0);
-    d.uniforms["box4"] = integer(box4(p, int(k)) ? 1 : 0);
+    if (d.program == "down") d.uniforms["firstDownsample"] = integer(k == 0 && p.karis ? 1 : 0);
     d.uniforms["softThreshold"] = integer(k == 0 && p.prefilter == Prefilter::soft_knee ? 1 : 0);
     d.uniforms["thresholdPrecomputations"] = number(pre);
   }

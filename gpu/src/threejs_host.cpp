@@ -15,8 +15,10 @@
 namespace bloomref::gpu {
 
 bool threejs_layout(const BloomParams& p) {
-  const bool kernels_fit =
-      std::all_of(p.level_kernels.begin(), p.level_kernels.end(), [](int r) { return r <= 24; });
+  // The shader holds 24 coefficients: the radii of the mips drawn at most 24.
+  bool kernels_fit = true;
+  for (int k = 0; k < p.levels && std::size_t(k) < p.level_kernels.size(); ++k)
+    kernels_fit = kernels_fit && p.level_kernels[std::size_t(k)] <= 24;
   return p.method == Method::mip && p.level_count == LevelCount::threejs &&
          p.first_downsample == FirstDownsample::bilinear &&
          p.prefilter == Prefilter::smoothstep &&

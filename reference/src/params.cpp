@@ -162,6 +162,11 @@ void validate(const BloomParams& p) {
           "bilinear");
   require(std::isfinite(p.smooth_width) && p.smooth_width > 0,
           "--smooth-width must be finite and > 0, got " + str(p.smooth_width));
+  // GLSL's smoothstep is undefined where its edges meet: threshold + width must be above the
+  // threshold in f32, as the shader adds them.
+  require(p.prefilter != Prefilter::smoothstep || p.threshold + p.smooth_width > p.threshold,
+          "--smooth-width " + str(p.smooth_width) + " vanishes beside --threshold " +
+              str(p.threshold) + " in float: smoothstep's edges would meet");
   const int blurred = threejs ? p.levels : p.levels - 1;
   if (p.downsample == DownsampleFilter::separable) {
     require(int(p.level_kernels.size()) >= blurred,
@@ -171,8 +176,8 @@ void validate(const BloomParams& p) {
       require(r >= 1 && r <= 64, "--level-kernels: each radius must be in [1, 64], got " +
                                      std::to_string(r));
     for (float s : p.level_sigmas)
-      require(std::isfinite(s) && s > 0 && s <= 64,
-              "--level-sigmas: each sigma must be in (0, 64], got " + str(s));
+      require(std::isfinite(s) && s >= 0.1f && s <= 64,
+              "--level-sigmas: each sigma must be in [0.1, 64], got " + str(s));
   }
   if (p.level_combine == LevelCombine::sum) {
     require(int(p.level_factors.size()) >= p.levels,

@@ -159,6 +159,20 @@ Plan make_plan(const BloomParams& params, ConstImageView scene, const std::strin
     plan.sanitize = !adaptive || plan.facts.nonfinite.any();
     plan.levels = chain_levels(params, scene.width, scene.height);
     plan.stages = mip_stages(params, plan.levels.size());
+    // GL clamps blend factors to [0, 1] where the target is fixed-point (GL 4.6, 17.3.6): an
+    // 8-bit level blended with a constant outside it is not what the constant says.
+    if (params.level_storage() == Storage::rgba8 &&
+        (params.level_combine == LevelCombine::add || params.level_combine == LevelCombine::mix)) {
+      const int top = static_cast<int>(plan.levels.size());
+      for (int k = 1; k < top; ++k) {
+        const float c = level_blend(params, k, top).weight;
+        if (!(c >= 0.0f && c <= 1.0f))
+          throw ParamError("--chain-storage rgba8: up." + std::to_string(k) +
+                           "'s blend constant is " + std::to_string(c) +
+                           ", and GL clamps the blend factors of an 8-bit target to [0, 1]; "
+                           "store the levels as f16 or f32, or keep the constants within [0, 1]");
+      }
+    }
     return plan;
   }
   plan.sanitize = !adaptive || plan.facts.nonfinite.any();

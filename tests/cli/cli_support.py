@@ -33,15 +33,17 @@ def dump(tmp_path, name, preset, size, *options):
     return d
 
 
-def judged(tmp_path, folder, keep, name, preset, size):
-    """check of `folder`'s stages named in `keep` (all when None) against `preset`: the item."""
+def judged(tmp_path, folder, keep, name, preset, size, *declared):
+    """check of `folder`'s stages named in `keep` (all when None) against `preset` with the
+    options `declared` beside it: the item."""
     sub = tmp_path / name
     sub.mkdir()
     for f in folder.iterdir():
         if keep is None or f.stem in keep:
             (sub / f.name).write_bytes(f.read_bytes())
     code, _, err = run(["check", "--scene", "demo", "--size", size, "--preset", preset,
-                        "--stages", str(sub), "--json", str(sub / "r.json"), "-q"], tmp_path)
+                        *declared, "--stages", str(sub), "--json", str(sub / "r.json"), "-q"],
+                       tmp_path)
     assert code in (0, 1), err
     return json.loads((sub / "r.json").read_text())["items"][0]
 

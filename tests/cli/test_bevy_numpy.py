@@ -13,12 +13,8 @@ the f64 truth uses their float32 values. Levels and the view are kept in f32 her
 import numpy as np
 import pytest
 
-from test_variants_numpy import (F32, F32_REL, bloomref_exe, centres, check_constants,
-                                 check_images, random_hdr, read_rgb, write_exr)
-
-import os
-import subprocess
-import tempfile
+from test_variants_numpy import (F32, F32_REL, centres, check_constants, check_images,
+                                 random_hdr, stages_of)
 
 INTENSITY = F32(0.15)
 LF_BOOST, LF_CURVATURE, HIGH_PASS = F32(0.7), F32(0.95), F32(1.0)
@@ -35,16 +31,7 @@ OLD_INTENSITY, OLD_THRESHOLD, OLD_SOFTNESS = F32(0.05), F32(0.6), F32(0.2)
 def run_bloomref(rgb, extra=(), preset="bevy"):
     """Runs bloomref's `preset` on rgb (float32 HxWx3), levels and view in f32, and returns
     {stage: HxWx3 float64}."""
-    with tempfile.TemporaryDirectory(prefix="preset_numpy_") as tmp:
-        src = os.path.join(tmp, "in.exr")
-        write_exr(src, rgb)
-        dump = os.path.join(tmp, "stages")
-        cmd = [bloomref_exe(), "run", src, "--preset", preset, "--storage", "f32",
-               "--chain-storage", "f32", *extra, "--dump-stages", dump, "-q"]
-        res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-        assert res.returncode == 0, f"{' '.join(cmd)} failed ({res.returncode}): {res.stderr}"
-        return {f[:-4]: read_rgb(os.path.join(dump, f)) for f in os.listdir(dump)
-                if f.endswith(".exr")}
+    return stages_of(rgb, "--preset", preset, "--storage", "f32", "--chain-storage", "f32", *extra)
 
 
 def axis(coords, n):

@@ -13,8 +13,6 @@ BLOOMREF_REQUIRE_VULKAN=1.
 """
 import json
 import os
-import subprocess
-import tempfile
 
 import numpy as np
 import pytest
@@ -22,22 +20,10 @@ import pytest
 import cli_support
 from cli_support import gl_or_skip, run
 from test_bevy_numpy import lookup
-from test_variants_numpy import bloomref_exe, centres, random_hdr, read_rgb, write_exr
+from test_variants_numpy import centres, random_hdr, stages_of as dumped
 
 BOX = ["--method", "mip", "--prefilter", "none", "--first-downsample", "box4",
        "--downsample", "box4"]
-
-
-def dumped(rgb, *options):
-    with tempfile.TemporaryDirectory(prefix="box4_") as tmp:
-        src = os.path.join(tmp, "in.exr")
-        write_exr(src, rgb)
-        dump = os.path.join(tmp, "stages")
-        cmd = [bloomref_exe(), "run", src, *options, "--dump-stages", dump, "-q"]
-        res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-        assert res.returncode == 0, res.stderr
-        return {f[:-4]: read_rgb(os.path.join(dump, f)) for f in os.listdir(dump)
-                if f.endswith(".exr")}
 
 
 def block_mean(src):
@@ -96,16 +82,7 @@ def test_compare_draws_the_box_and_passes(tmp_path, backend):
 
 
 def judged(tmp_path, folder, keep, name, *declared):
-    sub = tmp_path / name
-    sub.mkdir()
-    for f in folder.iterdir():
-        if keep is None or f.stem in keep:
-            (sub / f.name).write_bytes(f.read_bytes())
-    code, _, err = run(["check", "--scene", "demo", "--size", "203x131", "--preset", "bevy",
-                        *declared, "--stages", str(sub), "--json", str(sub / "r.json"), "-q"],
-                       tmp_path)
-    assert code in (0, 1), err
-    return json.loads((sub / "r.json").read_text())["items"][0]
+    return cli_support.judged(tmp_path, folder, keep, name, "bevy", "203x131", *declared)
 
 
 def test_a_13_tap_capture_fails_as_the_box_whole_and_in_part(tmp_path):

@@ -18,15 +18,13 @@
 """
 import json
 import os
-import subprocess
-import tempfile
 
 import numpy as np
 import pytest
 
 import test_variants_numpy as tv
 from cli_support import run
-from test_variants_numpy import bloomref_exe, read_rgb, write_exr
+from test_variants_numpy import stages_of
 
 SCHEMAS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "docs", "schemas")
 REC601 = np.array([0.299, 0.587, 0.114])
@@ -56,14 +54,7 @@ def device_or_skip(code, err, backend):
 
 
 def dump(rgb, *extra):
-    with tempfile.TemporaryDirectory(prefix="luma_") as tmp:
-        src = os.path.join(tmp, "in.exr")
-        write_exr(src, rgb)
-        out = os.path.join(tmp, "stages")
-        cmd = [bloomref_exe(), "run", src, *extra, "--dump-stages", out, "-q"]
-        res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-        assert res.returncode == 0, res.stderr
-        return {f[:-4]: read_rgb(os.path.join(out, f)) for f in os.listdir(out) if f.endswith(".exr")}
+    return stages_of(rgb, *extra)
 
 
 def test_the_bright_stage_thresholds_rec601_luma():

@@ -15,8 +15,6 @@ BLOOMREF_REQUIRE_VULKAN=1.
 """
 import json
 import os
-import subprocess
-import tempfile
 
 import numpy as np
 import pytest
@@ -25,7 +23,7 @@ import cli_support
 from cli_support import gl_or_skip, run
 from test_bevy_numpy import lookup
 from test_unity_numpy import SCATTER, blur_h, blur_v, level_sizes, prefilter
-from test_variants_numpy import (F32, bloomref_exe, centres, random_hdr, read_rgb, write_exr)
+from test_variants_numpy import centres, random_hdr, read_rgb, stages_of, write_exr
 
 SIZE = "203x131"
 Q = 1.0 / 255.0
@@ -58,16 +56,7 @@ def unity_rgba8(img):
 
 
 def dumped(rgb, *options):
-    with tempfile.TemporaryDirectory(prefix="rgba8_") as tmp:
-        src = os.path.join(tmp, "in.exr")
-        write_exr(src, rgb)
-        dump = os.path.join(tmp, "stages")
-        cmd = [bloomref_exe(), "run", src, "--storage", "f32", *options, "--dump-stages", dump,
-               "-q"]
-        res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-        assert res.returncode == 0, res.stderr
-        return {f[:-4]: read_rgb(os.path.join(dump, f)) for f in os.listdir(dump)
-                if f.endswith(".exr")}
+    return stages_of(rgb, "--storage", "f32", *options)
 
 
 @pytest.mark.parametrize("seed", [20261130, 7])
@@ -124,16 +113,7 @@ def test_vulkan_with_8bit_levels_passes_compare(tmp_path):
 
 
 def judged(tmp_path, folder, keep, name, *declared):
-    sub = tmp_path / name
-    sub.mkdir()
-    for f in folder.iterdir():
-        if keep is None or f.stem in keep:
-            (sub / f.name).write_bytes(f.read_bytes())
-    code, _, err = run(["check", "--scene", "demo", "--size", SIZE, "--preset", "bevy",
-                        *declared, "--stages", str(sub), "--json", str(sub / "r.json"), "-q"],
-                       tmp_path)
-    assert code in (0, 1), err
-    return json.loads((sub / "r.json").read_text())["items"][0]
+    return cli_support.judged(tmp_path, folder, keep, name, "bevy", SIZE, *declared)
 
 
 def test_8bit_capture_passes_as_8bit_and_fails_as_float(tmp_path):
@@ -164,3 +144,16 @@ def test_a_level_5_percent_too_bright_fails_within_8bit(tmp_path):
     write_exr(str(path), unorm8(v * 1.05).astype(np.float32))
     item = judged(tmp_path, eight, None, "bright", "--chain-storage", "rgba8")
     assert item["verdict"] == "FAIL" and item["first_divergent_stage"] == "up.3"
+
+
+def test_8bit_levels_with_a_blend_constant_gl_would_clamp_are_refused(tmp_path):
+    """GL clamps blend factors to [0, 1] for a fixed-point target (GL 4.6, 17.3.6): Bevy's
+    constants with a low-frequency boost of 1.5 reach 1.43, which an 8-bit level cannot blend."""
+    code, _, err = run(["run", "--size", "64x48", "-q", "-o", "o.exr", "--preset", "bevy",
+                        "--chain-storage", "rgba8", "--low-frequency-boost", "1.5"], tmp_path)
+    assert code == 2 and "GL clamps the blend factors" in err, err
+    assert not (tmp_path / "o.exr").exists()
+    # The same in f16 is judged as it is.
+    code, _, err = run(["run", "--size", "64x48", "-q", "-o", "o.exr", "--preset", "bevy",
+                        "--low-frequency-boost", "1.5"], tmp_path)
+    assert code == 0, err

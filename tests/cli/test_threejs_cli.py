@@ -51,6 +51,8 @@ def test_preset_sets_threejs_values_and_options_override_them(tmp_path):
 def test_bad_values_of_threejs_options_are_refused(tmp_path):
     for args, words in ((["--level-radius", "1.5"], "--level-radius must be in [0, 1]"),
                         (["--smooth-width", "0"], "--smooth-width"),
+                        (["--threshold", "1e6"], "smoothstep's edges would meet"),
+                        (["--level-sigmas", "0.01"], "--level-sigmas: each sigma"),
                         (["--level-kernels", "6,10"], "--level-kernels needs a radius for each"),
                         (["--level-kernels", "6,0,14,18,22"], "radius must be in [1, 64]"),
                         (["--level-factors", "1,1"], "--level-factors needs a factor"),

@@ -79,18 +79,22 @@ def read_rgb(path):
     return np.asarray(px, dtype=np.float64)[..., :3]
 
 
-def run_bloomref(rgb, levels, extra=()):
-    """Runs bloomref on rgb (float32 HxWx3) and returns {stage: HxWx3 float64}."""
-    exe = bloomref_exe()
-    with tempfile.TemporaryDirectory(prefix="variants_numpy_") as tmp:
+def stages_of(rgb, *options):
+    """`bloomref run` of rgb (float32 HxWx3) with `options`: {stage: HxWx3 float64}."""
+    with tempfile.TemporaryDirectory(prefix="stages_") as tmp:
         src = os.path.join(tmp, "in.exr")
         write_exr(src, rgb)
         dump = os.path.join(tmp, "stages")
-        cmd = [exe, "run", src, *PBB, "--levels", str(levels), *extra, "--dump-stages", dump, "-q"]
+        cmd = [bloomref_exe(), "run", src, *options, "--dump-stages", dump, "-q"]
         res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
         assert res.returncode == 0, f"{' '.join(cmd)} failed ({res.returncode}): {res.stderr}"
         return {f[:-4]: read_rgb(os.path.join(dump, f)) for f in os.listdir(dump)
                 if f.endswith(".exr")}
+
+
+def run_bloomref(rgb, levels, extra=()):
+    """Runs bloomref's article chain on rgb and returns {stage: HxWx3 float64}."""
+    return stages_of(rgb, *PBB, "--levels", str(levels), *extra)
 
 
 # --------------------------------------------------------------------------------------------

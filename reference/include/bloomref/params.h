@@ -82,8 +82,9 @@ enum class BloomUpscale { tent, bilinear };
 /// constant / one-minus-constant, Bevy's energy-conserving mode) or `lerp` (HLSL's
 /// lerp(down.k, tent, C_k) = down.k + (tent - down.k) C_k in the shader, Unity URP's Upsample);
 /// or sum: no chain of upsamples, one stage up.1 at the first level's size = level_strength x
-/// (F_2 lookup(down.2) + ... + F_K lookup(down.K)), F_k = mix(f, 1.2 - f, level_radius) with f
-/// the level's --level-factors entry (three.js's composite pass, BloomNode.js compositePass).
+/// (F_1 lookup(down.2) + ... + F_K lookup(down.K+1)), F_k = mix(f_k, 1.2 - f_k, level_radius)
+/// with f_k the k-th --level-factors entry (three.js's composite pass, BloomNode.js
+/// compositePass).
 enum class LevelCombine { add, mix, lerp, sum };
 /// The per-level constants C_k: `one` (every C_k 1), or `bevy` (bloom/mod.rs,
 /// compute_blend_factor, in f32: (strength + boost) x high-pass, boost = (1 - (1 - k / K)^(1 / (1 -

@@ -316,7 +316,7 @@ StageTrace execute_gl_bevy(GlContext& ctx, const BloomParams& params, ConstImage
 bool unity_free(const BloomParams& params);
 
 /// Whether level k (0: the first) of Bevy's layout is the 4-tap box (--first-downsample box4,
-/// --downsample box4), which bloomref's Bevy downsample shader also draws.
+/// --downsample box4), which Bevy's layout draws with bloomref's box4_downsample.frag.
 bool box4(const BloomParams& params, int k);
 
 /// Whether `params` is a chain Unity URP's SetupBloom draws (preset unity-urp and its overrides).
