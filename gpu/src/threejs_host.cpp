@@ -5,7 +5,6 @@
 // the composite of the vertical targets into the first horizontal one, then the bloom added to
 // the scene (the example's `scenePassColor.add( bloomPass )`), bloomref's tone map and gamma.
 // Its host is a pipeline description (preset_descriptions.cpp), run here by the described host.
-#include <algorithm>
 
 #include "bloomref/gpu/described_pipeline.h"
 #include "bloomref/gpu/user_pipeline.h"

@@ -295,82 +295,54 @@ StageTerms blur_terms(const StageSpec& spec, const std::vector<std::string>& in,
   return t;
 }
 
-// down.k, up.k, bloom: every tap's window on the level it reads. The carried error enters each
-// tap (and the threshold's band): the bound with it, less the bound without, is what it adds.
-// The end-to-end bound is the same bound on the full run with the inputs' end-to-end bounds.
-// up.1 under LevelCombine::sum: every blurred level's lookup.
-StageTerms sum_terms(const StageSpec& spec, const std::vector<std::string>& in,
-                     const TermInputs& at) {
-  const BloomParams& p = at.plan.params;
-  const std::vector<ConstImageView> cin = isolated_inputs(in, at);
-  StageTerms t = with_oracle(spec, cin, at);
-  const ConstImageView o = t.oracle.cview();
-  BoundContext ctx = at.ctx;
-  ctx.unorm8_reads = p.level_storage() == Storage::rgba8;
-  t.bound = sum_bounds(cin, o, {}, p, ctx);
-  std::vector<const Image*> carried;
-  bool any = false;
-  for (const std::string& n : in) {
-    carried.push_back(at.carried(n));
-    any = any || carried.back();
-  }
-  const int w = o.width;
-  if (any) {
-    std::shared_ptr<StageBounds> with = sum_bounds(cin, o, carried, p, ctx);
-    t.inherited = [with, w](int y0, int y1, const float* b, float* out) {
-      with->rows(y0, y1, out, nullptr);
-      for (std::size_t i = 0; i < std::size_t(y1 - y0) * w * kChannels; ++i)
-        out[i] += static_cast<float>(-1.0 * b[i]);
-    };
-  }
-  std::vector<ConstImageView> full;
-  std::vector<const Image*> e2e;
-  for (const std::string& n : in) {
-    full.push_back(at.full(n));
-    e2e.push_back(at.end_to_end(n).image);
-  }
-  std::shared_ptr<StageBounds> e = sum_bounds(full, at.full(spec.name), e2e, p, ctx);
-  t.end_to_end = [e](int y0, int y1, const float*, float* out) { e->rows(y0, y1, out, nullptr); };
-  return t;
-}
-
+// down.k, up.k, bloom: every tap's window on the level it reads (up.1 under LevelCombine::sum:
+// every blurred level's lookup). The carried error enters each tap (and the threshold's band):
+// the bound with it, less the bound without, is what it adds. The end-to-end bound is the same
+// bound on the full run with the inputs' end-to-end bounds.
 StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in,
                      const TermInputs& at) {
   const BloomParams& p = at.plan.params;
   const bool down = spec.kind == StageKind::down, up = spec.kind == StageKind::up;
-  if (up && p.level_combine == LevelCombine::sum) return sum_terms(spec, in, at);
+  const bool sum = up && p.level_combine == LevelCombine::sum;
   const std::vector<ConstImageView> cin = isolated_inputs(in, at);
   StageTerms t = with_oracle(spec, cin, at);
   const ConstImageView o = t.oracle.cview(), none{};
   // Every stage here reads levels but the first downsample (the scene).
   BoundContext ctx = at.ctx;
   ctx.unorm8_reads = p.level_storage() == Storage::rgba8 && !(down && spec.pass == 1);
-  auto bounds = [&](ConstImageView a, ConstImageView b, ConstImageView out, const Image* ea,
-                    const Image* eb) -> std::unique_ptr<StageBounds> {
+  // The bound on inputs `a` with errors `e` (null: none) into `out`.
+  auto bounds = [&](const std::vector<ConstImageView>& a, ConstImageView out,
+                    const std::vector<const Image*>& e) -> std::unique_ptr<StageBounds> {
+    if (sum) return sum_bounds(a, out, e, p, ctx);
     if (down)
-      return down_bounds(a, out, ea,
+      return down_bounds(a[0], out, e[0],
                          downsample_options(p, spec.pass, at.sanitized.width, at.sanitized.height,
                                             at.profile.subtexel_bits),
                          ctx);
-    return up_bounds(a, up ? b : none, out, ea, up ? eb : nullptr,
+    return up_bounds(a[0], up ? a[1] : none, out, e[0], up ? e[1] : nullptr,
                      up ? level_blend(p, spec.pass, int(at.plan.levels.size())) : LevelBlend{},
                      ctx, up ? p.upsample : UpsampleFilter::tent);
   };
-  t.bound = bounds(cin[0], up ? cin[1] : none, o, nullptr, nullptr);
-  const Image* es = at.carried(in[0]);
-  const Image* ec = up ? at.carried(in[1]) : nullptr;
+  std::vector<const Image*> carried, e2e;
+  std::vector<ConstImageView> full;
+  bool any_carried = false;
+  for (const std::string& n : in) {
+    carried.push_back(at.carried(n));
+    any_carried = any_carried || carried.back();
+    full.push_back(at.full(n));
+    e2e.push_back(at.end_to_end(n).image);
+  }
+  t.bound = bounds(cin, o, std::vector<const Image*>(in.size(), nullptr));
   const int w = o.width;
-  if (es || ec) {
-    std::shared_ptr<StageBounds> with = bounds(cin[0], up ? cin[1] : none, o, es, ec);
+  if (any_carried) {
+    std::shared_ptr<StageBounds> with = bounds(cin, o, carried);
     t.inherited = [with, w](int y0, int y1, const float* b, float* out) {
       with->rows(y0, y1, out, nullptr);
       for (std::size_t i = 0; i < std::size_t(y1 - y0) * w * kChannels; ++i)
         out[i] += static_cast<float>(-1.0 * b[i]);
     };
   }
-  std::shared_ptr<StageBounds> e =
-      bounds(at.full(in[0]), up ? at.full(in[1]) : none, at.full(spec.name),
-             at.end_to_end(in[0]).image, up ? at.end_to_end(in[1]).image : nullptr);
+  std::shared_ptr<StageBounds> e = bounds(full, at.full(spec.name), e2e);
   t.end_to_end = [e](int y0, int y1, const float*, float* out) { e->rows(y0, y1, out, nullptr); };
   return t;
 }
