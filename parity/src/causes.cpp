@@ -737,13 +737,14 @@ double refine(const Cost& cost, double lo, double hi, double best, double best_c
 }
 
 // The threshold of a first level's soft threshold (Prefilter::soft_knee, its knee the same
-// fraction of it) that best explains the captured down.1, by least squares: the plan's times
-// 2^(j/4), j = -8..8, then refined by golden-section search around the best. Nothing when no
-// other threshold fits better, or the best is the plan's within 0.1%.
+// fraction of it; or three.js's smoothstep, Prefilter::smoothstep) that best explains the
+// captured down.1, by least squares: the plan's times 2^(j/4), j = -8..8 (from a threshold of 0:
+// 2^(j/4) / 8, j = -12..8), then refined by golden-section search around the best. Nothing when
+// no other threshold fits better, or the best is the plan's within 0.1% (of 0.01 from 0).
 std::optional<float> fit_soft_threshold(const CauseContext& ctx, const StageSpec& target) {
   const BloomParams& p = ctx.plan.params;
-  if (target.kind != StageKind::down || target.pass != 1 || p.prefilter != Prefilter::soft_knee ||
-      !(p.threshold > 0))
+  const bool soft = p.prefilter == Prefilter::soft_knee || p.prefilter == Prefilter::smoothstep;
+  if (target.kind != StageKind::down || target.pass != 1 || !soft || !(p.threshold >= 0))
     return std::nullopt;
   const ConstImageView user = ctx.view(target.name), scene = ctx.sanitized;
   const LevelSize& l = ctx.plan.levels[0];
@@ -759,15 +760,18 @@ std::optional<float> fit_soft_threshold(const CauseContext& ctx, const StageSpec
   };
   const double specified = cost(p.threshold);
   double best = p.threshold, best_cost = specified;
-  for (int j = -8; j <= 8; ++j) {
-    if (j == 0) continue;
-    const double t = p.threshold * std::exp2(j / 4.0);
+  // Around the specified threshold by quarter octaves; from a threshold of 0 (three.js's
+  // default), the quarter octaves from 1/64 to 4.
+  const double base = p.threshold > 0 ? double(p.threshold) : 1.0 / 8;
+  for (int j = p.threshold > 0 ? -8 : -12; j <= 8; ++j) {
+    if (j == 0 && p.threshold > 0) continue;
+    const double t = base * std::exp2(j / 4.0);
     const double c = cost(t);
     if (c < best_cost) best = t, best_cost = c;
   }
   if (best == double(p.threshold)) return std::nullopt;
   const double t = refine(cost, best / 1.19, best * 1.19, best, best_cost);
-  if (std::fabs(t / p.threshold - 1) < 1e-3) return std::nullopt;
+  if (std::fabs(t - p.threshold) < 1e-3 * std::max(double(p.threshold), 1e-2)) return std::nullopt;
   return static_cast<float>(t);
 }
 

@@ -18,7 +18,7 @@ import os
 import pytest
 
 import cli_support
-from cli_support import assert_fails_where_planted, gl_or_skip, run
+from cli_support import assert_fails_where_planted, first_cause, gl_or_skip, run
 
 CORPUS = os.environ.get("BLOOMREF_CORPUS", "")
 SIZE = "203x131"  # odd: the high pass is 102x66, the mips 102x66 .. 7x5
@@ -146,3 +146,17 @@ def test_a_wrong_mip_fails_with_only_the_sum_and_output_captured(tmp_path):
         item = judged(tmp_path, dump(tmp_path, "p" + planted[1], *planted), ["up.1", "output"],
                       "part" + planted[1])
         assert item["verdict"] == "FAIL", (planted, json.dumps(item["stages"])[:1500])
+
+
+def test_the_planted_threshold_and_strength_are_named(tmp_path):
+    """A threshold set where three.js's default is 0 is fitted at the high pass (its interval
+    holding the planted 0.5); a bloom added at half strength is named at the composite, also
+    with only the composite captured."""
+    item = judged(tmp_path, dump(tmp_path, "thr", "--threshold", "0.5"), None, "thr-all")
+    stage, cause, c = first_cause(item)
+    assert (stage, cause) == ("down.1", "threshold-other"), json.dumps(c)
+    assert c["fitted"]["low"] <= 0.5 <= c["fitted"]["high"], json.dumps(c)
+    weak = dump(tmp_path, "weak", "--strength", "0.5")
+    for keep in (None, ["composite"], ["up.1", "composite"]):
+        item = judged(tmp_path, weak, keep, "weak-" + "-".join(keep or ["all"]))
+        assert first_cause(item)[:2] == ("composite", "bloom-scaled"), keep
