@@ -219,7 +219,7 @@ int compare_cmd(CompareArgs& a) {
   if (variant)
     host = gpu::bevy_layout(plan.params)    ? "Bevy's render graph, bloomref's bevy shaders"
            : gpu::unity_layout(plan.params) ? "URP's SetupBloom, bloomref's unity shaders"
-           : gpu::threejs_layout(plan.params) ? "three.js's BloomNode, bloomref's threejs shaders"
+           : gpu::threejs_layout(plan.params) ? "three.js's layout, bloomref's threejs shaders"
                                             : "the article's host, bloomref's pbb shaders";
   const std::string renderer = "gl (" + host + "): " + ctx->info().renderer + ", " + ctx->info().version;
   return finish_compare(a, outs, source, renderer, plan, gl, profile, r, gl_ms, cpu_ms, parity_ms);

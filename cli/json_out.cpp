@@ -54,6 +54,7 @@ nlohmann::ordered_json params_json(const BloomParams& p) {
           {"smooth_width", shortest(p.smooth_width)},
           {"level_kernels", p.level_kernels},
           {"level_sigmas", sigmas},
+          {"level_normalise", p.level_normalise},
           {"level_factors", factors},
           {"level_radius", shortest(p.level_radius)},
           {"level_strength", shortest(p.level_strength)}};

@@ -11,6 +11,7 @@ namespace bloomref::cli {
 
 void PipelineOptions::add_to(CLI::App& app) {
   BloomParams& p = params;
+  given = [&app](const std::string& option) { return app.count(option) > 0; };
   // First: CLI11 runs the callbacks of the options given in the order they are defined here, so
   // the preset sets every value before the options given beside it override theirs.
   std::string names;
@@ -148,6 +149,9 @@ void PipelineOptions::add_to(CLI::App& app) {
                  "mip, --downsample separable: each blurred level's sigma, comma separated "
                  "(default: its radius / 3, three.js's)")
       ->delimiter(',');
+  app.add_flag("--level-normalise", p.level_normalise,
+               "mip, --downsample separable: each blurred level's coefficients divided by their "
+               "sum (UnrealBloomPass's weightSum; BloomNode's are not)");
   app.add_option("--level-factors", p.level_factors,
                  "mip, --level-combine sum: each blurred level's factor, comma separated "
                  "(three.js's bloomFactors)")
@@ -209,6 +213,7 @@ void PipelineOptions::finish() {
   params.chain_storage_set = !chain_storage.empty();
   if (params.chain_storage_set) params.chain_storage = parse_chain_storage(chain_storage);
   validate(params);
+  refuse_ignored_options(params, given);
   if (!max_memory.empty()) parse_byte_size(max_memory, "--max-memory");  // a usage error now
 }
 

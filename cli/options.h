@@ -29,6 +29,9 @@ struct PipelineOptions {
   /// and whether it runs GL.
   int kept_traces = 0;
   bool gl = false;
+  /// Whether the user gave an option ("--knee"): add_to asks the command line; a manifest adds
+  /// its keys. finish() refuses a given option that its mode would ignore.
+  OptionGiven given;
 
   void add_to(CLI::App& app);
   /// Parses the enum names into `params` and validates; throws ParamError.

@@ -122,6 +122,11 @@ const std::map<std::string, Setter>& setters() {
        [](PipelineOptions& o, const nlohmann::json& v) { o.params.level_kernels = numbers_of<int>(v); }},
       {"level-sigmas",
        [](PipelineOptions& o, const nlohmann::json& v) { o.params.level_sigmas = numbers_of<float>(v); }},
+      {"level-normalise",
+       [](PipelineOptions& o, const nlohmann::json& v) {
+         if (!v.is_boolean()) throw ParamError("is not true or false");
+         o.params.level_normalise = v.get<bool>();
+       }},
       {"level-factors",
        [](PipelineOptions& o, const nlohmann::json& v) {
          o.params.level_factors = numbers_of<float>(v);

@@ -192,7 +192,18 @@ Manifest read_manifest(const std::string& path, const std::set<std::string>& giv
   Manifest m;
   if (j.contains("params")) {
     if (!j["params"].is_object()) bad(path, "params", "must be an object");
-    for (const auto& [k, v] : j["params"].items()) apply_param(path, k, v, given, pipeline);
+    std::set<std::string> keys;
+    for (const auto& [k, v] : j["params"].items()) {
+      apply_param(path, k, v, given, pipeline);
+      std::string option = "--" + k;
+      for (char& c : option)
+        if (c == '_') c = '-';
+      keys.insert(option);
+    }
+    const OptionGiven line = pipeline.given;
+    pipeline.given = [line, keys](const std::string& option) {
+      return keys.count(option) > 0 || (line && line(option));
+    };
     try {
       pipeline.finish();
     } catch (const ParamError& e) {

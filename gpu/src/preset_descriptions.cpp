@@ -269,7 +269,7 @@ PipelineDescription threejs(const BloomParams& p, int w, int h) {
   hp.uniforms["lumaWeights"] = number({lw.r, lw.g, lw.b});
   for (std::size_t k = 1; k < sizes.size(); ++k) {
     const int radius = p.level_kernels[k - 1];
-    std::vector<float> c = separable_coefficients(radius, level_sigma(p, int(k) + 1));
+    std::vector<float> c = separable_coefficients(radius, level_sigma(p, int(k) + 1), p.level_normalise);
     c.resize(24, 0.0f);
     const std::string in = k == 1 ? "bright" : level("v", k - 1);
     for (int axis = 0; axis < 2; ++axis) {

@@ -290,7 +290,7 @@ std::unique_ptr<StageBounds> gaussian_down_bounds(ConstImageView src, ConstImage
   if (opt.filter == DownsampleFilter::separable) {
     // three.js's: taps one texel of the level apart along x (sw / tw source texels), then along
     // y on the stored horizontal pass; each pair's sum rounded before its product.
-    const std::vector<float> c = separable_coefficients(opt.kernel_radius, opt.kernel_sigma);
+    const std::vector<float> c = separable_coefficients(opt.kernel_radius, opt.kernel_sigma, opt.kernel_normalise);
     const double sx = double(sw) / tw;
     for (int i = 1 - opt.kernel_radius; i < opt.kernel_radius; ++i) {
       const double w = c[std::size_t(std::abs(i))];

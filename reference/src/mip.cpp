@@ -208,9 +208,9 @@ void downsample_gaussian(BasicView<const T> src, BasicView<T> dst, const Downsam
 // taps one texel of dst apart along `horizontal`'s axis), unrounded.
 template <class T>
 void separable_pass(BasicView<const T> src, BasicView<T> dst, int radius, double sigma,
-                    bool horizontal, int bits, int threads) {
+                    bool normalise, bool horizontal, int bits, int threads) {
   const int tw = dst.width, th = dst.height;
-  const std::vector<float> c = separable_coefficients(radius, sigma);
+  const std::vector<float> c = separable_coefficients(radius, sigma, normalise);
   // uvOffset = direction * invSize * x: the step (exact times 1 or 0), then times i; the lookups
   // at uv + uvOffset and uv - uvOffset.
   const int n = horizontal ? tw : th;
@@ -253,20 +253,25 @@ template <class T>
 void downsample_separable(BasicView<const T> src, BasicView<T> dst, const DownsampleOptions& opt,
                           int threads) {
   BasicImage<T> h(dst.width, dst.height);
-  separable_pass(src, h.view(), opt.kernel_radius, opt.kernel_sigma, true, opt.subtexel_bits,
+  separable_pass(src, h.view(), opt.kernel_radius, opt.kernel_sigma, opt.kernel_normalise, true, opt.subtexel_bits,
                  threads);
   store(h.view(), opt.intermediate, opt.rounding, threads);
-  separable_pass(h.cview(), dst, opt.kernel_radius, opt.kernel_sigma, false, opt.subtexel_bits,
+  separable_pass(h.cview(), dst, opt.kernel_radius, opt.kernel_sigma, opt.kernel_normalise, false, opt.subtexel_bits,
                  threads);
 }
 
 }  // namespace
 
-std::vector<float> separable_coefficients(int radius, double given_sigma) {
-  std::vector<float> c;
+std::vector<float> separable_coefficients(int radius, double given_sigma, bool normalise) {
   const double sigma = given_sigma > 0 ? given_sigma : radius / 3.0;
-  for (int i = 0; i < radius; ++i)
-    c.push_back(static_cast<float>(0.39894 * std::exp(-0.5 * i * i / (sigma * sigma)) / sigma));
+  std::vector<double> w;
+  double sum = 0.0;
+  for (int i = 0; i < radius; ++i) {
+    w.push_back(0.39894 * std::exp(-0.5 * i * i / (sigma * sigma)) / sigma);
+    sum += i == 0 ? w.back() : 2.0 * w.back();
+  }
+  std::vector<float> c;
+  for (double v : w) c.push_back(static_cast<float>(normalise ? v / sum : v));
   return c;
 }
 
@@ -405,6 +410,7 @@ DownsampleOptions downsample_options(const BloomParams& p, int k, int width, int
       std::size_t(k - 2) < p.level_kernels.size())
     o.kernel_radius = p.level_kernels[std::size_t(k - 2)];
   o.kernel_sigma = level_sigma(p, k);
+  o.kernel_normalise = p.level_normalise;
   if (p.texel_step == TexelStep::halved_float) {
     o.step_width = halved_size(width, k - 1);
     o.step_height = halved_size(height, k - 1);
@@ -641,7 +647,7 @@ void downsample(BasicView<const T> src, BasicView<T> dst, const DownsampleOption
         if (box) {
           T r[3] = {0, 0, 0};
           for (const MipTap& t : box_taps) {
-            T q[3];
+            T q[3] = {};
             lookups.sample(src, x, y, t.ox, t.oy, q);
             if (thresholded && threshold_luminance(q[0], q[1], q[2], opt.luma) < threshold)
               q[0] = q[1] = q[2] = T(0);
@@ -833,7 +839,7 @@ template <class T>
 void downsample_gaussian_h(BasicView<const T> src, BasicView<T> h, const DownsampleOptions& opt,
                            int threads) {
   if (opt.filter == DownsampleFilter::separable)
-    separable_pass(src, h, opt.kernel_radius, opt.kernel_sigma, true, opt.subtexel_bits, threads);
+    separable_pass(src, h, opt.kernel_radius, opt.kernel_sigma, opt.kernel_normalise, true, opt.subtexel_bits, threads);
   else
     gaussian_h_pass(src, h, opt, threads);
   store(h, opt.intermediate, opt.rounding, threads);

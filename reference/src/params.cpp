@@ -205,6 +205,43 @@ void validate(const BloomParams& p) {
           "--threads must be in [0, 1024] (0 = all), got " + std::to_string(p.threads));
 }
 
+void refuse_ignored_options(const BloomParams& p, const OptionGiven& given) {
+  const BloomParams d;
+  const auto needs = [&given](bool changed, bool mode, const char* option, const char* what) {
+    const bool set = given ? given(option) : changed;
+    require(!set || mode, std::string(option) + " does nothing without " + what);
+  };
+  const bool mip = p.method == Method::mip;
+  needs(p.levels != d.levels, mip, "--levels", "--method mip");
+  needs(p.passes != d.passes, !mip, "--passes", "--method gaussian");
+  needs(p.kernel != d.kernel, !mip, "--kernel", "--method gaussian");
+  needs(p.karis_form != d.karis_form, p.karis, "--karis-form", "--karis");
+  needs(p.knee != d.knee, p.prefilter == Prefilter::soft_knee, "--knee",
+        "--prefilter soft-knee");
+  needs(p.knee_form != d.knee_form, p.prefilter == Prefilter::soft_knee, "--knee-form",
+        "--prefilter soft-knee");
+  needs(p.smooth_width != d.smooth_width, p.prefilter == Prefilter::smoothstep,
+        "--smooth-width", "--prefilter smoothstep");
+  const bool separable = p.downsample == DownsampleFilter::separable;
+  needs(p.level_kernels != d.level_kernels, separable, "--level-kernels",
+        "--downsample separable");
+  needs(!p.level_sigmas.empty(), separable, "--level-sigmas", "--downsample separable");
+  needs(p.level_normalise, separable, "--level-normalise", "--downsample separable");
+  const bool sum = p.level_combine == LevelCombine::sum;
+  needs(p.level_factors != d.level_factors, sum, "--level-factors", "--level-combine sum");
+  needs(p.level_radius != d.level_radius, sum, "--level-radius", "--level-combine sum");
+  needs(p.level_strength != d.level_strength, sum, "--level-strength", "--level-combine sum");
+  needs(p.level_weight != d.level_weight, p.level_weights == LevelWeights::constant,
+        "--level-weight", "--level-weights constant");
+  const bool bevy = p.level_weights == LevelWeights::bevy;
+  needs(p.low_frequency_boost != d.low_frequency_boost, bevy, "--low-frequency-boost",
+        "--level-weights bevy");
+  needs(p.low_frequency_boost_curvature != d.low_frequency_boost_curvature, bevy,
+        "--low-frequency-boost-curvature", "--level-weights bevy");
+  needs(p.high_pass_frequency != d.high_pass_frequency, bevy, "--high-pass-frequency",
+        "--level-weights bevy");
+}
+
 std::string to_string(Method v) { return name_of(v, kMethods); }
 std::string to_string(KernelName v) { return name_of(v, kKernels); }
 std::string to_string(Storage v) { return name_of(v, kChainStorages); }

@@ -117,13 +117,16 @@ struct DownsampleOptions {
   /// sigma (0: radius / 3).
   int kernel_radius = 0;
   double kernel_sigma = 0.0;
+  bool kernel_normalise = false;  ///< the coefficients divided by their sum (level_normalise)
 };
 
 /// three.js's separable blur coefficients for a kernel radius R (BloomNode.js,
 /// _getSeparableBlurMaterial): c_i = 0.39894 exp(-0.5 i^2 / s^2) / s for i in [0, R), s = R / 3
 /// (or `sigma` when it is > 0), in double as JavaScript computes them, rounded to float as the
-/// uniform array holds them.
-std::vector<float> separable_coefficients(int radius, double sigma = 0.0);
+/// uniform array holds them. `normalise`: each c_i divided by c_0 + 2 (c_1 + ... + c_R-1) in
+/// double before that rounding (UnrealBloomPass.js divides the sum by the same weightSum in the
+/// shader; the two orders differ by a few float roundings, within the arithmetic's bound).
+std::vector<float> separable_coefficients(int radius, double sigma = 0.0, bool normalise = false);
 
 /// The sigma of stage down.k's separable blur under `p`: its --level-sigmas entry, else 0 (R / 3).
 double level_sigma(const BloomParams& p, int k);

@@ -4,6 +4,7 @@
 // nothing is clamped silently.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -107,8 +108,8 @@ enum class FirstDownsample { taps13, bilinear, box4 };
 /// along y; or separable: three.js's blurred mips (BloomNode.js, _getSeparableBlurMaterial): a
 /// pass along x into the level's size, stored, then one along y, each sum_i c_i (lookup(uv + i d)
 /// + lookup(uv - i d)) for i < R (the centre once, times c_0), d one texel of the level drawn,
-/// c_i = 0.39894 exp(-0.5 i^2 / s^2) / s in double rounded to float, s = R / 3, not normalised;
-/// R the level's --level-kernels entry.
+/// c_i = 0.39894 exp(-0.5 i^2 / s^2) / s in double rounded to float, s = R / 3, not normalised
+/// unless level_normalise; R the level's --level-kernels entry.
 /// box4: the 4-tap box, as FirstDownsample::box4.
 enum class DownsampleFilter { taps13, gaussian, separable, box4 };
 /// What up.k reads of the level below: the 3x3 tent, or one bilinear lookup (Unity URP's
@@ -185,6 +186,9 @@ struct BloomParams {
   std::vector<int> level_kernels = {6, 10, 14, 18, 22};
   /// Each blurred mip's sigma; empty (or a mip beyond its length): R / 3, three.js's.
   std::vector<float> level_sigmas;
+  /// Each blurred mip's coefficients divided by their sum c_0 + 2 (c_1 + ... + c_R-1), as
+  /// UnrealBloomPass's weightSum does (three.js's WebGL bloom); false: as they are (BloomNode's).
+  bool level_normalise = false;
   /// LevelCombine::sum: each blurred mip's factor, the radius that mirrors them about 0.6, and
   /// the sum's multiplier (three.js's bloomFactors, radius and strength).
   std::vector<float> level_factors = {1.0f, 0.8f, 0.6f, 0.4f, 0.2f};
@@ -204,8 +208,15 @@ struct BloomParams {
   }
 };
 
+/// Whether the user gave an option ("--knee"); validate's caller knows (the command line, a
+/// manifest's keys); a preset's values are not given.
+using OptionGiven = std::function<bool(const std::string& option)>;
 /// Throws ParamError for the first value out of its domain.
 void validate(const BloomParams& p);
+/// Throws ParamError for an option that only a mode reads, given without that mode (`given`;
+/// without one: set to other than its default), rather than ignoring it. A preset's values
+/// under a mode the user overrode are not given.
+void refuse_ignored_options(const BloomParams& p, const OptionGiven& given = nullptr);
 
 // Names used by the CLI, JSON and files. parse_* throw ParamError listing the accepted names.
 std::string to_string(Method m);
