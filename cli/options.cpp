@@ -149,7 +149,7 @@ void PipelineOptions::add_to(CLI::App& app) {
                  "mip, --downsample separable: each blurred level's sigma, comma separated "
                  "(default: its radius / 3, three.js's)")
       ->delimiter(',');
-  app.add_flag("--level-normalise", p.level_normalise,
+  app.add_flag("--level-normalise,!--no-level-normalise", p.level_normalise,
                "mip, --downsample separable: each blurred level's coefficients divided by their "
                "sum (UnrealBloomPass's weightSum; BloomNode's are not)");
   app.add_option("--level-factors", p.level_factors,

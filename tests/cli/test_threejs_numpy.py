@@ -45,26 +45,28 @@ def level_sizes(w, h, mips=5):
     return out
 
 
-def coefficients(radius, sigma=None):
+def coefficients(radius, sigma=None, normalise=False):
     """_getSeparableBlurMaterial: 0.39894 * exp(-0.5 i^2 / sigma^2) / sigma, sigma = R / 3 (or
-    the one given), as float32 uniforms."""
+    the one given), as float32 uniforms; `normalise`: each divided by c_0 + 2 (c_1 + ...) in
+    double first (UnrealBloomPass's weightSum, folded into the uniforms as bloomref does)."""
     sigma = radius / 3 if sigma is None else sigma
-    return [float(F32(0.39894 * math.exp(-0.5 * i * i / (sigma * sigma)) / sigma))
-            for i in range(radius)]
+    w = [0.39894 * math.exp(-0.5 * i * i / (sigma * sigma)) / sigma for i in range(radius)]
+    total = math.fsum([w[0]] + [2 * v for v in w[1:]]) if normalise else 1.0
+    return [float(F32(v / total)) for v in w]
 
 
-def high_pass(img, tw, th, threshold=THRESHOLD):
+def high_pass(img, tw, th, threshold=THRESHOLD, luma=LUMA709):
     """luminosityHighPass: the lookup times smoothstep(t, t + smoothWidth, luminance)."""
     texel = lookup(img, centres(tw), centres(th))
     e0 = float(F32(threshold))
     e1 = float(F32(threshold) + F32(SMOOTH_WIDTH))
-    t = np.clip((texel @ LUMA709 - e0) / (e1 - e0), 0.0, 1.0)
+    t = np.clip((texel @ luma - e0) / (e1 - e0), 0.0, 1.0)
     return texel * (t * t * (3.0 - 2.0 * t))[..., None]
 
 
-def blur(src, tw, th, radius, horizontal, sigma=None):
+def blur(src, tw, th, radius, horizontal, sigma=None, normalise=False):
     """One separable pass into a tw x th target: taps at +-i / (the target's size)."""
-    c = coefficients(radius, sigma)
+    c = coefficients(radius, sigma, normalise)
     s, t = centres(tw), centres(th)
 
     def tap(i):
@@ -82,21 +84,24 @@ def factor(f, radius=RADIUS):
     return float(f * (F32(1) - r) + (F32(1.2) - f) * r)
 
 
-def pipeline(img, threshold=THRESHOLD, sigmas=None):
+def pipeline(img, threshold=THRESHOLD, sigmas=None, kernels=KERNELS, normalise=False,
+             luma=LUMA709, radius=RADIUS, store=lambda x: x):
+    """The whole chain; `store` is what each stored level goes through (its target's format)."""
     hgt, wid, _ = img.shape
     sizes = level_sizes(wid, hgt)
-    st = {"input": img, "down.1": high_pass(img, *sizes[0], threshold)}
+    st = {"input": img, "down.1": store(high_pass(img, *sizes[0], threshold, luma))}
     prev = st["down.1"]
     for k in range(1, len(sizes)):
         tw, th = sizes[k]
         sigma = sigmas[k - 1] if sigmas else None
-        h = blur(prev, tw, th, KERNELS[k - 1], True, sigma)
-        prev = blur(h, tw, th, KERNELS[k - 1], False, sigma)
+        h = store(blur(prev, tw, th, kernels[k - 1], True, sigma, normalise))
+        prev = store(blur(h, tw, th, kernels[k - 1], False, sigma, normalise))
         st[f"down.{k + 1}"] = prev
     s0 = sizes[0]
-    up = sum(factor(FACTORS[i]) * lookup(st[f"down.{i + 2}"], centres(s0[0]), centres(s0[1]))
+    up = sum(factor(FACTORS[i], radius) * lookup(st[f"down.{i + 2}"], centres(s0[0]),
+                                                  centres(s0[1]))
              for i in range(5))
-    st["up.1"] = up * STRENGTH
+    st["up.1"] = store(up * STRENGTH)
     st["bloom"] = lookup(st["up.1"], centres(wid), centres(hgt))
     st["composite"] = img + st["bloom"]
     st["tonemap"] = 1.0 - np.exp(-st["composite"])
