@@ -1,6 +1,7 @@
 #include "options.h"
 
 #include <cmath>
+#include <set>
 
 #include "bloomref/error.h"
 #include "bloomref/memory_budget.h"
@@ -11,7 +12,15 @@ namespace bloomref::cli {
 
 void PipelineOptions::add_to(CLI::App& app) {
   BloomParams& p = params;
-  given = [&app](const std::string& option) { return app.count(option) > 0; };
+  // What the user gave, kept when parsing completes (the app may be gone when finish() runs:
+  // Python's check parses, then judges).
+  app.parse_complete_callback([this, &app] {
+    std::set<std::string> names;
+    for (const CLI::Option* o : app.get_options())
+      if (o->count() > 0)
+        for (const std::string& n : o->get_lnames()) names.insert("--" + n);
+    given = [names](const std::string& option) { return names.count(option) > 0; };
+  });
   // First: CLI11 runs the callbacks of the options given in the order they are defined here, so
   // the preset sets every value before the options given beside it override theirs.
   std::string names;

@@ -29,8 +29,8 @@ struct PipelineOptions {
   /// and whether it runs GL.
   int kept_traces = 0;
   bool gl = false;
-  /// Whether the user gave an option ("--knee"): add_to asks the command line; a manifest adds
-  /// its keys. finish() refuses a given option that its mode would ignore.
+  /// Whether the user gave an option ("--knee"): the command line's options as parsed (add_to),
+  /// and a manifest's keys. finish() refuses a given option that its mode would ignore.
   OptionGiven given;
 
   void add_to(CLI::App& app);

@@ -1,19 +1,22 @@
 # What `cmake --install build --prefix P` puts in P: the libraries and their public headers
 # (include/bloomref/...), the bloomref command, the OpenImageIO module the I/O library loads on
 # first use, a CMake package (find_package(bloomref CONFIG) -> bloomref::<library> targets with
-# their dependencies found) and a pkg-config file. The headers under each library's src/ and
-# the commands' library (cli/) stay private.
+# their dependencies found) and a pkg-config file. The headers under each library's src/ stay
+# private. The commands' library is bloomref::check (`bloomref check` as a library: check/check.h
+# under include/bloomref/cli/), with the Vulkan path it calls; the pkg-config file does not
+# name them.
 include(CMakePackageConfigHelpers)
 
 # Every library a consumer may link, with the name it has in the package (bloomref::runtime).
 # bloomref_cpu_flags carries no usage requirement out of the package (its compile options are
 # private to each library) but is named by their link interfaces, so it is exported too.
-set(bloomref_installed_libraries machinery simd exact reference engine engine_internal runtime io tools gpu parity cpu_flags)
+set(bloomref_installed_libraries machinery simd exact reference engine engine_internal runtime io tools gpu parity cpu_flags vulkan batch cli)
 set(bloomref_installed_targets)
 foreach(name ${bloomref_installed_libraries})
   set_target_properties(bloomref_${name} PROPERTIES EXPORT_NAME ${name})
   list(APPEND bloomref_installed_targets bloomref_${name})
 endforeach()
+set_target_properties(bloomref_cli PROPERTIES EXPORT_NAME check)
 
 install(TARGETS ${bloomref_installed_targets} EXPORT bloomrefTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
@@ -21,10 +24,12 @@ install(TARGETS ${bloomref_installed_targets} EXPORT bloomrefTargets
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(TARGETS bloomref RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(TARGETS bloomref_oiio LIBRARY DESTINATION ${BLOOMREF_OIIO_MODULE_INSTALL_DIR})
-foreach(folder machinery reference engine runtime io tools gpu parity)
+foreach(folder machinery reference engine runtime io tools gpu vulkan parity)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${folder}/include/bloomref
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} FILES_MATCHING PATTERN "*.h")
 endforeach()
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/cli/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/bloomref/cli
+        FILES_MATCHING PATTERN "*.h")
 
 set(bloomref_cmake_dir ${CMAKE_INSTALL_LIBDIR}/cmake/bloomref)
 install(EXPORT bloomrefTargets NAMESPACE bloomref:: DESTINATION ${bloomref_cmake_dir})

@@ -1,6 +1,8 @@
 # Installs the build into a fresh prefix, then builds examples/consumer out of tree against it,
 # twice: through the CMake package (find_package(bloomref)) and through pkg-config
-# (bloomref.pc). Each program runs a bloom and checks its values (examples/consumer/main.cpp).
+# (bloomref.pc). Each program runs a bloom and checks its values (examples/consumer/main.cpp);
+# through the package, a second judges stages in memory with bloomref::check
+# (examples/consumer/check_main.cpp).
 # With PYTHON and PYTHON_DIR (the module's folder in the prefix), the installed module is
 # imported from there and runs a bloom.
 #   cmake -DBUILD=<build dir> -DSOURCE=<source dir> -DWORK=<scratch dir> -DGENERATOR=<gen>
@@ -34,6 +36,8 @@ run("configure examples/consumer" ${CMAKE_COMMAND} -S ${SOURCE}/examples/consume
     -DCMAKE_PREFIX_PATH=${prefix})
 run("build examples/consumer" ${CMAKE_COMMAND} --build ${WORK}/consumer)
 run("run the consumer (CMake package)" ${WORK}/consumer/bloomref_consumer ${WORK}/consumer/out.exr)
+message(STATUS "${last_output}")
+run("run the check consumer (CMake package)" ${WORK}/consumer/bloomref_check_consumer)
 message(STATUS "${last_output}")
 
 # pkg-config: the same program from the compiler's command line.

@@ -1245,8 +1245,10 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
   } else if (std::find(names.begin(), names.end(), "down.1") != names.end()) {
     add("threshold-ge", "threshold tie on the other side (`>` where the specification keeps ties)")
         ->ge = true;
-    // The first level's luminance: its lookups' threshold, or seed 002's per-tap Karis weight.
-    if (p.prefilter == Prefilter::per_lookup || (p.karis && p.karis_form == KarisForm::per_tap))
+    // The first level's luminance: its lookups' threshold, three.js's high pass, or seed 002's
+    // per-tap Karis weight.
+    if (p.prefilter == Prefilter::per_lookup || p.prefilter == Prefilter::smoothstep ||
+        (p.karis && p.karis_form == KarisForm::per_tap))
       add_other_luma();
     if (p.prefilter == Prefilter::per_lookup) add_other_spaces();
   }

@@ -48,6 +48,43 @@ def test_preset_sets_the_articles_values_and_options_override_them(tmp_path):
     assert params(tmp_path, "--preset", "cod-mip")["prefilter"] == "per-lookup"
 
 
+@pytest.mark.parametrize("args, option", [
+    (["--preset", "bevy", "--knee", "0.2"], "--knee"),             # bevy has no soft knee
+    (["--method", "mip", "--passes", "4"], "--passes"),           # no blur passes in the chain
+    (["--levels", "4"], "--levels"),                              # no levels in the Gaussian
+    (["--preset", "threejs", "--level-weight", "0.5"], "--level-weight"),
+    (["--preset", "unity-urp", "--level-kernels", "3,5"], "--level-kernels"),
+])
+def test_an_option_its_mode_ignores_is_refused(tmp_path, args, option):
+    code, _, err = run(["run", "--size", "32x24", "-q", "-o", "x.exr", *args], tmp_path)
+    assert code == 2 and option + " does nothing without" in err, err
+    assert not (tmp_path / "x.exr").exists()
+
+
+def test_a_manifests_params_are_given(tmp_path):
+    """A manifest's params are the user's: one its mode ignores is refused, naming the file."""
+    assert run(["scenes", "demo", "--size", "32x24", "-o", "scene.exr"], tmp_path)[0] == 0
+    manifest = {"version": 1, "params": {"method": "mip", "passes": 4},
+                "items": [{"id": "demo", "scene": "scene.exr", "stages": "d"}]}
+    (tmp_path / "m.json").write_text(json.dumps(manifest))
+    code, out, err = run(["check", "--manifest", "m.json", "-q"], tmp_path)
+    assert code == 2 and "m.json" in err and "--passes does nothing without" in err, out + err
+
+
+def test_a_presets_values_under_an_overridden_mode_are_not_refused(tmp_path):
+    """unity-urp sets --knee for its soft knee; with --prefilter none given the knee is
+    unused, and not refused: the user gave the mode, not the knee."""
+    p = params(tmp_path, "--preset", "unity-urp", "--prefilter", "none")
+    assert p["prefilter"] == "none" and p["knee"] == 0.5
+    # Every mode of threejs-unrealbloompass overridden: its level options (normalise, kernels,
+    # sigmas, factors) are left unused, not refused.
+    code, _, err = run(["run", "--size", "32x24", "-q", "-o", "y.exr", "--preset",
+                        "threejs-unrealbloompass", "--downsample", "13-tap", "--level-count",
+                        "fixed", "--level-combine", "add", "--first-downsample", "13-tap",
+                        "--prefilter", "per-lookup", "--threshold", "1"], tmp_path)
+    assert code == 0, err
+
+
 def test_cod_mip_preset_gives_method_mips_bits(tmp_path):
     for args, name in ((["--preset", "cod-mip"], "a.exr"), (["--method", "mip"], "b.exr")):
         code, _, err = run(["run", "--size", "64x48", "-q", "-o", name, *args], tmp_path)

@@ -69,7 +69,7 @@ def test_compare_runs_bloomrefs_threejs_shaders_and_every_stage_passes(tmp_path)
                           "--json", "c.json"], tmp_path)
     gl_or_skip(code, err)
     assert code == 0, out + err
-    assert "three.js's BloomNode" in out
+    assert "three.js's layout" in out
     stages = {s["stage"]: s for s in json.loads((tmp_path / "c.json").read_text())["stages"]}
     assert set(stages) == {"input", "up.1", "composite", "output"} | {
         f"down.{k}" for k in range(1, 7)}

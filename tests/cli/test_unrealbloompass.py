@@ -209,3 +209,5 @@ def test_a_dim_scene_tells_the_luma_apart(tmp_path):
     item = json.loads((tmp_path / "j.json").read_text())["items"][0]
     assert item["verdict"] == "FAIL" and item["first_divergent_stage"] == "down.1", o + e
     assert read_rgb(str(out / "down.1.exr")).max() > 0
+    stage, named, cause = cli_support.first_cause(item)
+    assert named == "luma-weights", json.dumps(cause)
