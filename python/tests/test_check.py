@@ -67,6 +67,7 @@ def test_a_dict_of_paths_and_options(dumped):
     ({"output": np.zeros((64, 96), np.float32)}, {}, "shape (64, 96)"),
     (None, {"profile": "amiga"}, "--profile 'amiga'"),
     (None, {"colour": 1}, "--colour"),
+    (None, {"knee": 0.3}, "--knee does nothing without --prefilter soft-knee"),
 ])
 def test_bad_input_raises_value_error(dumped, stages, options, message):
     scene, folder = dumped

@@ -45,6 +45,11 @@ def test_threshold_option_turns_the_bloom_off():
     np.testing.assert_allclose(out[..., :3], tone_and_gamma(2.0), rtol=8 * F32_ULP, atol=0)
 
 
+def test_an_option_its_mode_ignores_raises_value_error():
+    with pytest.raises(ValueError, match="--passes does nothing without --method gaussian"):
+        bloomref.run(uniform(6, 6, 2.0), method="mip", passes=4)
+
+
 @pytest.mark.parametrize("options", [
     {},
     {"storage": "f16"},
