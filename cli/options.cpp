@@ -195,7 +195,7 @@ void PipelineOptions::add_to(CLI::App& app) {
                  "8G (default: 80% of physical memory or the control group's limit)");
 }
 
-void PipelineOptions::finish() {
+void PipelineOptions::finish(bool refuse_ignored) {
   params.method = parse_method(method);
   params.kernel = parse_kernel(kernel);
   params.storage = parse_storage(storage);
@@ -222,7 +222,7 @@ void PipelineOptions::finish() {
   params.chain_storage_set = !chain_storage.empty();
   if (params.chain_storage_set) params.chain_storage = parse_chain_storage(chain_storage);
   validate(params);
-  refuse_ignored_options(params, given);
+  if (refuse_ignored) refuse_ignored_options(params, given);
   if (!max_memory.empty()) parse_byte_size(max_memory, "--max-memory");  // a usage error now
 }
 

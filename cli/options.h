@@ -35,7 +35,9 @@ struct PipelineOptions {
 
   void add_to(CLI::App& app);
   /// Parses the enum names into `params` and validates; throws ParamError.
-  void finish();
+  /// `refuse_ignored`: false where more options are still to come (a manifest's params, whose
+  /// reading finishes again).
+  void finish(bool refuse_ignored = true);
   void scene_size(int& w, int& h) const;
   /// Loads IN, or builds --scene at --size when IN is empty; `source` names it in messages.
   /// Refuses (InputError, ParamError for a scene) an image whose run would need more memory

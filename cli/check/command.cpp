@@ -430,7 +430,9 @@ CheckRun check(CheckRequest a) {
   // deviations); the model of a run keeping every stage (sixteen) is above it.
   a.pipeline.kept_traces = 1;
   a.pipeline.gl = a.shaders.any();
-  a.pipeline.finish();
+  // A manifest's params may give the mode an option on the command line needs: its reading
+  // refuses what is still ignored then.
+  a.pipeline.finish(a.manifest.empty());
   // Stage-sized buffers are allocated and freed stage after stage. glibc's dynamic mmap
   // threshold rises to the largest block freed (up to 32 MiB), after which images just below
   // it (1920x1080 RGBA float: 31.6 MiB) come from the heap and stay there, fragmented: measured

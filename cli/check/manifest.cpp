@@ -209,6 +209,8 @@ Manifest read_manifest(const std::string& path, const std::set<std::string>& giv
     } catch (const ParamError& e) {
       bad(path, "params", e.what());
     }
+  } else {
+    refuse_ignored_options(pipeline.params, pipeline.given);  // the command line's alone
   }
   if (j.contains("device")) m.device = read_device(path, j["device"]);
   StageFile defaults;

@@ -113,3 +113,13 @@ def test_an_empty_dict_says_nothing_was_compared_and_prints_nothing(dumped, capf
     assert "nothing compared" in str(e.value)
     out, err = capfd.readouterr()
     assert out == "" and err == ""
+
+
+def test_run_refuses_an_option_its_mode_ignores():
+    """bloomref.run parses its options as the command does: one given without the mode that
+    reads it is a ValueError (even at its default); a preset's own values under a mode given
+    beside it are not (unity-urp's knee under --prefilter none)."""
+    img = np.full((6, 6, 4), 2.0, np.float32)
+    with pytest.raises(ValueError, match="--passes does nothing without --method gaussian"):
+        bloomref.run(img, method="mip", passes=10)
+    assert bloomref.run(img, preset="unity-urp", prefilter="none").shape == img.shape

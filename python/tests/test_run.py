@@ -45,11 +45,6 @@ def test_threshold_option_turns_the_bloom_off():
     np.testing.assert_allclose(out[..., :3], tone_and_gamma(2.0), rtol=8 * F32_ULP, atol=0)
 
 
-def test_an_option_its_mode_ignores_raises_value_error():
-    with pytest.raises(ValueError, match="--passes does nothing without --method gaussian"):
-        bloomref.run(uniform(6, 6, 2.0), method="mip", passes=4)
-
-
 @pytest.mark.parametrize("options", [
     {},
     {"storage": "f16"},
@@ -213,10 +208,12 @@ out = bloomref.run(scene, plan="full", threads=1)  # 15.3 MiB of the module's (n
 expected = out.copy()
 soft, hard = resource.getrlimit(resource.RLIMIT_AS)
 failed = 0
-for margin_mib in range(0, 80, 2):
+# From below the process's size: memory freed but still mapped (the heap's slack) can carry a
+# whole run with no new mapping, so a limit at the size itself may fail nothing.
+for margin_mib in range(-16, 80, 2):
     np.copyto(out, scene)
     size = int(next(l for l in open("/proc/self/status") if l.startswith("VmSize")).split()[1])
-    resource.setrlimit(resource.RLIMIT_AS, (size * 1024 + (margin_mib << 20), hard))
+    resource.setrlimit(resource.RLIMIT_AS, (size * 1024 + margin_mib * (1 << 20), hard))
     ran = False
     try:
         bloomref.run(out, out=out, plan="full", threads=1)

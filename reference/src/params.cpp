@@ -102,15 +102,9 @@ void require(bool ok, const std::string& message) {
 void validate(const BloomParams& p) {
   require(p.levels >= 1 && p.levels <= 16,
           "--levels must be in [1, 16], got " + std::to_string(p.levels));
-  require(!p.karis || p.method == Method::mip, "--karis applies to --method mip only");
   require(p.storage != Storage::r11g11b10 && p.storage != Storage::rgba8,
           "--storage " + to_string(p.storage) +
               " is for the mip chain's levels only (--chain-storage)");
-  require(p.method == Method::mip || !p.mip_variant(),
-          "--prefilter, --karis-form, --texel-step, --upsample-radius, --bloom-upscale, "
-          "--chain-storage, --first-level-height, --level-combine, --level-weights, "
-          "--knee-form, --clamp-max, --first-downsample, --downsample, --upsample and "
-          "--level-count apply to --method mip only");
   require(p.first_level_height >= 0 && p.first_level_height <= 16384,
           "--first-level-height must be in [0, 16384] (0 = half the image), got " +
               std::to_string(p.first_level_height));
@@ -207,14 +201,53 @@ void validate(const BloomParams& p) {
 
 void refuse_ignored_options(const BloomParams& p, const OptionGiven& given) {
   const BloomParams d;
-  const auto needs = [&given](bool changed, bool mode, const char* option, const char* what) {
+  // `changed`: the value differs from its default (what decides without `given`); `mode`:
+  // whether the pipeline reads the option.
+  const auto needs = [&given](bool changed, bool mode, const std::string& option,
+                              const std::string& what) {
     const bool set = given ? given(option) : changed;
-    require(!set || mode, std::string(option) + " does nothing without " + what);
+    require(!set || mode, option + " does nothing without " + what);
   };
   const bool mip = p.method == Method::mip;
+  // The mip chain's choices under --method gaussian: each by name when the caller knows what
+  // was given (a preset's under --method gaussian are not); else any that differs from seed
+  // 002's chain.
+  static const char* const kMipOnly[] = {
+      "--karis", "--prefilter", "--texel-step", "--upsample-radius", "--bloom-upscale",
+      "--chain-storage", "--first-level-height", "--level-combine", "--level-weights",
+      "--knee-form", "--clamp-max", "--first-downsample", "--downsample", "--upsample",
+      "--level-count", "--composite"};
+  if (given) {
+    for (const char* o : kMipOnly) needs(false, mip, o, "--method mip");
+  } else {
+    require(mip || (!p.mip_variant() && !p.karis),
+            "--prefilter, --karis, --karis-form, --texel-step, --upsample-radius, "
+            "--bloom-upscale, --chain-storage, --first-level-height, --level-combine, "
+            "--level-weights, --knee-form, --clamp-max, --first-downsample, --downsample, "
+            "--upsample and --level-count do nothing without --method mip");
+  }
   needs(p.levels != d.levels, mip, "--levels", "--method mip");
   needs(p.passes != d.passes, !mip, "--passes", "--method gaussian");
   needs(p.kernel != d.kernel, !mip, "--kernel", "--method gaussian");
+  needs(p.first_axis != d.first_axis, !mip, "--first-axis", "--method gaussian");
+  needs(p.blur != d.blur, !mip && p.precision == Precision::f32, "--blur",
+        "--method gaussian at --precision f32");
+  needs(p.subtexel_bits != d.subtexel_bits, p.precision == Precision::f32, "--subtexel-bits",
+        "--precision f32");
+  // What the first level's prefilter reads: the threshold unless it has none; the luminance
+  // (weights and space) where a luminance is compared (the soft knee takes the largest
+  // channel), or seed 002's per-tap Karis weight reads it.
+  const bool thresholds = !mip || p.prefilter != Prefilter::none;
+  const bool luminance = !mip || p.prefilter == Prefilter::per_lookup ||
+                         p.prefilter == Prefilter::bright ||
+                         p.prefilter == Prefilter::smoothstep ||
+                         (p.karis && p.karis_form == KarisForm::per_tap);
+  const std::string prefilters = "a prefilter that reads it (--prefilter per-lookup, bright";
+  needs(p.threshold != d.threshold, thresholds, "--threshold",
+        prefilters + ", soft-knee or smoothstep)");
+  needs(p.luma != d.luma, luminance, "--luma", prefilters + " or smoothstep, or per-tap --karis)");
+  needs(p.luma_space != d.luma_space, luminance, "--luma-space",
+        prefilters + " or smoothstep, or per-tap --karis)");
   needs(p.karis_form != d.karis_form, p.karis, "--karis-form", "--karis");
   needs(p.knee != d.knee, p.prefilter == Prefilter::soft_knee, "--knee",
         "--prefilter soft-knee");
@@ -222,18 +255,29 @@ void refuse_ignored_options(const BloomParams& p, const OptionGiven& given) {
         "--prefilter soft-knee");
   needs(p.smooth_width != d.smooth_width, p.prefilter == Prefilter::smoothstep,
         "--smooth-width", "--prefilter smoothstep");
+  needs(p.first_level_height != d.first_level_height, p.level_count == LevelCount::fixed,
+        "--first-level-height", "--level-count fixed");
   const bool separable = p.downsample == DownsampleFilter::separable;
   needs(p.level_kernels != d.level_kernels, separable, "--level-kernels",
         "--downsample separable");
   needs(!p.level_sigmas.empty(), separable, "--level-sigmas", "--downsample separable");
-  needs(p.level_normalise, separable, "--level-normalise", "--downsample separable");
+  // A flag: refused when set (given as --no-level-normalise it asks for nothing).
+  needs(p.level_normalise, separable || !p.level_normalise, "--level-normalise",
+        "--downsample separable");
   const bool sum = p.level_combine == LevelCombine::sum;
   needs(p.level_factors != d.level_factors, sum, "--level-factors", "--level-combine sum");
   needs(p.level_radius != d.level_radius, sum, "--level-radius", "--level-combine sum");
   needs(p.level_strength != d.level_strength, sum, "--level-strength", "--level-combine sum");
-  needs(p.level_weight != d.level_weight, p.level_weights == LevelWeights::constant,
+  // Under the sum there are no upsamples: nothing blends levels or reads one with the tent,
+  // unless the full-size bloom does.
+  const std::string chain = "a chain of upsamples (--level-combine add, mix or lerp)";
+  needs(p.level_weights != d.level_weights, !sum, "--level-weights", chain);
+  needs(p.upsample != d.upsample, !sum, "--upsample", chain);
+  needs(p.upsample_radius != d.upsample_radius, !sum || p.bloom_upscale == BloomUpscale::tent,
+        "--upsample-radius", chain + " or --bloom-upscale tent");
+  needs(p.level_weight != d.level_weight, !sum && p.level_weights == LevelWeights::constant,
         "--level-weight", "--level-weights constant");
-  const bool bevy = p.level_weights == LevelWeights::bevy;
+  const bool bevy = !sum && p.level_weights == LevelWeights::bevy;
   needs(p.low_frequency_boost != d.low_frequency_boost, bevy, "--low-frequency-boost",
         "--level-weights bevy");
   needs(p.low_frequency_boost_curvature != d.low_frequency_boost_curvature, bevy,

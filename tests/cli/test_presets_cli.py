@@ -54,6 +54,10 @@ def test_preset_sets_the_articles_values_and_options_override_them(tmp_path):
     (["--levels", "4"], "--levels"),                              # no levels in the Gaussian
     (["--preset", "threejs", "--level-weight", "0.5"], "--level-weight"),
     (["--preset", "unity-urp", "--level-kernels", "3,5"], "--level-kernels"),
+    (["--method", "mip", "--passes", "10"], "--passes"),          # given, even at its default
+    (["--preset", "bevy", "--luma", "rec601"], "--luma"),         # Bevy's chain compares none
+    (["--preset", "threejs", "--upsample", "bilinear"], "--upsample"),  # the sum has none
+    (["--preset", "threejs", "--first-level-height", "40"], "--first-level-height"),
 ])
 def test_an_option_its_mode_ignores_is_refused(tmp_path, args, option):
     code, _, err = run(["run", "--size", "32x24", "-q", "-o", "x.exr", *args], tmp_path)
@@ -69,6 +73,17 @@ def test_a_manifests_params_are_given(tmp_path):
     (tmp_path / "m.json").write_text(json.dumps(manifest))
     code, out, err = run(["check", "--manifest", "m.json", "-q"], tmp_path)
     assert code == 2 and "m.json" in err and "--passes does nothing without" in err, out + err
+    # The mode an option on the command line needs may come from the manifest.
+    assert run(["run", "scene.exr", "--method", "mip", "--dump-stages", "d", "-q", "-o", "o.exr"],
+               tmp_path)[0] == 0
+    manifest["params"] = {"method": "mip"}
+    (tmp_path / "m.json").write_text(json.dumps(manifest))
+    code, out, err = run(["check", "--manifest", "m.json", "--levels", "6", "-q"], tmp_path)
+    assert code == 0, out + err
+    manifest.pop("params")
+    (tmp_path / "m.json").write_text(json.dumps(manifest))
+    code, out, err = run(["check", "--manifest", "m.json", "--levels", "6", "-q"], tmp_path)
+    assert code == 2 and "--levels does nothing without --method mip" in err, out + err
 
 
 def test_a_presets_values_under_an_overridden_mode_are_not_refused(tmp_path):
@@ -83,6 +98,12 @@ def test_a_presets_values_under_an_overridden_mode_are_not_refused(tmp_path):
                         "fixed", "--level-combine", "add", "--first-downsample", "13-tap",
                         "--prefilter", "per-lookup", "--threshold", "1"], tmp_path)
     assert code == 0, err
+    # A preset's mip chain under --method gaussian given: its chain options are unused, and
+    # --no-level-normalise asks for nothing.
+    for args in (["--preset", "learnopengl-pbb", "--method", "gaussian"],
+                 ["--method", "mip", "--no-level-normalise"]):
+        code, _, err = run(["run", "--size", "32x24", "-q", "-o", "z.exr", *args], tmp_path)
+        assert code == 0, (args, err)
 
 
 def test_cod_mip_preset_gives_method_mips_bits(tmp_path):

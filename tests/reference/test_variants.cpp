@@ -111,7 +111,14 @@ TEST_CASE("the bright prefilter puts a bright stage before the chain, which then
 TEST_CASE("variant options are refused outside the mip method, and a mix needs a strength in [0, 1]", "[variants]") {
   BloomParams p;
   p.prefilter = Prefilter::bright;
-  CHECK_THROWS_WITH(validate(p), Catch::Contains("--method mip only"));
+  CHECK_THROWS_WITH(refuse_ignored_options(p), Catch::Contains("nothing without --method mip"));
+  // Given by name: refused even at seed 002's value; a preset's (not given) are not.
+  p = BloomParams{};
+  CHECK_THROWS_WITH(refuse_ignored_options(p, [](const std::string& o) { return o == "--downsample"; }),
+                    Catch::Contains("--downsample does nothing without --method mip"));
+  p.karis = true;
+  p.prefilter = Prefilter::bright;
+  CHECK_NOTHROW(refuse_ignored_options(p, [](const std::string&) { return false; }));
   p = BloomParams{};
   p.composite_mode = CompositeMode::mix;
   p.strength = 2.0f;
@@ -162,6 +169,32 @@ TEST_CASE("an option that only its mode reads is refused without that mode", "[v
        [](BloomParams& p) { p.level_weights = LevelWeights::bevy; }},
       {"--high-pass-frequency", mip, [](BloomParams& p) { p.high_pass_frequency = 0.5f; },
        [](BloomParams& p) { p.level_weights = LevelWeights::bevy; }},
+      {"--first-axis", mip, [](BloomParams& p) { p.first_axis = FirstAxis::vertical; },
+       [](BloomParams& p) { p.method = Method::gaussian; }},
+      {"--subtexel-bits", Method::gaussian,
+       [](BloomParams& p) {
+         p.subtexel_bits = 8;
+         p.precision = Precision::f64;
+       },
+       [](BloomParams& p) { p.precision = Precision::f32; }},
+      {"--threshold", mip,
+       [](BloomParams& p) {
+         p.threshold = 0.5f;
+         p.prefilter = Prefilter::none;
+       },
+       [](BloomParams& p) { p.prefilter = Prefilter::bright; }},
+      {"--luma", mip,
+       [](BloomParams& p) {
+         p.luma = Luma::rec601;
+         p.prefilter = Prefilter::soft_knee;
+       },
+       [](BloomParams& p) { p.prefilter = Prefilter::per_lookup; }},
+      {"--first-level-height", mip,
+       [](BloomParams& p) {
+         p.first_level_height = 64;
+         p.level_count = LevelCount::unity;
+       },
+       [](BloomParams& p) { p.level_count = LevelCount::fixed; }},
   };
   for (const Case& c : cases) {
     INFO(c.option);
@@ -194,4 +227,25 @@ TEST_CASE("an option that only its mode reads is refused without that mode", "[v
     CHECK_NOTHROW(validate(p));
     CHECK_NOTHROW(refuse_ignored_options(p));
   }
+  // ... and under the sum there are no upsamples: what blends or reads them is refused.
+  BloomParams s;
+  s.method = Method::mip;
+  s.level_combine = LevelCombine::sum;
+  s.level_count = LevelCount::threejs;
+  s.first_downsample = FirstDownsample::bilinear;
+  s.prefilter = Prefilter::bright;
+  s.levels = 5;
+  s.bloom_upscale = BloomUpscale::bilinear;
+  CHECK_NOTHROW(refuse_ignored_options(s));
+  BloomParams t = s;
+  t.level_weights = LevelWeights::constant;
+  CHECK_THROWS_WITH(refuse_ignored_options(t), Catch::Contains("--level-weights does nothing"));
+  t = s;
+  t.upsample = UpsampleFilter::bilinear;
+  CHECK_THROWS_WITH(refuse_ignored_options(t), Catch::Contains("--upsample does nothing"));
+  t = s;
+  t.upsample_radius = 0.01f;
+  CHECK_THROWS_WITH(refuse_ignored_options(t), Catch::Contains("--upsample-radius does nothing"));
+  t.bloom_upscale = BloomUpscale::tent;  // the full-size bloom's tent reads it
+  CHECK_NOTHROW(refuse_ignored_options(t));
 }
