@@ -10,13 +10,20 @@ include(CMakePackageConfigHelpers)
 # Every library a consumer may link, with the name it has in the package (bloomref::runtime).
 # bloomref_cpu_flags carries no usage requirement out of the package (its compile options are
 # private to each library) but is named by their link interfaces, so it is exported too.
-set(bloomref_installed_libraries machinery simd exact reference engine engine_internal runtime io tools gpu parity cpu_flags vulkan batch cli)
+set(bloomref_installed_libraries machinery simd exact reference engine engine_internal runtime io tools gpu parity cpu_flags)
 set(bloomref_installed_targets)
 foreach(name ${bloomref_installed_libraries})
   set_target_properties(bloomref_${name} PROPERTIES EXPORT_NAME ${name})
   list(APPEND bloomref_installed_targets bloomref_${name})
 endforeach()
+# The component `check` (find_package(bloomref COMPONENTS check)): its own export set, so that
+# a consumer of the others needs none of its dependencies (Vulkan, SPIRV-Cross, CLI11, JSON).
+set_target_properties(bloomref_vulkan PROPERTIES EXPORT_NAME vulkan)
+set_target_properties(bloomref_batch PROPERTIES EXPORT_NAME batch)
 set_target_properties(bloomref_cli PROPERTIES EXPORT_NAME check)
+install(TARGETS bloomref_vulkan bloomref_batch bloomref_cli EXPORT bloomrefCheckTargets
+        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+        INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 
 install(TARGETS ${bloomref_installed_targets} EXPORT bloomrefTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
@@ -33,6 +40,7 @@ install(DIRECTORY ${PROJECT_SOURCE_DIR}/cli/ DESTINATION ${CMAKE_INSTALL_INCLUDE
 
 set(bloomref_cmake_dir ${CMAKE_INSTALL_LIBDIR}/cmake/bloomref)
 install(EXPORT bloomrefTargets NAMESPACE bloomref:: DESTINATION ${bloomref_cmake_dir})
+install(EXPORT bloomrefCheckTargets NAMESPACE bloomref:: DESTINATION ${bloomref_cmake_dir})
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/bloomrefConfig.cmake.in
                               ${PROJECT_BINARY_DIR}/bloomrefConfig.cmake
                               INSTALL_DESTINATION ${bloomref_cmake_dir})

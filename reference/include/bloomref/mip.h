@@ -124,8 +124,8 @@ struct DownsampleOptions {
 /// _getSeparableBlurMaterial): c_i = 0.39894 exp(-0.5 i^2 / s^2) / s for i in [0, R), s = R / 3
 /// (or `sigma` when it is > 0), in double as JavaScript computes them, rounded to float as the
 /// uniform array holds them. `normalise`: each c_i divided by c_0 + 2 (c_1 + ... + c_R-1) in
-/// double before that rounding (UnrealBloomPass.js divides the sum by the same weightSum in the
-/// shader; the two orders differ by a few float roundings, within the arithmetic's bound).
+/// double before that rounding (UnrealBloomPass.js divides the sum by the weights' float sum in
+/// the shader, docs/design.md "Mip-chain variants" says what that difference is worth).
 std::vector<float> separable_coefficients(int radius, double sigma = 0.0, bool normalise = false);
 
 /// The sigma of stage down.k's separable blur under `p`: its --level-sigmas entry, else 0 (R / 3).
