@@ -157,6 +157,23 @@ std::string stage_sensitivity_line(const ordered_json& s) {
   return seen_part(field(s, "gain"), 1, 0, "a gain of %.3gx", "no gain up to 4x") + shape_parts(s);
 }
 
+std::string carried_line(const ordered_json& stage) {
+  const ordered_json& c = field(stage, "carried");
+  const ordered_json& from = list(c, "from");
+  if (!c.is_object() || from.empty()) return "";
+  std::vector<std::string> names;
+  for (const ordered_json& n : from) names.push_back(n.is_string() ? n.get<std::string>() : "?");
+  std::string stages;
+  if (names.size() > 4) {
+    stages = names.front() + " ... " + names.back() + " (" + std::to_string(names.size()) +
+             " stages, not captured)";
+  } else {
+    for (const std::string& n : names) stages += (stages.empty() ? "" : ", ") + n;
+    stages += " (not captured)";
+  }
+  return fmt("%.0f%% of its bound is what ", 100 * num(c, "share_of_bound")) + stages + " may carry";
+}
+
 std::string weak_line(const ordered_json& s) {
   std::string out = fmt("a bloom %.3gx too strong would not have failed", num(s, "required_gain"));
   if (const std::string more = str(s, "strengthen_with"); !more.empty())
@@ -215,6 +232,19 @@ std::string console(const ordered_json& doc) {
         o += "  NaN/Inf first stand against finite values at " + nf + " (" +
              fmt("%.0f", num(field(s, "isolated"), "nonfinite_mismatch")) +
              " values): the stages after it inherit them\n";
+    // What a stage that does not fail was judged through: an error entering at a stage
+    // without capture is seen at it only beyond what that stage may legitimately carry.
+    bool through = false;
+    for (const ordered_json& s : stages) {
+      const std::string carried = carried_line(s);
+      if (carried.empty() || str(field(s, "isolated"), "verdict") == "FAIL") continue;
+      if (!through)
+        o += "  judged through stages not captured (an error entering there shows only beyond "
+             "what they may carry):\n";
+      through = true;
+      std::snprintf(line, sizeof line, "    %-10s ", str(s, "stage").substr(0, 64).c_str());
+      o += line + carried + "\n";
+    }
     const ordered_json& sens = field(r, "sensitivity");
     if (sens.is_object()) {
       o += "  could see: " + sensitivity_line(sens) + "\n";

@@ -29,6 +29,9 @@ std::string markdown(const nlohmann::ordered_json& doc);
 std::string sensitivity_line(const nlohmann::ordered_json& sensitivity);
 /// What an error entering at one stage would have shown (a stage's "sensitivity").
 std::string stage_sensitivity_line(const nlohmann::ordered_json& sensitivity);
+/// What a stage's isolated bound carries from stages without capture, in words: "78% of its
+/// bound is what input, down.1 (not captured) may carry"; "" when it reads only captures.
+std::string carried_line(const nlohmann::ordered_json& stage);
 /// Why a weak verdict is weak, and what would strengthen it.
 std::string weak_line(const nlohmann::ordered_json& sensitivity);
 

@@ -165,6 +165,9 @@ ordered_json check_json(const CheckRun& run) {
                                                          {"device", o.expectation->device},
                                                          {"reason", o.expectation->reason}})
                                          : ordered_json(nullptr)},
+           {"carried", s.carried_from.empty()
+                           ? ordered_json(nullptr)
+                           : ordered_json({{"from", s.carried_from}, {"share_of_bound", s.carried_share}})},
            {"isolated", stage_json(s)},
            {"end_to_end", stage_json(r.parity.end_to_end[i])},
            {"cause", s.causes.empty() ? ordered_json(nullptr) : cause_json(s.causes.front())},

@@ -21,6 +21,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <tuple>
 #include <cfloat>
 #include <cstdio>
@@ -73,6 +74,7 @@ struct EnergySums {
   using Sum = std::array<double, 3>;
   Sum err{}, err_e2e{}, oracle{}, full{}, l1{}, l1_e2e{}, l1_own{}, up{}, down{}, most{}, rounding{};
   Sum storage{};  // a stage without capture: the oracle's value's own storage rounding
+  Sum carried{}, judged{};  // a captured stage: what inputs without capture carry, its bound
   double tile_ratio = 0;
   int tile_x = -1, tile_y = -1;
   // The envelope gate's: the capture's error, and the envelope's distance from the oracle
@@ -86,7 +88,7 @@ struct EnergySums {
       err[c] += b.err[c], err_e2e[c] += b.err_e2e[c], oracle[c] += b.oracle[c];
       full[c] += b.full[c], l1[c] += b.l1[c], l1_e2e[c] += b.l1_e2e[c], l1_own[c] += b.l1_own[c];
       up[c] += b.up[c], down[c] += b.down[c], most[c] += b.most[c], rounding[c] += b.rounding[c];
-      storage[c] += b.storage[c];
+      storage[c] += b.storage[c], carried[c] += b.carried[c], judged[c] += b.judged[c];
     }
     if (b.tile_ratio > tile_ratio) tile_ratio = b.tile_ratio, tile_x = b.tile_x, tile_y = b.tile_y;
     for (int c = 0; c < 3; ++c)
@@ -155,6 +157,7 @@ class Comparison {
   Budgets signed_budgets(const std::vector<std::string>& in, const EnergySums& es) const;
   // The likely cause named at the last failing stage of each kind, and that stage.
   std::map<StageKind, std::pair<std::string, std::string>> last_cause_;
+  void carried_into(StageComparison& s, const EnergySums& es) const;
   void gain_gates(StageComparison& iso, StageComparison& e2e, const EnergySums& es,
                   const std::vector<std::string>& in);
   ExtraTerms iso_terms(const StageTerms& t, const CapturedStage& cap, const Image& inherited) const;
@@ -417,6 +420,10 @@ void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally&
   override_rows(over, bound, n);
   override_rows(over, e, n);
   if (kept.bound) put_rows(*kept.bound, y0, bound, n);
+  if (inherited)
+    for (std::size_t i = 0; i < values; ++i)
+      if (i % kChannels != 3 && std::isfinite(bound[i]) && std::isfinite(inherited[i]))
+        es.carried[i % kChannels] += inherited[i], es.judged[i % kChannels] += bound[i];
   // The gates measure the error beyond rounding: the stage's own (its storage and arithmetic
   // terms, scaled as an override scales the bound) and the capture's codes; with f16 storage,
   // also what stages without capture carry, which holds their roundings (llvmpipe's toward zero
@@ -830,6 +837,7 @@ void Comparison::judge_captured(std::size_t index, StageTerms& t) {
   EnergySums es;
   for (const EnergySums& b : energy) es.merge(b);
   gain_gates(s, s_e2e, es, stage_inputs(plan_, *spec_));
+  carried_into(s, es);
   const bool enveloped = !env_.empty() || env_from_deviation_;
   if (enveloped) envelope_gate(s, es);
   result_.end_to_end.push_back(std::move(s_e2e));
@@ -1245,6 +1253,26 @@ Comparison::Budgets Comparison::signed_budgets(const std::vector<std::string>& i
   }
   if (spec_->kind == StageKind::blur) return {iso, e2e, t, m};
   return {iso, e2e, t, std::nullopt};  // the composite's magnitudes: the per-value bounds' sum
+}
+
+// The stages without capture a captured stage's bound carries the error of (back through
+// stages without capture to the captures or the scene), and their share of its bound.
+void Comparison::carried_into(StageComparison& s, const EnergySums& es) const {
+  double carried = 0, judged = 0;
+  for (int c = 0; c < 3; ++c) carried += es.carried[c], judged += es.judged[c];
+  if (!(carried > 0) || !(judged > 0)) return;
+  s.carried_share = std::min(1.0, carried / judged);
+  std::set<std::string> from;
+  std::vector<std::string> open = stage_inputs(plan_, *spec_);
+  while (!open.empty()) {
+    const std::string n = open.back();
+    open.pop_back();
+    if (streams_.captured(n) || !from.insert(n).second) continue;
+    if (const StageSpec* st = find_stage(plan_, n))
+      for (const std::string& i : stage_inputs(plan_, *st)) open.push_back(i);
+  }
+  for (const StageSpec& st : plan_.stages)
+    if (from.count(st.name)) s.carried_from.push_back(st.name);
 }
 
 // The gain gates of a captured stage: its total error per channel against the smaller of two

@@ -198,3 +198,22 @@ def test_a_dim_scene_tells_the_luma_apart(tmp_path):
     assert read_rgb(str(out / "down.1.exr")).max() > 0
     stage, named, cause = cli_support.first_cause(item)
     assert named == "luma-weights", json.dumps(cause)
+    # With down.1 not captured its effect reaches down.2 blurred, inside what down.1's own
+    # legitimate freedom (its lookups on this noisy scene) carries there: a verdict that does not
+    # fail says down.2 was judged through down.1 (and the scene's upload), and how much of its
+    # bound that is.
+    part = tmp_path / "part"
+    part.mkdir()
+    for name in ("down.2", "output"):
+        (part / f"{name}.exr").write_bytes((out / f"{name}.exr").read_bytes())
+    code, o, e = run(["check", str(path), *half, "--stages", str(part), "--json", "p.json"],
+                     tmp_path)
+    item = json.loads((tmp_path / "p.json").read_text())["items"][0]
+    if item["verdict"] != "FAIL":
+        down2 = {s["stage"]: s for s in item["stages"]}["down.2"]
+        assert down2["carried"]["from"] == ["input", "down.1"], json.dumps(down2["carried"])
+        assert down2["carried"]["share_of_bound"] > 0.5, json.dumps(down2["carried"])
+        assert "judged through stages not captured" in o, o
+        assert "down.2" in o and "input, down.1 (not captured) may carry" in o, o
+    else:
+        assert item["first_divergent_stage"] == "down.2", json.dumps(item["stages"])[:2000]

@@ -192,6 +192,55 @@ TEST_CASE("the CPU's own stages pass in any subset", "[check]") {
   }
 }
 
+TEST_CASE("a stage judged through stages without capture names them and their share of its bound",
+          "[check]") {
+  const Image scene = test_scene();
+  const BloomParams p = test_params();
+  const auto cpu = trace_of(p, scene);
+  auto judged = [&](const std::vector<std::string>& names) {
+    const Plan plan = parity::plan_for_device(p, scene.cview(), kProfile);
+    parity::CapturedStages captured;
+    for (const auto& n : names) captured[n] = {cpu.at(n).cview()};
+    parity::CompareOptions co;
+    co.causes = false;
+    co.keep_images = true;
+    return parity::check_with_oracle(plan, scene.cview(), captured, kProfile, co);
+  };
+  auto total = [](const Image& bound) {
+    double t = 0;
+    for (std::size_t i = 0; i < bound.values().size(); ++i)
+      if (i % kChannels != 3) t += bound.values()[i];
+    return t;
+  };
+  const auto partial = judged({"bright", "blur.2", "output"});
+  REQUIRE(partial.verdict == Verdict::pass);
+  // The stages each reads back to a capture or the scene, by hand from the Gaussian pipeline:
+  // blur.2 reads blur.1; output the tone map, the composite, and through it the scene's upload
+  // (input) and the last two passes.
+  CHECK(stage(partial, "bright").carried_from.empty());
+  CHECK(stage(partial, "bright").carried_share == 0);
+  CHECK(stage(partial, "blur.2").carried_from == std::vector<std::string>{"blur.1"});
+  CHECK(stage(partial, "output").carried_from ==
+        std::vector<std::string>{"input", "blur.3", "blur.4", "composite", "tonemap"});
+  // The share, independently: with blur.1 captured as the oracle recomputes it (the CPU's own,
+  // bit for bit), blur.2's own terms are the same, and its bound is the carried part smaller.
+  const auto more = judged({"bright", "blur.1", "blur.2", "output"});
+  CHECK(stage(more, "blur.2").carried_from.empty());
+  const double with = total(stage(partial, "blur.2").bound), without = total(stage(more, "blur.2").bound);
+  REQUIRE(with > without);
+  CHECK(stage(partial, "blur.2").carried_share == Approx(1 - without / with).epsilon(1e-5));
+  CHECK(stage(partial, "output").carried_share > 0);
+  CHECK(stage(partial, "output").carried_share <= 1);
+  // Every stage captured: nothing is carried.
+  std::vector<std::string> all;
+  for (const auto& [name, img] : cpu) all.push_back(name);
+  for (const auto& s : judged(all).isolated) {
+    INFO(s.stage);
+    CHECK(s.carried_from.empty());
+    CHECK(s.carried_share == 0);
+  }
+}
+
 TEST_CASE("a flipped or R/B-swapped dump fails at its first stage, cause named", "[check]") {
   const Image scene = test_scene();
   const BloomParams p = test_params();

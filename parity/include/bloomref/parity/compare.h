@@ -110,6 +110,12 @@ struct StageComparison {
   /// the envelope's total, over the whole image and over every tile (`envelope_ratio`). -1: no
   /// envelope was made. A fraction above the profile's over_fraction, or a ratio above 1, fails.
   double envelope_outside = -1, envelope_ratio = -1;
+  /// Isolated comparisons of a stage that reads stages without capture: those stages (back to
+  /// the captures or the scene, in plan order), and the share of this stage's bound, summed over
+  /// its finite RGB values, that is the error they may carry. An error entering at one of them
+  /// is seen here only where it exceeds that carried part (docs/check.md, "Partial captures").
+  std::vector<std::string> carried_from;
+  double carried_share = 0;
   Image oracle, bound;                   ///< isolated comparisons, with CompareOptions::keep_images
   /// Fraction of the values within their bound (1 for PASS).
   double within() const {
