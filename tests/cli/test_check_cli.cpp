@@ -290,6 +290,18 @@ TEST_CASE("a verdict says what it could see, a weak one is WARN, a brighter bloo
   for (const json& s : j["items"][0]["stages"]) CHECK(s["isolated"]["verdict"] == "PASS");
   CHECK(bloomref::test::read_bytes(dir / "w.xml").find("name=\"weak-verdict\"") != std::string::npos);
   CHECK(bloomref::test::read_bytes(dir / "w.md").find("weak verdict") != std::string::npos);
+  // Each stage says what it was judged through (blur.10: the bright pass and the passes before
+  // it; the output: the scene's upload and the finishing stages), in the JSON, the console
+  // and JUnit; with every stage captured (above), nothing is.
+  const json& carried = j["items"][0]["stages"][0]["carried"];
+  CHECK(carried["from"].size() == 10);  // bright (which reads the scene itself), blur.1 ... blur.9
+  CHECK(carried["from"][0] == "bright");
+  CHECK(carried["from"][9] == "blur.9");
+  CHECK(r.out.find("blur.10    ") != std::string::npos);
+  CHECK(r.out.find("of its bound is what bright ... blur.9 (10 stages, not captured) may carry") !=
+        std::string::npos);
+  CHECK(count(bloomref::test::read_bytes(dir / "w.xml"), "judged through stages not captured: ") == 2);
+  for (const json& s : read_json(dir / "all.json")["items"][0]["stages"]) CHECK(s["carried"].is_null());
   CHECK(run_cli(dir, "check " + size + " --stages two --profile mediump --warn-as-error -q").code == 1);
   // Under nvidia the same two captures see 10%: a bloom 1.1x too strong (its output made from
   // it here, in double) fails at blur.10.
