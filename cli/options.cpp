@@ -46,7 +46,9 @@ void PipelineOptions::add_to(CLI::App& app) {
   app.add_option("--kernel", kernel, "discrete9 | linear5")->capture_default_str();
   app.add_option("--strength", p.strength, "composite scene + strength * bloom")
       ->capture_default_str();
-  app.add_option("--storage", storage, "f32 | f16 (how every stage is stored)")
+  app.add_option("--storage", storage,
+                 "f32 | f16 | r11g11b10 | rgba8: how every stage is stored (the mip chain's "
+                 "levels too, unless --chain-storage)")
       ->capture_default_str();
   app.add_option("--precision", precision, "f32 (the shaders' order) | f64 (the truth)")
       ->capture_default_str();

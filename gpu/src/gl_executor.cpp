@@ -16,7 +16,10 @@ using Clock = std::chrono::steady_clock;
 
 std::vector<std::string> defines_for(const BloomParams& p, GLenum format) {
   std::vector<std::string> d;
-  d.push_back(std::string("STORAGE_FORMAT ") + (format == GL_RGBA16F ? "rgba16f" : "rgba32f"));
+  d.push_back(std::string("STORAGE_FORMAT ") + (format == GL_RGBA16F         ? "rgba16f"
+                                                : format == GL_R11F_G11F_B10F ? "r11f_g11f_b10f"
+                                                : format == GL_RGBA8          ? "rgba8"
+                                                                              : "rgba32f"));
   if (p.kernel == KernelName::linear5) d.push_back("KERNEL_LINEAR5 1");
   if (p.luma == Luma::rec601) d.push_back("LUMA_REC601 1");
   if (p.luma_space == LumaSpace::srgb) d.push_back("LUMA_SRGB 1");
@@ -165,7 +168,10 @@ GlSchedule choose_gl_schedule(const Plan& plan, const GlOptions& opt) {
   GlSchedule s;
   s.compute = opt.shaders == ShaderKind::compute;
   const bool f16 = p.storage == Storage::f16 || opt.fault == Fault::f16_storage;
-  s.format = f16 ? GL_RGBA16F : GL_RGBA32F;
+  s.format = f16 ? GL_RGBA16F
+             : p.storage == Storage::r11g11b10 ? GL_R11F_G11F_B10F
+             : p.storage == Storage::rgba8     ? GL_RGBA8
+                                               : GL_RGBA32F;
   s.scissor = adaptive && p.method == Method::gaussian && !plan.dense_scene;
   s.may_skip_mip = adaptive && p.method == Method::mip;
   return s;
@@ -205,7 +211,7 @@ StagePrograms build_programs(GlContext& ctx, const BloomParams& p, const GlSched
   g.extract.set("luma_gamma", p.gamma);
   g.extract.set("policy", nonfinite_code(p.nonfinite));
   const bool f16 = s.format == GL_RGBA16F;
-  g.extract.set("storage_max", static_cast<float>(storage_max(f16 ? Storage::f16 : Storage::f32)));
+  g.extract.set("storage_max", static_cast<float>(storage_max(f16 ? Storage::f16 : p.storage)));
   g.extract.set("range_guard", static_cast<float>(kRangeGuard));
   g.blur.set("image", 0);
   g.composite.set("scene", 0);

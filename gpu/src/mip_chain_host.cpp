@@ -214,13 +214,14 @@ MipChainOptions mip_chain_options_for(const BloomParams& p) {
   if (p.method != Method::mip)
     throw ParamError("the learnopengl-pbb preset runs a mip chain; --method " +
                      to_string(p.method) + " has none");
+  if (p.storage == Storage::rgba8)
+    throw ParamError("--storage rgba8: the article's final pass draws the composite, the tone map "
+                     "and the gamma at once, so it stores none of them in 8 bits as bloomref's "
+                     "stages would be; its 8-bit window is judged with check --shaders "
+                     "learnopengl-pbb --final-target rgba8, 8-bit levels with --chain-storage rgba8");
   MipChainOptions o;
-  o.format = p.storage == Storage::f32 ? TargetFormat::rgba32f : TargetFormat::rgba16f;
-  const Storage levels = p.level_storage();
-  o.level_format = levels == Storage::r11g11b10 ? TargetFormat::r11f_g11f_b10f
-                   : levels == Storage::rgba8   ? TargetFormat::rgba8
-                   : levels == Storage::f16     ? TargetFormat::rgba16f
-                                                : TargetFormat::rgba32f;
+  o.format = target_format_of(p.storage);
+  o.level_format = target_format_of(p.level_storage());
   o.levels = p.levels;
   o.karis = p.karis;
   o.filter_radius = p.upsample_radius;

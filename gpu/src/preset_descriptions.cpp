@@ -13,16 +13,6 @@
 namespace bloomref::gpu {
 namespace {
 
-TargetFormat format_of(Storage s) {
-  switch (s) {
-    case Storage::f32: return TargetFormat::rgba32f;
-    case Storage::f16: return TargetFormat::rgba16f;
-    case Storage::r11g11b10: return TargetFormat::r11f_g11f_b10f;
-    case Storage::rgba8: return TargetFormat::rgba8;
-  }
-  return TargetFormat::rgba32f;
-}
-
 DescribedUniform number(std::vector<float> v) {
   DescribedUniform u;
   u.values = std::move(v);
@@ -65,7 +55,7 @@ class Builder {
     t.content = content;
     t.size.exact_width = w;
     t.size.exact_height = h;
-    t.format = format_of(s);
+    t.format = target_format_of(s);
     t.stage = stage;
     d_.textures.push_back(std::move(t));
   }
@@ -118,7 +108,7 @@ PipelineDescription article(const BloomParams& p, int w, int h) {
   b.program("down", "pbb_downsample.frag");
   b.program("up", "pbb_upsample.frag");
   b.program("final", "pbb_final.frag");
-  const Storage st = storage_of(o.format), levels = p.level_storage();
+  const Storage st = p.storage, levels = p.level_storage();
   b.scene_texture("scene", st, DescribedTexture::scene, "input");
   b.scene_texture("bright", st, DescribedTexture::bright, "bright");
   const std::vector<LevelSize> sizes = mip_levels(w, h, o.levels);

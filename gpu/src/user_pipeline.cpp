@@ -265,6 +265,16 @@ Storage storage_of(TargetFormat f) {
                                     : Storage::f16;
 }
 
+TargetFormat target_format_of(Storage s) {
+  switch (s) {
+    case Storage::f32: return TargetFormat::rgba32f;
+    case Storage::f16: return TargetFormat::rgba16f;
+    case Storage::r11g11b10: return TargetFormat::r11f_g11f_b10f;
+    case Storage::rgba8: return TargetFormat::rgba8;
+  }
+  return TargetFormat::rgba32f;
+}
+
 ShaderSource load_shader(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, std::string("cannot be read: ") + std::strerror(errno));
@@ -297,7 +307,7 @@ UserPipelineOptions options_for(const BloomParams& params) {
         "--method " +
         to_string(params.method) + " has no such passes");
   UserPipelineOptions opt;
-  opt.format = params.storage == Storage::f16 ? TargetFormat::rgba16f : TargetFormat::rgba32f;
+  opt.format = target_format_of(params.storage);
   opt.passes = params.passes;
   opt.first_horizontal = params.first_axis == FirstAxis::horizontal;
   opt.exposure = params.exposure;

@@ -140,7 +140,7 @@ std::unique_ptr<StageBounds> down_bounds(ConstImageView src, ConstImageView orac
           for (int k = 0; k < 3; ++k) {
             const double rk = win->range.pixel(bx, by)[k];
             const double ek = ewin ? ewin->magnitude.pixel(bx, by)[k] : 0.0;
-            dmax = std::max(dmax, delta * rk + ek + 3 * U * win->magnitude.pixel(bx, by)[k]);
+            dmax = std::max(dmax, delta * rk + ek + read8 + 3 * U * win->magnitude.pixel(bx, by)[k]);
             qmax[i] = std::max(qmax[i], std::fabs(double(q[k])));
             qs[i][k] = q[k];
           }

@@ -307,9 +307,12 @@ StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in,
   const std::vector<ConstImageView> cin = isolated_inputs(in, at);
   StageTerms t = with_oracle(spec, cin, at);
   const ConstImageView o = t.oracle.cview(), none{};
-  // Every stage here reads levels but the first downsample (the scene).
+  // Lookups of a stage stored in 8 bits (levels, or the scene or bright image the first
+  // downsample reads) are filtered as 8-bit textures are.
   BoundContext ctx = at.ctx;
-  ctx.unorm8_reads = p.level_storage() == Storage::rgba8 && !(down && spec.pass == 1);
+  for (const std::string& n : in)
+    if (const StageSpec* s = find_stage(at.plan, n); s && stage_storage(p, *s) == Storage::rgba8)
+      ctx.unorm8_reads = true;
   // The bound on inputs `a` with errors `e` (null: none) into `out`.
   auto bounds = [&](const std::vector<ConstImageView>& a, ConstImageView out,
                     const std::vector<const Image*>& e) -> std::unique_ptr<StageBounds> {

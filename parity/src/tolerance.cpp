@@ -45,7 +45,11 @@ double storage_term(double v, Storage s, const DeviceProfile& p, int channel) {
     if (!(v > 0)) return std::fabs(v);
     int e = 0;
     std::frexp(v, &e);
-    return std::ldexp(1.0, std::max(e - 1, -14) - (channel == 2 ? 5 : 6));
+    const double quantum = std::ldexp(1.0, std::max(e - 1, -14) - (channel == 2 ? 5 : 6));
+    // Below 2^-14 the format's denormals, which a conversion may flush to 0: llvmpipe's upload
+    // of floats into an R11F_G11F_B10F texture does (measured: CandleGlass.exr's 6.0e-5 read
+    // back as 0 under --preset learnopengl-pbb --storage r11g11b10).
+    return v < 0x1p-14 ? std::max(quantum, v) : quantum;
   }
   if (s == Storage::rgba8) {
     // GL 4.6, 2.3.5.2 lets a write take either of the two 255ths nearest to the value: from

@@ -29,8 +29,6 @@ constexpr std::pair<const char*, Method> kMethods[] = {{"gaussian", Method::gaus
                                                        {"mip", Method::mip}};
 constexpr std::pair<const char*, KernelName> kKernels[] = {{"discrete9", KernelName::discrete9},
                                                            {"linear5", KernelName::linear5}};
-constexpr std::pair<const char*, Storage> kStorages[] = {{"f32", Storage::f32},
-                                                         {"f16", Storage::f16}};
 constexpr std::pair<const char*, Precision> kPrecisions[] = {{"f32", Precision::f32},
                                                              {"f64", Precision::f64}};
 constexpr std::pair<const char*, NonFinite> kPolicies[] = {{"zero", NonFinite::zero},
@@ -77,7 +75,7 @@ constexpr std::pair<const char*, UpsampleFilter> kUpsamples[] = {
 constexpr std::pair<const char*, LevelCount> kLevelCounts[] = {{"fixed", LevelCount::fixed},
                                                                 {"unity", LevelCount::unity},
                                                                 {"threejs", LevelCount::threejs}};
-constexpr std::pair<const char*, Storage> kChainStorages[] = {
+constexpr std::pair<const char*, Storage> kStorages[] = {
     {"f32", Storage::f32}, {"f16", Storage::f16}, {"r11g11b10", Storage::r11g11b10},
     {"rgba8", Storage::rgba8}};
 constexpr std::pair<const char*, PlanMode> kPlans[] = {{"adaptive", PlanMode::adaptive},
@@ -102,9 +100,6 @@ void require(bool ok, const std::string& message) {
 void validate(const BloomParams& p) {
   require(p.levels >= 1 && p.levels <= 16,
           "--levels must be in [1, 16], got " + std::to_string(p.levels));
-  require(p.storage != Storage::r11g11b10 && p.storage != Storage::rgba8,
-          "--storage " + to_string(p.storage) +
-              " is for the mip chain's levels only (--chain-storage)");
   require(p.first_level_height >= 0 && p.first_level_height <= 16384,
           "--first-level-height must be in [0, 16384] (0 = half the image), got " +
               std::to_string(p.first_level_height));
@@ -288,7 +283,7 @@ void refuse_ignored_options(const BloomParams& p, const OptionGiven& given) {
 
 std::string to_string(Method v) { return name_of(v, kMethods); }
 std::string to_string(KernelName v) { return name_of(v, kKernels); }
-std::string to_string(Storage v) { return name_of(v, kChainStorages); }
+std::string to_string(Storage v) { return name_of(v, kStorages); }
 std::string to_string(Precision v) { return name_of(v, kPrecisions); }
 std::string to_string(NonFinite v) { return name_of(v, kPolicies); }
 std::string to_string(PlanMode v) { return name_of(v, kPlans); }
@@ -347,7 +342,7 @@ BloomUpscale parse_bloom_upscale(const std::string& s) {
   return parse_enum("--bloom-upscale", s, kUpscales);
 }
 Storage parse_chain_storage(const std::string& s) {
-  return parse_enum("--chain-storage", s, kChainStorages);
+  return parse_enum("--chain-storage", s, kStorages);
 }
 CompositeOrder parse_composite_order(const std::string& s) {
   return parse_enum("--composite", s, kOrders);

@@ -123,9 +123,14 @@ TEST_CASE("variant options are refused outside the mip method, and a mix needs a
   p.composite_mode = CompositeMode::mix;
   p.strength = 2.0f;
   CHECK_THROWS_WITH(validate(p), Catch::Contains("[0, 1]"));
-  p = BloomParams{};
-  p.storage = Storage::r11g11b10;
-  CHECK_THROWS_WITH(validate(p), Catch::Contains("--chain-storage"));
+  // Every storage is one of every stage (the levels' own with --chain-storage).
+  for (Storage st : {Storage::r11g11b10, Storage::rgba8}) {
+    p = BloomParams{};
+    p.storage = st;
+    CHECK_NOTHROW(validate(p));
+    CHECK(parse_storage(to_string(st)) == st);
+  }
+  CHECK_THROWS_WITH(parse_storage("rgb565"), Catch::Contains("--storage"));
 }
 
 TEST_CASE("an option that only its mode reads is refused without that mode", "[variants]") {

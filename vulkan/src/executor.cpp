@@ -235,6 +235,10 @@ StageTrace execute_vulkan(Context& ctx, const Plan& plan, ConstImageView scene,
                        "variant runs its preset's passes");
     return run_described(ctx, scene, gpu::preset_description(p, scene.width, scene.height), p);
   }
+  if (p.storage != Storage::f32 && p.storage != Storage::f16)
+    throw ParamError("--storage " + to_string(p.storage) + ": the Vulkan path's own pipeline "
+                     "stores its stages as f32 or f16 (the GL path and the presets' passes take "
+                     "every storage)");
   return VulkanExecutor(ctx, plan, scene, edit, faults).run();
 }
 

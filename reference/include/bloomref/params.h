@@ -12,10 +12,11 @@ namespace bloomref {
 
 enum class Method { gaussian, mip };
 enum class KernelName { discrete9, linear5 };
-/// How a stage's output is stored, as the GL path stores it (RGBA32F / RGBA16F). r11g11b10
-/// (GL_R11F_G11F_B10F: unsigned floats, 6-bit mantissas for R and G, 5 for B, no alpha) and
-/// rgba8 (GL_RGBA8: unsigned normalised, each channel clamped to [0, 1] and rounded to the
-/// nearest 255th, NaN as 0) are storages of the mip chain's levels only (BloomParams::chain_storage).
+/// How a stage's output is stored, as the GL path stores it: RGBA32F, RGBA16F, r11g11b10
+/// (GL_R11F_G11F_B10F: unsigned floats, 6-bit mantissas for R and G, 5 for B, no alpha) or rgba8
+/// (GL_RGBA8: unsigned normalised, each channel clamped to [0, 1] and rounded to the nearest
+/// 255th, NaN as 0). BloomParams::storage stores every stage but the mip chain's levels, which
+/// BloomParams::chain_storage stores when it is set.
 enum class Storage { f32, f16, r11g11b10, rgba8 };
 /// f32 mirrors the shaders' operation order; f64 is the truth used to measure error.
 enum class Precision { f32, f64 };
@@ -265,7 +266,7 @@ FirstDownsample parse_first_downsample(const std::string& s);
 DownsampleFilter parse_downsample_filter(const std::string& s);
 UpsampleFilter parse_upsample_filter(const std::string& s);
 LevelCount parse_level_count(const std::string& s);
-/// --chain-storage: f32, f16, r11g11b10 or rgba8.
+/// --chain-storage: f32, f16, r11g11b10 or rgba8 (as --storage).
 Storage parse_chain_storage(const std::string& s);
 
 }  // namespace bloomref

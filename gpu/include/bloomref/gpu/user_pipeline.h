@@ -95,6 +95,8 @@ FinalTarget parse_final_target(const std::string& s);
 /// f16 for the half formats (and the packed R11F_G11F_B10F, whose values f16 holds exactly),
 /// f32 for RGBA32F, rgba8 for RGBA8: the storage the oracle must be run with.
 Storage storage_of(TargetFormat f);
+/// The target format that stores as `s` does.
+TargetFormat target_format_of(Storage s);
 
 /// One shader's text and the file it came from (named in every error about it).
 struct ShaderSource {
