@@ -306,6 +306,11 @@ UserPipelineOptions options_for(const BloomParams& params) {
         "the learnopengl preset runs the gaussian method (ping-pong blur passes); "
         "--method " +
         to_string(params.method) + " has no such passes");
+  if (params.storage == Storage::rgba8)
+    throw ParamError("--storage rgba8: the tutorial's final pass draws the composite, the tone "
+                     "map and the gamma at once, so it stores none of them in 8 bits as "
+                     "bloomref's stages would be; its 8-bit window is judged with "
+                     "--final-target rgba8");
   UserPipelineOptions opt;
   opt.format = target_format_of(params.storage);
   opt.passes = params.passes;
@@ -361,10 +366,11 @@ class LearnOpenGLHost {
     run_.trace.timings.emplace_back(name, ms);
   }
 
-  Texture upload(const Image& img) const {
-    if (opt_.rows != RowOrder::flipped) return Texture(w_, h_, format_, img.data());
+  Texture upload(const Image& img, GLenum format = 0) const {
+    if (!format) format = format_;
+    if (opt_.rows != RowOrder::flipped) return Texture(w_, h_, format, img.data());
     const Image f = flipped_rows(img.cview());
-    return Texture(w_, h_, format_, f.data());
+    return Texture(w_, h_, format, f.data());
   }
 
   Image read_back(const Texture& t) const {
@@ -390,9 +396,15 @@ class LearnOpenGLHost {
     if (opt_.nonfinite == NonFinite::error && run_.trace.nonfinite.total() > 0)
       throw ParamError("the scene holds " + std::to_string(run_.trace.nonfinite.total()) +
                        " NaN or infinite values, refused under --nonfinite error");
-    Image input = sanitized_;
-    store(input.view(), storage_of(opt_.format), opt_.half_rounding, opt_.threads);
-    scene_tex_ = upload(input);
+    // The tutorial's MRT form computes the bright image from the colour it shades, before its
+    // target stores it: that pass reads the scene unrounded (RGBA32F) and writes the stored one.
+    if (prog_.bright && prog_.bright->has_output(1)) {
+      scene_tex_ = upload(sanitized_, GL_RGBA32F);
+    } else {
+      Image input = sanitized_;
+      store(input.view(), storage_of(opt_.format), opt_.half_rounding, opt_.threads);
+      scene_tex_ = upload(input);
+    }
     sample(scene_tex_);
     bright_tex_ = target();
     ctx_.check("uploading the scene");

@@ -11,12 +11,17 @@ target, as blooms drawn into R11F_G11F_B10F or LDR targets store them.
   mip methods, and the engine presets with their scene and composite targets so stored); the
   Vulkan path's own pipeline refuses them (exit 2), the presets' passes run them.
 - check: a capture whose stages are f16 judged as 8-bit (and the other way round) fails at its
-  first stage, also with only the last pass and the output captured.
+  first stage, also with only the last pass and the output captured; packed judged as f16 fails
+  named, f16 judged as packed (finer than declared) passes.
+- The tutorial's layout (check --shaders learnopengl) runs a user's correct shaders with packed
+  targets and passes; it refuses 8-bit ones (its final pass stores no composite), as the
+  article's layout does.
 The GL and Vulkan cases skip without a device (exit 3) unless BLOOMREF_REQUIRE_GL=1 /
 BLOOMREF_REQUIRE_VULKAN=1.
 """
 import json
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -199,3 +204,25 @@ def test_captures_pass_as_stored_and_fail_as_another_storage(tmp_path):
     # Half stages judged as packed floats are finer than the packed format's rounding: a device
     # that stores more precisely than declared is not wrong.
     assert judged(tmp_path, half, None, "16-as-11", "--storage", "r11g11b10")["verdict"] == "PASS"
+
+
+SHADERS = Path(__file__).resolve().parents[2] / "data" / "bugs" / "shaders"
+
+
+@pytest.mark.parametrize("storage", ["f16", "r11g11b10"])
+def test_the_tutorials_layout_runs_a_users_shaders_with_packed_targets(tmp_path, storage):
+    """The tutorial's scene pass (MRT) computes its bright image from the colour before its
+    target stores it: with packed targets, whose rounding (1/64) moves texels across the
+    threshold, the user's correct shaders still pass. 8-bit targets are refused: the final pass
+    stores no composite for them to clamp."""
+    shaders = ["--shaders", "learnopengl", "--bright-fs", str(SHADERS / "bright.fs"),
+               "--blur-fs", str(SHADERS / "blur.fs"), "--final-fs", str(SHADERS / "final.fs")]
+    code, out, err = run(["check", "--scene", "demo", "--size", SIZE, *shaders, "--storage",
+                          storage, "--json", "r.json"], tmp_path)
+    gl_or_skip(code, err)
+    assert code == 0, out + err
+    item = json.loads((tmp_path / "r.json").read_text())["items"][0]
+    assert item["verdict"] in ("PASS", "WARN") and item["first_divergent_stage"] is None, out
+    code, out, err = run(["check", "--scene", "demo", "--size", SIZE, *shaders, "--storage",
+                          "rgba8"], tmp_path)
+    assert code == 2 and "--final-target rgba8" in err, out + err
