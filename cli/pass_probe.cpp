@@ -53,7 +53,7 @@ nlohmann::ordered_json pass_probe(const BloomParams& params, const std::string& 
   eo.keep_all = true;
   const StageTrace cpu = execute(plan, scene.cview(), eo);
   const Image& reference = stage(cpu, "blur.1")->image;
-  const double texel_bytes = p.storage == Storage::f32 ? 16.0 : 8.0;
+  const double texel_bytes = p.storage == Storage::f32 ? 16.0 : p.storage == Storage::f16 ? 8.0 : 4.0;
   const double bytes = 2.0 * texel_bytes * double(width) * double(height);
 
   struct Api {

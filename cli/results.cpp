@@ -171,7 +171,9 @@ std::string carried_line(const ordered_json& stage) {
     for (const std::string& n : names) stages += (stages.empty() ? "" : ", ") + n;
     stages += " (not captured)";
   }
-  return fmt("%.0f%% of its bound is what ", 100 * num(c, "share_of_bound")) + stages + " may carry";
+  // Rounded down: a share short of all of it is not called all of it.
+  return fmt("%.0f%% of its bound is what ", std::floor(100 * num(c, "share_of_bound"))) + stages +
+         " may carry";
 }
 
 std::string weak_line(const ordered_json& s) {

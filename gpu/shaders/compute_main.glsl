@@ -1,6 +1,6 @@
 // Entry point of a stage run as a compute shader: one invocation per texel, 8x8 work groups,
 // frag_coord = (x + 0.5, y + 0.5) as a fragment would see it; results go to images whose
-// format (STORAGE_FORMAT: rgba32f or rgba16f) is the stage's storage. A dispatch covers the
+// format (STORAGE_FORMAT: rgba32f, rgba16f, r11f_g11f_b10f or rgba8) is the stage's storage. A dispatch covers the
 // texels from u_origin on (0, 0 unless the adaptive plan dispatches one rectangle at a time).
 layout(local_size_x = 8, local_size_y = 8) in;
 uniform ivec2 u_origin;

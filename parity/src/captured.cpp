@@ -420,18 +420,22 @@ void Comparison::band_captured(int y0, int y1, StageTerms& t, Tally& iso, Tally&
   override_rows(over, bound, n);
   override_rows(over, e, n);
   if (kept.bound) put_rows(*kept.bound, y0, bound, n);
-  if (inherited)
+  if (inherited) {
+    // The carried part as judged: a profile's override scales it with the rest of the bound.
+    const double scale = over ? over->scale : 1.0;
     for (std::size_t i = 0; i < values; ++i)
       if (i % kChannels != 3 && std::isfinite(bound[i]) && std::isfinite(inherited[i]))
-        es.carried[i % kChannels] += inherited[i], es.judged[i % kChannels] += bound[i];
+        es.carried[i % kChannels] += scale * inherited[i], es.judged[i % kChannels] += bound[i];
+  }
   // The gates measure the error beyond rounding: the stage's own (its storage and arithmetic
-  // terms, scaled as an override scales the bound) and the capture's codes; with f16 storage,
-  // also what stages without capture carry, which holds their roundings (llvmpipe's toward zero
-  // is biased: half an ULP a stage on average, as systematic as the offsets the gates look for).
+  // terms, scaled as an override scales the bound) and the capture's codes; with f16 (or
+  // packed, or 8-bit) storage, also what stages without capture carry, which holds their
+  // roundings (llvmpipe's toward zero is biased: half an ULP a stage on average, as systematic
+  // as the offsets the gates look for).
   if (over && over->scale != 1.0)
     for (std::size_t i = 0; i < values; ++i) rounding[i] = static_cast<float>(rounding[i] * over->scale);
   if (codes) add_rows(rounding, q, n);
-  const float* slack = p_.storage == Storage::f16 ? inherited : nullptr;
+  const float* slack = p_.storage != Storage::f32 ? inherited : nullptr;
   float *up, *down;
   deviation_band(y0, y1, up, down);
   energy_band(y0, y1, true, oracle, full, bound, rounding, inherited, e, up, down, es);

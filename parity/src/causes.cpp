@@ -1257,7 +1257,8 @@ std::vector<Hypothesis> hypotheses(const CauseContext& ctx, const StageSpec& tar
     h->f16 = true;
     h->detail = "--storage f16 declares half-float targets";
   }
-  if (want("rgba8-storage") && stored_as(unorm8_holds))
+  // Not where every stage is specified so (it is no change there).
+  if (want("rgba8-storage") && p.storage != Storage::rgba8 && stored_as(unorm8_holds))
     add("rgba8-storage", "stages stored in 8-bit targets (RGBA8: clamped to [0, 1], 255ths)")->rgba8 =
         true;
   // The scene's texture in the format matters only to a bright pass recomputed here.

@@ -193,6 +193,15 @@ StageTerms with_oracle(const StageSpec& spec, const std::vector<ConstImageView>&
   return t;
 }
 
+// Whether a stage reading `in` reads an 8-bit stage (the scene, a pass, a level), whose
+// lookups may be filtered in 8-bit fixed point.
+bool reads_8bit(const Plan& plan, const std::vector<std::string>& in) {
+  for (const std::string& n : in)
+    if (const StageSpec* s = find_stage(plan, n); s && stage_storage(plan.params, *s) == Storage::rgba8)
+      return true;
+  return false;
+}
+
 std::vector<ConstImageView> isolated_inputs(const std::vector<std::string>& in,
                                             const TermInputs& at) {
   std::vector<ConstImageView> cin;
@@ -251,7 +260,9 @@ StageTerms composite_terms(const StageSpec& spec, const std::vector<std::string>
   const std::vector<ConstImageView> cin = isolated_inputs(in, at);
   StageTerms t = with_oracle(spec, cin, at);
   const int w = t.oracle.width();
-  t.bound = composite_bounds(cin[0], cin[1], t.oracle.cview(), strength, at.ctx);
+  BoundContext ctx = at.ctx;
+  ctx.unorm8_reads = reads_8bit(at.plan, in);
+  t.bound = composite_bounds(cin[0], cin[1], t.oracle.cview(), strength, ctx);
   const BoundRows e0 = at.end_to_end(in[0]), e1 = at.end_to_end(in[1]);
   t.end_to_end = [=](int y0, int y1, const float* b, float* out) {
     BandScratch& s = band_scratch();
@@ -281,7 +292,9 @@ StageTerms blur_terms(const StageSpec& spec, const std::vector<std::string>& in,
   const Kernel& kernel = kernel_for(at.plan.params.kernel);
   const ConstImageView src = at.isolated(in[0]);
   StageTerms t = with_oracle(spec, {src}, at);
-  t.bound = blur_bounds(src, t.oracle.cview(), spec.axis, kernel, at.ctx);
+  BoundContext ctx = at.ctx;
+  ctx.unorm8_reads = reads_8bit(at.plan, in);
+  t.bound = blur_bounds(src, t.oracle.cview(), spec.axis, kernel, ctx);
   const int w = src.width;
   auto e = std::make_shared<BlurPropagation>(at.end_to_end(in[0]).image->cview(), spec.axis, kernel);
   t.end_to_end = [e, w](int y0, int y1, const float* b, float* out) {
@@ -310,9 +323,7 @@ StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in,
   // Lookups of a stage stored in 8 bits (levels, or the scene or bright image the first
   // downsample reads) are filtered as 8-bit textures are.
   BoundContext ctx = at.ctx;
-  for (const std::string& n : in)
-    if (const StageSpec* s = find_stage(at.plan, n); s && stage_storage(p, *s) == Storage::rgba8)
-      ctx.unorm8_reads = true;
+  ctx.unorm8_reads = reads_8bit(at.plan, in);
   // The bound on inputs `a` with errors `e` (null: none) into `out`.
   auto bounds = [&](const std::vector<ConstImageView>& a, ConstImageView out,
                     const std::vector<const Image*>& e) -> std::unique_ptr<StageBounds> {

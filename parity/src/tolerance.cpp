@@ -214,6 +214,13 @@ class BlurBounds : public StageBounds {
     const bool hz = axis == Axis::horizontal;
     delta_ = coordinate_error(hz ? src.width : src.height, *ctx.profile) +
              coordinate_error(hz ? src.height : src.width, *ctx.profile);
+    // Each tap of an 8-bit source may be filtered in 8-bit fixed point: per unit of its weight.
+    if (ctx.unorm8_reads) {
+      double total = 0;
+      for (std::size_t i = 0; i < k.weights_f64.size(); ++i)
+        total += (i == 0 ? 1 : 2) * std::fabs(k.weights_f64[i]);
+      read8_ = unorm8_read_term * total;
+    }
   }
 
   void rows(int y0, int y1, float* bound, float* rounding) const override {
@@ -280,13 +287,13 @@ class BlurBounds : public StageBounds {
                  float* bound, float* rounding) const {
     const double U = ctx_.profile->unit_roundoff;  // one operation's rounding
     const double filter = (3 + 2 * taps_) * U, denormal = denormal_floor(*ctx_.profile);
-    const double delta = delta_;
+    const double delta = delta_, read8 = read8_;
     const Storage st = ctx_.storage;
     const DeviceProfile& p = *ctx_.profile;
     if (bound)
       for (std::size_t i = 0; i < n; ++i) {
         const double v2 = F32 ? 0.0 : storage_term(o[i], st, p);
-        bound[i] = static_cast<float>(0.0 + delta * range[i] + filter * magnitude[i] + v2 + denormal + 0.0);
+        bound[i] = static_cast<float>(0.0 + delta * range[i] + filter * magnitude[i] + v2 + denormal + read8);
       }
     if (rounding)
       for (std::size_t i = 0; i < n; ++i) {
@@ -299,14 +306,14 @@ class BlurBounds : public StageBounds {
   // (2 per tap): (3 + 2 T) u |t|.
   Values values(float range, float magnitude, float oracle) const {
     const double U = ctx_.profile->unit_roundoff;  // one operation's rounding
-    return Values{delta_ * range, (3 + 2 * taps_) * U * magnitude,
+    return Values{delta_ * range + read8_, (3 + 2 * taps_) * U * magnitude,
                   storage_term(oracle, ctx_.storage, *ctx_.profile), denormal_floor(*ctx_.profile), 0};
   }
 
   ConstImageView src_, oracle_;
   BoundContext ctx_;
   int taps_;
-  double delta_ = 0;
+  double delta_ = 0, read8_ = 0;  // read8_: 8-bit filtering over the taps
   std::shared_ptr<const BlurTaps> bases_;
 };
 
@@ -325,16 +332,20 @@ std::unique_ptr<StageBounds> composite_bounds(ConstImageView scene, ConstImageVi
   // coordinate_error, the rounding of s * n - 0.5 and the weight quantum.
   const double dx = ctx.interpolated_reads ? coordinate_error(scene.width, *ctx.profile) : 0.0;
   const double dy = ctx.interpolated_reads ? coordinate_error(scene.height, *ctx.profile) : 0.0;
+  // 8-bit inputs may be filtered in 8-bit fixed point, and an 8-bit composite may be a blend
+  // into the scene's target (Bevy's): the blend unit's 8-bit arithmetic.
+  const double eight = (ctx.unorm8_reads ? unorm8_read_term * (1 + std::fabs(strength)) : 0.0) +
+                       (ctx.storage == Storage::rgba8 ? unorm8_blend_term : 0.0);
   return make_bounds(
       {"product and sum rounding", "storage", "denormal flush",
-       "interpolated coordinates (x neighbour difference)"},
+       "interpolated coordinates (x neighbour difference), 8-bit lookups and blend"},
       [=](int x, int y, int c) {
         const double s = scene.pixel(x, y)[c], b = bloom.pixel(x, y)[c];
-        double reads = 0.0;
+        double reads = eight;
         if (dx > 0 || dy > 0) {
           const auto [sx, sy] = neighbour_steps(scene, x, y, c);
           const auto [bx, by] = neighbour_steps(bloom, x, y, c);
-          reads = dx * (sx + std::fabs(strength) * bx) + dy * (sy + std::fabs(strength) * by);
+          reads += dx * (sx + std::fabs(strength) * bx) + dy * (sy + std::fabs(strength) * by);
         }
         return Values{2 * U * (std::fabs(s) + std::fabs(strength * b)),
                       storage_term(oracle.pixel(x, y)[c], ctx.storage, *ctx.profile),

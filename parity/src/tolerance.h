@@ -143,9 +143,10 @@ struct BoundContext {
   int threads;
   bool direct_exp = false;          // CompareOptions::direct_exp_tonemap
   bool interpolated_reads = false;  // CompareOptions::interpolated_reads
-  /// The stage's lookups read 8-bit normalised levels (--chain-storage rgba8): each filtered
-  /// lookup may be off by unorm8_read_term (a filter in 8-bit fixed point), and a stage
-  /// blended into such a level by unorm8_blend_term (the blend unit's 8-bit arithmetic).
+  /// The stage's lookups read an 8-bit normalised stage (--storage or --chain-storage rgba8):
+  /// each filtered lookup may be off by unorm8_read_term (a filter in 8-bit fixed point), and
+  /// a stage blended into such a target by unorm8_blend_term (the blend unit's 8-bit
+  /// arithmetic).
   bool unorm8_reads = false;
 };
 

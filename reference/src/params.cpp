@@ -100,6 +100,10 @@ void require(bool ok, const std::string& message) {
 void validate(const BloomParams& p) {
   require(p.levels >= 1 && p.levels <= 16,
           "--levels must be in [1, 16], got " + std::to_string(p.levels));
+  require(p.storage != Storage::r11g11b10 || p.nonfinite != NonFinite::propagate,
+          "--nonfinite propagate keeps NaN and Inf in the scene, which an R11F_G11F_B10F target "
+          "holds as the device chooses (llvmpipe writes NaN as 0): give --nonfinite zero or "
+          "clamp with --storage r11g11b10");
   require(p.first_level_height >= 0 && p.first_level_height <= 16384,
           "--first-level-height must be in [0, 16384] (0 = half the image), got " +
               std::to_string(p.first_level_height));

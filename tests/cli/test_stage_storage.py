@@ -126,11 +126,14 @@ def test_gaussian_with_every_stage_stored_equals_numpy(storage, seed):
 @pytest.mark.parametrize("options", [["--method", "gaussian", "--threshold", "0.5"],
                                      ["--method", "gaussian", "--kernel", "linear5",
                                       "--threshold", "0.3"],
+                                     ["--method", "gaussian", "--gl-shaders", "compute",
+                                      "--threshold", "0.5"],
                                      ["--method", "mip", "--threshold", "0.5"],
                                      ["--preset", "bevy"],
                                      ["--preset", "unity-urp", "--threshold", "0.5"],
                                      ["--preset", "threejs-unrealbloompass"]],
-                         ids=["gaussian", "linear5", "mip", "bevy", "unity-urp", "threejs"])
+                         ids=["gaussian", "linear5", "compute", "mip", "bevy", "unity-urp",
+                              "threejs"])
 def test_gl_with_every_stage_stored_passes_compare(tmp_path, storage, options):
     code, out, err = run(["compare", "--scene", "demo", "--size", SIZE, *options, "--storage",
                           storage, "--json", "c.json"], tmp_path)
@@ -139,6 +142,15 @@ def test_gl_with_every_stage_stored_passes_compare(tmp_path, storage, options):
     stages = json.loads((tmp_path / "c.json").read_text())["stages"]
     # The device's stages are its own stores: somewhere not the oracle's values exactly.
     assert max(s["isolated"]["max_abs"] for s in stages) > 0
+
+
+def test_packed_storage_refuses_to_propagate_nan(tmp_path):
+    """R11F_G11F_B10F holds NaN as the device chooses (llvmpipe: 0): kept NaN would be judged
+    against a value no device promises."""
+    code, out, err = run(["run", "--scene", "demo", "--size", "64x48", "--storage", "r11g11b10",
+                          "--nonfinite", "propagate", "-o", "x.exr"], tmp_path)
+    assert code == 2 and "--nonfinite zero or clamp" in err, out + err
+    assert not (tmp_path / "x.exr").exists()
 
 
 def test_the_articles_fused_final_pass_refuses_8bit_storage(tmp_path):

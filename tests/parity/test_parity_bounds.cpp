@@ -184,6 +184,38 @@ TEST_CASE("blur: coordinate term from the local range, rounding from the magnitu
   CHECK(close(bound.pixel(0, 0)[0], (81 + 21) * u * 781 / 4070 + 0x1p-120));
 }
 
+TEST_CASE("8-bit sources: each lookup two 255ths per unit of weight, a blend three more",
+          "[parity][bounds]") {
+  const DeviceProfile p = profile_llvmpipe();
+  BoundContext eight{&p, Storage::f32, 1};
+  eight.unorm8_reads = true;
+  const Kernel& k = kernel_discrete9();
+  // A constant row, so no coordinate term of its own: the coordinate term is the 8-bit
+  // filtering alone, 2/255 times the weights' sum, (924 + 2 (792 + 495 + 220 + 66)) / 4070 = 1.
+  const Image flat = row({1, 1, 1, 1, 1, 1, 1, 1});
+  const auto b = tol::blur_bounds(flat.cview(), flat.cview(), Axis::horizontal, k, eight);
+  CHECK(close(term(b->terms(3, 0, 0), "coordinate"), 2.0 / 255));
+  Image bound(8, 1);
+  b->fill(bound);
+  CHECK(close(bound.pixel(3, 0)[0], 2.0 / 255 + 21 * u + 0x1p-120));
+  // The composite: both lookups, the bloom's weighted by the strength 0.25, 2/255 x 1.25; and
+  // stored in 8 bits (a blend into the scene's target may be), 3/255 more besides the storage
+  // term (1.5/255 at a value within [0, 1], tolerance.cpp).
+  const Image scene = row({0.5f, 0.5f}), bloom = row({0.25f, 0.25f});
+  const Image sum = row({0.5625f, 0.5625f});
+  const auto c = tol::composite_bounds(scene.cview(), bloom.cview(), sum.cview(), 0.25f, eight);
+  CHECK(close(term(c->terms(0, 0, 0), "interpolated"), 2.0 / 255 * 1.25));
+  BoundContext stored = eight;
+  stored.storage = Storage::rgba8;
+  const auto d = tol::composite_bounds(scene.cview(), bloom.cview(), sum.cview(), 0.25f, stored);
+  CHECK(close(term(d->terms(0, 0, 0), "interpolated"), 2.0 / 255 * 1.25 + 3.0 / 255));
+  CHECK(close(term(d->terms(0, 0, 0), "storage"), 1.5 / 255));
+  // Without 8-bit reads, neither.
+  const BoundContext plain{&p, Storage::f32, 1};
+  const auto e = tol::composite_bounds(scene.cview(), bloom.cview(), sum.cview(), 0.25f, plain);
+  CHECK(term(e->terms(0, 0, 0), "interpolated") == 0.0);
+}
+
 // An image of one value `background` but in short spans of some rows (at either edge too, and
 // a NaN in one), and, when `odd_row`, one row of another value: the bounds take the windows
 // that reach no span as one (window_sums.cpp), which must be what each of them is.

@@ -110,8 +110,8 @@ inline T threshold_luminance(T r, T g, T b, const LumaRule& rule) {
   return luminance(luma_encode(r, rule), luma_encode(g, rule), luma_encode(b, rule), w);
 }
 
-/// The largest value a stage stores: 65504 for f16, kRangeGuard (2^120) for f32; what
-/// `clamp` maps +Inf to.
+/// The largest value a stage stores: 65504 for f16, 65024 for r11g11b10, 1 for rgba8,
+/// kRangeGuard (2^120) for f32; what `clamp` maps +Inf to.
 double storage_max(Storage s);
 /// The non-finite policy as the stage shaders' sanitize_value takes it (gpu/shaders/common.glsl):
 /// 0 zero, 1 clamp, 2 propagate, 3 error.

@@ -3,8 +3,9 @@
 // Fragment path (the seeds' way): one MRT draw writes `input` and `bright`, ping-pong
 // framebuffers run the blur passes through GL_LINEAR / GL_CLAMP_TO_EDGE lookups, then one draw
 // each for composite, tonemap and output. Compute path: the same shaders' arithmetic as compute
-// shaders writing images. Storage f32 / f16 is RGBA32F / RGBA16F for every stage texture; the
-// scene is uploaded as RGBA32F (the user's floats, unrounded).
+// shaders writing images. Storage f32 / f16 / r11g11b10 / rgba8 is RGBA32F / RGBA16F /
+// R11F_G11F_B10F / RGBA8 for every stage texture; the scene is uploaded as RGBA32F (the user's
+// floats, unrounded).
 #pragma once
 
 #include <string>
