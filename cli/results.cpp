@@ -340,8 +340,9 @@ std::string junit(const ordered_json& doc) {
       if (status == "pass")
         out = fmt("largest error / bound: %.3g isolated, ", num(iso, "max_error_over_bound")) +
               fmt("%.3g end to end\n", num(field(s, "end_to_end"), "max_error_over_bound"));
-      if ((status == "pass" || status == "warn") && !carried_line(s).empty())
-        out += "judged through stages not captured: " + carried_line(s) + "\n";
+      if (const std::string carried = carried_line(s);
+          (status == "pass" || status == "warn") && !carried.empty())
+        out += "judged through stages not captured: " + carried + "\n";
       if (status == "fixed")
         out = "a known deviation (" + str(field(s, "expectation"), "reason") +
               ") now passes: remove the expectation\n";

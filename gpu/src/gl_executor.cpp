@@ -8,6 +8,7 @@
 #include "bloomref/gpu/described_pipeline.h"
 #include "bloomref/mip.h"
 #include "gl_objects.h"
+#include "user_host.h"
 
 namespace bloomref::gpu {
 namespace {
@@ -168,10 +169,7 @@ GlSchedule choose_gl_schedule(const Plan& plan, const GlOptions& opt) {
   GlSchedule s;
   s.compute = opt.shaders == ShaderKind::compute;
   const bool f16 = p.storage == Storage::f16 || opt.fault == Fault::f16_storage;
-  s.format = f16 ? GL_RGBA16F
-             : p.storage == Storage::r11g11b10 ? GL_R11F_G11F_B10F
-             : p.storage == Storage::rgba8     ? GL_RGBA8
-                                               : GL_RGBA32F;
+  s.format = host::storage_format(f16 ? Storage::f16 : p.storage);
   s.scissor = adaptive && p.method == Method::gaussian && !plan.dense_scene;
   s.may_skip_mip = adaptive && p.method == Method::mip;
   return s;

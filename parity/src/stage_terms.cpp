@@ -260,9 +260,7 @@ StageTerms composite_terms(const StageSpec& spec, const std::vector<std::string>
   const std::vector<ConstImageView> cin = isolated_inputs(in, at);
   StageTerms t = with_oracle(spec, cin, at);
   const int w = t.oracle.width();
-  BoundContext ctx = at.ctx;
-  ctx.unorm8_reads = reads_8bit(at.plan, in);
-  t.bound = composite_bounds(cin[0], cin[1], t.oracle.cview(), strength, ctx);
+  t.bound = composite_bounds(cin[0], cin[1], t.oracle.cview(), strength, at.ctx);
   const BoundRows e0 = at.end_to_end(in[0]), e1 = at.end_to_end(in[1]);
   t.end_to_end = [=](int y0, int y1, const float* b, float* out) {
     BandScratch& s = band_scratch();
@@ -292,9 +290,7 @@ StageTerms blur_terms(const StageSpec& spec, const std::vector<std::string>& in,
   const Kernel& kernel = kernel_for(at.plan.params.kernel);
   const ConstImageView src = at.isolated(in[0]);
   StageTerms t = with_oracle(spec, {src}, at);
-  BoundContext ctx = at.ctx;
-  ctx.unorm8_reads = reads_8bit(at.plan, in);
-  t.bound = blur_bounds(src, t.oracle.cview(), spec.axis, kernel, ctx);
+  t.bound = blur_bounds(src, t.oracle.cview(), spec.axis, kernel, at.ctx);
   const int w = src.width;
   auto e = std::make_shared<BlurPropagation>(at.end_to_end(in[0]).image->cview(), spec.axis, kernel);
   t.end_to_end = [e, w](int y0, int y1, const float* b, float* out) {
@@ -320,10 +316,7 @@ StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in,
   const std::vector<ConstImageView> cin = isolated_inputs(in, at);
   StageTerms t = with_oracle(spec, cin, at);
   const ConstImageView o = t.oracle.cview(), none{};
-  // Lookups of a stage stored in 8 bits (levels, or the scene or bright image the first
-  // downsample reads) are filtered as 8-bit textures are.
-  BoundContext ctx = at.ctx;
-  ctx.unorm8_reads = reads_8bit(at.plan, in);
+  const BoundContext& ctx = at.ctx;
   // The bound on inputs `a` with errors `e` (null: none) into `out`.
   auto bounds = [&](const std::vector<ConstImageView>& a, ConstImageView out,
                     const std::vector<const Image*>& e) -> std::unique_ptr<StageBounds> {
@@ -365,13 +358,17 @@ StageTerms mip_terms(const StageSpec& spec, const std::vector<std::string>& in,
 
 StageTerms stage_terms(const StageSpec& spec, const std::vector<std::string>& in,
                        const TermInputs& at) {
+  // Lookups of a stage stored in 8 bits (the scene, a pass, a level) are filtered as 8-bit
+  // textures are: every bound of a stage that reads one says so.
+  TermInputs here = at;
+  here.ctx.unorm8_reads = reads_8bit(at.plan, in);
   switch (spec.kind) {
-    case StageKind::blur: return blur_terms(spec, in, at);
+    case StageKind::blur: return blur_terms(spec, in, here);
     case StageKind::down:
     case StageKind::up:
-    case StageKind::bloom: return mip_terms(spec, in, at);
-    case StageKind::composite: return composite_terms(spec, in, at);
-    default: return point_terms(spec, in, at);
+    case StageKind::bloom: return mip_terms(spec, in, here);
+    case StageKind::composite: return composite_terms(spec, in, here);
+    default: return point_terms(spec, in, here);
   }
 }
 

@@ -12,7 +12,8 @@ target, as blooms drawn into R11F_G11F_B10F or LDR targets store them.
   Vulkan path's own pipeline refuses them (exit 2), the presets' passes run them.
 - check: a capture whose stages are f16 judged as 8-bit (and the other way round) fails at its
   first stage, also with only the last pass and the output captured; packed judged as f16 fails
-  named, f16 judged as packed (finer than declared) passes.
+  named, f16 judged as packed (finer than declared) passes; 8-bit passes 5% too strong fail at
+  the first, the weight sum fitted, and with only the last pass captured are not passed.
 - The tutorial's layout (check --shaders learnopengl) runs a user's correct shaders with packed
   targets and passes; it refuses 8-bit ones (its final pass stores no composite), as the
   article's layout does.
@@ -29,7 +30,7 @@ import pytest
 import cli_support
 from cli_support import gl_or_skip, run
 from test_first_axis import blur
-from test_variants_numpy import LUMA709, stages_of
+from test_variants_numpy import LUMA709, read_rgb, stages_of, write_exr
 
 SIZE = "203x131"
 
@@ -193,6 +194,22 @@ def judged(tmp_path, folder, keep, name, *declared):
                        tmp_path)
     assert code in (0, 1), err
     return json.loads((sub / "r.json").read_text())["items"][0]
+
+
+def test_an_8bit_blur_too_strong_fails_named_and_is_not_passed_in_part(tmp_path):
+    """Every pass from blur.3 on 5% too strong (weights summing to 1.05), written back as 8-bit
+    codes: with every stage captured it fails at blur.3 with the weight sum fitted around 1.05;
+    with only the last pass and the output captured it is not passed (the 8-bit bounds carried
+    through nine passes are too wide to see 5%: a weak verdict, which says so)."""
+    eight = dump(tmp_path, "eight", "--storage", "rgba8")
+    for k in range(3, 11):
+        f = eight / f"blur.{k}.exr"
+        write_exr(str(f), unorm8(read_rgb(str(f)) * 1.05).astype(np.float32))
+    item = judged(tmp_path, eight, None, "strong", "--storage", "rgba8")
+    cli_support.assert_fails_where_planted(item, "blur.3", ("weight-sum",), 1.05)
+    part = judged(tmp_path, eight, ["blur.10", "output"], "strong-part", "--storage", "rgba8")
+    assert part["verdict"] != "PASS", json.dumps(part["stages"])[:2000]
+    assert part["verdict"] == "FAIL" or part["sensitivity"]["weak"], json.dumps(part)[:2000]
 
 
 def test_captures_pass_as_stored_and_fail_as_another_storage(tmp_path):
